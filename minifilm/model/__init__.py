@@ -1,0 +1,1 @@
+"""The paper's networks (Omega, Phi, Psi) and losses, built from minifilm.nn."""

@@ -1,0 +1,1 @@
+"""Motion-capture data: BVH, kinematics, contacts, phases, features. Knows nothing about networks."""

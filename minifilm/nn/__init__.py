@@ -1,0 +1,1 @@
+"""The deep-learning kit, written from scratch. Knows nothing about motion."""
