@@ -1,0 +1,325 @@
+"""Forward/backward pairs: the maths of every layer, as pure functions.
+
+Each operation comes as a pair in the style of CS231n::
+
+    out, cache = f_forward(...)
+    grads = f_backward(dout, cache)
+
+``dout`` is dL/d(out) and has ``out``'s shape; the backward function returns dL/d(input) for every
+input, in the order the forward function takes them. Nothing here keeps state or changes its
+arguments. Every function works in the dtype it is given: float32 in, float32 out (no silent
+upcast to float64), so training can run in float32 and gradient checks in float64.
+
+Conventions: batch first; weights are stored ``(in, out)``, experts ``(K, in, out)`` and 1-D conv
+kernels ``(k, in_channels, filters)``; sequences are channels-last ``(B, T, C)``.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+
+
+def _require(ok: bool, message: str) -> None:
+    """Raise a ValueError with ``message`` unless ``ok`` (shape checks that name the culprit)."""
+    if not ok:
+        raise ValueError(message)
+
+
+def _sum_to_shape(grad: np.ndarray, shape: tuple) -> np.ndarray:
+    """Sum ``grad`` over the axes that numpy broadcasting added or stretched to reach ``shape``."""
+    while grad.ndim > len(shape):
+        grad = grad.sum(axis=0)
+    for axis, n in enumerate(shape):
+        if n == 1 and grad.shape[axis] != 1:
+            grad = grad.sum(axis=axis, keepdims=True)
+    return grad
+
+
+# --------------------------------------------------------------------------------------------
+# Linear
+# --------------------------------------------------------------------------------------------
+def linear_forward(x: np.ndarray, W: np.ndarray, b: np.ndarray):
+    """Affine map ``y = x W + b``.
+
+    x: (B, I) (any leading axes are allowed: (..., I)); W: (I, O); b: (O,).
+    Returns y: (..., O) and a cache for :func:`linear_backward`.
+    """
+    _require(W.ndim == 2 and x.shape[-1] == W.shape[0],
+             f"linear_forward: x has {x.shape[-1]} features (shape {x.shape}) but W is {W.shape}, "
+             "expected (in, out) with in matching x's last axis")
+    _require(b.shape == (W.shape[1],), f"linear_forward: b is {b.shape}, expected ({W.shape[1]},)")
+    return x @ W + b, (x, W)
+
+
+def linear_backward(dout: np.ndarray, cache):
+    """Gradients of :func:`linear_forward`: dx (..., I), dW (I, O), db (O,)."""
+    x, W = cache
+    x2 = x.reshape(-1, W.shape[0])       # (N, I) with N = product of the leading axes
+    d2 = dout.reshape(-1, W.shape[1])    # (N, O)
+    return dout @ W.T, x2.T @ d2, d2.sum(axis=0)
+
+
+# --------------------------------------------------------------------------------------------
+# Activations
+# --------------------------------------------------------------------------------------------
+def elu_forward(x: np.ndarray):
+    """ELU with alpha = 1 (Clevert et al. 2015): ``x`` if x > 0 else ``exp(x) - 1``. Any shape."""
+    # expm1 on min(x, 0) avoids overflow warnings for large positive x and is exact near 0.
+    out = np.where(x > 0, x, np.expm1(np.minimum(x, 0)))
+    return out, (x, out)
+
+
+def elu_backward(dout: np.ndarray, cache):
+    """dx for :func:`elu_forward`; the slope for x <= 0 is exp(x) = out + 1."""
+    x, out = cache
+    return dout * np.where(x > 0, 1, out + 1).astype(dout.dtype, copy=False)
+
+
+def relu_forward(x: np.ndarray):
+    """ReLU ``max(x, 0)``. Any shape."""
+    return np.maximum(x, 0), x
+
+
+def relu_backward(dout: np.ndarray, cache):
+    """dx for :func:`relu_forward` (slope 0 at x == 0)."""
+    x = cache
+    return dout * (x > 0)
+
+
+def softmax_forward(x: np.ndarray):
+    """Softmax over the last axis, with the row maximum subtracted so exp never overflows.
+
+    (The original runtime does not subtract the maximum; the result is the same, only safer.)
+    x: (..., K) -> y: (..., K), rows summing to 1.
+    """
+    e = np.exp(x - x.max(axis=-1, keepdims=True))
+    y = e / e.sum(axis=-1, keepdims=True)
+    return y, y
+
+
+def softmax_backward(dout: np.ndarray, cache):
+    """dx = y * (dout - sum(dout * y)) row by row (the Jacobian diag(y) - y y^T applied to dout)."""
+    y = cache
+    return y * (dout - np.sum(dout * y, axis=-1, keepdims=True))
+
+
+# --------------------------------------------------------------------------------------------
+# Layer normalisation without affine (the paper applies FiLM right after it, Eq. 3)
+# --------------------------------------------------------------------------------------------
+def layer_norm_forward(x: np.ndarray, unbiased: bool = True, eps: float = 1e-6):
+    """Layer norm over the last axis, no learnable scale or shift: ``(x - mu) / (sigma + eps)``.
+
+    This is the bracket in Eq. (3). ``sigma`` is the standard deviation of each row, unbiased
+    (divide by H - 1) or biased (divide by H). The original trains with ``unbiased=True,
+    eps=1e-6`` and runs with ``unbiased=False, eps=0.0`` (original-pipeline §10.2).
+    x: (..., H) -> y: (..., H).
+    """
+    H = x.shape[-1]
+    _require(H >= 2 or not unbiased,
+             f"layer_norm_forward: the unbiased std needs at least 2 features, x is {x.shape}")
+    mu = x.mean(axis=-1, keepdims=True)
+    xc = x - mu
+    sigma = np.sqrt(np.sum(xc * xc, axis=-1, keepdims=True) / (H - 1 if unbiased else H))
+    s = sigma + eps
+    return xc / s, (xc, sigma, s, H - 1 if unbiased else H)
+
+
+def layer_norm_backward(dout: np.ndarray, cache):
+    """dx for :func:`layer_norm_forward`.
+
+    With y = xc / s, s = sigma + eps and sigma = sqrt(sum(xc^2) / n):
+    dL/dxc = g / s - xc * sum(g * xc) / (s^2 * n * sigma), and dx = dL/dxc - mean(dL/dxc),
+    where the mean of the second term is zero because xc has zero mean.
+    A constant row (sigma = 0) gets gradient g / s - mean(g / s), the limit of the formula.
+    """
+    xc, sigma, s, n = cache
+    gs = dout / s
+    dot = np.sum(dout * xc, axis=-1, keepdims=True)
+    denom = s * s * n * sigma
+    coef = np.divide(dot, denom, out=np.zeros_like(dot), where=denom > 0)
+    return gs - gs.mean(axis=-1, keepdims=True) - xc * coef
+
+
+# --------------------------------------------------------------------------------------------
+# FiLM (Perez et al. 2018): the affine part of Eq. (3)
+# --------------------------------------------------------------------------------------------
+def film_forward(h: np.ndarray, gamma: np.ndarray, beta: np.ndarray):
+    """Feature-wise linear modulation ``gamma * h + beta`` (Eq. 3).
+
+    h, gamma, beta: (B, H), one gamma and beta per sample (the FiLM generator's output, Eq. 2).
+    gamma and beta may also be (H,) to modulate the whole batch with one style.
+    """
+    _require(np.broadcast_shapes(h.shape, gamma.shape, beta.shape) == h.shape,
+             f"film_forward: gamma {gamma.shape} and beta {beta.shape} must match h {h.shape} "
+             "(or broadcast to it)")
+    return gamma * h + beta, (h, gamma, beta.shape)
+
+
+def film_backward(dout: np.ndarray, cache):
+    """Gradients of :func:`film_forward`: dh, dgamma, dbeta (each with its input's shape)."""
+    h, gamma, beta_shape = cache
+    return (dout * gamma, _sum_to_shape(dout * h, gamma.shape), _sum_to_shape(dout, beta_shape))
+
+
+# --------------------------------------------------------------------------------------------
+# Dropout (Srivastava et al. 2014), inverted: scaled at training time, identity at test time
+# --------------------------------------------------------------------------------------------
+def dropout_forward(x: np.ndarray, p: float, rng: np.random.Generator | None = None,
+                    mask: np.ndarray | None = None, train: bool = True):
+    """Inverted dropout: keep each unit with probability 1 - p and scale kept units by 1/(1 - p).
+
+    x: any shape. mask: boolean keep-mask of x's shape (True = keep); when None it is drawn from
+    ``rng``. When ``train`` is False or ``p == 0`` this is the identity (no rng needed), so the
+    expected activation is the same in training and at run time.
+    """
+    _require(0.0 <= p < 1.0, f"dropout_forward: p must be in [0, 1), got {p}")
+    if not train or p == 0.0:
+        return x, None
+    if mask is None:
+        if rng is None:
+            raise ValueError("dropout_forward: training with p > 0 needs an rng "
+                             "(np.random.Generator) or an explicit mask")
+        mask = rng.random(x.shape) >= p
+    _require(mask.shape == x.shape and mask.dtype == np.bool_,
+             f"dropout_forward: mask must be a boolean array of shape {x.shape}, "
+             f"got {mask.dtype} {mask.shape}")
+    scale = x.dtype.type(1.0 / (1.0 - p))   # keep x's dtype
+    return x * mask * scale, (mask, scale)
+
+
+def dropout_backward(dout: np.ndarray, cache):
+    """dx for :func:`dropout_forward`: the same mask and scale applied to dout."""
+    if cache is None:
+        return dout
+    mask, scale = cache
+    return dout * mask * scale
+
+
+# --------------------------------------------------------------------------------------------
+# Mixture of experts (Sec. 4.1: Phi's weights are blended per sample by the gating output alpha)
+# --------------------------------------------------------------------------------------------
+def blend_experts(alpha: np.ndarray, W: np.ndarray, b: np.ndarray):
+    """Blend K expert layers with one set of weights: ``sum_k alpha_k W_k``, ``sum_k alpha_k b_k``.
+
+    alpha: (K,); W: (K, I, O); b: (K, O) -> W_blend (I, O), b_blend (O,). This is how the original
+    runtime evaluates a single frame (original-pipeline §10.2 step 3).
+    """
+    K, I, O = W.shape
+    _require(alpha.shape == (K,), f"blend_experts: alpha is {alpha.shape}, expected ({K},)")
+    return (alpha @ W.reshape(K, I * O)).reshape(I, O), alpha @ b
+
+
+def expert_linear_forward(x: np.ndarray, alpha: np.ndarray, W: np.ndarray, b: np.ndarray):
+    """Per-sample blend of K expert linear layers: ``y_b = x_b (sum_k a_bk W_k) + sum_k a_bk b_k``.
+
+    x: (B, I); alpha: (B, K); W: (K, I, O); b: (K, O) -> y: (B, O).
+
+    Fast form (never builds the (B, I, O) per-sample weights): since
+    ``y_b = sum_k sum_i a_bk x_bi W_kio``, put Z_b = outer(a_b, x_b) flattened to K*I numbers and
+    ``y = Z @ W.reshape(K*I, O) + alpha @ b``: one matrix product. At batch 1 the weights are
+    blended first (:func:`blend_experts`), as the original does at run time.
+    """
+    K, I, O = W.shape
+    _require(x.ndim == 2 and x.shape[1] == I,
+             f"expert_linear_forward: x is {x.shape}, expected (B, {I}) to match W {W.shape}")
+    _require(alpha.shape == (x.shape[0], K),
+             f"expert_linear_forward: alpha is {alpha.shape}, expected ({x.shape[0]}, {K})")
+    _require(b.shape == (K, O), f"expert_linear_forward: b is {b.shape}, expected ({K}, {O})")
+    if x.shape[0] == 1:
+        Wb, bb = blend_experts(alpha[0], W, b)
+        return x @ Wb + bb, (x, alpha, W, b, None)
+    Z = (alpha[:, :, None] * x[:, None, :]).reshape(-1, K * I)   # (B, K*I)
+    y = Z @ W.reshape(K * I, O) + alpha @ b                      # (B, O)
+    return y, (x, alpha, W, b, Z)
+
+
+def expert_linear_backward(dout: np.ndarray, cache):
+    """Gradients of :func:`expert_linear_forward`: dx (B, I), dalpha (B, K), dW (K, I, O), db (K, O).
+
+    Three matrix products: dZ = dout W^T, dW = Z^T dout, db = alpha^T dout; then dZ (B, K, I) is
+    contracted with alpha for dx and with x for dalpha (plus the bias path dout b^T).
+    """
+    x, alpha, W, b, Z = cache
+    K, I, O = W.shape
+    if Z is None:
+        Z = (alpha[:, :, None] * x[:, None, :]).reshape(-1, K * I)
+    dZ = (dout @ W.reshape(K * I, O).T).reshape(-1, K, I)       # (B, K, I)
+    dW = (Z.T @ dout).reshape(K, I, O)
+    db = alpha.T @ dout                                          # (K, O)
+    dx = np.matmul(alpha[:, None, :], dZ)[:, 0, :]               # (B, I) = sum_k a_bk dZ_bk
+    dalpha = np.matmul(dZ, x[:, :, None])[:, :, 0] + dout @ b.T  # (B, K)
+    return dx, dalpha, dW, db
+
+
+# --------------------------------------------------------------------------------------------
+# 1-D convolution over time and max pooling (the FiLM generator Psi, Eq. 2)
+# --------------------------------------------------------------------------------------------
+def _im2col(x: np.ndarray, k: int) -> np.ndarray:
+    """(B, T, C) -> (B*T, k*C): row (b, t) holds frames t - k//2 .. t + k//2, zero-padded.
+
+    sliding_window_view makes the windows without copying; the final reshape is the one copy.
+    """
+    B, T, C = x.shape
+    pad = k // 2
+    xp = np.pad(x, ((0, 0), (pad, pad), (0, 0)))                 # (B, T + k - 1, C)
+    windows = sliding_window_view(xp, k, axis=1)                 # (B, T, C, k)
+    return windows.transpose(0, 1, 3, 2).reshape(B * T, k * C)   # tap-major, like W (k, C, F)
+
+
+def conv1d_forward(x: np.ndarray, W: np.ndarray, b: np.ndarray):
+    """1-D convolution over time, stride 1, 'same' zero padding (cross-correlation, as in TF).
+
+    ``y[b, t, f] = sum_j sum_c x[b, t + j - k//2, c] W[j, c, f] + b[f]`` with x zero outside [0, T).
+    x: (B, T, C) channels-last; W: (k, C, F) with k odd; b: (F,) -> y: (B, T, F).
+    Vectorised as im2col + one matrix product.
+    """
+    k, C, F = W.shape
+    _require(k % 2 == 1, f"conv1d_forward: kernel size must be odd for 'same' padding, W is {W.shape}")
+    _require(x.ndim == 3 and x.shape[2] == C,
+             f"conv1d_forward: x is {x.shape}, expected (B, T, {C}) to match W {W.shape}")
+    _require(b.shape == (F,), f"conv1d_forward: b is {b.shape}, expected ({F},)")
+    B, T, _ = x.shape
+    cols = _im2col(x, k)                                         # (B*T, k*C)
+    y = (cols @ W.reshape(k * C, F) + b).reshape(B, T, F)
+    return y, (cols, x.shape, W)
+
+
+def conv1d_backward(dout: np.ndarray, cache):
+    """Gradients of :func:`conv1d_forward`: dx (B, T, C), dW (k, C, F), db (F,).
+
+    dW = cols^T dout and db = sum(dout). dx is itself a 'same' convolution, of dout with the kernel
+    flipped in time and transposed to (k, F, C): dx[t] = sum_j dout[t - j + k//2] W[j]^T.
+    """
+    cols, (B, T, C), W = cache
+    k, _, F = W.shape
+    d2 = dout.reshape(B * T, F)
+    dW = (cols.T @ d2).reshape(k, C, F)
+    db = d2.sum(axis=0)
+    W_flip = W[::-1].transpose(0, 2, 1).reshape(k * F, C)        # (k*F, C)
+    dx = (_im2col(dout, k) @ W_flip).reshape(B, T, C)
+    return dx, dW, db
+
+
+def max_pool1d_forward(x: np.ndarray):
+    """Max pooling over time with size 2 and stride 2: (B, T, C) -> (B, T // 2, C).
+
+    With odd T the last frame has no partner and is dropped (as with TF's 'valid' padding).
+    Ties pick the first frame of the pair.
+    """
+    _require(x.ndim == 3 and x.shape[1] >= 2,
+             f"max_pool1d_forward: x is {x.shape}, expected (B, T, C) with T >= 2")
+    B, T, C = x.shape
+    pairs = x[:, : 2 * (T // 2)].reshape(B, T // 2, 2, C)        # (B, T2, 2, C)
+    which = pairs.argmax(axis=2)[:, :, None, :]                  # (B, T2, 1, C) in {0, 1}
+    out = np.take_along_axis(pairs, which, axis=2)[:, :, 0, :]
+    return out, (x.shape, which)
+
+
+def max_pool1d_backward(dout: np.ndarray, cache):
+    """dx for :func:`max_pool1d_forward`: each gradient goes to the frame that won its pair."""
+    (B, T, C), which = cache
+    dpairs = np.zeros((B, T // 2, 2, C), dtype=dout.dtype)
+    np.put_along_axis(dpairs, which, dout[:, :, None, :], axis=2)
+    dx = np.zeros((B, T, C), dtype=dout.dtype)
+    dx[:, : 2 * (T // 2)] = dpairs.reshape(B, 2 * (T // 2), C)
+    return dx
