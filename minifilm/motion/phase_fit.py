@@ -1,0 +1,295 @@
+"""Sliding-window sinusoid fit behind the local phases (Sec. 4.1.4; original-pipeline §4.1-§4.4).
+
+For every frame ``k`` of a preprocessed source signal ``v`` (F,) we fit
+
+    f_k(t) = A sin(2π(F t − S)) + B
+
+to the samples of a window around ``k`` and read the phase of frame ``k`` off the fitted curve.
+The window, bounds, skip rule and neighbour-agreement ("connect") terms are the original's; the
+optimiser is not.
+
+Deviation from the original (the one place this is documented)
+---------------------------------------------------------------
+The original runs, per frame, a clock-seeded genetic algorithm (50 individuals, 10 generations) in
+absolute time ``t``. Its results cannot be reproduced. We minimise the *same* loss deterministically
+and for all frames at once:
+
+* **Local time.** Window ``k`` is written in ``τ = t − t_k``, i.e. ``f_k = A sin(2π(F τ − S')) + B``
+  with ``S' = S − F t_k`` (the same curve). The phase of frame ``k`` is then ``(−S') mod 1``.
+* **Linear for a fixed F.** ``A sin(2π(Fτ − S')) + B = c1 sin(2πFτ) + c2 cos(2πFτ) + B`` with
+  ``c1 = A cos 2πφ``, ``c2 = A sin 2πφ`` and ``φ = (−S') mod 1``. For a fixed frequency the weighted
+  least-squares problem is a 3x3 linear system, solved in closed form (Cramer's rule) for every
+  window and every frequency of a grid at once.
+* **Grid + refinement over F.** ``n_frequencies`` log-spaced frequencies in [0.25, 4] Hz; per frame
+  the best grid frequency is refined by parabolic interpolation of the loss in log F, re-solved at
+  the refined frequency, and kept only if it lowers the loss.
+* **Bounds (§4.2)**, with vmin/vmax taken over every sample the loss looks at (the data window
+  plus the P connect frames each side, 1 s at 60 fps) instead of the 0.5 s data window alone: with
+  the original's narrower range a noise-free 0.5 Hz sinusoid is not representable near its peaks
+  (the window then holds a quarter cycle whose range is a fraction of A, and B lies below it), which
+  biased F by 10-40 % in our tests. ``A >= 0`` holds by construction (A = |(c1, c2)|). If the optimal ``B`` leaves
+  ``[vmin, vmax]`` it is clipped and (c1, c2) re-solved with B fixed; if ``A`` then exceeds
+  ``vmax − vmin`` it is scaled down to the bound (a projection, not the exact constrained optimum;
+  the frequency search then prefers frequencies whose unconstrained fit is feasible).
+  The original's bound on S is not needed: S' is only defined modulo 1.
+* **Connect terms (§4.3), Jacobi style.** Sweep 0 fits the data alone (the original starts from
+  ``Fit = 0``, which pulls every first-generation fit towards zero); each further sweep adds the
+  weighted agreement with the neighbours' fitted values ``Fit[j] = f_j(t_j)`` from the previous sweep,
+  as the original does between generations.
+
+Everything else follows the original: a window of ``2P+1`` frames (31 at 60 fps, 0.5 s) shifted, not
+truncated, near the ends; connect terms ``i = 1..P`` frames outside each side with weights
+``(1 − i/P)²``, left out beyond the signal; frames whose window has ``Σ|v| < 1e-3`` are skipped
+(all parameters 0). The denominator of the original's loss only rescales it and is omitted.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["SinusoidFit", "fit_sinusoids", "overflow_window", "window_half_width"]
+
+
+@dataclass
+class SinusoidFit:
+    """Per-frame sinusoid parameters, all (F,) float64, in local time τ = t − t_k.
+
+    amplitude: A >= 0 (units of the signal).
+    frequency: F in Hz; 0 for skipped frames.
+    phase:     φ = (−S') mod 1 = (F t_k − S) mod 1, in [0, 1), cycles.
+    offset:    B (units of the signal).
+    fit:       f_k(t_k) = A sin 2πφ + B, the fitted curve's value at its own frame (the original's Fit).
+    skipped:   bool, frames whose window was (almost) all zeros.
+    """
+
+    amplitude: np.ndarray
+    frequency: np.ndarray
+    phase: np.ndarray
+    offset: np.ndarray
+    fit: np.ndarray
+    skipped: np.ndarray
+
+    def curve(self, k: int, t_offset: np.ndarray) -> np.ndarray:
+        """Frame k's fitted sinusoid at times ``t_k + t_offset`` (seconds)."""
+        return self.amplitude[k] * np.sin(2 * np.pi * (self.frequency[k] * t_offset + self.phase[k])) + self.offset[k]
+
+
+def window_half_width(seconds: float, fps: float) -> int:
+    """Half width P in frames of a window of ``seconds`` (2P+1 frames; 0.5 s at 60 fps -> 15)."""
+    return max(1, int(np.floor(seconds * fps / 2 + 0.5)))
+
+
+def overflow_window(k: np.ndarray, half: np.ndarray, n: int):
+    """First and last frame of windows ``[k-half, k+half]`` shifted (not cut) to stay inside [0, n-1].
+
+    The original's ``GatherByOverflowWindow``: a window that runs off one end is moved inwards so it
+    keeps ``2*half+1`` frames (fewer only when the signal is shorter). Returns (lo, hi) inclusive.
+    """
+    k = np.asarray(k)
+    half = np.asarray(half)
+    lo = np.maximum(k - half, 0)
+    hi = np.minimum(k + half, n - 1)
+    lo2 = np.maximum(lo - ((k + half) - hi), 0)
+    hi2 = np.minimum(hi + (lo - (k - half)), n - 1)
+    return lo2, hi2
+
+
+def _basis(offsets: np.ndarray, freqs: np.ndarray, fps: float):
+    """sin and cos of 2πFτ; offsets in frames (..., E, 1) or (..., E), freqs broadcastable."""
+    angle = (2 * np.pi / fps) * offsets * freqs
+    return np.sin(angle), np.cos(angle)
+
+
+def _solve_bounded(g, r, yy, vmin, vmax):
+    """Weighted least squares for (c1, c2, B) with the §4.2 bounds, elementwise over any batch shape.
+
+    g = (gss, gsc, gsb, gcc, gcb, gbb): the symmetric normal matrix Σw b bᵀ for b = (sin, cos, 1);
+    r = (rs, rc, rb) = Σ w y b; yy = Σ w y². Returns c1, c2, B and the weighted squared error.
+    """
+    a, b, c, d, e, f = g
+    rs, rc, rb = r
+    ridge = 1e-10 * (a + d + f) + 1e-300  # keeps degenerate windows (e.g. 1-2 frames) finite
+    a, d, f = a + ridge, d + ridge, f + ridge
+    A11, A12, A13 = d * f - e * e, c * e - b * f, b * e - c * d
+    A22, A23, A33 = a * f - c * c, b * c - a * e, a * d - b * b
+    det = a * A11 + b * A12 + c * A13
+    c1 = (A11 * rs + A12 * rc + A13 * rb) / det
+    c2 = (A12 * rs + A22 * rc + A23 * rb) / det
+    B = (A13 * rs + A23 * rc + A33 * rb) / det
+    # Offset bound: clip B, then the best (c1, c2) for that fixed B (a 2x2 system).
+    out = (B < vmin) | (B > vmax)
+    if np.any(out):
+        Bc = np.clip(B, vmin, vmax)
+        det2 = A33
+        s, t = rs - c * Bc, rc - e * Bc
+        c1 = np.where(out, (d * s - b * t) / det2, c1)
+        c2 = np.where(out, (a * t - b * s) / det2, c2)
+        B = Bc
+    # Amplitude bound: project (c1, c2) back onto the disc of radius vmax - vmin.
+    amp = np.hypot(c1, c2)
+    amax = vmax - vmin
+    scale = np.where(amp > amax, amax / np.maximum(amp, 1e-300), 1.0)
+    c1, c2 = c1 * scale, c2 * scale
+    quad = a * c1 * c1 + d * c2 * c2 + f * B * B + 2 * (b * c1 * c2 + c * c1 * B + e * c2 * B)
+    sse = yy - 2 * (c1 * rs + c2 * rc + B * rb) + quad
+    return c1, c2, B, sse
+
+
+def _normal_equations(offsets, weights, targets, freqs, fps):
+    """Normal-equation terms for windows at frequencies ``freqs``.
+
+    offsets (n' or 1, E) frames relative to the fitted frame, weights (n' or 1, E), targets (n, E),
+    freqs (G,) for a grid shared by all windows, or (n, 1) one frequency per window.
+    Returns g (6 arrays), r (3 arrays), yy with batch shape (n, G) or (n, 1).
+    """
+    s, c = _basis(offsets[..., None], freqs if freqs.ndim == 1 else freqs[:, None, :], fps)  # (n'|1, E, G)
+    w = weights[..., None]
+    ws, wc = w * s, w * c
+    g = (np.sum(ws * s, axis=-2), np.sum(ws * c, axis=-2), np.sum(ws, axis=-2),
+         np.sum(wc * c, axis=-2), np.sum(wc, axis=-2), np.sum(w, axis=-2) + 0 * s[..., 0, :])
+    wy = weights * targets  # (n, E)
+    if s.shape[0] == 1 and targets.shape[0] != 1:
+        rs, rc = wy @ s[0], wy @ c[0]                       # BLAS: (n, E) @ (E, G)
+    else:
+        rs, rc = np.einsum("ne,neg->ng", wy, s), np.einsum("ne,neg->ng", wy, c)
+    rb = np.sum(wy, axis=-1)[:, None]
+    yy = np.sum(wy * targets, axis=-1)[:, None]
+    return g, (rs, rc, rb), yy
+
+
+@dataclass
+class _Windows:
+    """Extended windows (data window plus P connect frames each side) for a block of frames."""
+
+    frames: np.ndarray   # (n,) frame indices k
+    index: np.ndarray    # (n, E) clipped frame index j of each slot
+    offsets: np.ndarray  # (n' , E) j - k (n' = 1 when shared by all frames of the block)
+    w_data: np.ndarray   # (n', E) 1 on the data window, 0 elsewhere
+    w_conn: np.ndarray   # (n', E) (1 - i/P)^2 on connect slots inside the signal, 0 elsewhere
+
+
+def _windows(frames: np.ndarray, n: int, half: int, shared: bool) -> _Windows:
+    length = min(2 * half + 1, n)
+    lo, _ = overflow_window(frames, np.full_like(frames, half), n)
+    lo = np.minimum(lo, n - length)
+    slot = np.arange(length + 2 * half)                       # (E,)
+    j = lo[:, None] - half + slot                             # (n, E) unclipped
+    inside = (j >= 0) & (j < n)
+    is_data = (slot >= half) & (slot < half + length)
+    i = np.where(slot < half, half - slot, slot - (half + length) + 1)  # connect distance 1..P
+    w_conn_slot = np.where(is_data, 0.0, (1.0 - i / half) ** 2)
+    w_data = np.broadcast_to(is_data.astype(float), j.shape) * inside
+    w_conn = w_conn_slot * inside
+    offsets = (j - frames[:, None]).astype(float)
+    if shared:
+        offsets, w_data, w_conn = offsets[:1], w_data[:1], w_conn[:1]
+    return _Windows(frames, np.clip(j, 0, n - 1), offsets, np.asarray(w_data), np.asarray(w_conn))
+
+
+def _fit_block(win: _Windows, values, prev_fit, freqs, fps, vmin, vmax, use_connect):
+    """Best (c1, c2, B, F) for one block of frames: grid search, parabolic refinement, re-solve."""
+    weights = win.w_data + (win.w_conn if use_connect else 0.0)
+    targets = np.where(win.w_data > 0, values[win.index], prev_fit[win.index] if use_connect else 0.0)
+    g, r, yy = _normal_equations(win.offsets, weights, targets, freqs, fps)
+    lo_b, hi_b = vmin[:, None], vmax[:, None]
+    c1, c2, B, sse = _solve_bounded(g, r, yy, lo_b, hi_b)
+    n, G = sse.shape
+    rows = np.arange(n)
+    best = np.argmin(sse, axis=1)
+    # Parabolic interpolation of the loss in log F around the best grid point.
+    logf = np.log(freqs)
+    step = logf[1] - logf[0] if G > 1 else 0.0
+    inner = (best > 0) & (best < G - 1)
+    bm, bp = np.clip(best - 1, 0, G - 1), np.clip(best + 1, 0, G - 1)
+    l0, l1, l2 = sse[rows, bm], sse[rows, best], sse[rows, bp]
+    curv = l0 - 2 * l1 + l2
+    delta = np.where(inner & (curv > 0), 0.5 * (l0 - l2) / np.where(curv > 0, curv, 1.0), 0.0)
+    f_ref = np.exp(logf[best] + np.clip(delta, -1, 1) * step)[:, None]  # (n, 1)
+    offsets = np.broadcast_to(win.offsets, targets.shape)
+    wts = np.broadcast_to(weights, targets.shape)
+    g2, r2, yy2 = _normal_equations(offsets, wts, targets, f_ref, fps)
+    d1, d2, dB, sse2 = (x[:, 0] for x in _solve_bounded(g2, r2, yy2, lo_b, hi_b))
+    better = sse2 < l1
+    pick = lambda refined, grid: np.where(better, refined, grid[rows, best])
+    return pick(d1, c1), pick(d2, c2), pick(dB, B), np.where(better, f_ref[:, 0], freqs[best])
+
+
+def _range_reduce(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, op) -> np.ndarray:
+    """``op.reduce(x[lo[k]:hi[k]+1])`` for every k at once (sparse table, O(F log F)).
+
+    op is np.minimum or np.maximum; lo <= hi are inclusive frame indices.
+    """
+    levels = [x]
+    while (1 << len(levels)) <= x.size:
+        prev, h = levels[-1], 1 << (len(levels) - 1)
+        levels.append(op(prev[:-h], prev[h:]))
+    span = hi - lo + 1
+    lev = np.floor(np.log2(span)).astype(int)
+    out = np.empty(lo.shape)
+    for l in np.unique(lev):
+        sel = lev == l
+        out[sel] = op(levels[l][lo[sel]], levels[l][hi[sel] - (1 << l) + 1])
+    return out
+
+
+def fit_sinusoids(signal, fps: float, window_seconds: float = 0.5, min_frequency: float = 0.25,
+                  max_frequency: float = 4.0, n_frequencies: int = 64, sweeps: int = 4,
+                  skip_threshold: float = 1e-3, block: int = 2048) -> SinusoidFit:
+    """Fit ``A sin(2π(F t − S)) + B`` around every frame of ``signal`` (deterministic, vectorised).
+
+    Args:
+        signal:  (F,) preprocessed source function (original-pipeline §3.7).
+        fps:     frames per second of the signal.
+        window_seconds: data window, 2P+1 frames with P = round(window_seconds*fps/2) (31 at 60 fps).
+        min_frequency, max_frequency: bounds on F in Hz (§4.2: 1/MaxFrequency and MaxFrequency).
+        n_frequencies: size of the log-spaced frequency grid.
+        sweeps:  Jacobi sweeps; the first fits the data alone, the others add the connect terms.
+        skip_threshold: frames whose data window has Σ|v| below this keep all parameters 0.
+        block:   frames processed at once (bounds memory at about block * 3 * n_frequencies floats).
+    Returns:
+        SinusoidFit with (F,) arrays.
+    """
+    v = np.asarray(signal, dtype=np.float64)
+    if v.ndim != 1 or v.size == 0:
+        raise ValueError(f"fit_sinusoids: signal must be a non-empty 1-D array, got shape {v.shape}")
+    if not np.all(np.isfinite(v)):
+        raise ValueError("fit_sinusoids: signal contains NaN or inf")
+    if not (fps > 0 and 0 < min_frequency < max_frequency):
+        raise ValueError(f"fit_sinusoids: need fps > 0 and 0 < min_frequency < max_frequency, "
+                         f"got fps={fps}, frequencies=({min_frequency}, {max_frequency})")
+    n = v.size
+    half = window_half_width(window_seconds, fps)
+    length = min(2 * half + 1, n)
+    freqs = np.geomspace(min_frequency, max_frequency, n_frequencies)
+
+    # Data-window statistics for the bounds and the skip rule.
+    k = np.arange(n)
+    lo, _ = overflow_window(k, np.full(n, half), n)
+    lo = np.minimum(lo, n - length)
+    data = np.lib.stride_tricks.sliding_window_view(v, length)[lo]  # (F, L) view rows
+    skipped = np.abs(data).sum(axis=1) < skip_threshold
+    # Bounds from every sample the loss looks at (data window plus connect frames), see docstring.
+    ext_lo, ext_hi = np.maximum(lo - half, 0), np.minimum(lo + length - 1 + half, n - 1)
+    vmin, vmax = _range_reduce(v, ext_lo, ext_hi, np.minimum), _range_reduce(v, ext_lo, ext_hi, np.maximum)
+
+    # Frames whose extended window lies fully inside the signal share offsets and weights.
+    interior = (k >= 2 * half) & (k <= n - 1 - 2 * half) & (length == 2 * half + 1)
+    blocks = [(_windows(k[~interior], n, half, shared=False))] if np.any(~interior) else []
+    idx = k[interior]
+    blocks += [_windows(idx[i:i + block], n, half, shared=True) for i in range(0, idx.size, block)]
+
+    c1, c2, B, F = (np.zeros(n) for _ in range(4))
+    fit = np.zeros(n)
+    for sweep in range(max(1, sweeps)):
+        for win in blocks:
+            fr = win.frames
+            out = _fit_block(win, v, fit, freqs, fps, vmin[fr], vmax[fr], use_connect=sweep > 0)
+            c1[fr], c2[fr], B[fr], F[fr] = out
+        c1[skipped] = c2[skipped] = B[skipped] = F[skipped] = 0.0
+        fit = c2 + B  # f_k(τ = 0): sin 0 = 0, cos 0 = 1
+
+    amplitude = np.hypot(c1, c2)
+    phase = np.mod(np.arctan2(c2, c1) / (2 * np.pi), 1.0)
+    phase[(amplitude == 0) | (phase >= 1.0)] = 0.0
+    return SinusoidFit(amplitude, F, phase, B, fit, skipped)
