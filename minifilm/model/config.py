@@ -1,0 +1,104 @@
+"""Every size of the style model in one dataclass (Sec. 4.2-4.3 of the paper).
+
+``ModelConfig.paper()`` reproduces the network of the paper / the released code:
+
+    Φ  motion network   x 348 -> 512 -> 512 -> z 342, K = 8 gated experts per layer
+    Ω  gating network   phases 8 -> 32 -> 32 -> K
+    Ψ  FiLM generator   clip 240 frames x 300 features -> conv1d(256, k=25) -> pool 2
+                        -> conv1d(256, k=25) -> pool 2 -> dense 2048 -> dense 4*512
+
+``ModelConfig.small()`` keeps the same structure with tiny sizes for tests and quick training.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """Sizes and options of Ω, Φ and Ψ.
+
+    x_dim, z_dim        input / output feature sizes of Φ (Sec. 3.2)
+    phase_dim           local-phase input of Ω: 4 end effectors x (sin, cos) (Eq. 1)
+    n_experts           K, experts blended per layer of Φ
+    hidden              width of both hidden layers of Φ (= size of each FiLM vector)
+    gating_hidden       width of both hidden layers of Ω
+    clip_frames         T, frames of the style clip fed to Ψ
+    clip_channels       C, features per clip frame
+    conv_filters        filters of both conv1d layers of Ψ
+    conv_kernel         temporal kernel size (odd: 'same' padding)
+    film_dense          hidden dense width of Ψ
+    dropout             drop probability used before every layer in training (0.3 in the paper)
+    ln_unbiased, ln_eps layer-norm convention used in training: (x-μ)/(σ+eps), σ unbiased
+                        (the original training code); the released runtime uses (False, 0.0)
+    """
+
+    x_dim: int = 348
+    z_dim: int = 342
+    phase_dim: int = 8
+    n_experts: int = 8
+    hidden: int = 512
+    gating_hidden: int = 32
+    clip_frames: int = 240
+    clip_channels: int = 300
+    conv_filters: int = 256
+    conv_kernel: int = 25
+    film_dense: int = 2048
+    dropout: float = 0.3
+    ln_unbiased: bool = True
+    ln_eps: float = 1e-6
+
+    def __post_init__(self):
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.type in ("int", int) and (not isinstance(value, int) or value <= 0):
+                raise ValueError(f"ModelConfig.{f.name} must be a positive int, got {value!r}")
+        if self.conv_kernel % 2 != 1:
+            raise ValueError(f"ModelConfig.conv_kernel must be odd ('same' padding), got {self.conv_kernel}")
+        if not 0.0 <= self.dropout < 1.0:
+            raise ValueError(f"ModelConfig.dropout must be in [0, 1), got {self.dropout}")
+        if self.pooled_frames < 1:
+            raise ValueError(f"ModelConfig.clip_frames={self.clip_frames} is too short for two 2x poolings")
+
+    # ---- derived sizes -------------------------------------------------------------------
+    @property
+    def film_dim(self) -> int:
+        """Length of Ψ's output {γ1, β1, γ2, β2} (Eq. 2) = parameters per style at run time."""
+        return 4 * self.hidden
+
+    @property
+    def pooled_frames(self) -> int:
+        """Frames left after the two max-pool layers (floor division each time)."""
+        return (self.clip_frames // 2) // 2
+
+    @property
+    def flat_dim(self) -> int:
+        """Input size of Ψ's first dense layer (pooled frames x filters)."""
+        return self.pooled_frames * self.conv_filters
+
+    # ---- presets -------------------------------------------------------------------------
+    @classmethod
+    def paper(cls) -> "ModelConfig":
+        """The configuration of the paper and the released network."""
+        return cls()
+
+    @classmethod
+    def small(cls, x_dim: int = 24, z_dim: int = 20, clip_channels: int = 12, **overrides) -> "ModelConfig":
+        """A tiny configuration with the paper's structure, for tests and quick training."""
+        sizes = dict(x_dim=x_dim, z_dim=z_dim, phase_dim=8, n_experts=4, hidden=16, gating_hidden=8,
+                     clip_frames=16, clip_channels=clip_channels, conv_filters=8, conv_kernel=5,
+                     film_dense=32)
+        sizes.update(overrides)
+        return cls(**sizes)
+
+    # ---- serialisation (checkpoints store the config as JSON) ----------------------------
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "ModelConfig":
+        names = {f.name for f in fields(cls)}
+        unknown = sorted(set(d) - names)
+        if unknown:
+            raise ValueError(f"ModelConfig.from_dict: unknown field(s) {unknown}")
+        return cls(**d)

@@ -1,0 +1,107 @@
+"""Ψ, the FiLM generator (Sec. 4.2, Eq. 2): a style clip -> {γ1, β1, γ2, β2}.
+
+    y (B, T, C) -> conv1d(F filters, kernel k, 'same') -> ReLU -> max-pool 2
+                -> conv1d(F, k)                       -> ReLU -> max-pool 2
+                -> flatten (B, T//4 * F) -> dense(film_dense) -> ReLU -> dropout
+                -> dense(4 * hidden) = [γ1, β1, γ2, β2]                   (Eq. 2)
+
+Dropout sits after the hidden dense layer only, as in the original code (Conv1D_Dense); the
+convolutions have none. Flattening is time-major (frame, filter), like a TF reshape of (B, T, F).
+
+Parameter count. With the paper's sizes (T 240, C 300, F 256, k 25, dense 2048, hidden 512) this
+network has 1,920,256 + 1,638,656 + 31,459,328 + 4,196,352 = 39,214,592 parameters, which is what
+the original code builds. The paper's Table 2 reports 35,668,530 (S.M.N.); no choice of the
+architecture described in the paper gives that number, so we keep the architecture and report
+39,214,592 (see tests/test_model_params.py).
+
+Initialisation: Glorot-uniform weights, zero biases, except the output bias of the γ parts is 1,
+so that at initialisation FiLM is close to the identity (γ ≈ 1, β ≈ 0). The original starts from
+zero biases (γ ≈ 0); Eq. (2) is unchanged, only the starting point differs.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from minifilm.model.config import ModelConfig
+from minifilm.model.dropout_masks import dropout_site, dropout_site_backward
+from minifilm.model.init import glorot_uniform
+from minifilm.nn import functional as F
+from minifilm.nn.params import Parameters
+
+
+class FilmGenerator:
+    """Ψ: clip (B, T, C) -> FiLM parameters (B, 4*hidden)."""
+
+    def __init__(self, config: ModelConfig, rng: np.random.Generator, dtype=np.float32):
+        self.config = config
+        c = config
+        k, C, Fn = c.conv_kernel, c.clip_channels, c.conv_filters
+        shapes = {
+            "conv0_W": (k, C, Fn), "conv0_b": (Fn,),
+            "conv1_W": (k, Fn, Fn), "conv1_b": (Fn,),
+            "dense0_W": (c.flat_dim, c.film_dense), "dense0_b": (c.film_dense,),
+            "dense1_W": (c.film_dense, c.film_dim), "dense1_b": (c.film_dim,),
+        }
+        self.params = Parameters(shapes, dtype=dtype)
+        P = self.params.params
+        P["conv0_W"][...] = glorot_uniform(rng, shapes["conv0_W"], k * C, k * Fn, dtype)
+        P["conv1_W"][...] = glorot_uniform(rng, shapes["conv1_W"], k * Fn, k * Fn, dtype)
+        P["dense0_W"][...] = glorot_uniform(rng, shapes["dense0_W"], c.flat_dim, c.film_dense, dtype)
+        P["dense1_W"][...] = glorot_uniform(rng, shapes["dense1_W"], c.film_dense, c.film_dim, dtype)
+        for name in ("conv0_b", "conv1_b", "dense0_b", "dense1_b"):
+            P[name][...] = 0.0
+        H = c.hidden
+        P["dense1_b"][0:H] = 1.0            # γ1
+        P["dense1_b"][2 * H:3 * H] = 1.0    # γ2
+        self.used_masks: dict = {}
+        self._caches = None
+
+    def forward(self, clip, train=False, rng=None, masks=None):
+        """clip (B, T, C) -> film (B, 4*hidden)."""
+        c, P, self.used_masks = self.config, self.params.params, {}
+        if clip.ndim != 3 or clip.shape[1:] != (c.clip_frames, c.clip_channels):
+            raise ValueError(f"FilmGenerator: clip must be (B, {c.clip_frames}, {c.clip_channels}), "
+                             f"got {clip.shape}")
+        h, c_conv0 = F.conv1d_forward(clip, P["conv0_W"], P["conv0_b"])   # (B, T, F)
+        h, c_relu0 = F.relu_forward(h)
+        h, c_pool0 = F.max_pool1d_forward(h)                             # (B, T//2, F)
+        h, c_conv1 = F.conv1d_forward(h, P["conv1_W"], P["conv1_b"])
+        h, c_relu1 = F.relu_forward(h)
+        h, c_pool1 = F.max_pool1d_forward(h)                             # (B, T//4, F)
+        pooled_shape = h.shape
+        h = h.reshape(h.shape[0], -1)                                    # (B, T//4 * F)
+        h, c_dense0 = F.linear_forward(h, P["dense0_W"], P["dense0_b"])  # (B, film_dense)
+        h, c_relu2 = F.relu_forward(h)
+        h, c_drop = dropout_site(h, c.dropout, "film_dense", train, rng, masks, self.used_masks)
+        film, c_dense1 = F.linear_forward(h, P["dense1_W"], P["dense1_b"])  # (B, 4H)
+        self._caches = (c_conv0, c_relu0, c_pool0, c_conv1, c_relu1, c_pool1, pooled_shape,
+                        c_dense0, c_relu2, c_drop, c_dense1)
+        return film
+
+    def backward(self, dfilm):
+        """dfilm (B, 4*hidden) -> dclip (B, T, C); parameter gradients are added."""
+        if self._caches is None:
+            raise RuntimeError("FilmGenerator.backward called before forward")
+        (c_conv0, c_relu0, c_pool0, c_conv1, c_relu1, c_pool1, pooled_shape,
+         c_dense0, c_relu2, c_drop, c_dense1) = self._caches
+        G = self.params.grads
+        dh, dW, db = F.linear_backward(dfilm, c_dense1)
+        G["dense1_W"] += dW
+        G["dense1_b"] += db
+        dh = dropout_site_backward(dh, c_drop)
+        dh = F.relu_backward(dh, c_relu2)
+        dh, dW, db = F.linear_backward(dh, c_dense0)
+        G["dense0_W"] += dW
+        G["dense0_b"] += db
+        dh = dh.reshape(pooled_shape)
+        dh = F.max_pool1d_backward(dh, c_pool1)
+        dh = F.relu_backward(dh, c_relu1)
+        dh, dW, db = F.conv1d_backward(dh, c_conv1)
+        G["conv1_W"] += dW
+        G["conv1_b"] += db
+        dh = F.max_pool1d_backward(dh, c_pool0)
+        dh = F.relu_backward(dh, c_relu0)
+        dclip, dW, db = F.conv1d_backward(dh, c_conv0)
+        G["conv0_W"] += dW
+        G["conv0_b"] += db
+        return dclip

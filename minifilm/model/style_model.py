@@ -1,0 +1,130 @@
+"""The style model, Eq. (4): z = Φ(x; Ω(p), Ψ(y)).
+
+    α    = Ω(p)                 gating network, local phases -> expert weights   (gating.py)
+    film = Ψ(y)                 FiLM generator, style clip -> {γ1, β1, γ2, β2}    (film_generator.py)
+    z    = Φ(x; α, film)        gated experts + layer norm + FiLM + ELU, Eq. (3) (motion_net.py)
+
+Backward runs the same steps in reverse: Φ gives dx, dα and dfilm; Ω turns dα into dp; Ψ turns
+dfilm into dy. Every parameter gradient is *added* into the networks' ``.params.grads``.
+
+At run time (Sec. 4.4) Ψ is not needed: FiLM vectors are precomputed per style (2048 numbers in
+the paper config) and can be blended across styles with weights summing to 1.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from minifilm.model.config import ModelConfig
+from minifilm.model.film_generator import FilmGenerator
+from minifilm.model.gating import GatingNetwork
+from minifilm.model.motion_net import MotionNetwork
+
+
+def blend_film(films, weights) -> np.ndarray:
+    """Blend the FiLM vectors of several styles (Sec. 4.4): Σ_s w_s film_s.
+
+    films (S, 4H), weights (S,) non-negative-or-not but summing to 1 -> (4H,).
+    """
+    films = np.asarray(films)
+    weights = np.asarray(weights, dtype=films.dtype)
+    if films.ndim != 2 or weights.shape != (films.shape[0],):
+        raise ValueError(f"blend_film: need films (S, D) and weights (S,), got {films.shape} and {weights.shape}")
+    if not np.isclose(weights.sum(), 1.0, atol=1e-5):
+        raise ValueError(f"blend_film: weights must sum to 1, got {weights.sum():.6g}")
+    return weights @ films
+
+
+class StyleModel:
+    """Ω + Φ + Ψ with explicit forward and backward passes.
+
+    x    (B, x_dim)   normalised input frame features
+    p    (B, phase_dim) normalised local phases (Eq. 1)
+    clip (B, T, C)    one normalised style clip per sample
+    z    (B, z_dim)   normalised output frame features
+    """
+
+    def __init__(self, config: ModelConfig, rng: np.random.Generator, dtype=np.float32):
+        self.config = config
+        self.dtype = np.dtype(dtype)
+        self.gating = GatingNetwork(config, rng, dtype)   # Ω
+        self.motion = MotionNetwork(config, rng, dtype)   # Φ
+        self.film = FilmGenerator(config, rng, dtype)     # Ψ
+        self._film_shape = None
+        self._used_generator = False
+
+    # ---- parameters ----------------------------------------------------------------------
+    def parameter_sets(self):
+        """[Ω, Φ, Ψ] parameter sets (each one flat buffer)."""
+        return [self.gating.params, self.motion.params, self.film.params]
+
+    def zero_grad(self):
+        for ps in self.parameter_sets():
+            ps.zero_grad()
+
+    @property
+    def used_masks(self) -> dict:
+        """Dropout keep-masks of the last training forward pass, by site name (for replay)."""
+        return {**self.gating.used_masks, **self.motion.used_masks, **self.film.used_masks}
+
+    # ---- forward -------------------------------------------------------------------------
+    def film_parameters(self, clip, train=False, rng=None, masks=None):
+        """Ψ(y): clip (B, T, C) -> FiLM parameters (B, 4H) (Eq. 2)."""
+        return self.film.forward(clip, train=train, rng=rng, masks=masks)
+
+    def forward(self, x, p, clip, train=False, rng=None, masks=None):
+        """Eq. (4): z = Φ(x; Ω(p), Ψ(y)). x (B, x_dim), p (B, 8), clip (B, T, C) -> z (B, z_dim)."""
+        film = self.film.forward(clip, train=train, rng=rng, masks=masks)
+        z = self.forward_with_film(x, p, film, train=train, rng=rng, masks=masks)
+        self._used_generator = True
+        return z
+
+    def forward_with_film(self, x, p, film, train=False, rng=None, masks=None, ln_unbiased=None, ln_eps=None):
+        """z = Φ(x; Ω(p), film) with FiLM parameters given directly.
+
+        film (B, 4H), or (4H,) shared by the whole batch (a precomputed or blended style).
+        """
+        film = np.asarray(film)
+        self._film_shape = film.shape
+        if film.ndim == 1:
+            film = np.broadcast_to(film, (x.shape[0], film.shape[0]))
+        alpha = self.gating.forward(p, train=train, rng=rng, masks=masks)
+        self._used_generator = False
+        return self.motion.forward(x, alpha, film, train=train, rng=rng, masks=masks,
+                                   ln_unbiased=ln_unbiased, ln_eps=ln_eps)
+
+    # ---- backward ------------------------------------------------------------------------
+    def backward_with_film(self, dz):
+        """Backward of `forward_with_film`: dz (B, z_dim) -> (dx, dp, dfilm).
+
+        dfilm has the shape the film was given in ((B, 4H), or (4H,) summed over the batch).
+        Gradients of Ω and Φ are added to their .params.grads.
+        """
+        dx, dalpha, dfilm = self.motion.backward(dz)
+        dp = self.gating.backward(dalpha)
+        if len(self._film_shape) == 1:
+            dfilm = dfilm.sum(axis=0)
+        return dx, dp, dfilm
+
+    def backward(self, dz):
+        """Backward of `forward`: dz (B, z_dim) -> {'x': dx, 'p': dp, 'clip': dclip}.
+
+        Adds the gradients of every parameter of Ω, Φ and Ψ.
+        """
+        if not self._used_generator:
+            raise RuntimeError("StyleModel.backward needs a preceding forward(x, p, clip); "
+                               "use backward_with_film after forward_with_film")
+        dx, dp, dfilm = self.backward_with_film(dz)
+        dclip = self.film.backward(dfilm)
+        return {"x": dx, "p": dp, "clip": dclip}
+
+    # ---- run time ------------------------------------------------------------------------
+    def predict_single(self, x, p, film, runtime_layer_norm=False):
+        """Batch-1 inference: x (x_dim,), p (phase_dim,), film (4H,) -> z (z_dim,).
+
+        Blends the expert weights first (one matrix-vector product per layer). With
+        runtime_layer_norm=True the layer norm uses the released runtime's convention (biased σ,
+        no eps) instead of the training one.
+        """
+        alpha = self.gating.forward(np.asarray(p)[None, :])[0]
+        opts = dict(ln_unbiased=False, ln_eps=0.0) if runtime_layer_norm else {}
+        return self.motion.predict_single(np.asarray(x), alpha, np.asarray(film), **opts)
