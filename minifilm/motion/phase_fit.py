@@ -48,7 +48,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["SinusoidFit", "fit_sinusoids", "overflow_window", "window_half_width"]
+__all__ = ["SinusoidFit", "fit_sinusoids", "overflow_window", "range_reduce", "window_half_width"]
 
 
 @dataclass
@@ -215,7 +215,7 @@ def _fit_block(win: _Windows, values, prev_fit, freqs, fps, vmin, vmax, use_conn
     return pick(d1, c1), pick(d2, c2), pick(dB, B), np.where(better, f_ref[:, 0], freqs[best])
 
 
-def _range_reduce(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, op) -> np.ndarray:
+def range_reduce(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, op) -> np.ndarray:
     """``op.reduce(x[lo[k]:hi[k]+1])`` for every k at once (sparse table, O(F log F)).
 
     op is np.minimum or np.maximum; lo <= hi are inclusive frame indices.
@@ -271,7 +271,7 @@ def fit_sinusoids(signal, fps: float, window_seconds: float = 0.5, min_frequency
     skipped = np.abs(data).sum(axis=1) < skip_threshold
     # Bounds from every sample the loss looks at (data window plus connect frames), see docstring.
     ext_lo, ext_hi = np.maximum(lo - half, 0), np.minimum(lo + length - 1 + half, n - 1)
-    vmin, vmax = _range_reduce(v, ext_lo, ext_hi, np.minimum), _range_reduce(v, ext_lo, ext_hi, np.maximum)
+    vmin, vmax = range_reduce(v, ext_lo, ext_hi, np.minimum), range_reduce(v, ext_lo, ext_hi, np.maximum)
 
     # Frames whose extended window lies fully inside the signal share offsets and weights.
     interior = (k >= 2 * half) & (k <= n - 1 - 2 * half) & (length == 2 * half + 1)

@@ -1,0 +1,97 @@
+"""Foot contacts from toe-tip sensors (Sec. 4.1.2; original-pipeline.md §2).
+
+A sensor is in contact when it is slow *and* near the floor:
+
+    raw[k] = (|v(k)| <= 0.15 m/s) and (|y(k) − floor| <= 0.01 m)
+
+with ``v`` the backward-difference velocity in m/s (§1.4), then a majority filter over a clamped
+window (11 frames at 60 fps; ties keep the raw value). Everything is defined in seconds and metres,
+so 30, 60 and 120 fps files give the same contacts for the same motion.
+
+Difference to the original: its floor is the plane y = 0 of the Unity scene. Not every dataset
+stands on y = 0 (and a retargeted skeleton may float or sink a few centimetres), so ``floor_height``
+is a parameter, estimated by default from a low percentile of the sensor heights.
+"""
+from __future__ import annotations
+
+from typing import Optional
+
+import numpy as np
+
+__all__ = ["estimate_floor_height", "foot_contacts", "majority_filter"]
+
+#: 11 frames at 60 fps (the original's FilterWidth = 5 each side), as a duration.
+DEFAULT_FILTER_SECONDS = 10.0 / 60.0
+
+
+def estimate_floor_height(heights, percentile: float = 2.0) -> float:
+    """Floor height (metres) from sensor heights: their ``percentile``-th percentile.
+
+    Args:
+        heights: (F, ...) heights (y) of the contact sensors, metres; all entries are pooled.
+        percentile: a low percentile rather than the minimum, so a few glitch frames below the
+            floor do not drag it down; in locomotion the toes rest on the floor for a large
+            share of the frames, so the low percentiles all sit on the floor.
+    """
+    h = np.asarray(heights, dtype=np.float64)
+    h = h[np.isfinite(h)]
+    if h.size == 0:
+        raise ValueError("estimate_floor_height: no finite heights given")
+    return float(np.percentile(h, percentile))
+
+
+def majority_filter(raw, half_width: int) -> np.ndarray:
+    """Majority vote of 0/1 values over the clamped window ``[k - h, k + h] ∩ [0, F-1]``.
+
+    raw (F, ...) of 0/1 -> (F, ...) of 0.0/1.0: 1 where ones outnumber zeros, 0 where zeros
+    outnumber ones, the raw value on a tie (original-pipeline.md §2, "Filter").
+    """
+    x = (np.asarray(raw) > 0.5).astype(np.int64)
+    n = x.shape[0]
+    if n == 0 or half_width <= 0:
+        return x.astype(np.float64)
+    csum = np.concatenate([np.zeros((1,) + x.shape[1:], np.int64), np.cumsum(x, axis=0)])
+    k = np.arange(n)
+    lo, hi = np.maximum(k - half_width, 0), np.minimum(k + half_width, n - 1) + 1
+    ones = csum[hi] - csum[lo]
+    count = (hi - lo).reshape((n,) + (1,) * (x.ndim - 1))
+    zeros = count - ones
+    out = np.where(ones > zeros, 1, np.where(zeros > ones, 0, x))
+    return out.astype(np.float64)
+
+
+def foot_contacts(sensor_positions, fps: float, floor_height: Optional[float] = None,
+                  speed_threshold: float = 0.15, height_threshold: float = 0.01,
+                  filter_seconds: float = DEFAULT_FILTER_SECONDS) -> np.ndarray:
+    """0/1 foot contacts per frame (Sec. 4.1.2).
+
+    Args:
+        sensor_positions: (F, 2, 3) world positions (metres, y up) of the toe-tip sensors in the
+            order [right, left] (``Skeleton.contact_bones``).
+        fps: frames per second; velocities are per second, the filter window is in seconds.
+        floor_height: floor y in metres; ``None`` estimates it with ``estimate_floor_height``.
+        speed_threshold: maximum sensor speed in contact, m/s (paper: v_max = 0.15).
+        height_threshold: maximum |y − floor| in contact, metres (paper: d_max = 0.01). Like the
+            original's sphere-against-plane test, a sensor more than this *below* the floor is
+            not in contact either.
+        filter_seconds: span of the majority window; half width round(filter_seconds * fps / 2)
+            frames (5 at 60 fps: 11 frames). 0 disables the filter.
+    Returns:
+        (F, 2) float array of 0.0/1.0 in the order [right, left].
+    """
+    p = np.asarray(sensor_positions, dtype=np.float64)
+    if p.ndim != 3 or p.shape[1:] != (2, 3):
+        raise ValueError(f"foot_contacts: sensor_positions must have shape (F, 2, 3), got {p.shape}")
+    if not (fps > 0):
+        raise ValueError(f"foot_contacts: fps must be positive, got {fps}")
+    if p.shape[0] == 0:
+        return np.zeros((0, 2))
+    floor = estimate_floor_height(p[..., 1]) if floor_height is None else float(floor_height)
+    v = np.zeros_like(p)
+    if p.shape[0] >= 2:  # backward difference, frame 0 copies frame 1 (original-pipeline §1.4)
+        v[1:] = (p[1:] - p[:-1]) * fps
+        v[0] = v[1]
+    speed = np.linalg.norm(v, axis=-1)
+    raw = (speed <= speed_threshold) & (np.abs(p[..., 1] - floor) <= height_threshold)
+    half = int(np.floor(filter_seconds * fps / 2 + 0.5))
+    return majority_filter(raw, half)
