@@ -29,6 +29,18 @@ from minifilm.nn import functional as F
 from minifilm.nn.params import Parameters
 
 
+def film_shapes(config: ModelConfig) -> dict:
+    """Parameter shapes of Ψ: conv weights (k, C_in, F), dense weights (in, out), biases (out,)."""
+    c = config
+    k, C, Fn = c.conv_kernel, c.clip_channels, c.conv_filters
+    return {
+        "conv0_W": (k, C, Fn), "conv0_b": (Fn,),
+        "conv1_W": (k, Fn, Fn), "conv1_b": (Fn,),
+        "dense0_W": (c.flat_dim, c.film_dense), "dense0_b": (c.film_dense,),
+        "dense1_W": (c.film_dense, c.film_dim), "dense1_b": (c.film_dim,),
+    }
+
+
 class FilmGenerator:
     """Ψ: clip (B, T, C) -> FiLM parameters (B, 4*hidden)."""
 
@@ -36,12 +48,7 @@ class FilmGenerator:
         self.config = config
         c = config
         k, C, Fn = c.conv_kernel, c.clip_channels, c.conv_filters
-        shapes = {
-            "conv0_W": (k, C, Fn), "conv0_b": (Fn,),
-            "conv1_W": (k, Fn, Fn), "conv1_b": (Fn,),
-            "dense0_W": (c.flat_dim, c.film_dense), "dense0_b": (c.film_dense,),
-            "dense1_W": (c.film_dense, c.film_dim), "dense1_b": (c.film_dim,),
-        }
+        shapes = film_shapes(config)
         self.params = Parameters(shapes, dtype=dtype)
         P = self.params.params
         P["conv0_W"][...] = glorot_uniform(rng, shapes["conv0_W"], k * C, k * Fn, dtype)

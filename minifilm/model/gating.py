@@ -17,16 +17,23 @@ from minifilm.nn import functional as F
 from minifilm.nn.params import Parameters
 
 
+def gating_shapes(config: ModelConfig) -> dict:
+    """Parameter shapes of Ω: W{l} (in, out), b{l} (out,) for l = 0, 1, 2."""
+    sizes = [config.phase_dim, config.gating_hidden, config.gating_hidden, config.n_experts]
+    shapes = {}
+    for l in range(3):
+        shapes[f"W{l}"] = (sizes[l], sizes[l + 1])
+        shapes[f"b{l}"] = (sizes[l + 1],)
+    return shapes
+
+
 class GatingNetwork:
     """Ω: phases (B, phase_dim) -> α (B, K). Parameters W0 b0 W1 b1 W2 b2 in one flat buffer."""
 
     def __init__(self, config: ModelConfig, rng: np.random.Generator, dtype=np.float32):
         self.config = config
         sizes = [config.phase_dim, config.gating_hidden, config.gating_hidden, config.n_experts]
-        shapes = {}
-        for l in range(3):
-            shapes[f"W{l}"] = (sizes[l], sizes[l + 1])
-            shapes[f"b{l}"] = (sizes[l + 1],)
+        shapes = gating_shapes(config)
         self.params = Parameters(shapes, dtype=dtype)
         for l in range(3):
             self.params.params[f"W{l}"][...] = glorot_uniform(rng, shapes[f"W{l}"], sizes[l], sizes[l + 1], dtype)

@@ -29,17 +29,24 @@ def split_film(film, hidden):
             (film[..., 2 * hidden:3 * hidden], film[..., 3 * hidden:4 * hidden])]
 
 
+def motion_shapes(config: ModelConfig) -> dict:
+    """Parameter shapes of Φ: W{l} (K, in, out), b{l} (K, out) for l = 0, 1, 2."""
+    K = config.n_experts
+    sizes = [config.x_dim, config.hidden, config.hidden, config.z_dim]
+    shapes = {}
+    for l in range(3):
+        shapes[f"W{l}"] = (K, sizes[l], sizes[l + 1])
+        shapes[f"b{l}"] = (K, sizes[l + 1])
+    return shapes
+
+
 class MotionNetwork:
     """Φ: x (B, x_dim), α (B, K), FiLM (B, 4H) -> z (B, z_dim)."""
 
     def __init__(self, config: ModelConfig, rng: np.random.Generator, dtype=np.float32):
         self.config = config
-        K = config.n_experts
         self.sizes = [config.x_dim, config.hidden, config.hidden, config.z_dim]
-        shapes = {}
-        for l in range(3):
-            shapes[f"W{l}"] = (K, self.sizes[l], self.sizes[l + 1])
-            shapes[f"b{l}"] = (K, self.sizes[l + 1])
+        shapes = motion_shapes(config)
         self.params = Parameters(shapes, dtype=dtype)
         for l in range(3):
             fan_in, fan_out = self.sizes[l], self.sizes[l + 1]

@@ -15,9 +15,20 @@ from __future__ import annotations
 import numpy as np
 
 from minifilm.model.config import ModelConfig
-from minifilm.model.film_generator import FilmGenerator
-from minifilm.model.gating import GatingNetwork
-from minifilm.model.motion_net import MotionNetwork
+from minifilm.model.film_generator import FilmGenerator, film_shapes
+from minifilm.model.gating import GatingNetwork, gating_shapes
+from minifilm.model.motion_net import MotionNetwork, motion_shapes
+
+
+def parameter_counts(config: ModelConfig) -> dict:
+    """Number of parameters of Ω ('gating'), Φ ('motion'), Ψ ('film') and the FiLM vector per
+    style at run time ('per_style', the paper's P.S.R.), computed from the shapes without
+    allocating anything. Paper config: Φ + Ω = 4,935,928 (Table 2, A.S.N.), Ψ = 39,214,592
+    (Table 2 says 35,668,530; see film_generator.py), per style 2048."""
+    def count(shapes):
+        return int(sum(np.prod(s) for s in shapes.values()))
+    return {"gating": count(gating_shapes(config)), "motion": count(motion_shapes(config)),
+            "film": count(film_shapes(config)), "per_style": config.film_dim}
 
 
 def blend_film(films, weights) -> np.ndarray:
