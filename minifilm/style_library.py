@@ -1,0 +1,159 @@
+"""Precomputed styles: name -> FiLM vector {γ1, β1, γ2, β2} (Eq. 2), and ways to mix them (Sec. 4.4).
+
+At run time the FiLM generator Ψ is not needed: each style is one vector of 4*hidden numbers
+(2048 in the paper), computed offline from one clip or averaged over many clips of the style
+(Sec. 4.4 / 5.2). Styles are mixed linearly in FiLM space:
+
+* :meth:`StyleLibrary.blend` -- any weights summing to 1 (2-way ``(1-w) a + w b``);
+* :meth:`StyleLibrary.barycentric` -- three styles at a point of the triangle (the demo's UI);
+* :meth:`StyleLibrary.schedule` -- per-frame vectors that switch style over time with a smooth
+  (smoothstep) transition.
+
+Stored as ``.npz`` with two arrays, ``names`` (S,) unicode and ``films`` (S, D); loaded with
+``allow_pickle=False``.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+from typing import Dict, Iterable, Mapping, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+__all__ = ["StyleLibrary", "smoothstep"]
+
+
+def smoothstep(u: np.ndarray) -> np.ndarray:
+    """3u^2 - 2u^3 on [0, 1], clamped: 0 -> 0 and 1 -> 1 exactly, zero slope at both ends."""
+    u = np.clip(np.asarray(u, dtype=np.float64), 0.0, 1.0)
+    return u * u * (3.0 - 2.0 * u)
+
+
+class StyleLibrary:
+    """An ordered mapping style name -> FiLM vector (D,), all of the same length D = 4*hidden."""
+
+    def __init__(self, films: Optional[Mapping[str, np.ndarray]] = None, dtype=np.float32):
+        self.dtype = np.dtype(dtype)
+        self._films: Dict[str, np.ndarray] = {}
+        for name, film in (films or {}).items():
+            self.add(name, film)
+
+    # ------------------------------------------------------------------ container
+    @property
+    def names(self) -> list:
+        return list(self._films)
+
+    @property
+    def dim(self) -> int:
+        if not self._films:
+            raise ValueError("StyleLibrary is empty: no FiLM dimension yet")
+        return len(next(iter(self._films.values())))
+
+    def __len__(self) -> int:
+        return len(self._films)
+
+    def __contains__(self, name: str) -> bool:
+        return name in self._films
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        try:
+            return self._films[name]
+        except KeyError:
+            raise KeyError(f"style {name!r} is not in the library; known styles: {self.names}") from None
+
+    def add(self, name: str, film: np.ndarray) -> None:
+        """Add or replace one style's FiLM vector (D,)."""
+        v = np.asarray(film, dtype=self.dtype)
+        if v.ndim != 1:
+            raise ValueError(f"StyleLibrary.add({name!r}): FiLM vector must be 1-D (D,), got shape {v.shape}")
+        if self._films and name not in self._films and len(v) != self.dim:
+            raise ValueError(f"StyleLibrary.add({name!r}): length {len(v)} differs from the library's {self.dim}")
+        if not np.all(np.isfinite(v)):
+            raise ValueError(f"StyleLibrary.add({name!r}): FiLM vector has non-finite values")
+        self._films[str(name)] = v.copy()
+
+    def add_from_clips(self, name: str, model, clips: np.ndarray, batch: int = 16) -> np.ndarray:
+        """Style vector = mean of Ψ(clip) over the given normalised clips (M, T, C) (M = 1: one clip).
+
+        ``model`` is anything with ``film_parameters(clips (B, T, C)) -> (B, D)`` (a StyleModel).
+        """
+        clips = np.asarray(clips)
+        if clips.ndim != 3 or len(clips) == 0:
+            raise ValueError(f"add_from_clips({name!r}): clips must be (M>=1, T, C), got {clips.shape}")
+        total = 0.0
+        for a in range(0, len(clips), batch):
+            total = total + np.asarray(model.film_parameters(clips[a:a + batch]), dtype=np.float64).sum(axis=0)
+        film = total / len(clips)
+        self.add(name, film)
+        return self[name]
+
+    # ------------------------------------------------------------------ files
+    def save(self, path: Union[str, os.PathLike]) -> None:
+        """Write ``names`` and ``films`` to an .npz (atomically: temporary file, then rename)."""
+        path = os.fspath(path)
+        folder = os.path.dirname(os.path.abspath(path))
+        fd, tmp = tempfile.mkstemp(suffix=".npz", dir=folder)
+        os.close(fd)
+        try:
+            np.savez(tmp, names=np.array(self.names, dtype=str),
+                     films=np.stack([self._films[n] for n in self.names]) if self._films else np.zeros((0, 0)))
+            os.replace(tmp, path)
+        finally:
+            if os.path.exists(tmp):
+                os.remove(tmp)
+
+    @classmethod
+    def load(cls, path: Union[str, os.PathLike]) -> "StyleLibrary":
+        with np.load(path, allow_pickle=False) as f:
+            missing = {"names", "films"} - set(f.files)
+            if missing:
+                raise ValueError(f"{path}: not a style library, missing arrays {sorted(missing)}")
+            names, films = f["names"], f["films"]
+        if films.ndim != 2 or len(names) != len(films):
+            raise ValueError(f"{path}: {len(names)} names but films of shape {films.shape}")
+        return cls(dict(zip(names.tolist(), films)), dtype=films.dtype)
+
+    # ------------------------------------------------------------------ mixing
+    def blend(self, weights: Mapping[str, float]) -> np.ndarray:
+        """Σ_s w_s film_s for weights summing to 1 (Sec. 4.4). A weight of exactly 1 returns that
+        style's vector exactly (the others are multiplied by 0)."""
+        if not weights:
+            raise ValueError("blend: no styles given")
+        total = sum(float(w) for w in weights.values())
+        if not np.isclose(total, 1.0, atol=1e-6):
+            raise ValueError(f"blend: weights must sum to 1, got {total:.6g} from {dict(weights)}")
+        out = np.zeros(self.dim, dtype=self.dtype)
+        for name, w in weights.items():
+            out += self.dtype.type(w) * self[name]
+        return out
+
+    def barycentric(self, styles: Sequence[str], coords: Sequence[float]) -> np.ndarray:
+        """Three styles blended at barycentric coordinates (w1, w2, w3) >= 0, summing to 1."""
+        if len(styles) != 3 or len(coords) != 3:
+            raise ValueError(f"barycentric: need 3 styles and 3 coordinates, got {len(styles)} and {len(coords)}")
+        if min(coords) < -1e-9:
+            raise ValueError(f"barycentric: coordinates must be >= 0 (inside the triangle), got {list(coords)}")
+        return self.blend(dict(zip(styles, coords)))
+
+    def schedule(self, keys: Sequence[Tuple[float, Union[str, Mapping[str, float]]]], n_frames: int,
+                 fps: float = 60.0, transition_seconds: float = 1.0) -> np.ndarray:
+        """Per-frame FiLM vectors (n_frames, D) switching style over time.
+
+        ``keys`` = [(time s, style name or {name: weight}), ...] in time order: the style set at a
+        key is held until the next key, and each change is a smoothstep transition of
+        ``transition_seconds`` starting at the key's time.
+        """
+        if not keys:
+            raise ValueError("schedule: no keys")
+        times = [float(t) for t, _ in keys]
+        if times != sorted(times):
+            raise ValueError(f"schedule: key times must increase, got {times}")
+        targets = [self.blend({s: 1.0}) if isinstance(s, str) else self.blend(s) for _, s in keys]
+        t = np.arange(n_frames) / fps
+        out = np.empty((n_frames, self.dim), dtype=self.dtype)
+        out[:] = targets[0]
+        for k in range(1, len(keys)):
+            w = smoothstep((t - times[k]) / max(transition_seconds, 1e-9)).astype(self.dtype)[:, None]
+            start = t >= times[k]
+            out[start] = (1 - w[start]) * out[start] + w[start] * targets[k]
+        return out
