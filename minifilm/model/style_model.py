@@ -54,19 +54,23 @@ class StyleModel:
     z    (B, z_dim)   normalised output frame features
     """
 
-    def __init__(self, config: ModelConfig, rng: np.random.Generator, dtype=np.float32):
+    def __init__(self, config: ModelConfig, rng: np.random.Generator, dtype=np.float32,
+                 with_film_generator: bool = True):
+        """with_film_generator=False builds only Ω and Φ: a run-time model driven by precomputed
+        FiLM vectors (Sec. 4.4), e.g. the released network, which ships without Ψ."""
         self.config = config
         self.dtype = np.dtype(dtype)
         self.gating = GatingNetwork(config, rng, dtype)   # Ω
         self.motion = MotionNetwork(config, rng, dtype)   # Φ
-        self.film = FilmGenerator(config, rng, dtype)     # Ψ
+        self.film = FilmGenerator(config, rng, dtype) if with_film_generator else None   # Ψ
         self._film_shape = None
         self._used_generator = False
 
     # ---- parameters ----------------------------------------------------------------------
     def parameter_sets(self):
-        """[Ω, Φ, Ψ] parameter sets (each one flat buffer)."""
-        return [self.gating.params, self.motion.params, self.film.params]
+        """[Ω, Φ, Ψ] parameter sets (each one flat buffer); [Ω, Φ] without Ψ."""
+        sets = [self.gating.params, self.motion.params]
+        return sets if self.film is None else sets + [self.film.params]
 
     def zero_grad(self):
         for ps in self.parameter_sets():
@@ -75,15 +79,23 @@ class StyleModel:
     @property
     def used_masks(self) -> dict:
         """Dropout keep-masks of the last training forward pass, by site name (for replay)."""
-        return {**self.gating.used_masks, **self.motion.used_masks, **self.film.used_masks}
+        film_masks = {} if self.film is None else self.film.used_masks
+        return {**self.gating.used_masks, **self.motion.used_masks, **film_masks}
+
+    def _require_film_generator(self):
+        if self.film is None:
+            raise RuntimeError("this StyleModel has no FiLM generator Ψ (built with "
+                               "with_film_generator=False); use forward_with_film with precomputed FiLM vectors")
 
     # ---- forward -------------------------------------------------------------------------
     def film_parameters(self, clip, train=False, rng=None, masks=None):
         """Ψ(y): clip (B, T, C) -> FiLM parameters (B, 4H) (Eq. 2)."""
+        self._require_film_generator()
         return self.film.forward(clip, train=train, rng=rng, masks=masks)
 
     def forward(self, x, p, clip, train=False, rng=None, masks=None):
         """Eq. (4): z = Φ(x; Ω(p), Ψ(y)). x (B, x_dim), p (B, 8), clip (B, T, C) -> z (B, z_dim)."""
+        self._require_film_generator()
         film = self.film.forward(clip, train=train, rng=rng, masks=masks)
         z = self.forward_with_film(x, p, film, train=train, rng=rng, masks=masks)
         self._used_generator = True
