@@ -237,3 +237,84 @@ def test_bad_shapes_are_named():
     with pytest.raises(ValueError, match=r"segment \[5, 40\)"):
         frame_features_from_arrays(positions, rotations, positions, root, R, np.zeros((F, 8)),
                                    np.zeros((F, 2)), fps, start=5, stop=40)
+
+
+# ----------------------------------------------------------------------------- real BVH files
+REAL_FILES = [  # (path under shared data, expected fps)
+    ("bandai2/dataset-2_walk_normal_001.bvh", 30),
+    ("100style/Neutral_FR_first3frames.bvh", 60),
+    ("bvh/xia/neutral_01_000.bvh", 120),
+    ("bvh/bandai1/dataset-1_walk-left_normal_001.bvh", 30),
+]
+
+
+def _load(shared_data, rel):
+    from minifilm.motion.bvh import read_bvh
+    from minifilm.motion.skeletons import detect_skeleton
+
+    skeleton = detect_skeleton(read_bvh(shared_data / rel))
+    return read_bvh(shared_data / rel, scale=skeleton.bvh_scale), skeleton
+
+
+def _root_of_frame(motion, skeleton, k):
+    """Root at frame k computed here from FK: hips on the floor, LookRotation of the flat facing."""
+    wp, wr = motion.world()
+    h = motion.index(skeleton.hips)
+    f = wr[k, h] @ np.asarray(skeleton.facing_axis)
+    return wp[k, h] * [1, 0, 1], yaw(np.arctan2(f[0], f[2]))
+
+
+@pytest.mark.parametrize("rel, fps", REAL_FILES)
+def test_reconstruct_world_joints_from_x_and_root_trajectory(shared_data, rel, fps):
+    """Chain z's root deltas from the first root, then rebuild the world joints of every row from
+    x's joint block: they match forward kinematics within 1e-5 m (features stored in float32)."""
+    from minifilm.motion.features import frame_features
+
+    motion, skeleton = _load(shared_data, rel)
+    assert round(motion.fps) == fps
+    F = motion.n_frames
+    f = frame_features(motion, skeleton, np.zeros((F, 8)), np.zeros((F, 2)))
+    assert f.x.dtype == np.float32
+    layout = FeatureLayout.for_skeleton(skeleton)
+    assert f.x.shape == (F - 2, layout.x_dim) and f.z.shape == (F - 2, layout.z_dim)
+    r, R = _root_of_frame(motion, skeleton, f.frames[0])
+    roots = [(r, R)]
+    for delta in f.z[:-1, layout.z_root_delta].astype(np.float64):   # root of frame k+1 in root k
+        r = R @ np.array([delta[0], 0.0, delta[1]]) + r
+        d = R @ np.array([delta[2], 0.0, delta[3]])
+        R = yaw(np.arctan2(d[0], d[2]))
+        roots.append((r, R))
+    root_pos = np.array([a for a, _ in roots])
+    root_rot = np.array([b for _, b in roots])
+    pos, fwd, up, _ = decode_joints(f.x[:, layout.x_joints], root_pos, root_rot)
+    wp, wr = motion.world()
+    idx = skeleton.joint_indices(motion)
+    k = f.frames
+    assert np.abs(pos - wp[k][:, idx]).max() < 1e-5
+    assert np.abs(fwd - wr[k][:, idx][..., :, 2]).max() < 1e-5
+    assert np.abs(up - wr[k][:, idx][..., :, 1]).max() < 1e-5
+    # the x trajectory samples that fall inside the file are the roots of those frames
+    offsets = trajectory_offsets(motion.fps)
+    tpos, _ = decode_trajectory(f.x[:, layout.x_trajectory], root_pos, root_rot)
+    for s, o in enumerate(offsets):
+        rows = np.flatnonzero((k + o >= k[0]) & (k + o <= k[-1]))
+        if rows.size:
+            np.testing.assert_allclose(tpos[rows, s], root_pos[rows + o], atol=1e-5)
+
+
+def test_matches_released_statistics_on_100style(shared_data):
+    """The real 100STYLE frame against the authors' released Xmean / Xstd (original §13.1): the
+    current sample is [0,0,0,1], the hips sit at x = z = 0 facing +z, and every column is within
+    4 released standard deviations of the released mean (a wrong order or axis would not be)."""
+    from minifilm.motion.features import frame_features
+
+    motion, skeleton = _load(shared_data, "100style/Neutral_FR_first3frames.bvh")
+    assert skeleton.name == "100style"
+    f = frame_features(motion, skeleton, np.zeros((3, 8)), np.zeros((3, 2)), dtype=np.float64)
+    x_mean = np.fromfile(shared_data / "released-lpn/Xmean.bin", "<f4").astype(np.float64)
+    x_std = np.fromfile(shared_data / "released-lpn/Xstd.bin", "<f4").astype(np.float64)
+    layout = FeatureLayout.for_skeleton(skeleton)
+    assert x_mean.shape == (layout.x_dim,) == (348,)
+    np.testing.assert_allclose(f.x[0, 24:28], x_mean[24:28], atol=1e-12)
+    np.testing.assert_allclose(f.x[0, [48, 50, 51]], 0.0, atol=1e-12)   # hips x, z; hips fwd x
+    assert np.all(np.abs(f.x[0] - x_mean) / x_std < 4.0)
