@@ -105,6 +105,20 @@ def test_layer_forward_matches_functional_and_gradients_accumulate():
     np.testing.assert_array_equal(layer.params["W"], W_before)   # backward never moves weights
 
 
+@pytest.mark.parametrize("index", range(3))   # the layers with weights: Linear, ExpertLinear, Conv1d
+def test_every_weighted_layer_accumulates_gradients(index):
+    rng = np.random.default_rng(4)
+    layer, inputs, kwargs = _all_layers(rng, np.float64)[index]
+    out = layer.forward(*inputs, **kwargs)
+    dout = rng.standard_normal(out.shape)
+    layer.backward(dout)
+    once = {k: g.copy() for k, g in layer.grads.items()}
+    assert all(np.any(g != 0) for g in once.values())
+    layer.backward(dout)
+    for k, g in layer.grads.items():
+        np.testing.assert_allclose(g, 2 * once[k], rtol=1e-12, err_msg=f"{type(layer).__name__} {k}")
+
+
 def test_backward_before_forward_is_an_error():
     with pytest.raises(RuntimeError, match="before forward"):
         Linear(2, 2).backward(np.ones((1, 2)))
