@@ -1,0 +1,106 @@
+"""Checkpoints: one ``.npz`` file holding arrays and a JSON description, written atomically.
+
+Layout of the archive (every entry a plain numeric or unicode array, so it loads with
+``allow_pickle=False``; nothing in a checkpoint can run code):
+
+    meta.json            0-d unicode array: JSON text {"format", "model_config", "train_config",
+                         "epoch", "step", "history", "rng_state", "style_names", ...}
+    gating.<name>        Ω parameters      (Parameters.state_dict of each network)
+    motion.<name>        Φ parameters
+    film.<name>          Ψ parameters (absent for a model without Ψ)
+    adam.<key>           optimiser moments and step counts (Adam.state_dict)
+    stats.<name>         normalisation statistics (NormStats.to_arrays)
+
+Writing goes to a temporary file in the same folder, is flushed to disk, then renamed over the
+target with os.replace, so a crash (or a NaN stop) never leaves half a checkpoint and the last
+good one stays intact.
+"""
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+FORMAT = "minifilm-checkpoint-1"
+NETWORKS = ("gating", "motion", "film")
+
+
+class CheckpointError(ValueError):
+    """A checkpoint file is missing, unreadable, or does not hold what it should."""
+
+
+def save_checkpoint(path, meta: dict, arrays: dict) -> None:
+    """Atomically write `arrays` (name -> ndarray) and `meta` (JSON-serialisable) to `path`."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    payload = {"meta.json": np.array(json.dumps({"format": FORMAT, **meta}))}
+    for name, arr in arrays.items():
+        if name == "meta.json":
+            raise ValueError("save_checkpoint: 'meta.json' is a reserved array name")
+        payload[name] = np.asarray(arr)
+    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            np.savez(f, **payload)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def load_checkpoint(path) -> tuple[dict, dict]:
+    """Read a checkpoint -> (meta dict, arrays dict). Raises CheckpointError naming the file."""
+    path = Path(path)
+    if not path.is_file():
+        raise CheckpointError(f"checkpoint {path}: no such file")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {name: z[name] for name in z.files}
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError) as e:
+        raise CheckpointError(f"checkpoint {path}: not a readable .npz archive ({type(e).__name__}: {e})") from e
+    if "meta.json" not in arrays:
+        raise CheckpointError(f"checkpoint {path}: missing 'meta.json' entry")
+    try:
+        meta = json.loads(str(arrays.pop("meta.json")))
+    except json.JSONDecodeError as e:
+        raise CheckpointError(f"checkpoint {path}: 'meta.json' is not valid JSON ({e})") from e
+    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+        raise CheckpointError(f"checkpoint {path}: format is {meta.get('format') if isinstance(meta, dict) else meta!r}, "
+                              f"expected {FORMAT!r}")
+    return meta, arrays
+
+
+def subset(arrays: dict, prefix: str) -> dict:
+    """Entries 'prefix.name' -> {'name': array}."""
+    n = len(prefix) + 1
+    return {k[n:]: v for k, v in arrays.items() if k.startswith(prefix + ".")}
+
+
+def model_arrays(model) -> dict:
+    """name -> array for every parameter of the model, prefixed by network."""
+    out = {}
+    for net in NETWORKS:
+        sub = getattr(model, net)
+        if sub is not None:
+            out.update({f"{net}.{k}": v for k, v in sub.params.state_dict().items()})
+    return out
+
+
+def load_model_arrays(model, arrays: dict, path="checkpoint", networks=NETWORKS) -> None:
+    """Copy the checkpoint's parameters into `model` (clear error on missing/misshaped arrays)."""
+    for net in networks:
+        sub = getattr(model, net)
+        if sub is None:
+            continue
+        state = subset(arrays, net)
+        try:
+            sub.params.load_state_dict(state, strict=True)
+        except (KeyError, ValueError) as e:
+            raise CheckpointError(f"{path}: parameters of '{net}' do not fit the model: {e}") from e

@@ -1,0 +1,303 @@
+"""Training of the style model (Sec. 4.3) and fine-tuning of Ψ for new styles (Sec. 5.3.2).
+
+    loss = L_mse + L_bll                                  Eq. (5)-(7)
+    minibatches hold one style; styles visited in a fixed cycle; one epoch = one pass through
+    the shortest style's training frames (Sec. 4.3); Adam, lr 1e-4, batch 32, dropout 0.3
+
+Each sample is paired with a clip of its own style, drawn at random per sample (the original
+draws a clip per style). Data comes in as plain arrays (minifilm.traindata.TrainData), already
+normalised; the bone-length loss needs the joint-position columns of z and the parent list,
+which the caller takes from the feature layout.
+
+Robustness: a NaN or inf in a loss or a gradient stops training with TrainingDiverged naming
+the step and the quantity, *before* the optimiser touches the weights; checkpoints are written
+atomically (minifilm.checkpoint), so the last good one stays intact. Resuming restores the
+model, the optimiser moments and the random generator, so a resumed run continues exactly as
+an uninterrupted one would.
+"""
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import asdict, dataclass, field, fields
+
+import numpy as np
+
+from minifilm.checkpoint import (CheckpointError, NETWORKS, load_checkpoint, load_model_arrays,
+                                 model_arrays, save_checkpoint, subset)
+from minifilm.model.config import ModelConfig
+from minifilm.model.losses import bone_length_loss, mse_loss
+from minifilm.model.style_model import StyleModel
+from minifilm.nn.optim import Adam
+from minifilm.traindata import NormStats, TrainData
+
+
+class TrainingDiverged(RuntimeError):
+    """A loss or gradient became NaN / inf; the weights were not updated with it."""
+
+
+@dataclass
+class TrainConfig:
+    """Settings of a training run (the paper: 90 epochs, batch 32, Adam lr 1e-4).
+
+    freeze              networks not updated: () for training, ("gating", "motion") to fine-tune Ψ
+    checkpoint_path     where to write a checkpoint after every `checkpoint_every` epochs (None: never)
+    progress            a one-line progress display on stderr
+    """
+
+    epochs: int = 90
+    batch_size: int = 32
+    lr: float = 1e-4
+    seed: int = 0
+    bll_weight: float = 1.0
+    freeze: tuple = ()
+    checkpoint_path: str | None = None
+    checkpoint_every: int = 1
+    progress: bool = False
+    eval_batch: int = 512
+
+    def __post_init__(self):
+        self.freeze = tuple(self.freeze)
+        bad = [n for n in self.freeze if n not in NETWORKS]
+        if bad:
+            raise ValueError(f"TrainConfig.freeze: unknown network(s) {bad}; choose from {NETWORKS}")
+        if self.batch_size < 1 or self.epochs < 0 or self.lr <= 0:
+            raise ValueError(f"TrainConfig: need batch_size >= 1, epochs >= 0, lr > 0 (got "
+                             f"{self.batch_size}, {self.epochs}, {self.lr})")
+
+    def to_dict(self):
+        d = asdict(self)
+        d["freeze"] = list(self.freeze)
+        return d
+
+    @classmethod
+    def from_dict(cls, d):
+        names = {f.name for f in fields(cls)}
+        return cls(**{k: v for k, v in d.items() if k in names})
+
+
+# ---- style-balanced minibatches -----------------------------------------------------------
+def epoch_batches(style, batch_size, rng):
+    """The minibatches of one epoch, as (style id, frame indices) in training order.
+
+    Each style's frames are shuffled; one epoch takes n_min // batch_size batches from every
+    style (n_min = frames of the shortest style), cycling through the styles in a fixed
+    (ascending id) order, so every run of S consecutive batches holds all S styles once.
+    A shortest style with fewer frames than batch_size gives one smaller batch per style.
+    """
+    styles = np.unique(style)
+    perms = [rng.permutation(np.nonzero(style == s)[0]) for s in styles]
+    n_min = min(len(p) for p in perms)
+    size = min(batch_size, n_min)
+    n_batches = n_min // size
+    return [(int(s), perm[k * size:(k + 1) * size])
+            for k in range(n_batches) for s, perm in zip(styles, perms)]
+
+
+def draw_clips(data: TrainData, style_ids, rng):
+    """One clip index per sample, drawn uniformly among the clips of the sample's style."""
+    out = np.empty(len(style_ids), dtype=np.int64)
+    for s in np.unique(style_ids):
+        pool = np.nonzero(data.clip_style == s)[0]
+        where = np.nonzero(style_ids == s)[0]
+        out[where] = pool[rng.integers(0, len(pool), size=len(where))]
+    return out
+
+
+# ---- the trainer --------------------------------------------------------------------------
+@dataclass
+class Trainer:
+    """Holds the model, the optimiser, the random generator and the loss history.
+
+    positions_idx (J, 3) and parents (J,): joint-position columns of z and the skeleton's parent
+    list for the bone-length loss (None: train with MSE only).
+    """
+
+    model: StyleModel
+    stats: NormStats
+    config: TrainConfig = field(default_factory=TrainConfig)
+    positions_idx: np.ndarray | None = None
+    parents: np.ndarray | None = None
+    style_names: list = field(default_factory=list)
+
+    def __post_init__(self):
+        for net in NETWORKS:
+            sub = getattr(self.model, net)
+            if sub is not None:
+                sub.params.trainable = net not in self.config.freeze
+        self.optimizer = Adam(self.model.parameter_sets(), lr=self.config.lr)
+        self.rng = np.random.default_rng(self.config.seed)
+        self.epoch = 0
+        self.step = 0
+        self.history: list = []
+
+    # -- losses ------------------------------------------------------------------------
+    def losses(self, pred, target):
+        """(mse, bll, dpred) for one minibatch."""
+        mse, dpred = mse_loss(pred, target)
+        bll = 0.0
+        if self.positions_idx is not None and self.config.bll_weight:
+            bll, dbll = bone_length_loss(pred, target, self.positions_idx, self.parents,
+                                         self.stats.z_mean, self.stats.z_std)
+            bll *= self.config.bll_weight
+            dpred = dpred + self.config.bll_weight * dbll
+        return mse, bll, dpred
+
+    def _check_finite(self, where, quantities):
+        for name, value in quantities:
+            if not np.all(np.isfinite(value)):
+                raise TrainingDiverged(f"step {self.step} ({where}): {name} is not finite "
+                                       f"({'nan' if np.any(np.isnan(value)) else 'inf'}); weights not updated")
+
+    # -- one epoch ---------------------------------------------------------------------
+    def train_epoch(self, data: TrainData):
+        """One epoch of style-balanced minibatches; returns {'mse', 'bll', 'per_style'} means."""
+        dtype = self.model.dtype
+        batches = epoch_batches(data.style, self.config.batch_size, self.rng)
+        sums = {}
+        t0 = time.time()
+        for i, (s, idx) in enumerate(batches):
+            clip_idx = draw_clips(data, data.style[idx], self.rng)
+            x, p, z = data.x[idx].astype(dtype), data.p[idx].astype(dtype), data.z[idx].astype(dtype)
+            clips = data.clips[clip_idx].astype(dtype)
+            self.model.zero_grad()
+            pred = self.model.forward(x, p, clips, train=True, rng=self.rng)
+            mse, bll, dpred = self.losses(pred, z)
+            where = f"epoch {self.epoch + 1}, batch {i + 1}, style {self._name(s)}"
+            self._check_finite(where, [("MSE loss", mse), ("bone-length loss", bll)])
+            self.model.backward(dpred)
+            self._check_finite(where, [(f"gradient of the {net} network", getattr(self.model, net).params.grad)
+                                       for net in NETWORKS if getattr(self.model, net) is not None])
+            self.optimizer.step()
+            self.step += 1
+            acc = sums.setdefault(s, [0.0, 0.0, 0])
+            acc[0] += mse
+            acc[1] += bll
+            acc[2] += 1
+            if self.config.progress:
+                self._progress(i + 1, len(batches), mse + bll, t0)
+        if self.config.progress:
+            sys.stderr.write("\n")
+        return self._summarise(sums)
+
+    # -- evaluation --------------------------------------------------------------------
+    def evaluate(self, data: TrainData):
+        """Mean MSE and BLL over all frames of `data` (no dropout), overall and per style.
+
+        Each style is weighted equally overall (as in Eq. 5 and 7). Clips are drawn with a
+        generator seeded from the run seed, so the numbers are comparable across epochs and do
+        not disturb the training generator.
+        """
+        rng = np.random.default_rng([self.config.seed, 1])
+        dtype = self.model.dtype
+        sums = {}
+        for s in np.unique(data.style):
+            frames = np.nonzero(data.style == s)[0]
+            for a in range(0, len(frames), self.config.eval_batch):
+                idx = frames[a:a + self.config.eval_batch]
+                clips = data.clips[draw_clips(data, data.style[idx], rng)].astype(dtype)
+                pred = self.model.forward(data.x[idx].astype(dtype), data.p[idx].astype(dtype), clips)
+                mse, bll, _ = self.losses(pred, data.z[idx].astype(dtype))
+                acc = sums.setdefault(int(s), [0.0, 0.0, 0])
+                acc[0] += mse * len(idx)
+                acc[1] += bll * len(idx)
+                acc[2] += len(idx)
+        return self._summarise(sums)
+
+    def _summarise(self, sums):
+        per_style = {self._name(s): {"mse": m / n, "bll": b / n} for s, (m, b, n) in sorted(sums.items())}
+        mse = float(np.mean([v["mse"] for v in per_style.values()])) if per_style else float("nan")
+        bll = float(np.mean([v["bll"] for v in per_style.values()])) if per_style else float("nan")
+        return {"mse": mse, "bll": bll, "loss": mse + bll, "per_style": per_style}
+
+    def _name(self, s):
+        return self.style_names[s] if s < len(self.style_names) else str(s)
+
+    def _progress(self, done, total, loss, t0):
+        rate = done / max(time.time() - t0, 1e-9)
+        sys.stderr.write(f"\repoch {self.epoch + 1}/{self.config.epochs}  batch {done}/{total}  "
+                         f"loss {loss:.4f}  {rate:.1f} batch/s ")
+        sys.stderr.flush()
+
+    # -- the run -----------------------------------------------------------------------
+    def fit(self, train: TrainData, val: TrainData | None = None, epochs: int | None = None):
+        """Train until `epochs` (default config.epochs) epochs are done in total; returns history."""
+        target = self.config.epochs if epochs is None else epochs
+        while self.epoch < target:
+            tr = self.train_epoch(train)
+            self.epoch += 1
+            record = {"epoch": self.epoch, "step": self.step, "train": tr}
+            if val is not None:
+                record["val"] = self.evaluate(val)
+            self.history.append(record)
+            if self.config.checkpoint_path and self.epoch % self.config.checkpoint_every == 0:
+                self.save(self.config.checkpoint_path)
+        return self.history
+
+    # -- checkpoints -------------------------------------------------------------------
+    def save(self, path):
+        """Atomic checkpoint: model, optimiser, rng state, stats, configs, epoch and history."""
+        meta = {"model_config": self.model.config.to_dict(), "train_config": self.config.to_dict(),
+                "epoch": self.epoch, "step": self.step, "history": self.history,
+                "rng_state": self.rng.bit_generator.state, "style_names": list(self.style_names),
+                "has_film_generator": self.model.film is not None,
+                "positions_idx": None if self.positions_idx is None else np.asarray(self.positions_idx).tolist(),
+                "parents": None if self.parents is None else np.asarray(self.parents).tolist()}
+        arrays = {**model_arrays(self.model), **self.stats.to_arrays("stats."),
+                  **{f"adam.{k}": v for k, v in self.optimizer.state_dict().items()}}
+        save_checkpoint(path, meta, arrays)
+
+    @classmethod
+    def resume(cls, path, config: TrainConfig | None = None, restore_optimizer=True):
+        """Rebuild a Trainer from a checkpoint: model, stats, optimiser state, rng, history.
+
+        config: replaces the stored TrainConfig (e.g. more epochs). restore_optimizer=False starts
+        a fresh optimiser and rng (used for fine-tuning, which is a new run).
+        """
+        meta, arrays = load_checkpoint(path)
+        try:
+            mcfg = ModelConfig.from_dict(meta["model_config"])
+            tcfg = config or TrainConfig.from_dict(meta["train_config"])
+            stats = NormStats.from_arrays(arrays, "stats.")
+        except (KeyError, ValueError, TypeError) as e:
+            raise CheckpointError(f"checkpoint {path}: bad configuration or statistics ({e})") from e
+        model = StyleModel(mcfg, np.random.default_rng(0), with_film_generator=meta.get("has_film_generator", True))
+        load_model_arrays(model, arrays, path)
+        pos = meta.get("positions_idx")
+        par = meta.get("parents")
+        trainer = cls(model, stats, tcfg, positions_idx=None if pos is None else np.asarray(pos),
+                      parents=None if par is None else np.asarray(par), style_names=meta.get("style_names", []))
+        if restore_optimizer:
+            try:
+                trainer.optimizer.load_state_dict(subset(arrays, "adam"))
+                trainer.rng.bit_generator.state = meta["rng_state"]
+            except (KeyError, ValueError, TypeError) as e:
+                raise CheckpointError(f"checkpoint {path}: optimiser or rng state unusable ({e})") from e
+            trainer.epoch, trainer.step = int(meta["epoch"]), int(meta["step"])
+            trainer.history = list(meta.get("history", []))
+        return trainer
+
+
+def train(model, train_data, val_data, stats, positions_idx=None, parents=None, config=None,
+          style_names=()):
+    """Train `model` from scratch; returns the Trainer (history in .history)."""
+    trainer = Trainer(model, stats, config or TrainConfig(), positions_idx, parents, list(style_names))
+    trainer.fit(train_data, val_data)
+    return trainer
+
+
+def finetune(checkpoint_path, train_data, val_data=None, config: TrainConfig | None = None,
+             style_names=()):
+    """Fine-tune Ψ for new styles (Sec. 5.3.2): Φ and Ω frozen at a trained checkpoint.
+
+    Starts a new run (fresh optimiser and rng from config.seed) with freeze = (gating, motion).
+    """
+    cfg = config or TrainConfig()
+    cfg = TrainConfig.from_dict({**cfg.to_dict(), "freeze": ["gating", "motion"]})
+    trainer = Trainer.resume(checkpoint_path, cfg, restore_optimizer=False)
+    if trainer.model.film is None:
+        raise CheckpointError(f"checkpoint {checkpoint_path}: has no FiLM generator to fine-tune")
+    if style_names:
+        trainer.style_names = list(style_names)
+    trainer.fit(train_data, val_data)
+    return trainer
