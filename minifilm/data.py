@@ -1,0 +1,626 @@
+"""Datasets: BVH files -> training pairs (x, p, z), style clips y, splits, normalisation (Sec. 3.2, 4.3).
+
+    files (manifest.py) -> per file: read, contacts, local phases, train/val/test segments
+                        -> per segment (and its mirror): x, p, z rows and style clips (features.py)
+                        -> normalisation statistics from the training rows
+                        -> cached .npz
+
+Splits (original-pipeline.md §8.2, made leak-free). Every file is cut into contiguous segments:
+one validation and one test window of ``floor(0.1 L)`` frames each, drawn with a seeded generator
+so that they never overlap, and train around them (the original could overlap them, §12.17).
+Each segment is featurised as if it were its own clip (features.py): trajectory samples that fall
+outside it are point-reflected at its ends and the first / last frame are never "current", so no
+validation or test row contains a number computed from a training frame, and vice versa.
+``gap_seconds`` can additionally drop that much at every border between segments of different
+splits (default 0: the nearest train and test current frames are then 3 frames apart). Phases and
+contacts are labels of the whole file (the phase fit needs ~1 s of context), which is the one place
+where a row's numbers depend on its neighbours. A mirrored copy uses the same segments as its
+original. Transition files (gait ``TR*``) are all train unless ``split_transitions`` (§8.2).
+
+Normalisation (§8.5): per-column mean and biased std of the training rows, in float64; a std below
+``min_std`` (zero up to rounding, e.g. trajectory sample 6, the hips' x and z) becomes 1. Clips are
+normalised with the x joint-block statistics (§9). Saved as .npz, no pickle.
+
+Style-balanced minibatches (Sec. 4.3): each minibatch holds one style, styles cycle in a fixed
+order, an epoch is one pass through the style with the fewest training rows: :class:`StyleBatcher`.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import sys
+import time
+import zlib
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Dict, Iterator, List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from .manifest import MotionFile, read_manifest, scan_100style
+from .motion.layout import FeatureLayout
+from .traindata import NormStats, TrainData
+
+SPLITS = ("train", "val", "test")
+_SPLIT_ID = {s: i for i, s in enumerate(SPLITS)}
+#: Bump when the meaning of the cached arrays changes without any source file changing.
+CACHE_FORMAT = 1
+
+
+# =========================================================================== settings
+@dataclass(frozen=True)
+class DatasetSettings:
+    """Everything that decides the content of a dataset (and so its cache key).
+
+    fps:              resample every file to this rate; None = use the files' rate (all equal).
+    skeleton:         a built-in skeleton name ('100style', 'bandai', 'cmu', ...); None = detect.
+    split_fractions:  (train, val, test) fractions of every file, default 80/10/10.
+    seed:             seeds the per-file split windows (each file from ``seed`` and its name).
+    gap_seconds:      frames dropped at each border between segments of different splits.
+    mirror_styles:    styles that also get a mirrored copy; ('*',) = all styles. A manifest's
+                      ``mirror`` column overrides this per file.
+    idle_gaits:       gaits that are skipped (100STYLE 'ID').
+    clip_gaits:       gaits whose files give style clips (100STYLE forward walk 'FW', Bandai 'walk').
+    clip_fallback:    a style whose clip-gait files give no training clip (none exist, or their
+                      training segments are shorter than a clip) takes its clips from its other
+                      files.
+    clip_seconds, clip_stride_seconds: clip length and stride (paper: 240 frames at 60 fps, half).
+    split_transitions: split TR* files too (the original puts them all in train).
+    min_std:          std below this becomes 1 in the normalisation.
+    """
+    fps: Optional[float] = None
+    skeleton: Optional[str] = None
+    split_fractions: Tuple[float, float, float] = (0.8, 0.1, 0.1)
+    seed: int = 0
+    gap_seconds: float = 0.0
+    mirror_styles: Tuple[str, ...] = ()
+    idle_gaits: Tuple[str, ...] = ("ID", "idle")
+    clip_gaits: Tuple[str, ...] = ("FW", "walk")
+    clip_fallback: bool = True
+    clip_seconds: float = 4.0
+    clip_stride_seconds: float = 2.0
+    split_transitions: bool = False
+    min_std: float = 1e-6
+
+    def __post_init__(self) -> None:
+        for name in ("split_fractions", "mirror_styles", "idle_gaits", "clip_gaits"):
+            value = getattr(self, name)
+            object.__setattr__(self, name, (value,) if isinstance(value, str) else tuple(value))
+        fr = self.split_fractions
+        if len(fr) != 3 or min(fr) < 0 or not np.isclose(sum(fr), 1.0):
+            raise ValueError(f"DatasetSettings: split_fractions must be 3 non-negative numbers summing "
+                             f"to 1, got {fr}")
+        if self.gap_seconds < 0:
+            raise ValueError(f"DatasetSettings: gap_seconds must be >= 0, got {self.gap_seconds}")
+
+    def mirrors(self, f: MotionFile) -> bool:
+        if f.mirror is not None:
+            return f.mirror
+        return "*" in self.mirror_styles or f.style in self.mirror_styles
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+# =========================================================================== splits
+def split_segments(n_frames: int, rng: np.random.Generator,
+                   fractions: Sequence[float] = (0.8, 0.1, 0.1)) -> List[Tuple[int, int, str]]:
+    """Cut ``[0, n_frames)`` into contiguous segments ``(start, stop, split)`` (original §8.2).
+
+    The validation and test windows are ``floor(f L)`` frames each; they never overlap and their
+    order and positions are uniformly random; the rest, up to three pieces, is train.
+    """
+    L = int(n_frames)
+    sizes = {"val": int(np.floor(fractions[1] * L)), "test": int(np.floor(fractions[2] * L))}
+    free = L - sizes["val"] - sizes["test"]
+    cuts = np.sort(rng.integers(0, free + 1, size=2))          # train pieces: [0,c0), ..., [c1, free)
+    order = ["val", "test"] if rng.random() < 0.5 else ["test", "val"]
+    pieces = [("train", int(cuts[0])), (order[0], sizes[order[0]]), ("train", int(cuts[1] - cuts[0])),
+              (order[1], sizes[order[1]]), ("train", int(free - cuts[1]))]
+    out, a = [], 0
+    for split, size in pieces:
+        if size > 0:
+            out.append((a, a + size, split))
+            a += size
+    return out
+
+
+def apply_gap(segments: List[Tuple[int, int, str]], gap: int) -> List[Tuple[int, int, str]]:
+    """Shrink segments by ``gap`` frames at every border with a segment of another split."""
+    out = []
+    for i, (a, b, s) in enumerate(segments):
+        if i > 0 and segments[i - 1][2] != s:
+            a += gap
+        if i + 1 < len(segments) and segments[i + 1][2] != s:
+            b -= gap
+        if b > a:
+            out.append((a, b, s))
+    return out
+
+
+def file_rng(seed: int, f: MotionFile) -> np.random.Generator:
+    """A generator that depends on the seed and the file's name only (not on the other files)."""
+    return np.random.default_rng([int(seed), zlib.crc32(Path(f.path).name.encode("utf-8"))])
+
+
+# =========================================================================== normalisation
+class Normalizer(NormStats):
+    """Mean / std of x, p and z (float64) from the training rows (original-pipeline §8.5).
+
+    A :class:`minifilm.traindata.NormStats` (what the trainer and the runtime read) plus fitting,
+    clip normalisation and .npz files. Clips use the x joint-block statistics
+    (``x_mean[layout.x_joints]``), as in §9.
+    """
+
+    @classmethod
+    def fit(cls, x: np.ndarray, p: np.ndarray, z: np.ndarray, min_std: float = 1e-6) -> "Normalizer":
+        """Statistics of training rows x (N, x_dim), p (N, 8), z (N, z_dim); std < min_std -> 1."""
+        if len(x) == 0:
+            raise ValueError("Normalizer.fit: no training rows")
+        stats = {}
+        for name, a in (("x", x), ("p", p), ("z", z)):
+            a = np.asarray(a, dtype=np.float64)
+            mean = a.mean(axis=0)
+            std = np.sqrt(np.mean((a - mean) ** 2, axis=0))      # biased, as the original
+            std[std < min_std] = 1.0
+            stats[f"{name}_mean"], stats[f"{name}_std"] = mean, std
+        return cls(**stats)
+
+    def normalize_clip(self, clip, layout: FeatureLayout):
+        """(..., T, 12 J) clips with the x joint-block statistics (§9)."""
+        s = layout.x_joints
+        return (clip - self.x_mean[s]) / self.x_std[s]
+
+    def state_dict(self) -> Dict[str, np.ndarray]:
+        return self.to_arrays(prefix="")
+
+    @classmethod
+    def from_state_dict(cls, d) -> "Normalizer":
+        return cls(**NormStats.from_arrays(d, prefix="").__dict__)
+
+    def save(self, path: Union[str, Path]) -> Path:
+        return _save_npz(path, self.state_dict())
+
+    @classmethod
+    def load(cls, path: Union[str, Path]) -> "Normalizer":
+        with np.load(path, allow_pickle=False) as d:
+            return cls.from_state_dict({k: d[k] for k in d.files})
+
+
+def _save_npz(path: Union[str, Path], arrays: dict) -> Path:
+    """Write to a temporary file and rename, so a crash never leaves half a file."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + f".tmp{os.getpid()}.npz")
+    np.savez(tmp, **arrays)
+    os.replace(tmp, path)
+    return path
+
+
+# =========================================================================== the dataset
+@dataclass
+class Split:
+    """The rows of one split. x (N, x_dim), p (N, 8), z (N, z_dim) float32; style (N,) int;
+    file (N,) index into ``Dataset.files``; frame (N,) current frame in that file; clips (M, T, 12 J)
+    float32 with clip_style (M,) and clip_file (M,)."""
+    x: np.ndarray
+    p: np.ndarray
+    z: np.ndarray
+    style: np.ndarray
+    file: np.ndarray
+    frame: np.ndarray
+    clips: np.ndarray
+    clip_style: np.ndarray
+    clip_file: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.x.shape[0])
+
+
+_SPLIT_ARRAYS = ("x", "p", "z", "style", "file", "frame", "clips", "clip_style", "clip_file")
+
+
+@dataclass
+class Dataset:
+    """A built dataset: three splits, the layout, style names, normalisation and provenance.
+
+    files: one dict per featurised source (a file, or its mirror) with path, style, gait, mirrored,
+    n_frames and segments [(start, stop, split)].
+    """
+    layout: FeatureLayout
+    styles: List[str]
+    fps: float
+    skeleton: str
+    train: Split
+    val: Split
+    test: Split
+    normalizer: Normalizer
+    files: List[dict]
+    settings: dict
+    cache_path: Optional[Path] = None
+    build_seconds: float = 0.0
+
+    def split(self, name: str) -> Split:
+        if name not in SPLITS:
+            raise KeyError(f"Dataset.split: {name!r} is not one of {SPLITS}")
+        return getattr(self, name)
+
+    def train_data(self, name: str, clip_split: Optional[str] = None, dtype=np.float32) -> TrainData:
+        """Split ``name`` normalised with the training statistics, as the trainer takes it.
+
+        Clips come from ``clip_split``; by default the split's own clips when every style with rows
+        has one there, else the training clips (validation and test windows are usually shorter
+        than a clip; the clip is the style condition y, not a target).
+        """
+        sp = self.split(name)
+        if clip_split is None:
+            have = set(sp.clip_style.tolist())
+            clip_split = name if set(sp.style.tolist()) <= have else "train"
+        cs = self.split(clip_split)
+        n = self.normalizer
+        return TrainData(x=n.normalize_x(sp.x).astype(dtype), p=n.normalize_p(sp.p).astype(dtype),
+                         z=n.normalize_z(sp.z).astype(dtype), style=sp.style,
+                         clips=n.normalize_clip(cs.clips, self.layout).astype(dtype),
+                         clip_style=cs.clip_style, style_names=list(self.styles))
+
+    # ------------------------------------------------------------------ report
+    def frame_counts(self) -> Dict[str, Dict[str, int]]:
+        """{style: {split: rows}} (plus '<split> clips')."""
+        out = {s: {} for s in self.styles}
+        for name in SPLITS:
+            sp = self.split(name)
+            rows = np.bincount(sp.style, minlength=len(self.styles))
+            clips = np.bincount(sp.clip_style, minlength=len(self.styles))
+            for i, s in enumerate(self.styles):
+                out[s][name] = int(rows[i])
+                out[s][name + " clips"] = int(clips[i])
+        return out
+
+    def summary(self) -> str:
+        """A table of rows (frames) and clips per style and split."""
+        counts = self.frame_counts()
+        w = max([5] + [len(s) for s in self.styles])
+        head = f"{'style':<{w}} " + " ".join(f"{h:>9}" for h in ("train", "val", "test", "clips tr",
+                                                                   "clips va", "clips te"))
+        lines = [head, "-" * len(head)]
+        total = np.zeros(6, dtype=np.int64)
+        for s in self.styles:
+            c = counts[s]
+            row = [c["train"], c["val"], c["test"], c["train clips"], c["val clips"], c["test clips"]]
+            total += row
+            lines.append(f"{s:<{w}} " + " ".join(f"{v:>9d}" for v in row))
+        lines.append("-" * len(head))
+        lines.append(f"{'total':<{w}} " + " ".join(f"{v:>9d}" for v in total))
+        n_src = len(self.files)
+        n_mir = sum(1 for f in self.files if f["mirrored"])
+        lines.append(f"{n_src} sources ({n_mir} mirrored), {self.fps:g} fps, skeleton {self.skeleton}, "
+                     f"x {self.layout.x_dim}, z {self.layout.z_dim}, clip T={self.train.clips.shape[1]}"
+                     f" x {self.layout.clip_dim}")
+        return "\n".join(lines)
+
+    # ------------------------------------------------------------------ save / load
+    def save(self, path: Union[str, Path]) -> Path:
+        arrays = {f"{name}/{key}": getattr(self.split(name), key)
+                  for name in SPLITS for key in _SPLIT_ARRAYS}
+        arrays.update({f"norm/{k}": v for k, v in self.normalizer.state_dict().items()})
+        meta = {"layout": self.layout.to_dict(), "styles": self.styles, "fps": self.fps,
+                "skeleton": self.skeleton, "files": self.files, "settings": self.settings,
+                "format": CACHE_FORMAT, "build_seconds": self.build_seconds}
+        arrays["meta"] = np.array(json.dumps(meta))
+        return _save_npz(path, arrays)
+
+    @classmethod
+    def load(cls, path: Union[str, Path]) -> "Dataset":
+        with np.load(path, allow_pickle=False) as d:
+            meta = json.loads(str(d["meta"]))
+            splits = {name: Split(*(d[f"{name}/{key}"] for key in _SPLIT_ARRAYS)) for name in SPLITS}
+            norm = Normalizer.from_state_dict({k[5:]: d[k] for k in d.files if k.startswith("norm/")})
+        if meta.get("format") != CACHE_FORMAT:
+            raise ValueError(f"{path}: dataset format {meta.get('format')} is not {CACHE_FORMAT}")
+        for f in meta["files"]:
+            f["segments"] = [tuple(s) for s in f["segments"]]
+        return cls(FeatureLayout.from_dict(meta["layout"]), list(meta["styles"]), float(meta["fps"]),
+                   meta["skeleton"], splits["train"], splits["val"], splits["test"], norm,
+                   meta["files"], meta["settings"], Path(path), float(meta.get("build_seconds", 0.0)))
+
+
+# =========================================================================== building
+class _Progress:
+    """One status line on stderr, rewritten in place on a terminal, every ~10 % otherwise."""
+
+    def __init__(self, total: int, label: str, enabled: bool = True):
+        self.total, self.label, self.enabled = total, label, enabled
+        self.t0 = time.perf_counter()
+        self.tty = enabled and sys.stderr.isatty()
+        self.next_print = 0.0
+
+    def update(self, done: int, note: str = "") -> None:
+        if not self.enabled or self.total == 0:
+            return
+        frac = done / self.total
+        if not self.tty and frac < self.next_print and done != self.total:
+            return
+        self.next_print = frac + 0.1
+        el = time.perf_counter() - self.t0
+        eta = el / done * (self.total - done) if done else float("nan")
+        msg = f"[{self.label}] {done}/{self.total} files, {el:5.1f} s, eta {eta:5.1f} s {note}"
+        if self.tty:
+            sys.stderr.write("\r" + msg[:120].ljust(120) + ("\n" if done == self.total else ""))
+        else:
+            sys.stderr.write(msg + "\n")
+        sys.stderr.flush()
+
+
+def resolve_files(source: Union[str, Path, Sequence[MotionFile]]) -> List[MotionFile]:
+    """A folder (100STYLE naming), a .csv manifest, or a list of MotionFile."""
+    if isinstance(source, (str, Path)):
+        p = Path(source)
+        if p.suffix.lower() == ".csv":
+            return read_manifest(p)
+        return scan_100style(p)
+    files = list(source)
+    if not files or not all(isinstance(f, MotionFile) for f in files):
+        raise TypeError("build_dataset: source must be a folder, a .csv manifest or a non-empty list "
+                        "of minifilm.manifest.MotionFile")
+    return files
+
+
+def _source_fingerprint() -> str:
+    """Hash of the code that computes the cached arrays: a code change invalidates old caches."""
+    h = hashlib.sha256()
+    here = Path(__file__).resolve().parent
+    for p in [here / "data.py", here / "manifest.py"] + sorted((here / "motion").glob("*.py")):
+        h.update(p.name.encode())
+        h.update(p.read_bytes())
+    return h.hexdigest()
+
+
+def cache_key(files: Sequence[MotionFile], settings: DatasetSettings) -> str:
+    """sha256 over every file's path, size and mtime, its labels, the settings and the code."""
+    items = []
+    for f in files:
+        st = Path(f.path).stat()
+        items.append([str(Path(f.path).resolve()), st.st_size, st.st_mtime_ns, f.style, f.gait,
+                      f.start, f.end, f.mirror])
+    blob = json.dumps({"files": items, "settings": settings.to_dict(), "format": CACHE_FORMAT,
+                       "code": _source_fingerprint()}, sort_keys=True)
+    return hashlib.sha256(blob.encode()).hexdigest()
+
+
+def _load_motion(f: MotionFile, skeleton, fps: Optional[float]):
+    from .motion.bvh import read_bvh
+    from .motion.kinematics import resample
+
+    motion = read_bvh(f.path, scale=skeleton.bvh_scale)
+    if f.start is not None or f.end is not None:
+        a = 0 if f.start is None else f.start
+        b = motion.n_frames if f.end is None else f.end
+        if b > motion.n_frames or a >= b:
+            raise ValueError(f"{f.path}: frame range [{a}, {b}) does not fit its {motion.n_frames} frames")
+        motion = motion.slice(a, b)
+    if fps is not None and abs(motion.fps - fps) > 1e-3 * fps:
+        motion = resample(motion, fps)
+    return motion
+
+
+def _labels(motion, skeleton, style: str):
+    """Foot contacts (F, 2) [right, left] and phase vectors (F, 8) of one file (Sec. 4.1)."""
+    from .motion.contacts import foot_contacts
+    from .motion.phases import default_sources, extract_local_phases
+
+    positions, _ = motion.world()
+    contacts = foot_contacts(positions[:, skeleton.contact_indices(motion)], motion.fps)
+    phases = extract_local_phases(motion, skeleton, contacts, default_sources(style)).vectors()
+    return contacts, phases
+
+
+def mirror_labels(contacts: np.ndarray, phases: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """Labels of the mirrored motion: left and right swap (original-pipeline §1.3, §4.6).
+
+    contacts [right, left] -> [left, right]; phase slots [LH, RH, LF, RF] -> [RH, LH, RF, LF].
+    """
+    p = phases.reshape(phases.shape[0], 4, 2)[:, [1, 0, 3, 2]]
+    return contacts[:, ::-1].copy(), p.reshape(phases.shape[0], 8).copy()
+
+
+def _featurise(motion, skeleton, contacts, phases, segments, fps, want_clips, settings, dtype):
+    """Rows and clips of every segment of one (possibly mirrored) motion."""
+    from .motion.features import clip_features_from_arrays, frame_features_from_arrays, motion_arrays
+
+    arrays = motion_arrays(motion, skeleton, fps)
+    rows, clips = [], []
+    for a, b, split in segments:
+        f = frame_features_from_arrays(*arrays, phases, contacts, fps, a, b, dtype)
+        rows.append((split, f))
+        if want_clips:
+            y = clip_features_from_arrays(*arrays, fps, settings.clip_seconds,
+                                          settings.clip_stride_seconds, a, b, dtype)
+            clips.append((split, y))
+    return rows, clips
+
+
+def _pick_skeleton(settings: DatasetSettings, first: MotionFile):
+    from .motion import skeletons
+
+    if settings.skeleton is not None:
+        known = {s.name: s for s in skeletons.BUILTIN_SKELETONS}
+        if settings.skeleton not in known:
+            raise ValueError(f"DatasetSettings.skeleton {settings.skeleton!r} is not one of {sorted(known)}")
+        return known[settings.skeleton]
+    from .motion.bvh import read_bvh
+
+    return skeletons.detect_skeleton(read_bvh(first.path))
+
+
+def build_dataset(source: Union[str, Path, Sequence[MotionFile]],
+                  settings: Optional[DatasetSettings] = None, cache_dir: Union[str, Path, None] = None,
+                  progress: bool = True, skeleton=None, dtype=np.float32, **overrides) -> Dataset:
+    """Build (or load from cache) the dataset of a 100STYLE-named folder, a CSV manifest or a list
+    of :class:`~minifilm.manifest.MotionFile`.
+
+    Args:
+        settings: a :class:`DatasetSettings`; keyword ``overrides`` replace single fields.
+        cache_dir: where ``dataset-<hash>.npz`` lives; None disables caching.
+        progress: a status line on stderr.
+        skeleton: a :class:`~minifilm.motion.skeletons.Skeleton` object for a custom skeleton
+            (overrides ``settings.skeleton``; its repr enters the cache key).
+    """
+    settings = settings or DatasetSettings()
+    if overrides:
+        settings = DatasetSettings(**{**settings.to_dict(), **overrides})
+    files = [f for f in resolve_files(source) if f.gait not in settings.idle_gaits]
+    if not files:
+        raise ValueError("build_dataset: every file is idle (see DatasetSettings.idle_gaits)")
+    cache_path = None
+    if cache_dir is not None:
+        key = cache_key(files, settings)
+        if skeleton is not None:
+            key = hashlib.sha256((key + repr(skeleton)).encode()).hexdigest()
+        cache_path = Path(cache_dir) / f"dataset-{key[:20]}.npz"
+        if cache_path.is_file():
+            return Dataset.load(cache_path)
+    t0 = time.perf_counter()
+    skeleton = skeleton or _pick_skeleton(settings, files[0])
+    ds = _build(files, settings, skeleton, progress, dtype)
+    ds.build_seconds = time.perf_counter() - t0
+    if cache_path is not None:
+        ds.save(cache_path)
+        ds.cache_path = cache_path
+    return ds
+
+
+def _build(files: List[MotionFile], settings: DatasetSettings, skeleton, progress: bool, dtype) -> Dataset:
+    styles = sorted({f.style for f in files})
+    style_id = {s: i for i, s in enumerate(styles)}
+    has_primary_clips: set = set()          # styles with a training clip from a clip-gait file
+    fallback: Dict[str, list] = {}          # other files' clips, kept while a style has none
+    layout = FeatureLayout.for_skeleton(skeleton)
+    parts = {s: {"rows": [], "clips": []} for s in SPLITS}
+    sources: List[dict] = []
+    fps_seen = settings.fps
+    bar = _Progress(len(files), "dataset", progress)
+    for i, f in enumerate(files):
+        motion = _load_motion(f, skeleton, settings.fps)
+        if fps_seen is None:
+            fps_seen = motion.fps
+        elif abs(motion.fps - fps_seen) > 1e-3 * fps_seen:
+            raise ValueError(f"{f.path}: {motion.fps:g} fps differs from the other files' {fps_seen:g} fps; "
+                             f"set DatasetSettings(fps=...) to resample")
+        fps = fps_seen
+        contacts, phases = _labels(motion, skeleton, f.style)
+        if f.gait.startswith("TR") and not settings.split_transitions:
+            segments = [(0, motion.n_frames, "train")]
+        else:
+            segments = split_segments(motion.n_frames, file_rng(settings.seed, f), settings.split_fractions)
+            segments = apply_gap(segments, int(round(settings.gap_seconds * fps)))
+        primary = f.gait in settings.clip_gaits
+        want_clips = primary or (settings.clip_fallback and f.style not in has_primary_clips)
+        variants = [(False, motion, contacts, phases)]
+        if settings.mirrors(f):
+            from .motion.kinematics import mirror
+
+            variants.append((True, mirror(motion), *mirror_labels(contacts, phases)))
+        for mirrored, m, c, p in variants:
+            src = len(sources)
+            sources.append({"path": str(f.path), "style": f.style, "gait": f.gait, "mirrored": mirrored,
+                            "n_frames": m.n_frames, "start": f.start, "end": f.end,
+                            "segments": segments})
+            rows, clips = _featurise(m, skeleton, c, p, segments, fps, want_clips, settings, dtype)
+            for split, ff in rows:
+                parts[split]["rows"].append((src, style_id[f.style], ff))
+            for split, y in clips:
+                if primary:
+                    parts[split]["clips"].append((src, style_id[f.style], y))
+                    if split == "train" and len(y):
+                        has_primary_clips.add(f.style)
+                        fallback.pop(f.style, None)
+                elif f.style not in has_primary_clips:
+                    fallback.setdefault(f.style, []).append((split, (src, style_id[f.style], y)))
+        bar.update(i + 1, Path(f.path).name)
+    for style, items in fallback.items():       # styles without a training clip of a clip gait
+        if style not in has_primary_clips:
+            for split, item in items:
+                parts[split]["clips"].append(item)
+    T = int(round(settings.clip_seconds * fps_seen))
+    splits = {name: _stack(parts[name], layout, T, dtype) for name in SPLITS}
+    tr = splits["train"]
+    normalizer = Normalizer.fit(tr.x, tr.p, tr.z, settings.min_std)
+    return Dataset(layout, styles, float(fps_seen), skeleton.name, splits["train"], splits["val"],
+                   splits["test"], normalizer, sources, settings.to_dict())
+
+
+def _stack(part, layout: FeatureLayout, T: int, dtype) -> Split:
+    rows, clips = part["rows"], part["clips"]
+    cat = lambda arrs, shape, dt: np.concatenate(arrs) if arrs else np.empty(shape, dtype=dt)
+    x = cat([r[2].x for r in rows], (0, layout.x_dim), dtype)
+    p = cat([r[2].p for r in rows], (0, layout.phase_dim), dtype)
+    z = cat([r[2].z for r in rows], (0, layout.z_dim), dtype)
+    style = cat([np.full(len(r[2]), r[1], np.int32) for r in rows], (0,), np.int32)
+    file = cat([np.full(len(r[2]), r[0], np.int32) for r in rows], (0,), np.int32)
+    frame = cat([r[2].frames.astype(np.int32) for r in rows], (0,), np.int32)
+    y = cat([c[2] for c in clips], (0, T, layout.clip_dim), dtype)
+    clip_style = cat([np.full(len(c[2]), c[1], np.int32) for c in clips], (0,), np.int32)
+    clip_file = cat([np.full(len(c[2]), c[0], np.int32) for c in clips], (0,), np.int32)
+    return Split(x, p, z, style, file, frame, y, clip_style, clip_file)
+
+
+# =========================================================================== minibatches
+class StyleBatcher:
+    """Style-balanced minibatches (Sec. 4.3).
+
+    Every minibatch holds rows of one style only; styles come in a fixed cyclic order, so each run
+    of S consecutive minibatches contains every style once. One epoch is one pass through the style
+    with the fewest rows: ``max(1, min_count // batch_size)`` rounds of S minibatches. Each style's
+    rows are drawn without replacement from a fresh permutation; a style smaller than a batch is
+    drawn from repeatedly.
+
+    Args:
+        style: (N,) style id of every row.
+        batch_size: rows per minibatch.
+        rng: the generator for the permutations.
+        clip_style: optional (M,) style id of every clip; then each batch also names a random clip
+            of its style (the style input y of Eq. 4).
+    """
+
+    def __init__(self, style: np.ndarray, batch_size: int, rng: np.random.Generator,
+                 clip_style: Optional[np.ndarray] = None):
+        style = np.asarray(style)
+        if batch_size < 1:
+            raise ValueError(f"StyleBatcher: batch_size must be >= 1, got {batch_size}")
+        self.styles = np.unique(style)
+        if self.styles.size == 0:
+            raise ValueError("StyleBatcher: no rows")
+        self.rows = {int(s): np.flatnonzero(style == s) for s in self.styles}
+        self.batch_size = int(batch_size)
+        self.rng = rng
+        self.clips = None
+        if clip_style is not None:
+            clip_style = np.asarray(clip_style)
+            self.clips = {int(s): np.flatnonzero(clip_style == s) for s in self.styles}
+            empty = [int(s) for s in self.styles if self.clips[int(s)].size == 0]
+            if empty:
+                raise ValueError(f"StyleBatcher: styles {empty} have rows but no clip")
+        self._queue = {s: np.empty(0, dtype=np.int64) for s in self.rows}
+
+    @property
+    def batches_per_epoch(self) -> int:
+        smallest = min(r.size for r in self.rows.values())
+        return max(1, smallest // self.batch_size) * len(self.rows)
+
+    def _take(self, s: int) -> np.ndarray:
+        q = self._queue[s]
+        while q.size < self.batch_size:
+            q = np.concatenate([q, self.rng.permutation(self.rows[s])])
+        self._queue[s] = q[self.batch_size:]
+        return q[:self.batch_size]
+
+    def epoch(self) -> Iterator[Tuple[int, np.ndarray, Optional[int]]]:
+        """Yields ``(style, rows (B,), clip index or None)`` for one epoch."""
+        rounds = self.batches_per_epoch // len(self.rows)
+        for _ in range(rounds):
+            for s in self.rows:
+                clip = None
+                if self.clips is not None:
+                    clip = int(self.rng.choice(self.clips[s]))
+                yield s, self._take(s), clip

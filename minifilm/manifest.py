@@ -1,0 +1,155 @@
+"""Which BVH files make up a dataset, and their style and gait labels.
+
+Two sources (used by :func:`minifilm.data.build_dataset`):
+
+* a folder named like 100STYLE, ``<Style>_<Gait>.bvh`` with gait codes BR BW FR FW ID SR SW TR,
+  TR1, TR2, ... (original-pipeline.md §11): :func:`scan_100style`;
+* a CSV manifest for any other dataset, one row per file with the columns
+  ``file, style, gait`` and optionally ``start, end`` (a frame range ``[start, end)``, 0-based,
+  in the file's own frames) and ``mirror`` (yes/no: add a mirrored copy): :func:`read_manifest`.
+  Relative paths are relative to the manifest's folder. :func:`write_bandai_manifest` writes one
+  for the Bandai Namco datasets (``dataset-{1,2}_{content}_{style}_{id}.bvh``).
+"""
+from __future__ import annotations
+
+import csv
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import List, Optional, Sequence, Union
+
+#: 100STYLE gait codes: forwards / backwards / sideways walk and run, idle, transitions.
+STYLE100_GAITS = ("BR", "BW", "FR", "FW", "ID", "SR", "SW")
+_STYLE100_NAME = re.compile(r"^(?P<style>[A-Za-z0-9]+)_(?P<gait>BR|BW|FR|FW|ID|SR|SW|TR\d*)\.bvh$")
+_BANDAI_NAME = re.compile(r"^dataset-(?P<set>\d+)_(?P<content>[a-z\-]+)_(?P<style>[a-z]+)_(?P<id>\d+)\.bvh$")
+
+
+@dataclass(frozen=True)
+class MotionFile:
+    """One file of a dataset.
+
+    path: the BVH file; style, gait: labels; start, end: optional frame range ``[start, end)``;
+    mirror: None = decided by the dataset settings (symmetric styles), True / False = forced.
+    """
+    path: Path
+    style: str
+    gait: str
+    start: Optional[int] = None
+    end: Optional[int] = None
+    mirror: Optional[bool] = None
+
+
+def scan_100style(folder: Union[str, Path]) -> List[MotionFile]:
+    """Every ``<Style>_<Gait>.bvh`` in ``folder`` (sorted by name). Files whose names do not follow
+    the pattern are ignored; a folder without a single matching file is an error."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise FileNotFoundError(f"scan_100style: {folder} is not a folder")
+    out = []
+    for path in sorted(folder.glob("*.bvh")):
+        m = _STYLE100_NAME.match(path.name)
+        if m:
+            out.append(MotionFile(path, m["style"], m["gait"]))
+    if not out:
+        raise ValueError(f"scan_100style: no file in {folder} is named <Style>_<Gait>.bvh with a gait "
+                         f"in {STYLE100_GAITS + ('TR*',)}; for other datasets write a CSV manifest "
+                         f"(minifilm.manifest.read_manifest)")
+    return out
+
+
+def _parse_int(text: str, what: str, where: str) -> Optional[int]:
+    text = (text or "").strip()
+    if text == "":
+        return None
+    try:
+        value = int(text)
+    except ValueError:
+        raise ValueError(f"{where}: column {what!r} must be a whole frame number, got {text!r}") from None
+    if value < 0:
+        raise ValueError(f"{where}: column {what!r} must be >= 0, got {value}")
+    return value
+
+
+def _parse_bool(text: str, where: str) -> Optional[bool]:
+    t = (text or "").strip().lower()
+    if t == "":
+        return None
+    if t in ("yes", "y", "true", "1"):
+        return True
+    if t in ("no", "n", "false", "0"):
+        return False
+    raise ValueError(f"{where}: column 'mirror' must be yes or no, got {text!r}")
+
+
+def read_manifest(csv_path: Union[str, Path]) -> List[MotionFile]:
+    """Read a CSV manifest (header ``file,style,gait[,start,end][,mirror]``); errors name the line."""
+    csv_path = Path(csv_path)
+    with open(csv_path, newline="", encoding="utf-8") as fh:
+        reader = csv.DictReader(fh)
+        header = [h.strip() for h in (reader.fieldnames or [])]
+        missing = [c for c in ("file", "style", "gait") if c not in header]
+        if missing:
+            raise ValueError(f"{csv_path}: line 1: header {header} lacks the column(s) {missing}; "
+                             f"expected file,style,gait[,start,end][,mirror]")
+        out = []
+        for row in reader:
+            where = f"{csv_path}: line {reader.line_num}"
+            row = {(k or "").strip(): (v or "").strip() for k, v in row.items()}
+            if not row.get("file"):
+                raise ValueError(f"{where}: empty 'file'")
+            if not row.get("style") or not row.get("gait"):
+                raise ValueError(f"{where}: 'style' and 'gait' must not be empty")
+            path = Path(row["file"])
+            if not path.is_absolute():
+                path = csv_path.parent / path
+            if not path.is_file():
+                raise FileNotFoundError(f"{where}: file {path} does not exist")
+            start = _parse_int(row.get("start", ""), "start", where)
+            end = _parse_int(row.get("end", ""), "end", where)
+            if start is not None and end is not None and end <= start:
+                raise ValueError(f"{where}: end {end} must be after start {start}")
+            out.append(MotionFile(path, row["style"], row["gait"], start, end,
+                                  _parse_bool(row.get("mirror", ""), where)))
+    if not out:
+        raise ValueError(f"{csv_path}: the manifest lists no files")
+    return out
+
+
+def write_manifest(files: Sequence[MotionFile], csv_path: Union[str, Path]) -> Path:
+    """Write ``files`` as a CSV manifest (paths relative to the manifest's folder where possible)."""
+    csv_path = Path(csv_path)
+    csv_path.parent.mkdir(parents=True, exist_ok=True)
+    with open(csv_path, "w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        w.writerow(["file", "style", "gait", "start", "end", "mirror"])
+        for f in files:
+            try:
+                name = Path(f.path).resolve().relative_to(csv_path.parent.resolve())
+            except ValueError:
+                name = Path(f.path).resolve()
+            mirror = "" if f.mirror is None else ("yes" if f.mirror else "no")
+            w.writerow([name.as_posix(), f.style, f.gait,
+                        "" if f.start is None else f.start, "" if f.end is None else f.end, mirror])
+    return csv_path
+
+
+def bandai_files(folder: Union[str, Path]) -> List[MotionFile]:
+    """Files of a Bandai Namco motion dataset folder, ``dataset-N_{content}_{style}_{id}.bvh``.
+
+    style = the style word (``active``, ``elderly``, ...); gait = the content word (``walk``,
+    ``run``, ``walk-turn-left``, ...), kept verbatim.
+    """
+    folder = Path(folder)
+    out = []
+    for path in sorted(folder.glob("*.bvh")):
+        m = _BANDAI_NAME.match(path.name)
+        if m:
+            out.append(MotionFile(path, m["style"], m["content"]))
+    if not out:
+        raise ValueError(f"bandai_files: no file in {folder} is named dataset-N_<content>_<style>_<id>.bvh")
+    return out
+
+
+def write_bandai_manifest(folder: Union[str, Path], csv_path: Union[str, Path]) -> Path:
+    """Write a CSV manifest for a Bandai Namco dataset folder (see :func:`bandai_files`)."""
+    return write_manifest(bandai_files(folder), csv_path)

@@ -1,0 +1,280 @@
+"""Datasets (minifilm/data.py, minifilm/manifest.py): files, splits, mirroring, normalisation,
+cache, style-balanced minibatches. Expected values are properties or independent computations."""
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from minifilm.data import (
+    SPLITS, Dataset, DatasetSettings, Normalizer, StyleBatcher, apply_gap, build_dataset,
+    file_rng, mirror_labels, split_segments)
+from minifilm.manifest import (
+    MotionFile, bandai_files, read_manifest, scan_100style, write_bandai_manifest, write_manifest)
+from minifilm.traindata import NormStats, TrainData
+
+
+# ----------------------------------------------------------------------------- splits
+@pytest.mark.parametrize("n", [10, 37, 158, 1000, 18000])
+def test_split_segments_tile_the_file(n):
+    orders, starts = set(), set()
+    for seed in range(40):
+        segs = split_segments(n, np.random.default_rng(seed))
+        assert segs[0][0] == 0 and segs[-1][1] == n
+        assert all(a < b for a, b, _ in segs)
+        assert all(segs[i][1] == segs[i + 1][0] for i in range(len(segs) - 1))      # contiguous
+        sizes = {s: sum(b - a for a, b, t in segs if t == s) for s in SPLITS}
+        assert sizes["val"] == n // 10 and sizes["test"] == n // 10
+        assert sum(1 for *_, t in segs if t == "val") == (1 if n >= 10 else 0)    # one window each
+        assert sum(1 for *_, t in segs if t == "test") == (1 if n >= 10 else 0)
+        order = [t for *_, t in segs if t != "train"]
+        orders.add(tuple(order))
+        starts.add(next(a for a, _, t in segs if t == "val"))
+    assert orders == {("val", "test"), ("test", "val")}          # both orders occur
+    assert len(starts) >= min(8, n // 2)                          # positions vary
+
+
+def test_split_is_seeded_per_file():
+    f1, f2 = MotionFile(Path("/x/a.bvh"), "s", "FW"), MotionFile(Path("/y/a.bvh"), "s", "FW")
+    a = split_segments(500, file_rng(3, f1))
+    assert a == split_segments(500, file_rng(3, f2))             # depends on the name, not the folder
+    assert any(split_segments(500, file_rng(s, f1)) != a for s in range(4, 10))
+
+
+def test_apply_gap_only_between_different_splits():
+    segs = [(0, 50, "train"), (50, 60, "val"), (60, 90, "train"), (90, 100, "test")]
+    assert apply_gap(segs, 3) == [(0, 47, "train"), (53, 57, "val"), (63, 87, "train"), (93, 100, "test")]
+    assert apply_gap([(0, 10, "train"), (10, 12, "val")], 2) == [(0, 8, "train")]
+
+
+# ----------------------------------------------------------------------------- normalisation
+def test_normalizer_statistics_and_file(tmp_path):
+    rng = np.random.default_rng(0)
+    x = rng.normal(3.0, 2.0, size=(500, 6)).astype(np.float32)
+    x[:, 2] = 7.25                                                 # constant column -> std 1
+    p, z = rng.normal(size=(500, 8)), rng.normal(size=(500, 4))
+    n = Normalizer.fit(x, p, z)
+    x64 = x.astype(np.float64)
+    mean = x64.sum(axis=0) / 500
+    std = np.sqrt(((x64 - mean) ** 2).sum(axis=0) / 500)           # biased
+    std[2] = 1.0
+    np.testing.assert_allclose(n.x_mean, mean, rtol=1e-12)
+    np.testing.assert_allclose(n.x_std, std, rtol=1e-12)
+    assert n.x_mean.dtype == np.float64 and isinstance(n, NormStats)
+    path = n.save(tmp_path / "norm.npz")
+    with np.load(path, allow_pickle=False) as d:
+        assert sorted(d.files) == sorted(["x_mean", "x_std", "p_mean", "p_std", "z_mean", "z_std"])
+    m = Normalizer.load(path)
+    for k in ("x_mean", "x_std", "p_mean", "p_std", "z_mean", "z_std"):
+        np.testing.assert_array_equal(getattr(m, k), getattr(n, k))
+    with pytest.raises(ValueError, match="no training rows"):
+        Normalizer.fit(x[:0], p[:0], z[:0])
+
+
+# ----------------------------------------------------------------------------- minibatches
+def test_style_batcher_one_style_per_batch_fixed_cycle():
+    style = np.repeat([0, 1, 2], [100, 37, 64])
+    rng = np.random.default_rng(1)
+    clip_style = np.array([2, 0, 1, 1, 0, 2])
+    b = StyleBatcher(style, 10, rng, clip_style)
+    batches = list(b.epoch())
+    assert len(batches) == b.batches_per_epoch == 3 * (37 // 10)  # one pass through the smallest style
+    assert [s for s, _, _ in batches] == [0, 1, 2] * 3             # fixed cyclic order
+    for s, rows, clip in batches:
+        assert rows.shape == (10,) and np.all(style[rows] == s)
+        assert clip_style[clip] == s
+    for s in (0, 1, 2):                                            # no row twice within an epoch
+        rows = np.concatenate([r for t, r, _ in batches if t == s])
+        assert len(set(rows.tolist())) == rows.size
+    tiny = StyleBatcher(np.array([0, 0, 1, 1, 1]), 4, rng)         # styles smaller than a batch
+    assert [len(r) for _, r, _ in tiny.epoch()] == [4, 4]
+    with pytest.raises(ValueError, match=r"styles \[1\] have rows but no clip"):
+        StyleBatcher(style, 4, rng, np.array([0, 2]))
+
+
+def test_mirror_labels_swap_left_and_right():
+    contacts = np.array([[1.0, 0.0], [0.0, 0.5]])
+    phases = np.arange(16.0).reshape(2, 8)            # slots LH RH LF RF, (sin, cos) each
+    c, p = mirror_labels(contacts, phases)
+    np.testing.assert_array_equal(c, [[0, 1], [0.5, 0]])
+    np.testing.assert_array_equal(p[0], [2, 3, 0, 1, 6, 7, 4, 5])
+
+
+# ----------------------------------------------------------------------------- manifests
+def test_manifest_round_trip_and_errors(tmp_path):
+    (tmp_path / "a.bvh").write_text("x")
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "b.bvh").write_text("x")
+    files = [MotionFile(tmp_path / "a.bvh", "happy", "walk", 5, 90, True),
+             MotionFile(tmp_path / "sub" / "b.bvh", "sad", "run")]
+    path = write_manifest(files, tmp_path / "m.csv")
+    back = read_manifest(path)
+    assert [(f.path.resolve(), f.style, f.gait, f.start, f.end, f.mirror) for f in back] == \
+        [(f.path.resolve(), f.style, f.gait, f.start, f.end, f.mirror) for f in files]
+    bad = tmp_path / "bad.csv"
+    bad.write_text("file,style,gait,start,end\na.bvh,happy,walk,10,x\n")
+    with pytest.raises(ValueError, match=r"bad.csv: line 2: column 'end' must be a whole frame number"):
+        read_manifest(bad)
+    bad.write_text("file,style\na.bvh,happy\n")
+    with pytest.raises(ValueError, match=r"line 1: .*lacks the column\(s\) \['gait'\]"):
+        read_manifest(bad)
+    bad.write_text("file,style,gait\nmissing.bvh,happy,walk\n")
+    with pytest.raises(FileNotFoundError, match="line 2: file .*missing.bvh does not exist"):
+        read_manifest(bad)
+
+
+def test_bandai_manifest(shared_data, tmp_path):
+    path = write_bandai_manifest(shared_data / "bandai2", tmp_path / "bandai2.csv")
+    files = read_manifest(path)
+    assert len(files) == len(list((shared_data / "bandai2").glob("*.bvh")))
+    assert {f.style for f in files} == {"active", "elderly", "exhausted", "feminine", "normal"}
+    assert {f.gait for f in files} == {"walk", "run", "walk-turn-left", "walk-turn-right"}
+    one = [f for f in files if f.path.name == "dataset-2_walk-turn-left_elderly_003.bvh"][0]
+    assert (one.style, one.gait) == ("elderly", "walk-turn-left")
+
+
+def test_scan_100style_names(tmp_path):
+    for name in ["Zombie_FW.bvh", "Zombie_ID.bvh", "Aeroplane_TR2.bvh", "Neutral_FR_first3frames.bvh",
+                 "notes.txt"]:
+        (tmp_path / name).write_text("x")
+    got = [(f.path.name, f.style, f.gait) for f in scan_100style(tmp_path)]
+    assert got == [("Aeroplane_TR2.bvh", "Aeroplane", "TR2"), ("Zombie_FW.bvh", "Zombie", "FW"),
+                   ("Zombie_ID.bvh", "Zombie", "ID")]
+    with pytest.raises(ValueError, match="no file in .* is named <Style>_<Gait>.bvh"):
+        scan_100style(tmp_path / "..")
+
+
+# ----------------------------------------------------------------------------- building (real data)
+SUBSET = ["dataset-2_walk_active_001.bvh", "dataset-2_walk_elderly_001.bvh",
+          "dataset-2_run_active_001.bvh", "dataset-2_walk-turn-left_elderly_001.bvh"]
+
+
+@pytest.fixture(scope="module")
+def small(shared_data, tmp_path_factory):
+    """A few Bandai files, one style mirrored, cached in a temporary folder."""
+    cache = tmp_path_factory.mktemp("cache")
+    files = [f for f in bandai_files(shared_data / "bandai2") if f.path.name in SUBSET]
+    ds = build_dataset(files, cache_dir=cache, progress=False, mirror_styles=("active",), seed=7,
+                       clip_seconds=2.0, clip_stride_seconds=1.0)
+    return files, cache, ds
+
+
+def test_build_shapes_and_labels(small):
+    files, _, ds = small
+    assert ds.styles == ["active", "elderly"] and ds.fps == pytest.approx(30, abs=1e-3)
+    assert ds.skeleton == "bandai" and ds.layout.n_joints == 21
+    assert len(ds.files) == 6                                   # 4 files + 2 mirrored 'active'
+    for name in SPLITS:
+        sp = ds.split(name)
+        assert sp.x.shape == (len(sp), ds.layout.x_dim) and sp.z.shape == (len(sp), ds.layout.z_dim)
+        assert sp.p.shape == (len(sp), 8) and sp.x.dtype == np.float32
+        assert np.all(np.isfinite(sp.x)) and np.all(np.isfinite(sp.z))
+    # clips: 2 s at 30 fps, only from walk files (the clip gait), in the style of their file
+    assert ds.train.clips.shape[1:] == (60, ds.layout.clip_dim) and len(ds.train.clips) > 0
+    for name in SPLITS:
+        sp = ds.split(name)
+        for c, s in zip(sp.clip_file, sp.clip_style):
+            assert ds.files[c]["gait"] == "walk" and ds.styles[s] == ds.files[c]["style"]
+
+
+def test_rows_stay_inside_their_segments(small):
+    _, _, ds = small
+    for name in SPLITS:
+        sp = ds.split(name)
+        for src, info in enumerate(ds.files):
+            frames = sp.frame[sp.file == src]
+            segs = [(a, b) for a, b, s in info["segments"] if s == name]
+            inside = np.zeros(frames.shape, bool)
+            for a, b in segs:                                    # current frames a+1 .. b-2
+                inside |= (frames >= a + 1) & (frames <= b - 2)
+            assert inside.all()
+            assert frames.size == sum(max(0, b - a - 2) for a, b in segs)
+    # the same frames of a file never appear in two splits
+    keys = {name: set(zip(ds.split(name).file.tolist(), ds.split(name).frame.tolist())) for name in SPLITS}
+    assert not (keys["train"] & keys["val"]) and not (keys["train"] & keys["test"])
+    # a mirrored copy uses its original's segments
+    for info in ds.files:
+        if info["mirrored"]:
+            orig = [o for o in ds.files if o["path"] == info["path"] and not o["mirrored"]][0]
+            assert orig["segments"] == info["segments"]
+
+
+def test_mirrored_rows_are_mirror_images(small):
+    """Mirroring negates x of every local position / direction and swaps left and right joints."""
+    from minifilm.motion.kinematics import mirror_pairs
+    from minifilm.motion.skeletons import BANDAI
+
+    _, _, ds = small
+    sym = mirror_pairs(list(BANDAI.joints))
+    assert sym.tolist() != list(range(21))
+    sp = ds.train
+    orig = [i for i, f in enumerate(ds.files) if f["style"] == "active" and not f["mirrored"]][0]
+    mirr = [i for i, f in enumerate(ds.files) if f["path"] == ds.files[orig]["path"] and f["mirrored"]][0]
+    a, b = sp.file == orig, sp.file == mirr
+    np.testing.assert_array_equal(sp.frame[a], sp.frame[b])
+    ja = sp.x[a][:, ds.layout.x_joints].reshape(-1, 21, 4, 3)
+    jb = sp.x[b][:, ds.layout.x_joints].reshape(-1, 21, 4, 3)
+    np.testing.assert_allclose(jb, ja[:, sym] * np.array([-1, 1, 1]), atol=2e-5)
+    ta, tb = sp.x[a][:, :48].reshape(-1, 12, 4), sp.x[b][:, :48].reshape(-1, 12, 4)
+    np.testing.assert_allclose(tb, ta * np.array([-1, 1, -1, 1]), atol=2e-5)
+    za, zb = sp.z[a], sp.z[b]
+    np.testing.assert_array_equal(zb[:, ds.layout.z_contacts], za[:, ds.layout.z_contacts][:, ::-1])
+
+
+def test_normalisation_from_training_rows_only(small):
+    _, _, ds = small
+    x = ds.train.x.astype(np.float64)
+    np.testing.assert_allclose(ds.normalizer.x_mean, x.mean(axis=0), atol=1e-9)
+    std = x.std(axis=0)
+    std[std < 1e-6] = 1.0
+    np.testing.assert_allclose(ds.normalizer.x_std, std, rtol=1e-7, atol=1e-12)
+    # the columns that are constant by construction get std 1: sample 6 and the hips' x, z
+    assert np.all(ds.normalizer.x_std[[24, 25, 26, 27, 48, 50]] == 1.0)
+    everything = np.concatenate([ds.train.x, ds.val.x, ds.test.x]).astype(np.float64)
+    assert not np.allclose(ds.normalizer.x_mean, everything.mean(axis=0), atol=1e-9)
+    td = ds.train_data("train")
+    assert isinstance(td, TrainData) and td.style_names == ds.styles
+    np.testing.assert_allclose(td.x.mean(axis=0), 0.0, atol=1e-3)
+    vd = ds.train_data("val")                                 # val windows are shorter than a clip
+    assert len(vd.clips) == len(ds.train.clips)
+
+
+def test_cache_second_build_is_loaded(small, shared_data):
+    files, cache, ds = small
+    assert ds.cache_path is not None and ds.cache_path.parent == cache
+    again = build_dataset(files, cache_dir=cache, progress=False, mirror_styles=("active",), seed=7,
+                          clip_seconds=2.0, clip_stride_seconds=1.0)
+    assert again.cache_path == ds.cache_path
+    for name in SPLITS:
+        for key in ("x", "p", "z", "style", "file", "frame", "clips", "clip_style"):
+            np.testing.assert_array_equal(getattr(again.split(name), key), getattr(ds.split(name), key))
+    assert again.layout == ds.layout and again.files == ds.files
+    np.testing.assert_array_equal(again.normalizer.z_std, ds.normalizer.z_std)
+    with np.load(ds.cache_path, allow_pickle=False) as d:      # no object arrays inside
+        assert all(d[k].dtype != object for k in d.files)
+    other = build_dataset(files, cache_dir=cache, progress=False, mirror_styles=("active",), seed=8,
+                          clip_gaits=("none",), clip_fallback=False)
+    assert other.cache_path != ds.cache_path and len(other.train.clips) == 0
+
+
+def test_100style_folder_skips_idle_and_keeps_transitions_in_train(shared_data, tmp_path):
+    src = shared_data / "bandai2"
+    for name, target in [("Happy_FW.bvh", "dataset-2_walk_active_002.bvh"),
+                         ("Happy_ID.bvh", "dataset-2_walk_active_003.bvh"),
+                         ("Happy_TR1.bvh", "dataset-2_walk-turn-right_active_001.bvh")]:
+        os.symlink(src / target, tmp_path / name)
+    ds = build_dataset(tmp_path, progress=False)
+    assert [(Path(f["path"]).name, f["mirrored"]) for f in ds.files] == [("Happy_FW.bvh", False),
+                                                                         ("Happy_TR1.bvh", False)]
+    assert ds.files[1]["segments"] == [(0, ds.files[1]["n_frames"], "train")]
+    assert len(ds.val) > 0 and set(ds.val.file.tolist()) == {0}
+
+
+def test_clip_fallback_uses_other_gaits(small):
+    """With no file of a clip gait, a style's clips come from its other files (configurable)."""
+    files, _, _ = small
+    ds = build_dataset(files, progress=False, seed=7, clip_seconds=2.0, clip_stride_seconds=1.0,
+                       clip_gaits=("no-such-gait",))
+    assert len(ds.train.clips) > 0
+    gaits = {ds.files[c]["gait"] for c in ds.train.clip_file}
+    assert gaits - {"walk"}                                     # not only walk files
