@@ -230,6 +230,9 @@ class _Hierarchy:
         channels = []
         for k in range(count):
             tok, cline = self.next()
+            if cline != line:
+                raise self.error(line, f"CHANNELS {count} for {name!r} lists only {k} channel names on "
+                                       f"its line (expected {count})")
             canonical = CHANNEL_NAMES.get(tok.lower())
             if canonical is None:
                 raise self.error(cline, f"expected channel {k + 1} of {count} for {name!r} (one of "
