@@ -42,7 +42,7 @@ class TrainConfig:
 
     freeze              networks not updated: () for training, ("gating", "motion") to fine-tune Ψ
     checkpoint_path     where to write a checkpoint after every `checkpoint_every` epochs (None: never)
-    progress            a one-line progress display on stderr
+    progress            a one-line progress display on stderr (None: only when stderr is a terminal)
     """
 
     epochs: int = 90
@@ -53,7 +53,7 @@ class TrainConfig:
     freeze: tuple = ()
     checkpoint_path: str | None = None
     checkpoint_every: int = 1
-    progress: bool = False
+    progress: bool | None = None
     eval_batch: int = 512
 
     def __post_init__(self):
@@ -156,6 +156,7 @@ class Trainer:
         batches = epoch_batches(data.style, self.config.batch_size, self.rng)
         sums = {}
         t0 = time.time()
+        show = self.config.progress if self.config.progress is not None else sys.stderr.isatty()
         for i, (s, idx) in enumerate(batches):
             clip_idx = draw_clips(data, data.style[idx], self.rng)
             x, p, z = data.x[idx].astype(dtype), data.p[idx].astype(dtype), data.z[idx].astype(dtype)
@@ -174,9 +175,9 @@ class Trainer:
             acc[0] += mse
             acc[1] += bll
             acc[2] += 1
-            if self.config.progress:
+            if show:
                 self._progress(i + 1, len(batches), mse + bll, t0)
-        if self.config.progress:
+        if show:
             sys.stderr.write("\n")
         return self._summarise(sums)
 

@@ -161,3 +161,38 @@ def test_finetuning_moves_only_the_film_generator(tmp_path):
     losses = [h["val"]["loss"] for h in tuned.history]
     assert losses[-1] < losses[0]
     assert tuned.config.freeze == ("gating", "motion")
+
+
+def test_nan_gradient_is_named(monkeypatch):
+    trainer = new_trainer(epochs=1)
+    real_backward = trainer.model.backward
+
+    def poisoned(dz):
+        out = real_backward(dz)
+        trainer.model.motion.params.grads["W1"][0, 0, 0] = np.inf
+        return out
+
+    monkeypatch.setattr(trainer.model, "backward", poisoned)
+    before = trainer.model.motion.params.data.copy()
+    with pytest.raises(TrainingDiverged, match=r"step 0 .*gradient of the motion network is not finite \(inf\)"):
+        trainer.fit(make_data(0))
+    np.testing.assert_array_equal(trainer.model.motion.params.data, before)
+
+
+def test_trained_model_uses_the_style_clip():
+    """After training, pairing frames with clips of the wrong style raises the error: the style
+    information reaches Φ through Ψ's FiLM parameters only."""
+    trainer = new_trainer(epochs=12)
+    trainer.fit(make_data(0))
+    val = make_data(1)
+    right = trainer.evaluate(val)["mse"]
+    wrong = make_data(1)
+    wrong.clip_style = (wrong.clip_style + 1) % 3          # relabel: style s now gets clips of s-1
+    assert trainer.evaluate(wrong)["mse"] > 1.5 * right
+
+
+def test_progress_line_on_stderr(capsys):
+    trainer = new_trainer(epochs=1, progress=True)
+    trainer.fit(make_data(0))
+    err = capsys.readouterr().err
+    assert "\repoch 1/1  batch 12/12" in err and "loss" in err
