@@ -21,8 +21,9 @@ Normalisation (§8.5): per-column mean and biased std of the training rows, in f
 ``min_std`` (zero up to rounding, e.g. trajectory sample 6, the hips' x and z) becomes 1. Clips are
 normalised with the x joint-block statistics (§9). Saved as .npz, no pickle.
 
-Style-balanced minibatches (Sec. 4.3): each minibatch holds one style, styles cycle in a fixed
-order, an epoch is one pass through the style with the fewest training rows: :class:`StyleBatcher`.
+Style-balanced minibatches (Sec. 4.3) are the trainer's job (``minifilm.train.epoch_batches``);
+:meth:`Dataset.train_data` hands it each split as a normalised :class:`~minifilm.traindata.TrainData`,
+and the bone-length loss takes ``layout.joint_columns('z', 'position')`` and ``layout.parents``.
 """
 from __future__ import annotations
 
@@ -34,7 +35,7 @@ import time
 import zlib
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Dict, Iterator, List, Optional, Sequence, Tuple, Union
+from typing import Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -370,7 +371,9 @@ def _source_fingerprint() -> str:
     """Hash of the code that computes the cached arrays: a code change invalidates old caches."""
     h = hashlib.sha256()
     here = Path(__file__).resolve().parent
-    for p in [here / "data.py", here / "manifest.py"] + sorted((here / "motion").glob("*.py")):
+    motion = ("motion.py", "bvh.py", "kinematics.py", "skeletons.py", "contacts.py", "phases.py",
+              "phase_fit.py", "phase_sources.py", "layout.py", "features.py")
+    for p in [here / "data.py", here / "manifest.py"] + [here / "motion" / m for m in motion]:
         h.update(p.name.encode())
         h.update(p.read_bytes())
     return h.hexdigest()
@@ -563,64 +566,3 @@ def _stack(part, layout: FeatureLayout, T: int, dtype) -> Split:
     clip_style = cat([np.full(len(c[2]), c[1], np.int32) for c in clips], (0,), np.int32)
     clip_file = cat([np.full(len(c[2]), c[0], np.int32) for c in clips], (0,), np.int32)
     return Split(x, p, z, style, file, frame, y, clip_style, clip_file)
-
-
-# =========================================================================== minibatches
-class StyleBatcher:
-    """Style-balanced minibatches (Sec. 4.3).
-
-    Every minibatch holds rows of one style only; styles come in a fixed cyclic order, so each run
-    of S consecutive minibatches contains every style once. One epoch is one pass through the style
-    with the fewest rows: ``max(1, min_count // batch_size)`` rounds of S minibatches. Each style's
-    rows are drawn without replacement from a fresh permutation; a style smaller than a batch is
-    drawn from repeatedly.
-
-    Args:
-        style: (N,) style id of every row.
-        batch_size: rows per minibatch.
-        rng: the generator for the permutations.
-        clip_style: optional (M,) style id of every clip; then each batch also names a random clip
-            of its style (the style input y of Eq. 4).
-    """
-
-    def __init__(self, style: np.ndarray, batch_size: int, rng: np.random.Generator,
-                 clip_style: Optional[np.ndarray] = None):
-        style = np.asarray(style)
-        if batch_size < 1:
-            raise ValueError(f"StyleBatcher: batch_size must be >= 1, got {batch_size}")
-        self.styles = np.unique(style)
-        if self.styles.size == 0:
-            raise ValueError("StyleBatcher: no rows")
-        self.rows = {int(s): np.flatnonzero(style == s) for s in self.styles}
-        self.batch_size = int(batch_size)
-        self.rng = rng
-        self.clips = None
-        if clip_style is not None:
-            clip_style = np.asarray(clip_style)
-            self.clips = {int(s): np.flatnonzero(clip_style == s) for s in self.styles}
-            empty = [int(s) for s in self.styles if self.clips[int(s)].size == 0]
-            if empty:
-                raise ValueError(f"StyleBatcher: styles {empty} have rows but no clip")
-        self._queue = {s: np.empty(0, dtype=np.int64) for s in self.rows}
-
-    @property
-    def batches_per_epoch(self) -> int:
-        smallest = min(r.size for r in self.rows.values())
-        return max(1, smallest // self.batch_size) * len(self.rows)
-
-    def _take(self, s: int) -> np.ndarray:
-        q = self._queue[s]
-        while q.size < self.batch_size:
-            q = np.concatenate([q, self.rng.permutation(self.rows[s])])
-        self._queue[s] = q[self.batch_size:]
-        return q[:self.batch_size]
-
-    def epoch(self) -> Iterator[Tuple[int, np.ndarray, Optional[int]]]:
-        """Yields ``(style, rows (B,), clip index or None)`` for one epoch."""
-        rounds = self.batches_per_epoch // len(self.rows)
-        for _ in range(rounds):
-            for s in self.rows:
-                clip = None
-                if self.clips is not None:
-                    clip = int(self.rng.choice(self.clips[s]))
-                yield s, self._take(s), clip

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from minifilm.data import (
-    SPLITS, Dataset, DatasetSettings, Normalizer, StyleBatcher, apply_gap, build_dataset,
+    SPLITS, Dataset, DatasetSettings, Normalizer, apply_gap, build_dataset,
     file_rng, mirror_labels, split_segments)
 from minifilm.manifest import (
     MotionFile, bandai_files, read_manifest, scan_100style, write_bandai_manifest, write_manifest)
@@ -69,27 +69,6 @@ def test_normalizer_statistics_and_file(tmp_path):
         np.testing.assert_array_equal(getattr(m, k), getattr(n, k))
     with pytest.raises(ValueError, match="no training rows"):
         Normalizer.fit(x[:0], p[:0], z[:0])
-
-
-# ----------------------------------------------------------------------------- minibatches
-def test_style_batcher_one_style_per_batch_fixed_cycle():
-    style = np.repeat([0, 1, 2], [100, 37, 64])
-    rng = np.random.default_rng(1)
-    clip_style = np.array([2, 0, 1, 1, 0, 2])
-    b = StyleBatcher(style, 10, rng, clip_style)
-    batches = list(b.epoch())
-    assert len(batches) == b.batches_per_epoch == 3 * (37 // 10)  # one pass through the smallest style
-    assert [s for s, _, _ in batches] == [0, 1, 2] * 3             # fixed cyclic order
-    for s, rows, clip in batches:
-        assert rows.shape == (10,) and np.all(style[rows] == s)
-        assert clip_style[clip] == s
-    for s in (0, 1, 2):                                            # no row twice within an epoch
-        rows = np.concatenate([r for t, r, _ in batches if t == s])
-        assert len(set(rows.tolist())) == rows.size
-    tiny = StyleBatcher(np.array([0, 0, 1, 1, 1]), 4, rng)         # styles smaller than a batch
-    assert [len(r) for _, r, _ in tiny.epoch()] == [4, 4]
-    with pytest.raises(ValueError, match=r"styles \[1\] have rows but no clip"):
-        StyleBatcher(style, 4, rng, np.array([0, 2]))
 
 
 def test_mirror_labels_swap_left_and_right():
