@@ -105,34 +105,47 @@ def _solve_bounded(g, r, yy, vmin, vmax):
     """Weighted least squares for (c1, c2, B) with the §4.2 bounds, elementwise over any batch shape.
 
     g = (gss, gsc, gsb, gcc, gcb, gbb): the symmetric normal matrix Σw b bᵀ for b = (sin, cos, 1);
-    r = (rs, rc, rb) = Σ w y b; yy = Σ w y². Returns c1, c2, B and the weighted squared error.
+    r = (rs, rc, rb) = Σ w y b; yy = Σ w y². All broadcast to one batch shape.
+    Returns c1, c2, B and the weighted squared error.
     """
     a, b, c, d, e, f = g
     rs, rc, rb = r
     ridge = 1e-10 * (a + d + f) + 1e-300  # keeps degenerate windows (e.g. 1-2 frames) finite
     a, d, f = a + ridge, d + ridge, f + ridge
+    # Inverse of the symmetric 3x3 matrix by its adjugate (cheap when shared by many windows).
     A11, A12, A13 = d * f - e * e, c * e - b * f, b * e - c * d
     A22, A23, A33 = a * f - c * c, b * c - a * e, a * d - b * b
     det = a * A11 + b * A12 + c * A13
-    c1 = (A11 * rs + A12 * rc + A13 * rb) / det
-    c2 = (A12 * rs + A22 * rc + A23 * rb) / det
-    B = (A13 * rs + A23 * rc + A33 * rb) / det
-    # Offset bound: clip B, then the best (c1, c2) for that fixed B (a 2x2 system).
-    out = (B < vmin) | (B > vmax)
-    if np.any(out):
-        Bc = np.clip(B, vmin, vmax)
-        det2 = A33
-        s, t = rs - c * Bc, rc - e * Bc
-        c1 = np.where(out, (d * s - b * t) / det2, c1)
-        c2 = np.where(out, (a * t - b * s) / det2, c2)
-        B = Bc
-    # Amplitude bound: project (c1, c2) back onto the disc of radius vmax - vmin.
-    amp = np.hypot(c1, c2)
+    A11, A12, A13, A22, A23 = A11 / det, A12 / det, A13 / det, A22 / det, A23 / det
+    A33 = A33 / det
+    c1 = A11 * rs + A12 * rc + A13 * rb
+    c2 = A12 * rs + A22 * rc + A23 * rb
+    B = A13 * rs + A23 * rc + A33 * rb
+    sse = yy - (c1 * rs + c2 * rc + B * rb)  # at the unconstrained optimum cᵀGc = cᵀr
     amax = vmax - vmin
-    scale = np.where(amp > amax, amax / np.maximum(amp, 1e-300), 1.0)
-    c1, c2 = c1 * scale, c2 * scale
-    quad = a * c1 * c1 + d * c2 * c2 + f * B * B + 2 * (b * c1 * c2 + c * c1 * B + e * c2 * B)
-    sse = yy - 2 * (c1 * rs + c2 * rc + B * rb) + quad
+    active = (B < vmin) | (B > vmax) | (c1 * c1 + c2 * c2 > amax * amax)
+    if not np.any(active):
+        return c1, c2, B, sse
+    shape = sse.shape
+    idx = np.nonzero(active)
+    pick = lambda x: np.broadcast_to(x, shape)[idx]
+    a, b, c, d, e, f, rs, rc, rb, yy, lo, hi = map(pick, (a, b, c, d, e, f, rs, rc, rb, yy, vmin, vmax))
+    Bc = np.clip(pick(B), lo, hi)
+    x1, x2 = pick(c1), pick(c2)
+    # Offset bound: with B clipped, the best (c1, c2) for that fixed B (a 2x2 system).
+    moved = Bc != pick(B)
+    s, t = rs - c * Bc, rc - e * Bc
+    det2 = a * d - b * b
+    x1 = np.where(moved, (d * s - b * t) / det2, x1)
+    x2 = np.where(moved, (a * t - b * s) / det2, x2)
+    # Amplitude bound: project (c1, c2) back onto the disc of radius vmax - vmin.
+    amp = np.hypot(x1, x2)
+    scale = np.where(amp > hi - lo, (hi - lo) / np.maximum(amp, 1e-300), 1.0)
+    x1, x2 = x1 * scale, x2 * scale
+    quad = a * x1 * x1 + d * x2 * x2 + f * Bc * Bc + 2 * (b * x1 * x2 + c * x1 * Bc + e * x2 * Bc)
+    c1, c2, B, sse = (np.array(np.broadcast_to(x, shape)) for x in (c1, c2, B, sse))
+    c1[idx], c2[idx], B[idx] = x1, x2, Bc
+    sse[idx] = yy - 2 * (x1 * rs + x2 * rc + Bc * rb) + quad
     return c1, c2, B, sse
 
 
@@ -234,7 +247,7 @@ def range_reduce(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, op) -> np.ndarra
 
 
 def fit_sinusoids(signal, fps: float, window_seconds: float = 0.5, min_frequency: float = 0.25,
-                  max_frequency: float = 4.0, n_frequencies: int = 64, sweeps: int = 4,
+                  max_frequency: float = 4.0, n_frequencies: int = 48, sweeps: int = 3,
                   skip_threshold: float = 1e-3, block: int = 2048) -> SinusoidFit:
     """Fit ``A sin(2π(F t − S)) + B`` around every frame of ``signal`` (deterministic, vectorised).
 
