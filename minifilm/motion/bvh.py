@@ -113,6 +113,8 @@ class _Hierarchy:
         self.tokens.append(("<end of hierarchy>", end_line))
 
         tok, line = self.next()
+        if tok == "<end of hierarchy>":
+            raise self.error(line, "expected 'HIERARCHY' at the start of the file, found no text")
         if tok.upper() != "HIERARCHY":
             raise self.error(line, f"expected 'HIERARCHY' at the start of the file, found {tok!r}")
         tok, line = self.peek()
@@ -262,7 +264,7 @@ def _parse_motion_header(lines: List[str], motion_line: int, source: str) -> Tup
         value = m.group(1).strip() if m else None
         if key == "frames":
             if value is None or not re.fullmatch(r"\d+", value):
-                raise BVHError(source, i + 1, f"expected 'Frames: <count>', found {lines[i].strip()!r}")
+                raise BVHError(source, i + 1, f"expected 'Frames: <count>', found {_clip(lines[i])!r}")
             found[key] = int(value)
             if found[key] == 0:
                 raise BVHError(source, i + 1, "expected at least one frame, the file declares 'Frames: 0'")
@@ -272,10 +274,16 @@ def _parse_motion_header(lines: List[str], motion_line: int, source: str) -> Tup
             except ValueError:
                 t = float("nan")
             if not (np.isfinite(t) and t > 0):
-                raise BVHError(source, i + 1, f"expected 'Frame Time: <positive seconds>', found {lines[i].strip()!r}")
+                raise BVHError(source, i + 1, f"expected 'Frame Time: <positive seconds>', found {_clip(lines[i])!r}")
             found[key] = t
         i += 1
     return found["frames"], found["time"], i
+
+
+def _clip(line: str, n: int = 40) -> str:
+    """A line shortened for an error message."""
+    line = line.strip()
+    return line if len(line) <= n else line[:n] + "..."
 
 
 def _parse_frames(lines: List[str], first: int, n_frames: int, n_channels: int, source: str) -> np.ndarray:
