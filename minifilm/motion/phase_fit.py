@@ -149,26 +149,31 @@ def _solve_bounded(g, r, yy, vmin, vmax):
     return c1, c2, B, sse
 
 
-def _normal_equations(offsets, weights, targets, freqs, fps):
-    """Normal-equation terms for windows at frequencies ``freqs``.
+def _design(offsets, weights, freqs, fps):
+    """Basis and normal matrix of windows at frequencies ``freqs``.
 
-    offsets (n' or 1, E) frames relative to the fitted frame, weights (n' or 1, E), targets (n, E),
-    freqs (G,) for a grid shared by all windows, or (n, 1) one frequency per window.
-    Returns g (6 arrays), r (3 arrays), yy with batch shape (n, G) or (n, 1).
+    offsets (n' or 1, E) frames relative to the fitted frame, weights like offsets, freqs (G,) for a
+    grid shared by all windows, or (n', 1) one frequency per window.
+    Returns s, c (n'|1, E, G') and g (6 arrays of shape (n'|1, G')): the normal matrix entries.
     """
-    s, c = _basis(offsets[..., None], freqs if freqs.ndim == 1 else freqs[:, None, :], fps)  # (n'|1, E, G)
+    s, c = _basis(offsets[..., None], freqs if freqs.ndim == 1 else freqs[:, None, :], fps)
     w = weights[..., None]
     ws, wc = w * s, w * c
     g = (np.sum(ws * s, axis=-2), np.sum(ws * c, axis=-2), np.sum(ws, axis=-2),
          np.sum(wc * c, axis=-2), np.sum(wc, axis=-2), np.sum(w, axis=-2) + 0 * s[..., 0, :])
+    return s, c, g
+
+
+def _rhs(s, c, weights, targets):
+    """Right-hand sides r = Σ w y (sin, cos, 1) and Σ w y² for targets (n, E); batch (n, G')."""
     wy = weights * targets  # (n, E)
     if s.shape[0] == 1 and targets.shape[0] != 1:
         rs, rc = wy @ s[0], wy @ c[0]                       # BLAS: (n, E) @ (E, G)
     else:
-        rs, rc = np.einsum("ne,neg->ng", wy, s), np.einsum("ne,neg->ng", wy, c)
+        rs, rc = (wy[:, None, :] @ s)[:, 0], (wy[:, None, :] @ c)[:, 0]  # batched (1, E) @ (E, G')
     rb = np.sum(wy, axis=-1)[:, None]
     yy = np.sum(wy * targets, axis=-1)[:, None]
-    return g, (rs, rc, rb), yy
+    return (rs, rc, rb), yy
 
 
 @dataclass
@@ -200,11 +205,18 @@ def _windows(frames: np.ndarray, n: int, half: int, shared: bool) -> _Windows:
     return _Windows(frames, np.clip(j, 0, n - 1), offsets, np.asarray(w_data), np.asarray(w_conn))
 
 
-def _fit_block(win: _Windows, values, prev_fit, freqs, fps, vmin, vmax, use_connect):
-    """Best (c1, c2, B, F) for one block of frames: grid search, parabolic refinement, re-solve."""
+def _fit_block(win: _Windows, values, prev_fit, freqs, fps, vmin, vmax, use_connect, cache):
+    """Best (c1, c2, B, F) for one block of frames: grid search, parabolic refinement, re-solve.
+
+    ``cache`` keeps the grid's basis and normal matrices between blocks and sweeps.
+    """
     weights = win.w_data + (win.w_conn if use_connect else 0.0)
     targets = np.where(win.w_data > 0, values[win.index], prev_fit[win.index] if use_connect else 0.0)
-    g, r, yy = _normal_equations(win.offsets, weights, targets, freqs, fps)
+    key = (win.offsets.shape[0] == 1, id(win) if win.offsets.shape[0] != 1 else 0, use_connect)
+    if key not in cache:
+        cache[key] = _design(win.offsets, weights, freqs, fps)
+    s, c, g = cache[key]
+    r, yy = _rhs(s, c, weights, targets)
     lo_b, hi_b = vmin[:, None], vmax[:, None]
     c1, c2, B, sse = _solve_bounded(g, r, yy, lo_b, hi_b)
     n, G = sse.shape
@@ -221,7 +233,8 @@ def _fit_block(win: _Windows, values, prev_fit, freqs, fps, vmin, vmax, use_conn
     f_ref = np.exp(logf[best] + np.clip(delta, -1, 1) * step)[:, None]  # (n, 1)
     offsets = np.broadcast_to(win.offsets, targets.shape)
     wts = np.broadcast_to(weights, targets.shape)
-    g2, r2, yy2 = _normal_equations(offsets, wts, targets, f_ref, fps)
+    s2, c2_, g2 = _design(offsets, wts, f_ref, fps)
+    r2, yy2 = _rhs(s2, c2_, wts, targets)
     d1, d2, dB, sse2 = (x[:, 0] for x in _solve_bounded(g2, r2, yy2, lo_b, hi_b))
     better = sse2 < l1
     pick = lambda refined, grid: np.where(better, refined, grid[rows, best])
@@ -294,10 +307,11 @@ def fit_sinusoids(signal, fps: float, window_seconds: float = 0.5, min_frequency
 
     c1, c2, B, F = (np.zeros(n) for _ in range(4))
     fit = np.zeros(n)
+    cache = {}
     for sweep in range(max(1, sweeps)):
         for win in blocks:
             fr = win.frames
-            out = _fit_block(win, v, fit, freqs, fps, vmin[fr], vmax[fr], use_connect=sweep > 0)
+            out = _fit_block(win, v, fit, freqs, fps, vmin[fr], vmax[fr], sweep > 0, cache)
             c1[fr], c2[fr], B[fr], F[fr] = out
         c1[skipped] = c2[skipped] = B[skipped] = F[skipped] = 0.0
         fit = c2 + B  # f_k(τ = 0): sin 0 = 0, cos 0 = 1
