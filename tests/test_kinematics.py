@@ -280,3 +280,21 @@ def test_resample_to_non_integer_ratio_interpolates_in_time():
     # angle about y grows at 1 rad/s (slerp between frames 1/60 s apart is exact for constant spin)
     expected = Rotation.from_rotvec(np.outer(t, [0, 1.0, 0])).as_matrix()
     np.testing.assert_allclose(r.rotations[:, 0], expected, atol=1e-10)
+
+
+def test_resample_60_to_30_with_rounded_frame_time(shared_data):
+    """Files store 1/60 s as 0.016667: halving the rate must still pick every second frame."""
+    from minifilm.motion.bvh import read_bvh
+    real = read_bvh(shared_data / "100style" / "Neutral_FR_first3frames.bvh")
+    assert real.frame_time == 0.016667
+    half = K.resample(real, 30)
+    assert half.n_frames == 2 and half.frame_time == pytest.approx(1 / 30)
+    np.testing.assert_allclose(half.world()[0], real.world()[0][::2], atol=1e-12)
+    # a long synthetic take, where a rounded frame time would otherwise drift by frames
+    spin = _spinning_motion(60, 20.0)
+    spin = Motion(spin.names, spin.parents, spin.offsets, spin.channels, spin.rotations, spin.translations,
+                  0.016667)
+    half = K.resample(spin, 30)
+    assert half.n_frames == (spin.n_frames - 1) // 2 + 1
+    np.testing.assert_allclose(half.rotations, spin.rotations[::2], atol=1e-10)
+    np.testing.assert_allclose(half.translations, spin.translations[::2], atol=1e-12)

@@ -393,13 +393,20 @@ def resample(motion, fps: float):
     New frame ``k`` sits at time ``k / fps``; frames run while that time is within the original
     duration ``(F - 1) * frame_time`` (plus a 1e-6 frame tolerance), so the first frame is kept and
     the last new frame is at or before the last old one. Returns a new ``Motion``.
+
+    BVH files store rounded frame times (1/60 s as 0.016667), so a source rate within 0.01 % of a
+    whole number of frames per second is taken to be that number, as the original importer does
+    (``round(1 / FrameTime)``, BVH l.300). That makes 60 -> 30 fps keep exactly every second frame.
     """
     from .motion import Motion
 
     if not (np.isfinite(fps) and fps > 0):
         raise ValueError(f"resample: fps must be positive, got {fps}")
     F = motion.n_frames
-    step = (1.0 / fps) / motion.frame_time            # old frames per new frame
+    source_fps = motion.fps
+    if abs(source_fps - round(source_fps)) < 1e-4 * source_fps:
+        source_fps = float(round(source_fps))
+    step = source_fps / fps                            # old frames per new frame
     n_new = int(np.floor((F - 1) / step + 1e-6)) + 1
     u = np.arange(n_new) * step                        # fractional old-frame index per new frame
     i0 = np.clip(np.floor(u + 1e-9).astype(np.int64), 0, F - 1)
