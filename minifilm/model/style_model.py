@@ -66,6 +66,8 @@ class StyleModel:
         self._film_shape = None
         self._used_generator = False
 
+    blend_film = staticmethod(blend_film)   # Σ_s w_s film_s, weights summing to 1 (Sec. 4.4)
+
     # ---- parameters ----------------------------------------------------------------------
     def parameter_sets(self):
         """[Ω, Φ, Ψ] parameter sets (each one flat buffer); [Ω, Φ] without Ψ."""
