@@ -177,12 +177,15 @@ class PathScript(Script):
         self._s = 0.0
         self._last_dir = self._tangent(0.0)
 
+    def _points(self, s: np.ndarray) -> np.ndarray:
+        """Path points (N, 2) at arc lengths s (N,) (wrapped when closed, clamped otherwise)."""
+        s = np.asarray(s, dtype=np.float64)
+        s = s % self.length if self.closed else np.clip(s, 0.0, self.length)
+        i = np.clip(np.searchsorted(self._cum, s, side="right") - 1, 0, len(self._len) - 1)
+        return self.path[i] + ((s - self._cum[i]) / self._len[i])[:, None] * self._seg[i]
+
     def _point(self, s: float) -> np.ndarray:
-        if self.closed:
-            s = s % self.length
-        s = min(max(s, 0.0), self.length)
-        i = min(int(np.searchsorted(self._cum, s, side="right")) - 1, len(self._len) - 1)
-        return self.path[i] + (s - self._cum[i]) / self._len[i] * self._seg[i]
+        return self._points(np.array([s]))[0]
 
     def _tangent(self, s: float) -> np.ndarray:
         if self.closed:
@@ -193,7 +196,7 @@ class PathScript(Script):
     def _project(self, p: np.ndarray, lo: float, hi: float) -> float:
         """Arc length of the closest path point to p with arc length in [lo, hi]."""
         ss = np.linspace(lo, hi, 64)
-        pts = np.stack([self._point(s) for s in ss])
+        pts = self._points(ss)
         return float(ss[np.argmin(np.sum((pts - p) ** 2, axis=1))])
 
     def speed(self, t: float) -> float:

@@ -1,0 +1,470 @@
+"""Autoregressive stylised synthesis (Sec. 4.4; original-pipeline §10.2-10.4, with the §12 fixes).
+
+Each frame, for every character of a batch:
+
+1. the user's target (a :mod:`minifilm.control` script) is blended into the future trajectory
+   (``blend_future_trajectory``: near samples keep the prediction, far samples follow the user);
+2. the input frame x is built: 12 trajectory samples (past from the root history, future from
+   step 1, at the *training* sample times of the layout) and the previous frame's joints, all
+   re-expressed relative to the current root;
+3. z = Φ(x; Ω(p), film) with precomputed FiLM vectors (:class:`RuntimeNetwork`);
+4. the root moves by the predicted root delta, joints and the future trajectory are read back into
+   the world, the local phases advance with ``p <- 0.5 p_pred + 0.5 (p + Δp_pred)`` (§10.2 step 7),
+   and optional foot locking (:mod:`minifilm.motion.foot_ik`) post-processes the legs.
+
+Deviations from the Unity demo (original-pipeline §12): future samples at the training spacing
+(+0.2 .. +1.0 s, not 1/6 s), FiLM applied from hidden unit 0, user speed given in m/s (no per-style
+velocity bias), the root moves by the full predicted delta. The demo's smoothing of joint positions
+with the predicted velocities (``lerp(p_prev + v dt, p, 0.5)``) and of the future trajectory with
+the previous one (weight 0.15) are kept as options.
+
+Everything reads its columns from a :class:`~minifilm.motion.layout.FeatureLayout`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, List, Optional, Sequence, Union
+
+import numpy as np
+
+from minifilm.control import Script, blend_future_trajectory
+from minifilm.motion.layout import CURRENT_SAMPLE, FeatureLayout
+from minifilm.motion.motion import Motion
+from minifilm.motion.retarget import axes_to_rotation, retarget
+
+__all__ = ["RuntimeStats", "RuntimeNetwork", "Controller", "Rollout", "root_joint_indices",
+           "SpeedCalibration", "calibrate_speed"]
+
+
+# =============================================================================== network
+
+@dataclass
+class RuntimeStats:
+    """Normalisation statistics: x = (X - x_mean) / x_std, p likewise, Z = z * z_std + z_mean."""
+
+    x_mean: np.ndarray
+    x_std: np.ndarray
+    p_mean: np.ndarray
+    p_std: np.ndarray
+    z_mean: np.ndarray
+    z_std: np.ndarray
+
+    def __post_init__(self):
+        for name in ("x_mean", "x_std", "p_mean", "p_std", "z_mean", "z_std"):
+            v = np.asarray(getattr(self, name), dtype=np.float64).reshape(-1)
+            if not np.all(np.isfinite(v)):
+                raise ValueError(f"RuntimeStats.{name} has non-finite values")
+            if name.endswith("std") and np.any(v <= 0):
+                raise ValueError(f"RuntimeStats.{name} has entries <= 0 (at {np.flatnonzero(v <= 0)[:5]})")
+            setattr(self, name, v)
+
+    @classmethod
+    def from_any(cls, obj) -> "RuntimeStats":
+        """From a RuntimeStats, a mapping or an object with the six fields (x_mean, x_std, ...)."""
+        if isinstance(obj, cls):
+            return obj
+        get = obj.__getitem__ if isinstance(obj, dict) else lambda k: getattr(obj, k)
+        try:
+            return cls(*(get(k) for k in ("x_mean", "x_std", "p_mean", "p_std", "z_mean", "z_std")))
+        except (KeyError, AttributeError) as e:
+            raise ValueError(f"normalisation statistics need x_mean, x_std, p_mean, p_std, z_mean, "
+                             f"z_std; missing {e}") from None
+
+
+def _elu(h: np.ndarray) -> np.ndarray:
+    return np.where(h > 0, h, np.expm1(np.minimum(h, 0)))
+
+
+class RuntimeNetwork:
+    """Ω and Φ for inference only, laid out for speed (Eq. 3-4).
+
+    Each expert layer is stored as one matrix ``(I, K*O)`` (the K experts side by side), so a
+    frame costs one matrix product per layer, ``y = Σ_k α_k (h W_k + b_k)``; at batch 1 this reads
+    each weight once and is faster here than blending the weights first (same result; see
+    ``benchmarks/runtime.py``). The FiLM vector (4H,) or (B, 4H) is given per call.
+
+    Args:
+        gating: [(W (in, out), b (out,))] * 3 of Ω (ELU, ELU, softmax).
+        experts: [(W (K, in, out), b (K, out))] * 3 of Φ.
+        stats: normalisation statistics (:class:`RuntimeStats` or anything ``from_any`` takes).
+        ln_unbiased, ln_eps: layer-norm convention (released runtime: False, 0.0).
+        dtype: computation dtype (float32 for speed).
+    """
+
+    def __init__(self, gating, experts, stats, ln_unbiased: bool = False, ln_eps: float = 0.0,
+                 dtype=np.float32):
+        self.dtype = np.dtype(dtype)
+        self.stats = RuntimeStats.from_any(stats)
+        self.gating = [(np.asarray(W, self.dtype), np.asarray(b, self.dtype)) for W, b in gating]
+        if len(self.gating) != 3 or len(experts) != 3:
+            raise ValueError(f"RuntimeNetwork: need 3 gating and 3 expert layers, got {len(self.gating)} and {len(experts)}")
+        self.K = int(np.asarray(experts[0][0]).shape[0])
+        self.layers = []
+        for l, (W, b) in enumerate(experts):
+            W = np.asarray(W, self.dtype)
+            K, I, O = W.shape
+            if K != self.K or np.shape(b) != (K, O):
+                raise ValueError(f"RuntimeNetwork: expert layer {l} has W {W.shape}, b {np.shape(b)}; "
+                                 f"expected ({self.K}, in, out) and ({self.K}, out)")
+            self.layers.append((np.ascontiguousarray(W.transpose(1, 0, 2).reshape(I, K * O)),
+                                np.asarray(b, self.dtype), O))
+        self.x_dim = self.layers[0][0].shape[0]
+        self.z_dim = self.layers[2][2]
+        self.hidden = self.layers[0][2]
+        self.ln_unbiased, self.ln_eps = bool(ln_unbiased), float(ln_eps)
+        s = self.stats
+        if (len(s.x_mean), len(s.z_mean), len(s.p_mean)) != (self.x_dim, self.z_dim, self.gating[0][0].shape[0]):
+            raise ValueError(f"RuntimeNetwork: statistics sizes x {len(s.x_mean)}, z {len(s.z_mean)}, "
+                             f"p {len(s.p_mean)} do not match the network ({self.x_dim}, {self.z_dim}, "
+                             f"{self.gating[0][0].shape[0]})")
+        c = lambda v: v.astype(self.dtype)
+        self._x_mean, self._x_inv = c(s.x_mean), c(1.0 / s.x_std)
+        self._p_mean, self._p_inv = c(s.p_mean), c(1.0 / s.p_std)
+        self._z_mean, self._z_std = c(s.z_mean), c(s.z_std)
+
+    @classmethod
+    def from_model(cls, model, stats, runtime_layer_norm: bool = False, dtype=np.float32) -> "RuntimeNetwork":
+        """From a :class:`minifilm.model.style_model.StyleModel` (its Ω and Φ; Ψ is not needed).
+
+        ``runtime_layer_norm`` picks the released runtime's layer norm (biased σ, no eps) instead
+        of the model's training convention.
+        """
+        g, m = model.gating.params.params, model.motion.params.params
+        gating = [(g[f"W{l}"], g[f"b{l}"]) for l in range(3)]
+        experts = [(m[f"W{l}"], m[f"b{l}"]) for l in range(3)]
+        if runtime_layer_norm:
+            unbiased, eps = False, 0.0
+        else:
+            unbiased, eps = model.config.ln_unbiased, model.config.ln_eps
+        return cls(gating, experts, stats, unbiased, eps, dtype)
+
+    def gate(self, p_raw: np.ndarray) -> np.ndarray:
+        """Ω: raw phases (B, 8) -> expert weights α (B, K)."""
+        h = (np.asarray(p_raw, self.dtype) - self._p_mean) * self._p_inv
+        for l, (W, b) in enumerate(self.gating):
+            h = h @ W + b
+            if l < 2:
+                h = _elu(h)
+        h = np.exp(h - h.max(axis=-1, keepdims=True))
+        return h / h.sum(axis=-1, keepdims=True)
+
+    def predict(self, x_raw: np.ndarray, p_raw: np.ndarray, film: np.ndarray) -> np.ndarray:
+        """Raw (de-normalised) output Z (B, z_dim) from raw x (B, x_dim), raw p (B, 8), film (4H,) or (B, 4H)."""
+        alpha = self.gate(p_raw)                                      # (B, K)
+        B = alpha.shape[0]
+        h = (np.asarray(x_raw, self.dtype) - self._x_mean) * self._x_inv
+        film = np.asarray(film, self.dtype)
+        H = self.hidden
+        for l, (Wc, b, O) in enumerate(self.layers):
+            y = (h @ Wc).reshape(B, self.K, O)                        # every expert's output
+            h = np.matmul(alpha[:, None, :], y)[:, 0] + alpha @ b     # Σ_k α_k (h W_k + b_k)
+            if l < 2:
+                mu = h.mean(axis=-1, keepdims=True)
+                sd = h.std(axis=-1, keepdims=True, ddof=1 if self.ln_unbiased else 0)
+                h = (h - mu) / (sd + self.ln_eps)
+                gamma = film[..., 2 * l * H:(2 * l + 1) * H]
+                beta = film[..., (2 * l + 1) * H:(2 * l + 2) * H]
+                h = _elu(gamma * h + beta)                             # Eq. (3)
+        return h * self._z_std + self._z_mean
+
+
+# =============================================================================== rollout state
+
+def _to_local2(v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """World (x, z) vectors (..., 2) into the frame of a root facing f (..., 2): R^T v."""
+    return np.stack([f[..., 1] * v[..., 0] - f[..., 0] * v[..., 1],
+                     f[..., 0] * v[..., 0] + f[..., 1] * v[..., 1]], axis=-1)
+
+
+def _to_world2(v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`_to_local2`: R v for R = LookRotation(f)."""
+    return np.stack([f[..., 1] * v[..., 0] + f[..., 0] * v[..., 1],
+                     -f[..., 0] * v[..., 0] + f[..., 1] * v[..., 1]], axis=-1)
+
+
+def _to_local3(v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """World 3-vectors (B, J, 3) into root frames facing f (B, 2): R^T v (y unchanged)."""
+    fx, fz = f[:, 0, None], f[:, 1, None]
+    return np.stack([fz * v[..., 0] - fx * v[..., 2], v[..., 1], fx * v[..., 0] + fz * v[..., 2]], axis=-1)
+
+
+def _to_world3(v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    fx, fz = f[:, 0, None], f[:, 1, None]
+    return np.stack([fz * v[..., 0] + fx * v[..., 2], v[..., 1], -fx * v[..., 0] + fz * v[..., 2]], axis=-1)
+
+
+def _unit2(v: np.ndarray, fallback: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return np.where(n > 1e-8, v / np.maximum(n, 1e-8), fallback)
+
+
+@dataclass
+class Rollout:
+    """The result of :meth:`Controller.run` for B characters and F frames.
+
+    positions (B, F, J, 3) world joint positions (after foot locking, if on), metres;
+    rotations (B, F, J, 3, 3) world joint rotations from the predicted forward/up axes;
+    contacts (B, F, 2) predicted foot contacts [right, left]; phases (B, F, 8);
+    root_positions (B, F, 2) and root_facing (B, F, 2) world (x, z) of the root on the floor;
+    targets (B, F, 2) the commanded velocities (m/s); fps.
+    """
+
+    positions: np.ndarray
+    rotations: np.ndarray
+    contacts: np.ndarray
+    phases: np.ndarray
+    root_positions: np.ndarray
+    root_facing: np.ndarray
+    targets: np.ndarray
+    fps: float
+
+    def to_motion(self, skeleton: Motion, joint_indices: Sequence[int], character: int = 0,
+                  fit_positions: bool = True) -> Motion:
+        """Character ``character`` as a Motion on ``skeleton`` (see :func:`retarget`), for BVH export."""
+        return retarget(self.positions[character], self.rotations[character], skeleton, joint_indices,
+                        frame_time=1.0 / self.fps, fit_positions=fit_positions)
+
+
+def root_joint_indices(layout: FeatureLayout, skeleton: Motion) -> np.ndarray:
+    """Index into ``skeleton`` joints of each exported joint of ``layout``, matched by name."""
+    return np.array([skeleton.index(n) for n in layout.joint_names], dtype=np.int64)
+
+
+class Controller:
+    """Frame-by-frame autoregressive synthesis for a batch of characters.
+
+    Args:
+        network: a :class:`RuntimeNetwork` (e.g. ``RuntimeNetwork.from_model(model, stats)``).
+        layout: the feature layout the network was trained with.
+        fps: frame rate the network was trained at (60 for 100STYLE).
+        velocity_blend: weight of the predicted position against ``previous + velocity / fps``
+            (original: 0.5; 1.0 = use predicted positions as they are).
+        future_smoothing: weight of the previous future trajectory when reading the predicted one
+            (original: 0.15; 0 = none).
+        position_bias, direction_bias: exponents of the user-trajectory blend (original: 0.75, 1.25).
+        foot_locker: optional :class:`minifilm.motion.foot_ik.FootLocker` applied every frame.
+    """
+
+    def __init__(self, network: RuntimeNetwork, layout: FeatureLayout, fps: float = 60.0,
+                 velocity_blend: float = 0.5, future_smoothing: float = 0.15,
+                 position_bias: float = 0.75, direction_bias: float = 1.25, foot_locker=None):
+        if network.x_dim != layout.x_dim or network.z_dim != layout.z_dim:
+            raise ValueError(f"Controller: network sizes (x {network.x_dim}, z {network.z_dim}) do not match "
+                             f"the layout (x {layout.x_dim}, z {layout.z_dim})")
+        self.net, self.layout, self.fps = network, layout, float(fps)
+        self.velocity_blend, self.future_smoothing = float(velocity_blend), float(future_smoothing)
+        self.position_bias, self.direction_bias = position_bias, direction_bias
+        self.foot_locker = foot_locker
+        L = layout
+        ts = np.asarray(L.trajectory_seconds)
+        self.past_frames = np.round(-ts[:CURRENT_SAMPLE] * self.fps).astype(int)   # e.g. 60, 50, .., 10
+        fut = ts[CURRENT_SAMPLE:]
+        self.sample_dt = float(np.mean(np.diff(fut)))                              # 0.2 s
+        self.history = int(self.past_frames.max())
+        self.x_traj_cols = np.stack([L.trajectory_columns("x", s) for s in range(L.n_trajectory_samples)])
+        self.z_traj_cols = np.stack([L.trajectory_columns("z", s)
+                                     for s in range(CURRENT_SAMPLE, L.n_trajectory_samples)])
+        self.x_cols = {f: L.joint_columns("x", f) for f in ("position", "forward", "up", "velocity")}
+        self.z_cols = {f: L.joint_columns("z", f) for f in ("position", "forward", "up", "velocity")}
+        self.state = None
+
+    # ------------------------------------------------------------------ state
+    def reset(self, start_positions: np.ndarray, start_facing: np.ndarray,
+              phases: Optional[np.ndarray] = None) -> None:
+        """Start B characters standing at (B, 2) world (x, z) positions facing (B, 2), in the mean
+        pose of the training data (from the input statistics); ``phases`` (B, 8) or the mean."""
+        pos = np.asarray(start_positions, dtype=np.float64).reshape(-1, 2)
+        face = _unit2(np.asarray(start_facing, dtype=np.float64).reshape(-1, 2), np.array([0.0, 1.0]))
+        B = len(pos)
+        mean = self.net.stats.x_mean
+        st = dict(root=pos.copy(), facing=face.copy())
+        st["hist_pos"] = np.repeat(pos[:, None], self.history, axis=1)      # [:, -n] = root n frames ago
+        st["hist_dir"] = np.repeat(face[:, None], self.history, axis=1)
+        S = self.layout.n_future_samples
+        st["fut_pos"] = np.repeat(pos[:, None], S, axis=1)
+        st["fut_dir"] = np.repeat(face[:, None], S, axis=1)
+        local = {f: np.broadcast_to(mean[c], (B,) + c.shape) for f, c in self.x_cols.items()}
+        st["jpos"] = _to_world3(local["position"], face)
+        st["jpos"][..., 0] += pos[:, 0, None]
+        st["jpos"][..., 2] += pos[:, 1, None]
+        for f, key in (("forward", "jfwd"), ("up", "jup"), ("velocity", "jvel")):
+            st[key] = _to_world3(local[f], face)
+        st["phase"] = (np.broadcast_to(self.net.stats.p_mean, (B, 8)).copy() if phases is None
+                       else np.asarray(phases, dtype=np.float64).reshape(B, -1).copy())
+        st["contacts"] = np.zeros((B, 2))
+        self.state = st
+        if self.foot_locker is not None:
+            self.foot_locker.reset(B)
+
+    # ------------------------------------------------------------------ one frame
+    def build_input(self) -> np.ndarray:
+        """The raw input frame x (B, x_dim) for the current state."""
+        st, L = self.state, self.layout
+        B = len(st["root"])
+        root, face = st["root"], st["facing"]
+        past_p = st["hist_pos"][:, -self.past_frames]                          # (B, 6, 2)
+        past_d = st["hist_dir"][:, -self.past_frames]
+        tp = np.concatenate([past_p, st["fut_pos"]], axis=1) - root[:, None]   # (B, 12, 2)
+        td = np.concatenate([past_d, st["fut_dir"]], axis=1)
+        f = face[:, None]
+        traj = np.concatenate([_to_local2(tp, f), _to_local2(td, f)], axis=-1)  # (B, 12, 4)
+        x = np.empty((B, L.x_dim))
+        x[:, self.x_traj_cols] = traj
+        rel = st["jpos"].copy()
+        rel[..., 0] -= root[:, 0, None]
+        rel[..., 2] -= root[:, 1, None]
+        x[:, self.x_cols["position"]] = _to_local3(rel, face)
+        x[:, self.x_cols["forward"]] = _to_local3(st["jfwd"], face)
+        x[:, self.x_cols["up"]] = _to_local3(st["jup"], face)
+        x[:, self.x_cols["velocity"]] = _to_local3(st["jvel"], face)
+        return x
+
+    def step(self, target_facing: np.ndarray, target_velocity: np.ndarray, film: np.ndarray) -> dict:
+        """Advance every character by one frame.
+
+        Args:
+            target_facing (B, 2), target_velocity (B, 2) m/s: the user's command (world x, z).
+            film: (4H,) shared or (B, 4H) per character.
+        Returns the new frame: dict of positions (B, J, 3), rotations (B, J, 3, 3), contacts (B, 2),
+        phases (B, 8), root (B, 2), facing (B, 2).
+        """
+        st = self.state
+        st["fut_pos"], st["fut_dir"] = blend_future_trajectory(
+            st["fut_pos"], st["fut_dir"], target_velocity, target_facing, self.sample_dt,
+            self.position_bias, self.direction_bias)
+        x = self.build_input()
+        z = self.net.predict(x, st["phase"], film).astype(np.float64)
+        self._apply_output(z)
+        return self.frame()
+
+    def _apply_output(self, z: np.ndarray) -> None:
+        st, L = self.state, self.layout
+        root, face = st["root"], st["facing"]
+        f = face[:, None]
+        traj = z[:, self.z_traj_cols]                                   # (B, 6, 4), current root frame
+        new_pos = _to_world2(traj[..., :2], f) + root[:, None]
+        new_dir = _unit2(_to_world2(traj[..., 2:], f), st["fut_dir"])
+        # joints of the next frame, read relative to the current root
+        jpos = _to_world3(z[:, self.z_cols["position"]], face)
+        jpos[..., 0] += root[:, 0, None]
+        jpos[..., 2] += root[:, 1, None]
+        jvel = _to_world3(z[:, self.z_cols["velocity"]], face)
+        if self.velocity_blend < 1.0:
+            integrated = st["jpos"] + jvel / self.fps
+            jpos = self.velocity_blend * jpos + (1 - self.velocity_blend) * integrated
+        st["jfwd"] = _to_world3(z[:, self.z_cols["forward"]], face)
+        st["jup"] = _to_world3(z[:, self.z_cols["up"]], face)
+        st["jvel"] = jvel
+        # phases: average of the predicted phase and previous + predicted update (§10.2 step 7)
+        st["phase"] = 0.5 * z[:, L.z_phases] + 0.5 * (st["phase"] + z[:, L.z_phase_updates])
+        st["contacts"] = z[:, L.z_contacts]
+        # root history, then move the root by the predicted delta (future sample 0 of the next frame)
+        st["hist_pos"] = np.concatenate([st["hist_pos"][:, 1:], root[:, None]], axis=1)
+        st["hist_dir"] = np.concatenate([st["hist_dir"][:, 1:], face[:, None]], axis=1)
+        s = self.future_smoothing
+        fut_pos = (1 - s) * new_pos + s * st["fut_pos"]
+        fut_dir = _unit2((1 - s) * new_dir + s * st["fut_dir"], new_dir)
+        fut_pos[:, 0], fut_dir[:, 0] = new_pos[:, 0], new_dir[:, 0]
+        st["fut_pos"], st["fut_dir"] = fut_pos, fut_dir
+        st["root"], st["facing"] = new_pos[:, 0].copy(), new_dir[:, 0].copy()
+        if self.foot_locker is not None:
+            jpos = self.foot_locker.apply(jpos, st["contacts"])
+        st["jpos"] = jpos
+
+    def frame(self) -> dict:
+        st = self.state
+        return dict(positions=st["jpos"].copy(), rotations=axes_to_rotation(st["jfwd"], st["jup"]),
+                    contacts=st["contacts"].copy(), phases=st["phase"].copy(),
+                    root=st["root"].copy(), facing=st["facing"].copy())
+
+    # ------------------------------------------------------------------ whole rollouts
+    def run(self, scripts: Union[Script, Sequence[Script]], n_frames: int,
+            film: Union[np.ndarray, Callable[[int], np.ndarray]], phases: Optional[np.ndarray] = None,
+            calibration: Optional["SpeedCalibration"] = None) -> Rollout:
+        """Run B = len(scripts) characters for ``n_frames`` frames.
+
+        Args:
+            scripts: one :class:`~minifilm.control.Script` per character (or one for B = 1); each
+                starts where its ``start()`` says.
+            film: (4H,) or (B, 4H) for all frames, (n_frames, 4H) / (n_frames, B, 4H) per frame
+                (style transitions), or a callable frame -> film.
+            calibration: maps the user's speed (m/s) to the command that makes this network
+                actually move at that speed (see :func:`calibrate_speed`); None = use as given.
+        """
+        if isinstance(scripts, Script):
+            scripts = [scripts]
+        B = len(scripts)
+        for s in scripts:
+            s.reset()
+        starts = [s.start() for s in scripts]
+        self.reset(np.array([p for p, _ in starts]), np.array([f for _, f in starts]), phases)
+        J = self.layout.n_joints
+        out = dict(positions=np.empty((B, n_frames, J, 3)), rotations=np.empty((B, n_frames, J, 3, 3)),
+                   contacts=np.empty((B, n_frames, 2)), phases=np.empty((B, n_frames, 8)),
+                   root=np.empty((B, n_frames, 2)), facing=np.empty((B, n_frames, 2)),
+                   targets=np.empty((B, n_frames, 2)))
+        per_frame = (not callable(film)) and np.ndim(film) >= 2 and np.shape(film)[0] == n_frames \
+            and not (np.ndim(film) == 2 and B == n_frames)
+        tf, tv = np.empty((B, 2)), np.empty((B, 2))
+        for k in range(n_frames):
+            t = k / self.fps
+            for b, s in enumerate(scripts):
+                tf[b], tv[b] = s.command(t, self.state["root"][b], self.state["facing"][b])
+            if calibration is not None:
+                tv = calibration.apply(tv)
+            fk = film(k) if callable(film) else (film[k] if per_frame else film)
+            fr = self.step(tf, tv, fk)
+            for key in ("positions", "rotations", "contacts", "phases", "root", "facing"):
+                out[key][:, k] = fr[key]
+            out["targets"][:, k] = tv
+        return Rollout(out["positions"], out["rotations"], out["contacts"], out["phases"], out["root"],
+                       out["facing"], out["targets"], self.fps)
+
+
+# =============================================================================== speed calibration
+
+@dataclass
+class SpeedCalibration:
+    """Measured steady-state root speed (m/s) for each commanded speed (m/s), for one style.
+
+    The network follows the user's trajectory only partly (near future samples keep its own
+    prediction, §10.4), so commanding v gives a slower walk. The original demo hid this behind a
+    per-style "velocity bias" of unclear units (original-pipeline §12 item 16); here the map is
+    measured (:func:`calibrate_speed`) and inverted by linear interpolation.
+    """
+
+    commanded: np.ndarray
+    achieved: np.ndarray
+
+    def __post_init__(self):
+        c = np.asarray(self.commanded, dtype=np.float64)
+        a = np.maximum.accumulate(np.asarray(self.achieved, dtype=np.float64))  # make it monotone
+        order = np.argsort(c)
+        self.commanded, self.achieved = np.r_[0.0, c[order]], np.r_[0.0, a[order]]
+
+    def command_for(self, speed) -> np.ndarray:
+        """Commanded speed that achieves ``speed`` (clamped to the largest calibrated command)."""
+        a = self.achieved + 1e-9 * np.arange(len(self.achieved))  # strictly increasing for interp
+        return np.interp(np.asarray(speed, dtype=np.float64), a, self.commanded)
+
+    def apply(self, velocity: np.ndarray) -> np.ndarray:
+        """Rescale velocities (..., 2) so their magnitude is the calibrated command."""
+        v = np.asarray(velocity, dtype=np.float64)
+        n = np.linalg.norm(v, axis=-1, keepdims=True)
+        return np.where(n > 1e-9, v * self.command_for(n) / np.maximum(n, 1e-9), 0.0)
+
+
+def calibrate_speed(controller: Controller, film: np.ndarray,
+                    commands: Sequence[float] = (0.5, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0),
+                    seconds: float = 8.0, settle: float = 4.0) -> SpeedCalibration:
+    """Walk straight at each commanded speed (all at once, as a batch) and measure the mean root
+    speed after ``settle`` seconds. ``film`` is the style (4H,)."""
+    from minifilm.control import straight_walk
+
+    n = int(round(seconds * controller.fps))
+    k0 = int(round(settle * controller.fps))
+    if k0 >= n - 1:
+        raise ValueError(f"calibrate_speed: settle ({settle} s) must be shorter than seconds ({seconds} s)")
+    r = controller.run([straight_walk(seconds, speed=float(v)) for v in commands], n, film)
+    dist = np.sum(np.linalg.norm(np.diff(r.root_positions[:, k0:], axis=1), axis=-1), axis=1)
+    return SpeedCalibration(np.asarray(commands, dtype=np.float64), dist / ((n - 1 - k0) / controller.fps))
