@@ -76,6 +76,14 @@ def test_tiny_file_by_hand():
     np.testing.assert_allclose(m1.translations, m.translations * 100)
 
 
+def test_zero_position_channels_are_not_replaced_by_the_offset():
+    """We deliberately drop the original's quirk (all-zero position channels -> OFFSET)."""
+    text = TINY.replace("OFFSET 5 -10 0", "OFFSET 5 -10 3").replace("4 -11 0 40", "0 0 0 40")
+    m = parse_bvh(text)
+    np.testing.assert_allclose(m.translations[0, 3], [0, 0, 0])
+    np.testing.assert_allclose(m.offsets[3], [0.05, -0.10, 0.03])
+
+
 def test_crlf_tabs_case_and_blank_lines_read_the_same():
     base = parse_bvh(TINY)
     variant = TINY.replace("  ", "\t").replace("End Site", "end site").replace("MOTION", "MOTION\n")
