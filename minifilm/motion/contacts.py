@@ -10,7 +10,8 @@ so 30, 60 and 120 fps files give the same contacts for the same motion.
 
 Difference to the original: its floor is the plane y = 0 of the Unity scene. Not every dataset
 stands on y = 0 (and a retargeted skeleton may float or sink a few centimetres), so ``floor_height``
-is a parameter, estimated by default from a low percentile of the sensor heights.
+is a parameter, estimated by default as the median height of the slow sensor samples (where the
+toes rest), or a low percentile of the heights.
 """
 from __future__ import annotations
 
@@ -24,20 +25,32 @@ __all__ = ["estimate_floor_height", "foot_contacts", "majority_filter"]
 DEFAULT_FILTER_SECONDS = 10.0 / 60.0
 
 
-def estimate_floor_height(heights, percentile: float = 2.0) -> float:
-    """Floor height (metres) from sensor heights: their ``percentile``-th percentile.
+def estimate_floor_height(heights, speeds=None, speed_threshold: float = 0.15,
+                          percentile: float = 2.0) -> float:
+    """Floor height (metres) from contact-sensor heights.
 
     Args:
         heights: (F, ...) heights (y) of the contact sensors, metres; all entries are pooled.
-        percentile: a low percentile rather than the minimum, so a few glitch frames below the
-            floor do not drag it down; in locomotion the toes rest on the floor for a large
-            share of the frames, so the low percentiles all sit on the floor.
+        speeds: optional (F, ...) sensor speeds in m/s. When given, the floor is the median height
+            of the slow samples (speed <= speed_threshold): where the toes rest. This is robust to
+            skeletons whose two feet rest a centimetre apart in height (retargeted data), which a
+            low percentile would put on the lower foot only.
+        percentile: without speeds (or with fewer than 2 % slow samples), the ``percentile``-th
+            percentile of all heights: a low percentile rather than the minimum, so a few glitch
+            frames below the floor do not drag it down.
     """
     h = np.asarray(heights, dtype=np.float64)
-    h = h[np.isfinite(h)]
-    if h.size == 0:
+    finite = np.isfinite(h)
+    if not np.any(finite):
         raise ValueError("estimate_floor_height: no finite heights given")
-    return float(np.percentile(h, percentile))
+    if speeds is not None:
+        sp = np.asarray(speeds, dtype=np.float64)
+        if sp.shape != h.shape:
+            raise ValueError(f"estimate_floor_height: speeds {sp.shape} and heights {h.shape} differ in shape")
+        slow = finite & (sp <= speed_threshold)
+        if slow.sum() >= max(1, 0.02 * h.size):
+            return float(np.median(h[slow]))
+    return float(np.percentile(h[finite], percentile))
 
 
 def majority_filter(raw, half_width: int) -> np.ndarray:
@@ -69,7 +82,8 @@ def foot_contacts(sensor_positions, fps: float, floor_height: Optional[float] = 
         sensor_positions: (F, 2, 3) world positions (metres, y up) of the toe-tip sensors in the
             order [right, left] (``Skeleton.contact_bones``).
         fps: frames per second; velocities are per second, the filter window is in seconds.
-        floor_height: floor y in metres; ``None`` estimates it with ``estimate_floor_height``.
+        floor_height: floor y in metres; ``None`` estimates it with ``estimate_floor_height``
+            (median height of the slow sensor samples).
         speed_threshold: maximum sensor speed in contact, m/s (paper: v_max = 0.15).
         height_threshold: maximum |y − floor| in contact, metres (paper: d_max = 0.01). Like the
             original's sphere-against-plane test, a sensor more than this *below* the floor is
@@ -86,12 +100,14 @@ def foot_contacts(sensor_positions, fps: float, floor_height: Optional[float] = 
         raise ValueError(f"foot_contacts: fps must be positive, got {fps}")
     if p.shape[0] == 0:
         return np.zeros((0, 2))
-    floor = estimate_floor_height(p[..., 1]) if floor_height is None else float(floor_height)
     v = np.zeros_like(p)
     if p.shape[0] >= 2:  # backward difference, frame 0 copies frame 1 (original-pipeline §1.4)
         v[1:] = (p[1:] - p[:-1]) * fps
         v[0] = v[1]
     speed = np.linalg.norm(v, axis=-1)
+    if floor_height is None:
+        floor_height = estimate_floor_height(p[..., 1], speed, speed_threshold)
+    floor = float(floor_height)
     raw = (speed <= speed_threshold) & (np.abs(p[..., 1] - floor) <= height_threshold)
     half = int(np.floor(filter_seconds * fps / 2 + 0.5))
     return majority_filter(raw, half)
