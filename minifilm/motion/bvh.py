@@ -105,7 +105,7 @@ class _Hierarchy:
             toks = _TOKEN.findall(line)
             if toks and toks[0].upper() == "MOTION":
                 if len(toks) > 1:
-                    raise self.error(i + 1, f"expected 'MOTION' alone on its line, found {line.strip()!r}")
+                    raise self.error(i + 1, f"expected 'MOTION' alone on its line, found {_clip(line)!r}")
                 motion_line = i
                 break
             self.tokens.extend((t, i + 1) for t in toks)

@@ -17,7 +17,7 @@ Mirroring and resampling, which build new ``Motion`` objects from local transfor
 from __future__ import annotations
 
 import re
-from typing import List, Sequence, Tuple
+from typing import Sequence, Tuple
 
 import numpy as np
 
