@@ -96,3 +96,18 @@ def test_bad_input_names_the_problem():
         foot_contacts(np.zeros((10, 3)), 60)
     with pytest.raises(ValueError, match="fps"):
         foot_contacts(np.zeros((10, 2, 3)), 0)
+
+
+def test_floor_estimate_with_feet_resting_at_different_heights():
+    # Retargeted data: the right toe rests 1 cm below the left one. The floor from the slow samples
+    # lies between them, so both feet find it; the lowest percentile would miss the left foot.
+    pos, truth = walk_sensors(60)
+    pos[:, 0, 1] -= 0.006
+    pos[:, 1, 1] += 0.004
+    c = foot_contacts(pos, 60)
+    assert np.mean(c != truth) < 2 * 0.06
+    speed = np.zeros(pos.shape[:2])
+    speed[1:] = np.linalg.norm(np.diff(pos, axis=0), axis=-1) * 60
+    floor = estimate_floor_height(pos[..., 1], speed)
+    assert -0.006 < floor < 0.004
+    assert estimate_floor_height(pos[..., 1]) == pytest.approx(-0.006, abs=1e-6)
