@@ -34,7 +34,7 @@ Ground truth, for measuring phase extraction (circular error) and contact detect
 - ``phase_active`` (F, 4): where the limb really oscillates, and has for half a second either side
   (a foot that stands still while idle, or an arm whose swing is under 7°, has no meaningful phase).
 - ``true_contacts`` (F, 2), order [right, left], 1.0 during designed stance, and also during a
-  "swing" so small (< 1 cm lift, < 2 cm travel, as when coming to a stop) that the foot never
+  "swing" so small (< 1 cm lift, < 5 mm travel, as when standing still) that the foot never
   actually leaves the floor.
 """
 from __future__ import annotations
@@ -190,12 +190,13 @@ def _foot_from_toe_tip(tip: np.ndarray, yaw: np.ndarray, pitch: np.ndarray, toe_
 
 
 def _stepping_foot(side: int, theta: np.ndarray, offset: float, duty: np.ndarray, lift: np.ndarray,
-                   heel_off: np.ndarray, t: np.ndarray, path: RootPath, style: StyleParams, leg: int,
-                   rng: np.random.Generator) -> _Foot:
+                   heel_off: np.ndarray, activity: np.ndarray, t: np.ndarray, path: RootPath,
+                   style: StyleParams, leg: int, rng: np.random.Generator) -> _Foot:
     """A foot that alternates stance (toe tip planted on y = 0) and swing.
 
     side: -1 right, +1 left (the x side of the body); leg: 0 right, 1 left (index into the style's
-    (right, left) pairs). theta: (N,) stride phase; duty, lift, heel_off: (N,) per frame.
+    (right, left) pairs). theta: (N,) stride phase; duty, lift, heel_off: (N,) per frame;
+    activity: (N,) 1 while walking, 0 when standing still (fades out the sideways swing arc).
     """
     phi = theta + offset
     # Cycle k spans φ in [k − 0.25, k + 0.75) and has its mid-stance at φ = k + 0.25.
@@ -227,7 +228,7 @@ def _stepping_foot(side: int, theta: np.ndarray, offset: float, duty: np.ndarray
     arc = np.sin(np.pi * sigma)
     height = lift * style.swing_height_scale[leg]
     tip[:, 1] = height * arc
-    out = side * style.circumduction[leg] * arc      # swing the foot outwards (limp)
+    out = side * style.circumduction[leg] * activity * arc      # swing the foot outwards (limp)
     tip[:, 0] += np.cos(path.yaw) * out
     tip[:, 2] -= np.sin(path.yaw) * out
     yaw = foot_yaw[a] + (foot_yaw[b] - foot_yaw[a]) * w
@@ -239,7 +240,9 @@ def _stepping_foot(side: int, theta: np.ndarray, offset: float, duty: np.ndarray
     ankle, R_foot, toe_local = _foot_from_toe_tip(tip, yaw, pitch, toe_bend)
 
     travel = np.linalg.norm((targets[b] - targets[a])[:, [0, 2]], axis=1)
-    shuffle = (height < 0.01) & (travel < 0.02)     # a "swing" that never leaves the floor
+    # A "swing" (at least 3 frames long) that stays within 1 cm of the floor and moves the foot by
+    # under 5 mm never exceeds the contact speed of 0.15 m/s: the foot never leaves the floor.
+    shuffle = (height < 0.01) & (travel < 0.005)
     forward = np.stack([np.sin(yaw), np.zeros_like(yaw), np.cos(yaw)], axis=1)
     return _Foot(tip, ankle, R_foot, toe_local, forward, stance | shuffle, phi, duty < 0.9)
 
@@ -354,9 +357,11 @@ def generate_style(style: str, gait: str, seconds: float, rng, fps: float = 60) 
         if sp.lifted_foot == ("right", "left")[leg]:
             continue
         duty = np.clip(duty_gait + sp.duty_delta[leg], 0.2, 0.95)
-        duty = np.minimum(1.0 - (1.0 - duty) * active, 0.985)
+        # Standing still: the stance fills (almost) the whole cycle. Keep every swing at least
+        # 3 frames long, so a foot never jumps between two stance targets from one frame to the next.
+        duty = np.minimum(1.0 - (1.0 - duty) * active, 1.0 - 3.0 * timeline.stride_freq / fps)
         feet[leg] = _stepping_foot(side, theta, sp.foot_phase_offset[leg], duty, lift,
-                                   timeline.heel_off, t, path, sp, leg, rng)
+                                   timeline.heel_off, active, t, path, sp, leg, rng)
 
     # Hips: the path plus sway over the stance foot, pelvis rotations, then the height.
     phi_r = theta + sp.foot_phase_offset[0]
