@@ -98,3 +98,25 @@ def test_fuzzed_files_fail_cleanly_or_read_consistently(shared_data, seed):
             successes += 1
             check_consistent(m, mutated)
     assert failures > 300 and successes > 15, (failures, successes)
+
+
+def test_byte_level_cuts_and_garbage_through_read_bvh(shared_data, tmp_path):
+    """Files cut at random byte offsets or with random bytes spliced in (invalid UTF-8 included)."""
+    from minifilm.motion.bvh import read_bvh
+
+    rng = np.random.default_rng(7)
+    data = shortened((shared_data / "100style" / "Neutral_FR_first3frames.bvh").read_text(), 3).encode()
+    path = tmp_path / "bytes.bvh"
+    for trial in range(60):
+        if trial % 2 == 0:
+            mutated = data[:rng.integers(len(data))]
+        else:
+            i = rng.integers(len(data))
+            mutated = data[:i] + rng.integers(0, 256, size=rng.integers(1, 8), dtype=np.uint8).tobytes() + data[i:]
+        path.write_bytes(mutated)
+        try:
+            m = read_bvh(path)
+        except BVHError as err:
+            assert str(err).startswith(f"{path}, line "), str(err)
+            continue
+        check_consistent(m, mutated.decode("utf-8", errors="replace"))
