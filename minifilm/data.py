@@ -241,6 +241,7 @@ class Dataset:
     settings: dict
     cache_path: Optional[Path] = None
     build_seconds: float = 0.0
+    cache_key: str = ""
 
     def split(self, name: str) -> Split:
         if name not in SPLITS:
@@ -307,7 +308,7 @@ class Dataset:
         arrays.update({f"norm/{k}": v for k, v in self.normalizer.state_dict().items()})
         meta = {"layout": self.layout.to_dict(), "styles": self.styles, "fps": self.fps,
                 "skeleton": self.skeleton, "files": self.files, "settings": self.settings,
-                "format": CACHE_FORMAT, "build_seconds": self.build_seconds}
+                "format": CACHE_FORMAT, "build_seconds": self.build_seconds, "cache_key": self.cache_key}
         arrays["meta"] = np.array(json.dumps(meta))
         return _save_npz(path, arrays)
 
@@ -323,7 +324,8 @@ class Dataset:
             f["segments"] = [tuple(s) for s in f["segments"]]
         return cls(FeatureLayout.from_dict(meta["layout"]), list(meta["styles"]), float(meta["fps"]),
                    meta["skeleton"], splits["train"], splits["val"], splits["test"], norm,
-                   meta["files"], meta["settings"], Path(path), float(meta.get("build_seconds", 0.0)))
+                   meta["files"], meta["settings"], Path(path), float(meta.get("build_seconds", 0.0)),
+                   meta.get("cache_key", ""))
 
 
 # =========================================================================== building
@@ -379,16 +381,29 @@ def _source_fingerprint() -> str:
     return h.hexdigest()
 
 
-def cache_key(files: Sequence[MotionFile], settings: DatasetSettings) -> str:
-    """sha256 over every file's path, size and mtime, its labels, the settings and the code."""
-    items = []
+def dataset_cache_key(files: Sequence[MotionFile], settings: DatasetSettings, skeleton=None) -> Tuple[str, str]:
+    """(name, key): ``name`` hashes what the dataset is (file paths and labels, settings, custom
+    skeleton) and names the cache file, so a dataset has one cache file; ``key`` adds every file's
+    size and mtime and the code, and must match the stored one for the cache to be used."""
+    what, state = [], []
     for f in files:
         st = Path(f.path).stat()
-        items.append([str(Path(f.path).resolve()), st.st_size, st.st_mtime_ns, f.style, f.gait,
-                      f.start, f.end, f.mirror])
-    blob = json.dumps({"files": items, "settings": settings.to_dict(), "format": CACHE_FORMAT,
-                       "code": _source_fingerprint()}, sort_keys=True)
-    return hashlib.sha256(blob.encode()).hexdigest()
+        what.append([str(Path(f.path).resolve()), f.style, f.gait, f.start, f.end, f.mirror])
+        state.append([st.st_size, st.st_mtime_ns])
+    name = json.dumps({"files": what, "settings": settings.to_dict(),
+                       "skeleton": None if skeleton is None else repr(skeleton)}, sort_keys=True)
+    key = json.dumps({"name": name, "state": state, "format": CACHE_FORMAT,
+                      "code": _source_fingerprint()}, sort_keys=True)
+    return hashlib.sha256(name.encode()).hexdigest()[:20], hashlib.sha256(key.encode()).hexdigest()
+
+
+def _cached_key(path: Path) -> Optional[str]:
+    """The key stored in a cache file (reads only its small 'meta' entry); None if unreadable."""
+    try:
+        with np.load(path, allow_pickle=False) as d:
+            return json.loads(str(d["meta"])).get("cache_key")
+    except (OSError, ValueError, KeyError):
+        return None
 
 
 def _load_motion(f: MotionFile, skeleton, fps: Optional[float]):
@@ -464,7 +479,8 @@ def build_dataset(source: Union[str, Path, Sequence[MotionFile]],
 
     Args:
         settings: a :class:`DatasetSettings`; keyword ``overrides`` replace single fields.
-        cache_dir: where ``dataset-<hash>.npz`` lives; None disables caching.
+        cache_dir: where ``dataset-<name hash>.npz`` lives; None disables caching. A cache whose
+            files, code or settings changed is rebuilt and overwritten.
         progress: a status line on stderr.
         skeleton: a :class:`~minifilm.motion.skeletons.Skeleton` object for a custom skeleton
             (overrides ``settings.skeleton``; its repr enters the cache key).
@@ -475,19 +491,18 @@ def build_dataset(source: Union[str, Path, Sequence[MotionFile]],
     files = [f for f in resolve_files(source) if f.gait not in settings.idle_gaits]
     if not files:
         raise ValueError("build_dataset: every file is idle (see DatasetSettings.idle_gaits)")
-    cache_path = None
+    cache_path, key = None, ""
     if cache_dir is not None:
-        key = cache_key(files, settings)
-        if skeleton is not None:
-            key = hashlib.sha256((key + repr(skeleton)).encode()).hexdigest()
-        cache_path = Path(cache_dir) / f"dataset-{key[:20]}.npz"
-        if cache_path.is_file():
+        name, key = dataset_cache_key(files, settings, skeleton)
+        cache_path = Path(cache_dir) / f"dataset-{name}.npz"
+        if cache_path.is_file() and _cached_key(cache_path) == key:
             return Dataset.load(cache_path)
     t0 = time.perf_counter()
     skeleton = skeleton or _pick_skeleton(settings, files[0])
     ds = _build(files, settings, skeleton, progress, dtype)
     ds.build_seconds = time.perf_counter() - t0
-    if cache_path is not None:
+    ds.cache_key = key
+    if cache_path is not None:     # overwrites a stale cache of the same dataset
         ds.save(cache_path)
         ds.cache_path = cache_path
     return ds

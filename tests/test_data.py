@@ -6,6 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import minifilm.data as data_module
 from minifilm.data import (
     SPLITS, Dataset, DatasetSettings, Normalizer, apply_gap, build_dataset,
     file_rng, mirror_labels, split_segments)
@@ -130,12 +131,19 @@ SUBSET = ["dataset-2_walk_active_001.bvh", "dataset-2_walk_elderly_001.bvh",
 
 @pytest.fixture(scope="module")
 def small(shared_data, tmp_path_factory):
-    """A few Bandai files, one style mirrored, cached in a temporary folder."""
+    """A few Bandai files, one style mirrored, cached in a temporary folder.
+
+    The code fingerprint in the cache key is pinned, so that somebody editing the motion modules
+    while the tests run cannot turn a cache hit into a rebuild.
+    """
+    mp = pytest.MonkeyPatch()
+    mp.setattr(data_module, "_source_fingerprint", lambda: "pinned")
     cache = tmp_path_factory.mktemp("cache")
     files = [f for f in bandai_files(shared_data / "bandai2") if f.path.name in SUBSET]
     ds = build_dataset(files, cache_dir=cache, progress=False, mirror_styles=("active",), seed=7,
                        clip_seconds=2.0, clip_stride_seconds=1.0)
-    return files, cache, ds
+    yield files, cache, ds
+    mp.undo()
 
 
 def test_build_shapes_and_labels(small):
@@ -223,7 +231,7 @@ def test_cache_second_build_is_loaded(small, shared_data):
     assert ds.cache_path is not None and ds.cache_path.parent == cache
     again = build_dataset(files, cache_dir=cache, progress=False, mirror_styles=("active",), seed=7,
                           clip_seconds=2.0, clip_stride_seconds=1.0)
-    assert again.cache_path == ds.cache_path
+    assert again.cache_path == ds.cache_path and again.cache_key == ds.cache_key
     for name in SPLITS:
         for key in ("x", "p", "z", "style", "file", "frame", "clips", "clip_style"):
             np.testing.assert_array_equal(getattr(again.split(name), key), getattr(ds.split(name), key))
@@ -257,3 +265,23 @@ def test_clip_fallback_uses_other_gaits(small):
     assert len(ds.train.clips) > 0
     gaits = {ds.files[c]["gait"] for c in ds.train.clip_file}
     assert gaits - {"walk"}                                     # not only walk files
+
+
+def test_stale_cache_is_rebuilt_in_place(shared_data, tmp_path, monkeypatch):
+    import shutil
+
+    monkeypatch.setattr(data_module, "_source_fingerprint", lambda: "pinned")
+
+    src = shared_data / "bandai2" / "dataset-2_walk_normal_001.bvh"
+    copy = tmp_path / "Normal_FW.bvh"
+    shutil.copy(src, copy)
+    cache = tmp_path / "cache"
+    first = build_dataset(tmp_path, cache_dir=cache, progress=False, clip_seconds=2.0)
+    loaded = build_dataset(tmp_path, cache_dir=cache, progress=False, clip_seconds=2.0)
+    assert loaded.cache_key == first.cache_key and loaded.cache_path == first.cache_path
+    st = copy.stat()
+    os.utime(copy, ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))   # the file "changed"
+    again = build_dataset(tmp_path, cache_dir=cache, progress=False, clip_seconds=2.0)
+    assert again.cache_key != first.cache_key and again.cache_path == first.cache_path
+    assert len(list(cache.glob("*.npz"))) == 1
+    np.testing.assert_array_equal(again.train.x, first.train.x)
