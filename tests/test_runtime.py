@@ -1,0 +1,151 @@
+"""Runtime: the inference network, the autoregressive loop's geometry and phase rule, calibration.
+
+These tests need no data: the loop is driven by a stand-in network whose outputs are closed-form
+(a character gliding forward at constant speed), so every expected number is computed by hand.
+"""
+import numpy as np
+import pytest
+
+from minifilm.control import CommandScript
+from minifilm.model.config import ModelConfig
+from minifilm.model.style_model import StyleModel
+from minifilm.motion.layout import FeatureLayout
+from minifilm.runtime import Controller, RuntimeNetwork, RuntimeStats, SpeedCalibration
+
+PARENTS = (-1, 0, 1, 0, 3)
+LAYOUT = FeatureLayout(5, PARENTS, ("Hips", "Spine", "Head", "Leg", "Foot"))
+
+
+def random_stats(layout, rng):
+    return RuntimeStats(rng.normal(size=layout.x_dim), rng.uniform(0.5, 2, layout.x_dim),
+                        rng.normal(size=8), rng.uniform(0.5, 2, 8),
+                        rng.normal(size=layout.z_dim), rng.uniform(0.5, 2, layout.z_dim))
+
+
+def test_runtime_network_matches_style_model():
+    rng = np.random.default_rng(0)
+    cfg = ModelConfig.small(x_dim=LAYOUT.x_dim, z_dim=LAYOUT.z_dim)
+    model = StyleModel(cfg, rng, dtype=np.float64)
+    for ps in model.parameter_sets():  # non-zero biases so they are tested too
+        ps.data[...] = rng.normal(scale=0.3, size=ps.data.shape)
+    stats = random_stats(LAYOUT, rng)
+    net = RuntimeNetwork.from_model(model, stats, dtype=np.float64)
+    X, P = rng.normal(size=(3, LAYOUT.x_dim)), rng.normal(size=(3, 8))
+    film = rng.normal(size=(3, cfg.film_dim))
+    z_hat = model.forward_with_film((X - stats.x_mean) / stats.x_std, (P - stats.p_mean) / stats.p_std, film)
+    expected = z_hat * stats.z_std + stats.z_mean
+    np.testing.assert_allclose(net.predict(X, P, film), expected, rtol=1e-10, atol=1e-10)
+    # one shared FiLM vector == the same vector repeated per row
+    np.testing.assert_allclose(net.predict(X, P, film[0]), net.predict(X, P, np.repeat(film[:1], 3, 0)), atol=1e-12)
+    # runtime layer-norm convention (biased sigma, no eps) is available too
+    net_rt = RuntimeNetwork.from_model(model, stats, runtime_layer_norm=True, dtype=np.float64)
+    z_rt = model.forward_with_film((X - stats.x_mean) / stats.x_std, (P - stats.p_mean) / stats.p_std, film,
+                                   ln_unbiased=False, ln_eps=0.0)
+    np.testing.assert_allclose(net_rt.predict(X, P, film), z_rt * stats.z_std + stats.z_mean, atol=1e-10)
+
+
+class GlideNet:
+    """Stand-in network: the character glides forward at `speed` m/s in its own frame, keeping the
+    pose of x's joints; the phase output is a constant vector `a` with update `u`."""
+
+    def __init__(self, layout, speed, a, u, stats):
+        self.layout, self.speed, self.a, self.u, self.stats = layout, speed, a, u, stats
+        self.x_dim, self.z_dim = layout.x_dim, layout.z_dim
+        self.inputs = []
+
+    def predict(self, x, p, film):
+        L, d = self.layout, self.speed / 60.0
+        self.inputs.append(x.copy())
+        B = len(x)
+        z = np.zeros((B, L.z_dim))
+        for i, s in enumerate(range(6, 12)):
+            dt = L.trajectory_seconds[s]
+            z[:, L.trajectory_columns("z", s)] = [0.0, d + self.speed * dt, 0.0, 1.0]
+        for f in ("position", "forward", "up", "velocity"):
+            z[:, L.joint_columns("z", f)] = x[:, L.joint_columns("x", f)]
+        z[:, L.joint_columns("z", "position")[:, 2]] += d     # the body moves with the root
+        z[:, L.z_phases], z[:, L.z_phase_updates], z[:, L.z_contacts] = self.a, self.u, [1.0, 0.0]
+        return z
+
+
+def glide_setup(speed=1.5, heading_deg=30.0):
+    rng = np.random.default_rng(1)
+    stats = random_stats(LAYOUT, rng)
+    # a plausible mean pose: unit axes, zero velocity (forward moves exactly with the body)
+    fw, up, vel = (LAYOUT.joint_columns("x", f) for f in ("forward", "up", "velocity"))
+    stats.x_mean[fw], stats.x_mean[up], stats.x_mean[vel] = [0, 0, 1.0], [0, 1.0, 0], [0, 0, speed]
+    a, u = rng.normal(size=8), rng.normal(size=8) * 0.1
+    net = GlideNet(LAYOUT, speed, a, u, stats)
+    script = CommandScript([(0, speed, heading_deg, 0), (100, speed, heading_deg, 0)], start_position=(2.0, -1.0))
+    return net, script, stats, a, u
+
+
+def test_glide_moves_root_and_joints_along_the_heading():
+    speed, heading = 1.5, 30.0
+    net, script, stats, a, u = glide_setup(speed, heading)
+    ctrl = Controller(net, LAYOUT, velocity_blend=0.5, future_smoothing=0.0)  # 0.15 would lag it by 0.15 frames
+    N = 90
+    r = ctrl.run(script, N, np.zeros(4))
+    f = np.array([np.sin(np.radians(heading)), np.cos(np.radians(heading))])
+    k = np.arange(1, N + 1)
+    np.testing.assert_allclose(r.root_positions[0], np.array([2.0, -1.0]) + (speed / 60) * k[:, None] * f, atol=1e-9)
+    np.testing.assert_allclose(r.root_facing[0], np.broadcast_to(f, (N, 2)), atol=1e-12)
+    # joints: the mean pose (local to the root), carried along with the root
+    local = stats.x_mean[LAYOUT.joint_columns("x", "position")]            # (J, 3)
+    R = np.array([[f[1], 0, f[0]], [0, 1, 0], [-f[0], 0, f[1]]])          # LookRotation(f)
+    world0 = local @ R.T + np.array([2.0, 0, -1.0])
+    disp = np.array([f[0], 0, f[1]]) * (speed / 60)
+    np.testing.assert_allclose(r.positions[0, -1], world0 + N * disp, atol=1e-9)
+    np.testing.assert_allclose(r.rotations[0, -1, :, :, 2], np.broadcast_to([f[0], 0, f[1]], (5, 3)), atol=1e-9)
+    # the input of the last frame: past samples at -1 s .. -1/6 s lie behind at speed * |t|
+    x = net.inputs[-1][0]
+    for s in range(6):
+        t = LAYOUT.trajectory_seconds[s]
+        np.testing.assert_allclose(x[LAYOUT.trajectory_columns("x", s)], [0, speed * t, 0, 1], atol=1e-9)
+    for s in range(6, 12):  # the future is exactly what the user asks for, at the training spacing
+        t = LAYOUT.trajectory_seconds[s]
+        np.testing.assert_allclose(x[LAYOUT.trajectory_columns("x", s)], [0, speed * t, 0, 1], atol=1e-9)
+
+
+def test_phase_rule_half_predicted_half_integrated():
+    net, script, stats, a, u = glide_setup()
+    ctrl = Controller(net, LAYOUT)
+    L0 = np.linspace(-1, 1, 8)
+    r = ctrl.run(script, 60, np.zeros(4), phases=L0[None])
+    np.testing.assert_allclose(r.phases[0, 0], 0.5 * a + 0.5 * (L0 + u), atol=1e-12)
+    # L <- 0.5 a + 0.5 (L + u) has the fixed point a + u, reached geometrically (error halves)
+    np.testing.assert_allclose(r.phases[0, -1], a + u, atol=1e-12)
+    np.testing.assert_allclose(r.contacts[0, -1], [1, 0])
+
+
+def test_batch_equals_single_characters():
+    rng = np.random.default_rng(4)
+    cfg = ModelConfig.small(x_dim=LAYOUT.x_dim, z_dim=LAYOUT.z_dim)
+    model = StyleModel(cfg, rng, dtype=np.float64)
+    stats = random_stats(LAYOUT, rng)
+    stats.x_std[:], stats.z_std[:] = 1.0, 0.01        # small outputs: a tame random network
+    net = RuntimeNetwork.from_model(model, stats, dtype=np.float64)
+    films = rng.normal(size=(2, cfg.film_dim))
+    scripts = [CommandScript([(0, 1.0, 0, 0), (10, 1.0, 90, 0)]),
+               CommandScript([(0, 0.5, 45, 90), (10, 0.5, 45, 90)], start_position=(3, 3))]
+    ctrl = Controller(net, LAYOUT)
+    both = ctrl.run(scripts, 40, films)
+    for b in range(2):
+        one = ctrl.run(scripts[b], 40, films[b])
+        np.testing.assert_allclose(both.positions[b], one.positions[0], atol=1e-9)
+        np.testing.assert_allclose(both.root_positions[b], one.root_positions[0], atol=1e-9)
+
+
+def test_controller_rejects_mismatched_layout():
+    net, *_ = glide_setup()
+    other = FeatureLayout(4, (-1, 0, 1, 2), ("a", "b", "c", "d"))
+    with pytest.raises(ValueError, match="do not match the layout"):
+        Controller(net, other)
+
+
+def test_speed_calibration_inverts_the_measured_map():
+    cal = SpeedCalibration(commanded=[1.0, 2.0, 4.0], achieved=[0.5, 0.8, 1.6])
+    np.testing.assert_allclose(cal.command_for([0.5, 0.8, 1.2]), [1.0, 2.0, 3.0], atol=1e-6)
+    np.testing.assert_allclose(cal.command_for(0.25), 0.5, atol=1e-6)   # through the origin
+    v = cal.apply(np.array([[0.0, 1.2], [0.0, 0.0]]))
+    np.testing.assert_allclose(v, [[0.0, 3.0], [0.0, 0.0]], atol=1e-5)
