@@ -190,13 +190,15 @@ def _foot_from_toe_tip(tip: np.ndarray, yaw: np.ndarray, pitch: np.ndarray, toe_
 
 
 def _stepping_foot(side: int, theta: np.ndarray, offset: float, duty: np.ndarray, lift: np.ndarray,
-                   heel_off: np.ndarray, activity: np.ndarray, t: np.ndarray, path: RootPath,
-                   style: StyleParams, leg: int, rng: np.random.Generator) -> _Foot:
+                   heel_off: np.ndarray, activity: np.ndarray, freq: np.ndarray, velocity_x: np.ndarray,
+                   t: np.ndarray, path: RootPath, style: StyleParams, leg: int,
+                   rng: np.random.Generator) -> _Foot:
     """A foot that alternates stance (toe tip planted on y = 0) and swing.
 
     side: -1 right, +1 left (the x side of the body); leg: 0 right, 1 left (index into the style's
     (right, left) pairs). theta: (N,) stride phase; duty, lift, heel_off: (N,) per frame;
-    activity: (N,) 1 while walking, 0 when standing still (fades out the sideways swing arc).
+    activity: (N,) 1 while walking, 0 when standing still (fades out the sideways swing arc);
+    freq: (N,) stride frequency, Hz; velocity_x: (N,) sideways velocity in the facing frame, m/s.
     """
     phi = theta + offset
     # Cycle k spans φ in [k − 0.25, k + 0.75) and has its mid-stance at φ = k + 0.25.
@@ -215,7 +217,10 @@ def _stepping_foot(side: int, theta: np.ndarray, offset: float, duty: np.ndarray
     t_mid = np.interp(ks + 0.25 - offset, theta, t)
     yaw_k = np.interp(t_mid, t, path.yaw)
     px, pz = np.interp(t_mid, t, path.position[:, 0]), np.interp(t_mid, t, path.position[:, 2])
-    lateral = side * style.step_width + 0.05 * style.noise * rng.standard_normal(ks.size)
+    # Moving sideways, a foot travels ±v·d/(2f) sideways under the body during its stance; widen
+    # the stance by most of that so the feet come together at the closest but never cross.
+    sideways = np.abs(np.interp(t_mid, t, velocity_x)) * np.interp(t_mid, t, duty / (2 * freq))
+    lateral = side * (style.step_width + 0.8 * sideways) + 0.05 * style.noise * rng.standard_normal(ks.size)
     ahead = _TOE_AHEAD + 0.04 * style.noise * rng.standard_normal(ks.size)
     s, c = np.sin(yaw_k), np.cos(yaw_k)
     targets = np.stack([px + c * lateral + s * ahead, np.zeros_like(px), pz - s * lateral + c * ahead], 1)
@@ -361,7 +366,8 @@ def generate_style(style: str, gait: str, seconds: float, rng, fps: float = 60) 
         # 3 frames long, so a foot never jumps between two stance targets from one frame to the next.
         duty = np.minimum(1.0 - (1.0 - duty) * active, 1.0 - 3.0 * timeline.stride_freq / fps)
         feet[leg] = _stepping_foot(side, theta, sp.foot_phase_offset[leg], duty, lift,
-                                   timeline.heel_off, active, t, path, sp, leg, rng)
+                                   timeline.heel_off, active, timeline.stride_freq,
+                                   timeline.velocity_local[:, 0], t, path, sp, leg, rng)
 
     # Hips: the path plus sway over the stance foot, pelvis rotations, then the height.
     phi_r = theta + sp.foot_phase_offset[0]
@@ -382,7 +388,9 @@ def generate_style(style: str, gait: str, seconds: float, rng, fps: float = 60) 
         walk_bob = 0.012 * np.cos(4 * np.pi * (phi_r - 0.25))   # highest at mid-stance
         run_bob = -0.03 * np.cos(4 * np.pi * (phi_r - 0.25))    # lowest at mid-stance
         bob = ((1 - timeline.run) * walk_bob + timeline.run * run_bob) * active
-    desired = STANDING_HIPS_HEIGHT - 0.035 - 0.04 * timeline.run + sp.hips_height + sp.hips_bob_scale * bob
+    # Knees slightly bent when standing, more when walking (the stance leg is never locked straight).
+    desired = (STANDING_HIPS_HEIGHT - 0.005 - 0.02 * active - 0.04 * timeline.run + sp.hips_height
+               + sp.hips_bob_scale * bob)
     hip_offsets = {0: _apply(R_hips, _OFFSETS[_J["RightHip"]]), 1: _apply(R_hips, _OFFSETS[_J["LeftHip"]])}
     bounds = [desired]
     for leg, foot in enumerate(feet):

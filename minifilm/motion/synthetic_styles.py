@@ -98,7 +98,7 @@ GAIT_PARAMS: Dict[str, GaitParams] = {
     "FW": GaitParams("FW", 1.20, (0.0, 1.0), 1.00, 0.0, 0.07, 28 * _DEG, 1.0),
     "BW": GaitParams("BW", 0.80, (0.0, -1.0), 0.90, 0.0, 0.06, 8 * _DEG, 0.7),
     "FR": GaitParams("FR", 2.80, (0.0, 1.0), 1.35, 1.0, 0.12, 35 * _DEG, 1.6, 60 * _DEG),
-    "SW": GaitParams("SW", 0.60, (1.0, 0.0), 0.85, 0.0, 0.05, 8 * _DEG, 0.4),   # sign flips in time
+    "SW": GaitParams("SW", 0.50, (1.0, 0.0), 0.95, 0.0, 0.05, 8 * _DEG, 0.4),   # sign flips in time
     "ID": GaitParams("ID", 0.00, (0.0, 1.0), 0.55, 0.0, 0.00, 0.0, 0.35),
 }
 #: Gait codes of the generator; "TR" strings the others together with smooth transitions.
