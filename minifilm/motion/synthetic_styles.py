@@ -121,10 +121,10 @@ STYLE_PARAMS: Dict[str, StyleParams] = {
     "Limp": replace(
         _NEUTRAL, name="Limp", speed_scale=0.7, foot_phase_offset=(0.0, 0.58), duty_delta=(-0.12, 0.1),
         swing_height_scale=(0.45, 1.0), circumduction=(0.07, 0.0), heel_off_scale=(0.25, 1.0),
-        stance_lean=9 * _DEG, hips_sway=0.04, arm_swing_amp=10 * _DEG),
+        stance_lean=9 * _DEG, hips_sway=0.04, arm_swing_amp=12 * _DEG),
     "HandsAbove": replace(
         _NEUTRAL, name="HandsAbove", arm_down=-78 * _DEG, arm_swing_center=-3 * _DEG,
-        arm_swing_amp=9 * _DEG, elbow_flex=20 * _DEG, elbow_flex_amp=8 * _DEG, collar_raise=10 * _DEG,
+        arm_swing_amp=12 * _DEG, elbow_flex=20 * _DEG, elbow_flex_amp=8 * _DEG, collar_raise=10 * _DEG,
         run_elbow_scale=0.0, pelvis_yaw=3 * _DEG),
     "Crouched": replace(
         _NEUTRAL, name="Crouched", hips_height=-0.24, pelvis_pitch=18 * _DEG, spine_lean=28 * _DEG,
