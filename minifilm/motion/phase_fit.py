@@ -105,8 +105,9 @@ def _solve_bounded(g, r, yy, vmin, vmax):
     """Weighted least squares for (c1, c2, B) with the §4.2 bounds, elementwise over any batch shape.
 
     g = (gss, gsc, gsb, gcc, gcb, gbb): the symmetric normal matrix Σw b bᵀ for b = (sin, cos, 1);
-    r = (rs, rc, rb) = Σ w y b; yy = Σ w y². All broadcast to one batch shape.
-    Returns c1, c2, B and the weighted squared error.
+    r = (rs, rc, rb) = Σ w y b; yy = Σ w y². All broadcast to one batch shape, whose last axis
+    holds the candidate frequencies of one window. Returns c1, c2, B and the weighted squared error
+    (for candidates that cannot be the best, see the pruning below, a lower bound of it).
     """
     a, b, c, d, e, f = g
     rs, rc, rb = r
@@ -124,6 +125,11 @@ def _solve_bounded(g, r, yy, vmin, vmax):
     sse = yy - (c1 * rs + c2 * rc + B * rb)  # at the unconstrained optimum cᵀGc = cᵀr
     amax = vmax - vmin
     active = (B < vmin) | (B > vmax) | (c1 * c1 + c2 * c2 > amax * amax)
+    # Pruning along the last axis (the frequency grid): a bound can only raise the error, so an
+    # infeasible candidate whose unconstrained error already exceeds the best feasible one cannot
+    # win; it keeps its unconstrained values (a lower bound on its error).
+    best_feasible = np.min(np.where(active, np.inf, sse), axis=-1, keepdims=True)
+    active &= sse < best_feasible
     if not np.any(active):
         return c1, c2, B, sse
     shape = sse.shape
