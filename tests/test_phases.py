@@ -143,6 +143,38 @@ def test_butterworth_gain():
         butterworth(t, 6, cutoff=4.0)
 
 
+def original_butterworth(x, a=0.0335718, b=0.0671436, c=0.0335718, d=1.4189827, e=-0.5532699):
+    """The original's filter at 60 fps / 4 Hz, written from original-pipeline.md §3.6 (its own edges)."""
+    N = len(x)
+    P = np.concatenate([[x[0], x[0]], x[:N - 1], [x[N - 1], x[N - 1]]])
+    Y = np.zeros(N + 3)
+    Y[0] = Y[1] = x[0]
+    for s in range(2, N + 1):
+        Y[s] = a * P[s] + b * P[s - 1] + c * P[s - 2] + d * Y[s - 1] + e * Y[s - 2]
+    Y[N + 1] = Y[N + 2] = Y[N]
+    Z = np.zeros(N + 1)
+    Z[N - 1], Z[N] = Y[N + 1], Y[N + 2]
+    for k in range(N - 2, -1, -1):
+        Z[k] = a * Y[k + 2] + b * Y[k + 3] + c * Y[k + 4] + d * Z[k + 1] + e * Z[k + 2]
+    out = Z[:N].copy()
+    out[N - 1] = x[N - 1]
+    return out
+
+
+def test_butterworth_matches_the_original_away_from_the_edges():
+    fps = 60
+    t = np.arange(10 * fps) / fps
+    contact = (np.mod(0.9 * t, 1.0) < 0.45).astype(float)
+    x = window_normalise(contact, fps)
+    ours, theirs = butterworth(x, fps), original_butterworth(x)
+    # The original feeds the forward pass a one-sample-delayed copy of x (P[s] = x[s-2] against
+    # Y[s]) and the backward pass undoes it, so away from the end both agree up to the rounding of
+    # the published coefficients. The end differs by design (phase_sources module docstring).
+    head = slice(0, -fps)
+    assert np.max(np.abs(ours[head] - theirs[head])) < 1e-5
+    assert np.max(np.abs(ours - theirs)) < 0.1
+
+
 def test_pca_source_is_directed_forward():
     t = np.linspace(0, 4, 240)
     swing = np.sin(2 * np.pi * t)
@@ -179,6 +211,14 @@ def test_vectors_and_updates_follow_eq1():
     np.testing.assert_allclose(p[1, :2], [2 * np.sqrt(0.5), 2 * np.sqrt(0.5)])
     np.testing.assert_allclose(phase_updates(p), p[1:] - p[:1])
     assert phase_updates(p).shape == (1, 8)
+
+
+def test_mirrored_swaps_left_and_right():
+    phase = np.array([[0.1, 0.2, 0.3, 0.4]])
+    m = LocalPhases(phase, 2 * phase).mirrored()
+    np.testing.assert_array_equal(m.phase, [[0.2, 0.1, 0.4, 0.3]])
+    np.testing.assert_array_equal(m.amplitude, [[0.4, 0.2, 0.8, 0.6]])
+    assert m.source is None
 
 
 def test_default_sources_for_hopping():

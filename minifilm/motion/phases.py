@@ -65,6 +65,14 @@ class LocalPhases:
     fit: Optional[np.ndarray] = field(default=None, repr=False)
     frequency: Optional[np.ndarray] = field(default=None, repr=False)
 
+    def mirrored(self) -> "LocalPhases":
+        """The phases of the left-right mirrored motion: left and right slots swapped (§3.1,
+        ``GetPhases(mirrored=True)``); the phase values themselves do not change."""
+        swap = [1, 0, 3, 2]
+        pick = lambda a: None if a is None else a[:, swap].copy()
+        return LocalPhases(pick(self.phase), pick(self.amplitude), pick(self.source), pick(self.fit),
+                           pick(self.frequency))
+
     def vectors(self) -> np.ndarray:
         """(F, 8) Eq. (1): [s0, c0, ..., s3, c3] = amplitude · (sin 2πφ, cos 2πφ) per slot."""
         angle = 2 * np.pi * self.phase
