@@ -171,6 +171,7 @@ class PathScript(Script):
             self.facing_mode = "fixed"
             self._fixed = _normalize(np.asarray(facing, dtype=np.float64).reshape(2))
         self.duration = duration
+        self._grid = np.linspace(0.0, 1.0, 48)
         self.reset()
 
     def reset(self):
@@ -195,7 +196,7 @@ class PathScript(Script):
 
     def _project(self, p: np.ndarray, lo: float, hi: float) -> float:
         """Arc length of the closest path point to p with arc length in [lo, hi]."""
-        ss = np.linspace(lo, hi, 64)
+        ss = lo + (hi - lo) * self._grid
         pts = self._points(ss)
         return float(ss[np.argmin(np.sum((pts - p) ** 2, axis=1))])
 
@@ -303,15 +304,15 @@ def blend_future_trajectory(positions: np.ndarray, directions: np.ndarray, targe
         raise ValueError(f"blend_future_trajectory: positions/directions must both be (B, S, 2), "
                          f"got {P.shape} and {D.shape}")
     S = P.shape[1]
-    step = np.asarray(target_velocity, dtype=np.float64) * sample_dt  # (B, 2)
-    face = np.asarray(target_facing, dtype=np.float64)
-    out_p, out_d = P.copy(), D.copy()
-    for s in range(1, S):
-        w = s / (S - 1)
-        sp = 1.0 - (1.0 - w) ** position_bias
-        sd = 1.0 - (1.0 - w) ** direction_bias
-        out_p[:, s] = out_p[:, s - 1] + (1 - sp) * (P[:, s] - P[:, s - 1]) + sp * step
-        out_d[:, s] = _normalize((1 - sd) * D[:, s] + sd * face, fallback=D[:, s])
+    w = np.arange(S) / (S - 1)
+    sp = (1.0 - (1.0 - w) ** position_bias)[None, :, None]            # 0 at the root, 1 at the end
+    sd = (1.0 - (1.0 - w) ** direction_bias)[None, :, None]
+    step = (np.asarray(target_velocity, dtype=np.float64) * sample_dt)[:, None, :]   # (B, 1, 2)
+    # p_s = p_{s-1} + lerp(P_s - P_{s-1}, step, sp_s): a cumulative sum of blended increments
+    inc = (1 - sp[:, 1:]) * np.diff(P, axis=1) + sp[:, 1:] * step
+    out_p = np.concatenate([P[:, :1], P[:, :1] + np.cumsum(inc, axis=1)], axis=1)
+    face = np.asarray(target_facing, dtype=np.float64)[:, None, :]
+    out_d = _normalize((1 - sd) * D + sd * face, fallback=D)
     return out_p, out_d
 
 

@@ -156,7 +156,10 @@ class RuntimeNetwork:
         film = np.asarray(film, self.dtype)
         H = self.hidden
         for l, (Wc, b, O) in enumerate(self.layers):
-            y = (h @ Wc).reshape(B, self.K, O)                        # every expert's output
+            if 1 < B < 5:   # BLAS is slower on a skinny matrix product than on a few vector products
+                y = np.stack([row @ Wc for row in h]).reshape(B, self.K, O)
+            else:
+                y = (h @ Wc).reshape(B, self.K, O)                    # every expert's output
             h = np.matmul(alpha[:, None, :], y)[:, 0] + alpha @ b     # Σ_k α_k (h W_k + b_k)
             if l < 2:
                 mu = h.mean(axis=-1, keepdims=True)
@@ -325,8 +328,7 @@ class Controller:
         Args:
             target_facing (B, 2), target_velocity (B, 2) m/s: the user's command (world x, z).
             film: (4H,) shared or (B, 4H) per character.
-        Returns the new frame: dict of positions (B, J, 3), rotations (B, J, 3, 3), contacts (B, 2),
-        phases (B, 8), root (B, 2), facing (B, 2).
+        Returns the new frame (see :meth:`frame`; arrays are the live state, copy to keep them).
         """
         st = self.state
         st["fut_pos"], st["fut_dir"] = blend_future_trajectory(
@@ -372,10 +374,10 @@ class Controller:
         st["jpos"] = jpos
 
     def frame(self) -> dict:
+        """The current frame: positions (B, J, 3), forward/up axes (B, J, 3), contacts, phases, root."""
         st = self.state
-        return dict(positions=st["jpos"].copy(), rotations=axes_to_rotation(st["jfwd"], st["jup"]),
-                    contacts=st["contacts"].copy(), phases=st["phase"].copy(),
-                    root=st["root"].copy(), facing=st["facing"].copy())
+        return dict(positions=st["jpos"], forward=st["jfwd"], up=st["jup"], contacts=st["contacts"],
+                    phases=st["phase"], root=st["root"], facing=st["facing"])
 
     # ------------------------------------------------------------------ whole rollouts
     def run(self, scripts: Union[Script, Sequence[Script]], n_frames: int,
@@ -399,7 +401,8 @@ class Controller:
         starts = [s.start() for s in scripts]
         self.reset(np.array([p for p, _ in starts]), np.array([f for _, f in starts]), phases)
         J = self.layout.n_joints
-        out = dict(positions=np.empty((B, n_frames, J, 3)), rotations=np.empty((B, n_frames, J, 3, 3)),
+        out = dict(positions=np.empty((B, n_frames, J, 3)), forward=np.empty((B, n_frames, J, 3)),
+                   up=np.empty((B, n_frames, J, 3)),
                    contacts=np.empty((B, n_frames, 2)), phases=np.empty((B, n_frames, 8)),
                    root=np.empty((B, n_frames, 2)), facing=np.empty((B, n_frames, 2)),
                    targets=np.empty((B, n_frames, 2)))
@@ -414,10 +417,11 @@ class Controller:
                 tv = calibration.apply(tv)
             fk = film(k) if callable(film) else (film[k] if per_frame else film)
             fr = self.step(tf, tv, fk)
-            for key in ("positions", "rotations", "contacts", "phases", "root", "facing"):
+            for key in ("positions", "forward", "up", "contacts", "phases", "root", "facing"):
                 out[key][:, k] = fr[key]
             out["targets"][:, k] = tv
-        return Rollout(out["positions"], out["rotations"], out["contacts"], out["phases"], out["root"],
+        rotations = axes_to_rotation(out["forward"], out["up"])
+        return Rollout(out["positions"], rotations, out["contacts"], out["phases"], out["root"],
                        out["facing"], out["targets"], self.fps)
 
 

@@ -9,9 +9,10 @@ Blender we need the local rotation of every joint of the *source* skeleton, in i
 2. optionally fit the rotations to the predicted positions (``fit_positions``): a bone with one
    exported child is swung (smallest rotation) to point at it, so its twist still comes from the
    predicted axes; a joint with several exported children (hips, upper chest) gets the best-fit
-   (Kabsch) rotation of its rest bones onto the predicted ones. Forward kinematics then
-   reproduces the predicted positions up to the difference in bone lengths (this plays the role
-   of the paper's arm IK, Sec. 4.4, for the whole body);
+   (Kabsch) rotation of its rest bones onto the predicted ones. Bones aim from where forward
+   kinematics has put the joint, so each child is off only by its own bone's length error, which
+   does not accumulate sideways down the chain (this plays the role of the paper's arm IK,
+   Sec. 4.4, for the whole body);
 3. ``local_j = world_parent(j)^T world_j``; the root's translation is the predicted root-joint
    position, every other joint keeps its rest offset (so bone lengths are exactly the skeleton's).
 
@@ -152,13 +153,19 @@ def retarget(positions: np.ndarray, rotations: np.ndarray, skeleton: Motion, joi
     if fit_positions:
         children = [[c for c in range(J) if parents[c] == j and exported[c] >= 0
                      and np.linalg.norm(offsets[c]) > 1e-9] for j in range(J)]
-        for j in range(J):  # parents first: a child's swing sees its parent's final rotation
-            if exported[j] < 0 or not children[j]:
-                if exported[j] < 0 and parents[j] >= 0:
+        fk = np.empty((F, J, 3))             # where forward kinematics puts each joint so far
+        fk[:, root] = P[:, 0]
+        for j in range(J):  # parents first: fk[j] and the parent's final rotation are known
+            if parents[j] >= 0:
+                if exported[j] < 0:
                     world[:, j] = world[:, parents[j]]
+                fk[:, j] = fk[:, parents[j]] + world[:, parents[j]] @ offsets[j]
+            if exported[j] < 0 or not children[j]:
                 continue
-            rest = offsets[children[j]]                                      # (C, 3)
-            want = P[:, exported[children[j]]] - P[:, exported[j], None]     # (F, C, 3)
+            rest = offsets[children[j]]                                     # (C, 3)
+            # aim from where the joint really is (not where it was predicted), so position
+            # errors do not accumulate down the chain: each bone only adds its length error
+            want = P[:, exported[children[j]]] - fk[:, j, None]             # (F, C, 3)
             if len(children[j]) == 1:
                 bone_now = world[:, j] @ rest[0]
                 world[:, j] = rotation_between(bone_now, want[:, 0]) @ world[:, j]
