@@ -25,7 +25,8 @@ FPS = 60
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("out", type=Path, help="folder to write the BVH files into")
     parser.add_argument("--seed", type=int, default=SEED)
     parser.add_argument("--seconds", type=float, default=SECONDS, help="length of each clip")
@@ -37,7 +38,8 @@ def main() -> None:
     styles = [s for s in args.styles.split(",") if s]
     gaits = [g for g in args.gaits.split(",") if g]
     start = time.perf_counter()
-    clips = default_dataset(seed=args.seed, seconds=args.seconds, styles=styles, gaits=gaits, fps=args.fps)
+    clips = default_dataset(seed=args.seed, seconds=args.seconds, styles=styles, gaits=gaits,
+                            fps=args.fps)
     generated = time.perf_counter() - start
     paths = write_dataset(args.out, clips)
     written = time.perf_counter() - start - generated
@@ -46,7 +48,8 @@ def main() -> None:
     for clip, path in zip(clips, paths):
         contact = clip.true_contacts.mean(axis=0)
         seen = list(dict.fromkeys(clip.frame_gaits))           # in order of appearance
-        print(f"{path.name:24s} {clip.motion.n_frames:6d} {contact[0]:9.2f} {contact[1]:9.2f}  {'>'.join(seen)}")
+        print(f"{path.name:24s} {clip.motion.n_frames:6d} {contact[0]:9.2f} {contact[1]:9.2f}  "
+              f"{'>'.join(seen)}")
     frames = sum(c.motion.n_frames for c in clips)
     print(f"\n{len(clips)} clips, {frames} frames ({frames / args.fps:.0f} s of motion): generated in "
           f"{generated:.2f} s, written in {written:.2f} s to {args.out}")
