@@ -143,6 +143,8 @@ def extract_local_phases(motion, skeleton, contacts=None, sources: Optional[Sequ
         raise ValueError(f"extract_local_phases: sources must be 4 of 'pca' | 'contact' for {SLOTS}, got {sources}")
     fps = motion.fps
     n = motion.n_frames
+    if n < 2:
+        raise ValueError(f"extract_local_phases({motion.source}): needs at least 2 frames, got {n}")
     if contacts is None and "contact" in sources:
         positions, _ = motion.world()
         contacts = foot_contacts(positions[:, skeleton.contact_indices(motion)], fps)
