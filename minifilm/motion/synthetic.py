@@ -245,6 +245,8 @@ def write_dataset(directory: Union[str, Path], clips: Optional[Sequence[Syntheti
     directory.mkdir(parents=True, exist_ok=True)
     if clips is None:
         clips = default_dataset(**dataset_options)
+    elif dataset_options:
+        raise ValueError(f"write_dataset: options {sorted(dataset_options)} only apply when clips is None")
     paths = []
     for clip in clips:
         path = directory / f"{clip.style}_{clip.gait}.bvh"
