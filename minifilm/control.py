@@ -245,8 +245,10 @@ def figure_eight(seconds: float = 30.0, speed: float = 1.3, size: float = 3.0) -
     return PathScript(pts, speed=speed, closed=True, duration=seconds)
 
 
-def walk_run_stop(seconds: float = 30.0, walk: float = 1.3, run: float = 3.5) -> PathScript:
-    """Straight line: walk, speed up to a run, slow down to a walk, then stop (thirds of the time)."""
+def walk_run_stop(seconds: float = 30.0, speed: float = 1.3, run: float = 3.5) -> PathScript:
+    """Straight line: walk at ``speed``, speed up to ``run``, slow down to a walk, then stop
+    (in thirds of the time)."""
+    walk = speed
     a, b = seconds / 3.0, 2 * seconds / 3.0
     keys = [(0.0, walk), (a - 1.0, walk), (a, run), (b - 1.5, run), (b - 0.5, walk),
             (b + 0.5 * (seconds - b), walk), (b + 0.5 * (seconds - b) + 1.0, 0.0), (seconds, 0.0)]

@@ -53,7 +53,7 @@ def test_figure_eight_is_followed_by_ideal_character():
 
 
 def test_walk_run_stop_speeds():
-    s = walk_run_stop(seconds=30, walk=1.3, run=3.5)
+    s = walk_run_stop(seconds=30, speed=1.3, run=3.5)
     track = simulate(s, 30)
     speed = np.linalg.norm(np.diff(track, axis=0), axis=1) * 60
     assert abs(speed[5 * 60] - 1.3) < 1e-6
