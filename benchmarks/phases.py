@@ -16,12 +16,18 @@ extrapolated to all frames (the cost per frame does not depend on the file lengt
 
     python benchmarks/phases.py [file.bvh] [--seconds 120] [--naive-frames 200] [--threads N]
 """
-import common  # noqa: F401  (sets the BLAS thread count before numpy is imported)
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
 
-import argparse  # noqa: E402
-import os  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+# BLAS reads its thread count once, when numpy is first imported: set it before that.
+THREADS = int(sys.argv[sys.argv.index("--threads") + 1]) if "--threads" in sys.argv else os.cpu_count() or 1
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_var] = str(THREADS)
 
 import numpy as np  # noqa: E402
 from scipy.optimize import least_squares  # noqa: E402
@@ -33,7 +39,7 @@ from minifilm.motion.phase_fit import fit_sinusoids, overflow_window, window_hal
 from minifilm.motion.phases import SLOTS, extract_local_phases  # noqa: E402
 from minifilm.motion.skeletons import BANDAI  # noqa: E402
 
-DATA = Path(os.environ.get("MINIFILM_SHARED_DATA", common.ROOT.parent / "shared" / "data"))
+DATA = Path(os.environ.get("MINIFILM_SHARED_DATA", ROOT.parent / "shared" / "data"))
 
 
 def best_seconds(fn, repeat=3):
@@ -76,7 +82,7 @@ def main():
     parser.add_argument("bvh", nargs="?", default=None)
     parser.add_argument("--seconds", type=float, default=120.0)
     parser.add_argument("--naive-frames", type=int, default=200)
-    parser.add_argument("--threads", type=int, default=None)  # read by common.py
+    parser.add_argument("--threads", type=int, default=None)  # read above, before numpy
     args = parser.parse_args()
 
     path = Path(args.bvh) if args.bvh else max((DATA / "bandai2").glob("dataset-2_walk_*.bvh"),
@@ -92,7 +98,7 @@ def main():
     tiled = np.tile(sources, (reps, 1))
 
     print(f"file: {path.name}, resampled to {fps:.0f} fps, {F} frames; tiled: {tiled.shape[0]} frames")
-    print(f"BLAS threads: {common.THREADS}, load average: {common.load_average()}")
+    print(f"BLAS threads: {THREADS}, load average (1 min): {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
     rows = []
     t_file = best_seconds(lambda: [fit_sinusoids(sources[:, s], fps) for s in range(4)])
     rows.append(("fit_sinusoids, file as is", F, F * 4 / t_file))
