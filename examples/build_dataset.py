@@ -30,6 +30,9 @@ def main(argv=None):
     ap.add_argument("--clip-seconds", type=float, default=4.0)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--fps", type=float, default=None, help="resample every file to this rate")
+    ap.add_argument("--split-files", action="store_true",
+                    help="whole files go to train/val/test (per style) instead of 80/10/10 segments "
+                         "of every file; better for many short files such as Bandai")
     args = ap.parse_args(argv)
 
     source = Path(args.source)
@@ -40,7 +43,8 @@ def main(argv=None):
     t0 = time.perf_counter()
     ds = build_dataset(source, cache_dir=None if args.no_cache else args.cache,
                        mirror_styles=mirror, clip_seconds=args.clip_seconds,
-                       clip_stride_seconds=args.clip_seconds / 2, seed=args.seed, fps=args.fps)
+                       clip_stride_seconds=args.clip_seconds / 2, seed=args.seed, fps=args.fps,
+                       split_unit="files" if args.split_files else "segments")
     took = time.perf_counter() - t0
     how = f"loaded from cache {ds.cache_path}" if ds.build_seconds == 0 or took < 0.5 * ds.build_seconds \
         else "built" + ("" if ds.cache_path is None else f", cached in {ds.cache_path}")

@@ -16,6 +16,9 @@ splits (default 0: the nearest train and test current frames are then 3 frames a
 contacts are labels of the whole file (the phase fit needs ~1 s of context), which is the one place
 where a row's numbers depend on its neighbours. A mirrored copy uses the same segments as its
 original. Transition files (gait ``TR*``) are all train unless ``split_transitions`` (§8.2).
+For datasets of many short files (Bandai: ~5 s each, so a 10 % window is shorter than the 2 s
+trajectory window and most of its samples are reflections) ``split_unit='files'`` sends whole
+files to train / val / test instead, per style.
 
 Normalisation (§8.5): per-column mean and biased std of the training rows, in float64; a std below
 ``min_std`` (zero up to rounding, e.g. trajectory sample 6, the hips' x and z) becomes 1. Clips are
@@ -68,6 +71,9 @@ class DatasetSettings:
                       files.
     clip_seconds, clip_stride_seconds: clip length and stride (paper: 240 frames at 60 fps, half).
     split_transitions: split TR* files too (the original puts them all in train).
+    split_unit:       'segments' (default, the original: every file is cut 80/10/10) or 'files'
+                      (whole files go to train / val / test, per style, seeded): for datasets of
+                      many short files, where 10 % windows are shorter than the 2 s trajectory.
     min_std:          std below this becomes 1 in the normalisation.
     """
     fps: Optional[float] = None
@@ -82,6 +88,7 @@ class DatasetSettings:
     clip_seconds: float = 4.0
     clip_stride_seconds: float = 2.0
     split_transitions: bool = False
+    split_unit: str = "segments"
     min_std: float = 1e-6
 
     def __post_init__(self) -> None:
@@ -92,6 +99,8 @@ class DatasetSettings:
         if len(fr) != 3 or min(fr) < 0 or not np.isclose(sum(fr), 1.0):
             raise ValueError(f"DatasetSettings: split_fractions must be 3 non-negative numbers summing "
                              f"to 1, got {fr}")
+        if self.split_unit not in ("segments", "files"):
+            raise ValueError(f"DatasetSettings: split_unit must be 'segments' or 'files', got {self.split_unit!r}")
         if self.gap_seconds < 0:
             raise ValueError(f"DatasetSettings: gap_seconds must be >= 0, got {self.gap_seconds}")
 
@@ -137,6 +146,26 @@ def apply_gap(segments: List[Tuple[int, int, str]], gap: int) -> List[Tuple[int,
             b -= gap
         if b > a:
             out.append((a, b, s))
+    return out
+
+
+def split_files(files: Sequence[MotionFile], seed: int,
+                fractions: Sequence[float] = (0.8, 0.1, 0.1)) -> Dict[Path, str]:
+    """Whole-file splits: per style, the files in a seeded random order give ``round(f n)`` files
+    to val and to test (at least one each once a style has 3 files), the rest to train."""
+    by_style: Dict[str, List[MotionFile]] = {}
+    for f in files:
+        by_style.setdefault(f.style, []).append(f)
+    out = {}
+    for style, group in sorted(by_style.items()):
+        group = sorted(group, key=lambda f: Path(f.path).name)
+        rng = np.random.default_rng([int(seed), zlib.crc32(style.encode("utf-8"))])
+        order = rng.permutation(len(group))
+        n = len(group)
+        n_val = max(1, int(round(fractions[1] * n))) if n >= 3 else 0
+        n_test = max(1, int(round(fractions[2] * n))) if n >= 3 else 0
+        for rank, i in enumerate(order):
+            out[Path(group[i].path)] = "val" if rank < n_val else "test" if rank < n_val + n_test else "train"
     return out
 
 
@@ -518,6 +547,10 @@ def _build(files: List[MotionFile], settings: DatasetSettings, skeleton, progres
     sources: List[dict] = []
     fps_seen = settings.fps
     bar = _Progress(len(files), "dataset", progress)
+    whole_files = None
+    if settings.split_unit == "files":
+        splittable = [f for f in files if settings.split_transitions or not f.gait.startswith("TR")]
+        whole_files = split_files(splittable, settings.seed, settings.split_fractions)
     for i, f in enumerate(files):
         motion = _load_motion(f, skeleton, settings.fps)
         if fps_seen is None:
@@ -529,6 +562,8 @@ def _build(files: List[MotionFile], settings: DatasetSettings, skeleton, progres
         contacts, phases = _labels(motion, skeleton, f.style)
         if f.gait.startswith("TR") and not settings.split_transitions:
             segments = [(0, motion.n_frames, "train")]
+        elif whole_files is not None:
+            segments = [(0, motion.n_frames, whole_files[Path(f.path)])]
         else:
             segments = split_segments(motion.n_frames, file_rng(settings.seed, f), settings.split_fractions)
             segments = apply_gap(segments, int(round(settings.gap_seconds * fps)))

@@ -9,7 +9,7 @@ import pytest
 import minifilm.data as data_module
 from minifilm.data import (
     SPLITS, Dataset, DatasetSettings, Normalizer, apply_gap, build_dataset,
-    file_rng, mirror_labels, split_segments)
+    file_rng, mirror_labels, split_files, split_segments)
 from minifilm.manifest import (
     MotionFile, bandai_files, read_manifest, scan_100style, write_bandai_manifest, write_manifest)
 from minifilm.traindata import NormStats, TrainData
@@ -285,3 +285,25 @@ def test_stale_cache_is_rebuilt_in_place(shared_data, tmp_path, monkeypatch):
     assert again.cache_key != first.cache_key and again.cache_path == first.cache_path
     assert len(list(cache.glob("*.npz"))) == 1
     np.testing.assert_array_equal(again.train.x, first.train.x)
+
+
+def test_split_files_per_style():
+    files = [MotionFile(Path(f"/d/{s}_{i:02d}.bvh"), s, "walk") for s in ("a", "b") for i in range(20)]
+    files += [MotionFile(Path("/d/c_00.bvh"), "c", "walk"), MotionFile(Path("/d/c_01.bvh"), "c", "run")]
+    got = split_files(files, seed=1)
+    for s in ("a", "b"):
+        splits = [got[f.path] for f in files if f.style == s]
+        assert (splits.count("train"), splits.count("val"), splits.count("test")) == (16, 2, 2)
+    assert {got[Path("/d/c_00.bvh")], got[Path("/d/c_01.bvh")]} == {"train"}   # too few to split
+    assert split_files(files[::-1], seed=1) == got                           # order does not matter
+    assert any(split_files(files, seed=s) != got for s in range(2, 6))
+
+
+def test_build_with_whole_file_splits(small):
+    files, _, _ = small
+    ds = build_dataset(files * 1, progress=False, seed=7, split_unit="files",
+                       clip_seconds=2.0, clip_stride_seconds=1.0)
+    for info in ds.files:                       # every file is one segment of a single split
+        assert len(info["segments"]) == 1 and info["segments"][0][:2] == (0, info["n_frames"])
+    with pytest.raises(ValueError, match="split_unit must be"):
+        DatasetSettings(split_unit="frames")
