@@ -104,22 +104,20 @@ class CommandScript(Script):
         self.duration = float(self.times[-1])
         self._start = np.asarray(start_position, dtype=np.float64)
         t = np.arange(0.0, self.duration + 1.0 / fps, 1.0 / fps)
-        vel = np.stack([self._velocity(ti) for ti in t])
+        vel = self._velocity(t)
         self.path = self._start + np.concatenate([[[0.0, 0.0]], np.cumsum(vel[:-1], axis=0) / fps])
 
-    def _interp(self, t: float, values: np.ndarray) -> float:
-        return float(np.interp(t, self.times, values))
-
-    def _velocity(self, t: float) -> np.ndarray:
-        heading = self._interp(t, self.headings)
-        move = self._interp(t, self.moves)
-        return self._interp(t, self.speeds) * heading_vector(heading + move)
+    def _velocity(self, t) -> np.ndarray:
+        """Commanded velocity (..., 2) at time(s) t."""
+        heading = np.interp(t, self.times, self.headings)
+        move = np.interp(t, self.times, self.moves)
+        return np.interp(t, self.times, self.speeds)[..., None] * heading_vector(heading + move)
 
     def start(self):
         return self._start.copy(), heading_vector(self.headings[0])
 
     def command(self, t, position, facing):
-        return heading_vector(self._interp(t, self.headings)), self._velocity(t)
+        return heading_vector(np.interp(t, self.times, self.headings)), self._velocity(t)
 
 
 class PathScript(Script):

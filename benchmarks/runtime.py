@@ -1,0 +1,118 @@
+"""Runtime speed with the released network (paper config: 348 -> 512 -> 512 -> 342, 8 experts).
+
+    python benchmarks/runtime.py [--params DIR] [--frames 600] [--batch 64]
+
+Prints a table:
+  * the network alone at batch 1 with a precomputed FiLM vector, three ways: experts side by side
+    (one (I, K*O) product per layer, what RuntimeNetwork does), blend the weights first
+    (Σ α_k W_k, then one product), and StyleModel.predict_single (the model's own batch-1 path);
+  * one whole controller frame at batch 1 (input features + network + read-back + trajectory blend);
+  * many characters updated together in one batch: frames per second and character-frames per second.
+The paper reports 4.53 ms per frame for the LPN FiLM in Unity (Table 2). BLAS threads default to 1
+here (the machine is shared); set OPENBLAS_NUM_THREADS / OMP_NUM_THREADS to change that.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("MKL_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from minifilm.control import CommandScript  # noqa: E402
+from minifilm.motion.layout import FeatureLayout  # noqa: E402
+from minifilm.motion.skeletons import STYLE100  # noqa: E402
+from minifilm.runtime import Controller, RuntimeNetwork  # noqa: E402
+
+
+def timeit(fn, repeat=5, number=100):
+    """Median over ``repeat`` runs of the mean time per call (seconds)."""
+    fn()
+    runs = []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        for _ in range(number):
+            fn()
+        runs.append((time.perf_counter() - t) / number)
+    return float(np.median(runs))
+
+
+def blend_first(net: RuntimeNetwork, model, x, p, film):
+    """Batch 1 with the expert weights blended first: W = Σ_k α_k W_k (DESIGN.md's batch-1 advice)."""
+    alpha = net.gate(p[None])[0]
+    m = model.motion.params.params
+    h = (x - net._x_mean) * net._x_inv
+    H = net.hidden
+    for l in range(3):
+        W = np.tensordot(alpha, m[f"W{l}"], axes=1)
+        h = h @ W + alpha @ m[f"b{l}"]
+        if l < 2:
+            h = (h - h.mean()) / h.std()
+            h = film[2 * l * H:(2 * l + 1) * H] * h + film[(2 * l + 1) * H:(2 * l + 2) * H]
+            h = np.where(h > 0, h, np.expm1(np.minimum(h, 0)))
+    return h * net._z_std + net._z_mean
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--params", default=str(REPO.parent / "shared" / "data" / "released-lpn"))
+    ap.add_argument("--frames", type=int, default=600)
+    ap.add_argument("--batch", type=int, nargs="+", default=[8, 64])
+    args = ap.parse_args()
+
+    from minifilm.released import load_released
+
+    rel = load_released(args.params)
+    net = RuntimeNetwork.from_model(rel.model, rel.stats, runtime_layer_norm=True)
+    layout = FeatureLayout.for_skeleton(STYLE100)
+    film = rel.styles["Neutral"] if "Neutral" in rel.styles else next(iter(rel.styles.values()))
+    rng = np.random.default_rng(0)
+    x = (rel.stats.x_mean + 0.1 * rng.normal(size=layout.x_dim)).astype(np.float32)
+    p = np.array([0, 2, 0, -2, 2, 0, -2, 0], dtype=np.float32)
+
+    rows = []
+    t = timeit(lambda: net.predict(x[None], p[None], film))
+    rows.append(("network, batch 1, experts side by side (RuntimeNetwork)", t * 1e3, 1 / t))
+    t = timeit(lambda: blend_first(net, rel.model, x, p, film), number=20)
+    rows.append(("network, batch 1, blend expert weights first", t * 1e3, 1 / t))
+    xn, pn = rel.stats.normalize_x(x).astype(np.float32), rel.stats.normalize_p(p).astype(np.float32)
+    t = timeit(lambda: rel.model.predict_single(xn, pn, film, runtime_layer_norm=True), number=20)
+    rows.append(("network, batch 1, StyleModel.predict_single", t * 1e3, 1 / t))
+
+    walk = lambda: CommandScript([(0, 2.0, 0, 0), (1000, 2.0, 360, 0)])  # noqa: E731  (walk in a big circle)
+    ctrl = Controller(net, layout)
+    F = args.frames
+    ctrl.run(walk(), 30, film)
+    t0 = time.perf_counter()
+    ctrl.run(walk(), F, film)
+    t = (time.perf_counter() - t0) / F
+    rows.append(("whole controller frame, batch 1 (run(), incl. script)", t * 1e3, 1 / t))
+    ctrl.reset(np.zeros((1, 2)), np.array([[0.0, 1.0]]))
+    tf, tv = np.array([[0.0, 1.0]]), np.array([[0.0, 2.0]])
+    t = timeit(lambda: ctrl.step(tf, tv, film), number=50)
+    rows.append(("controller.step(), batch 1", t * 1e3, 1 / t))
+    for B in args.batch:
+        films = np.stack([film] * B)
+        ctrl.reset(rng.normal(size=(B, 2)) * 10, np.tile([0.0, 1.0], (B, 1)))
+        tfB, tvB = np.tile(tf, (B, 1)), np.tile(tv, (B, 1))
+        t = timeit(lambda: ctrl.step(tfB, tvB, films), number=20)
+        rows.append((f"controller.step(), batch {B}", t * 1e3, B / t))
+
+    print(f"BLAS threads: OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS')}; "
+          f"paper (Unity, Table 2): 4.53 ms/frame")
+    print(f"{'what':60s} {'ms/frame':>10s} {'character-frames/s':>20s}")
+    for name, ms, cps in rows:
+        print(f"{name:60s} {ms:10.3f} {cps:20.0f}")
+
+
+if __name__ == "__main__":
+    main()
