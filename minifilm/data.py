@@ -308,6 +308,22 @@ class Dataset:
                 out[s][name + " clips"] = int(clips[i])
         return out
 
+    def reflected_fraction(self) -> Dict[str, float]:
+        """{split: fraction of the x trajectory samples that are point reflections} (a segment
+        shorter than the trajectory window is mostly reflections; see split_unit='files')."""
+        from .motion.features import trajectory_offsets, trajectory_sample_frames
+
+        offsets = trajectory_offsets(self.fps, self.layout.trajectory_seconds)
+        counts = {s: [0, 0] for s in SPLITS}
+        for info in self.files:
+            for a, b, split in info["segments"]:
+                k = np.arange(a + 1, b - 1)
+                if k.size:
+                    _, pivot = trajectory_sample_frames(k, offsets, a, b)
+                    counts[split][0] += int((pivot >= 0).sum())
+                    counts[split][1] += pivot.size
+        return {s: (r / n if n else 0.0) for s, (r, n) in counts.items()}
+
     def summary(self) -> str:
         """A table of rows (frames) and clips per style and split."""
         counts = self.frame_counts()
@@ -328,6 +344,9 @@ class Dataset:
         lines.append(f"{n_src} sources ({n_mir} mirrored), {self.fps:g} fps, skeleton {self.skeleton}, "
                      f"x {self.layout.x_dim}, z {self.layout.z_dim}, clip T={self.train.clips.shape[1]}"
                      f" x {self.layout.clip_dim}")
+        refl = self.reflected_fraction()
+        lines.append("trajectory samples that are reflections: " +
+                     ", ".join(f"{s} {100 * refl[s]:.1f} %" for s in SPLITS))
         return "\n".join(lines)
 
     # ------------------------------------------------------------------ save / load

@@ -305,5 +305,16 @@ def test_build_with_whole_file_splits(small):
                        clip_seconds=2.0, clip_stride_seconds=1.0)
     for info in ds.files:                       # every file is one segment of a single split
         assert len(info["segments"]) == 1 and info["segments"][0][:2] == (0, info["n_frames"])
+    # reflected samples, counted by hand: offsets of 1/6 s and 0.2 s steps at 30 fps
+    offsets = [-30, -25, -20, -15, -10, -5, 0, 6, 12, 18, 24, 30]
+    for name, frac in ds.reflected_fraction().items():
+        hit = total = 0
+        for info in ds.files:
+            n, split = info["n_frames"], info["segments"][0][2]
+            if split == name:
+                for k in range(1, n - 1):
+                    hit += sum(1 for o in offsets if not 0 <= k + o <= n - 1)
+                    total += len(offsets)
+        assert frac == pytest.approx(hit / total if total else 0.0)
     with pytest.raises(ValueError, match="split_unit must be"):
         DatasetSettings(split_unit="frames")
