@@ -99,7 +99,7 @@ class FeatureLayout:
                 raise ValueError(f"FeatureLayout: joint {j} ({self.joint_names[j]}) has parent {p}; "
                                  f"parents must come before their children")
         ts = self.trajectory_seconds
-        if len(ts) != 12 or ts[CURRENT_SAMPLE] != 0.0 or list(ts) != sorted(ts):
+        if len(ts) != 12 or ts[CURRENT_SAMPLE] != 0.0 or not all(a < b for a, b in zip(ts, ts[1:])):
             raise ValueError(f"FeatureLayout: trajectory_seconds must be 12 increasing times with "
                              f"sample {CURRENT_SAMPLE} at 0, got {ts}")
 
