@@ -41,19 +41,76 @@ class MotionFile:
 
 def scan_100style(folder: Union[str, Path]) -> List[MotionFile]:
     """Every ``<Style>_<Gait>.bvh`` in ``folder`` (sorted by name). Files whose names do not follow
-    the pattern are ignored; a folder without a single matching file is an error."""
+    the pattern are ignored; a folder without a single matching file is an error.
+
+    The 100STYLE metadata is used when it sits in the folder (original-pipeline.md §11):
+    ``Frame_Cuts.csv`` crops each file to its stylised part (``<GAIT>_START`` / ``_STOP`` are 1-based
+    inclusive frame numbers, read as ``[START-1, STOP)``; ``TR`` uses the ``TR1`` columns; N/A or a
+    missing row keeps the whole file), and ``Dataset_List.csv`` marks the styles whose
+    ``Symmetric`` column is Yes for mirroring (the others are not mirrored).
+    """
     folder = Path(folder)
     if not folder.is_dir():
         raise FileNotFoundError(f"scan_100style: {folder} is not a folder")
+    cuts = read_frame_cuts(folder / "Frame_Cuts.csv") if (folder / "Frame_Cuts.csv").is_file() else {}
+    symmetric = (read_symmetric_styles(folder / "Dataset_List.csv")
+                 if (folder / "Dataset_List.csv").is_file() else None)
     out = []
     for path in sorted(folder.glob("*.bvh")):
         m = _STYLE100_NAME.match(path.name)
         if m:
-            out.append(MotionFile(path, m["style"], m["gait"]))
+            style, gait = m["style"], m["gait"]
+            start, end = cuts.get((style, "TR1" if gait == "TR" else gait), (None, None))
+            mirror = None if symmetric is None else style in symmetric
+            out.append(MotionFile(path, style, gait, start, end, mirror))
     if not out:
         raise ValueError(f"scan_100style: no file in {folder} is named <Style>_<Gait>.bvh with a gait "
                          f"in {STYLE100_GAITS + ('TR*',)}; for other datasets write a CSV manifest "
                          f"(minifilm.manifest.read_manifest)")
+    return out
+
+
+def _dict_rows(csv_path: Path):
+    with open(csv_path, newline="", encoding="utf-8-sig") as fh:
+        reader = csv.DictReader(fh)
+        for row in reader:
+            yield reader.line_num, {(k or "").strip(): (v or "").strip() for k, v in row.items()}
+
+
+def read_frame_cuts(csv_path: Union[str, Path]) -> dict:
+    """100STYLE ``Frame_Cuts.csv`` -> {(style, gait): (start, end)}, 0-based, end exclusive."""
+    csv_path = Path(csv_path)
+    out = {}
+    for line, row in _dict_rows(csv_path):
+        style = row.get("STYLE_NAME", "")
+        if not style:
+            raise ValueError(f"{csv_path}: line {line}: no STYLE_NAME")
+        for key in row:
+            if key.endswith("_START"):
+                gait = key[:-6]
+                a, b = row[key], row.get(gait + "_STOP", "")
+                if a.upper() in ("", "N/A", "NA") or b.upper() in ("", "N/A", "NA"):
+                    continue
+                where = f"{csv_path}: line {line}"
+                start, stop = _parse_int(a, key, where), _parse_int(b, gait + "_STOP", where)
+                if start < 1 or stop < start:
+                    raise ValueError(f"{where}: {gait} cut [{start}, {stop}] is not 1 <= START <= STOP")
+                out[(style, gait)] = (start - 1, stop)
+    return out
+
+
+def read_symmetric_styles(csv_path: Union[str, Path]) -> set:
+    """100STYLE ``Dataset_List.csv`` -> the set of styles whose ``Symmetric`` column is Yes."""
+    csv_path = Path(csv_path)
+    out = set()
+    for line, row in _dict_rows(csv_path):
+        name = row.get("Style Name", "")
+        sym = row.get("Symmetric (Yes/No)", row.get("Symmetric", ""))
+        if not name or sym.lower() not in ("yes", "no"):
+            raise ValueError(f"{csv_path}: line {line}: expected 'Style Name' and 'Symmetric' Yes/No, "
+                             f"got {name!r}, {sym!r}")
+        if sym.lower() == "yes":
+            out.add(name)
     return out
 
 

@@ -318,3 +318,22 @@ def test_build_with_whole_file_splits(small):
         assert frac == pytest.approx(hit / total if total else 0.0)
     with pytest.raises(ValueError, match="split_unit must be"):
         DatasetSettings(split_unit="frames")
+
+
+def test_scan_100style_reads_frame_cuts_and_symmetry(tmp_path):
+    for name in ["Zombie_FW.bvh", "Zombie_TR.bvh", "Aeroplane_BR.bvh"]:
+        (tmp_path / name).write_text("x")
+    (tmp_path / "Frame_Cuts.csv").write_text(
+        "STYLE_NAME,BR_START,BR_STOP,FW_START,FW_STOP,TR1_START,TR1_STOP,TR2_START,TR2_STOP\n"
+        "Aeroplane,300,1200,250,900,400,800,N/A,N/A\n"
+        "Zombie,213,5000,985,18548,500,700,N/A,N/A\n")
+    (tmp_path / "Dataset_List.csv").write_text(
+        "Style Name,Description,Stochastic (Yes/No),Symmetric (Yes/No),Notes\n"
+        "Aeroplane,arms out,No,Yes,\nZombie,arms forward,Yes,No,\n")
+    got = {f.path.name: (f.start, f.end, f.mirror) for f in scan_100style(tmp_path)}
+    assert got == {"Aeroplane_BR.bvh": (299, 1200, True),      # 1-based inclusive -> [START-1, STOP)
+                   "Zombie_FW.bvh": (984, 18548, False),
+                   "Zombie_TR.bvh": (499, 700, False)}
+    (tmp_path / "Frame_Cuts.csv").write_text("STYLE_NAME,FW_START,FW_STOP\nZombie,900,800\n")
+    with pytest.raises(ValueError, match=r"Frame_Cuts.csv: line 2: FW cut \[900, 800\]"):
+        scan_100style(tmp_path)
