@@ -112,3 +112,15 @@ def test_bad_layouts_are_named():
         FeatureLayout(2, (-1, 1), ("a", "b"))
     with pytest.raises(ValueError, match="12 increasing times"):
         FeatureLayout(1, (-1,), ("a",), trajectory_seconds=(0.0,) * 12)
+
+
+def test_generic_layout_and_mismatch():
+    from minifilm.motion.features import frame_features_from_arrays
+
+    g = FeatureLayout.generic(25)
+    assert (g.x_dim, g.z_dim) == (348, 342) and g.parents[:3] == (-1, 0, 1)
+    F = 5
+    eye = np.broadcast_to(np.eye(3), (F, 3, 3, 3))
+    with pytest.raises(ValueError, match="the layout has 25 joints, the arrays 3"):
+        frame_features_from_arrays(np.zeros((F, 3, 3)), eye, np.zeros((F, 3, 3)), np.zeros((F, 3)),
+                                   eye[:, 0], np.zeros((F, 8)), np.zeros((F, 2)), 30, layout=g)

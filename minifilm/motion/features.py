@@ -177,36 +177,44 @@ def _segment(start: int, stop: Optional[int], F: int, where: str) -> Tuple[int, 
 
 def frame_features_from_arrays(positions, rotations, velocities, root_pos, root_rot, phases,
                                contacts, fps: float, start: int = 0, stop: Optional[int] = None,
-                               dtype=np.float32) -> FrameFeatures:
+                               dtype=np.float32, layout: Optional[FeatureLayout] = None) -> FrameFeatures:
     """x, p, z for every current frame ``k = start+1 .. stop-2`` of a segment (Sec. 3.2).
 
     Shapes as in the module docstring; phases (F, 8) from ``LocalPhases.vectors()``, contacts
     (F, 2) ``[right, left]``. Rows whose samples would leave ``[start, stop)`` are reflected (see
-    :func:`trajectory_sample_frames`). A segment shorter than 3 frames gives 0 rows.
+    :func:`trajectory_sample_frames`). A segment shorter than 3 frames gives 0 rows. The columns
+    are those of ``layout`` (default: :meth:`FeatureLayout.generic` for J joints).
     """
     F = _check_arrays(positions, rotations, velocities, root_pos, root_rot, phases, contacts,
                       "frame_features")
     start, stop = _segment(start, stop, F, "frame_features")
-    J = positions.shape[1]
+    L = _layout(layout, positions.shape[1])
     k = np.arange(start + 1, stop - 1)                         # current frames
-    n = k.size
-    offsets = trajectory_offsets(fps)
+    offsets = trajectory_offsets(fps, L.trajectory_seconds)
     phases = np.asarray(phases, dtype=np.float64)
     contacts = np.asarray(contacts, dtype=np.float64)
-    x = np.empty((n, 48 + 12 * J), dtype=dtype)
-    z = np.empty((n, 24 + 12 * J + 18), dtype=dtype)
-    if n:
-        x[:, :48] = trajectory_features(root_pos, root_rot, k, k, offsets, start, stop)
-        x[:, 48:] = joint_features(positions[k], rotations[k], velocities[k], root_pos[k], root_rot[k])
-        z[:, :24] = trajectory_features(root_pos, root_rot, k + 1, k, offsets[CURRENT_SAMPLE:],
-                                        start, stop)
-        a = 24 + 12 * J
-        z[:, 24:a] = joint_features(positions[k + 1], rotations[k + 1], velocities[k + 1],
-                                    root_pos[k], root_rot[k])
-        z[:, a:a + 8] = phases[k + 1]
-        z[:, a + 8:a + 16] = phases[k + 1] - phases[k]
-        z[:, a + 16:a + 18] = contacts[k + 1]
+    x = np.empty((k.size, L.x_dim), dtype=dtype)
+    z = np.empty((k.size, L.z_dim), dtype=dtype)
+    if k.size:
+        x[:, L.x_trajectory] = trajectory_features(root_pos, root_rot, k, k, offsets, start, stop)
+        x[:, L.x_joints] = joint_features(positions[k], rotations[k], velocities[k], root_pos[k], root_rot[k])
+        # z: the next frame (k + 1) seen from the CURRENT root (k)
+        z[:, L.z_trajectory] = trajectory_features(root_pos, root_rot, k + 1, k,
+                                                   offsets[CURRENT_SAMPLE:], start, stop)
+        z[:, L.z_joints] = joint_features(positions[k + 1], rotations[k + 1], velocities[k + 1],
+                                          root_pos[k], root_rot[k])
+        z[:, L.z_phases] = phases[k + 1]
+        z[:, L.z_phase_updates] = phases[k + 1] - phases[k]
+        z[:, L.z_contacts] = contacts[k + 1]
     return FrameFeatures(x=x, p=phases[k].astype(dtype), z=z, frames=k)
+
+
+def _layout(layout: Optional[FeatureLayout], J: int) -> FeatureLayout:
+    if layout is None:
+        return FeatureLayout.generic(J)
+    if layout.n_joints != J:
+        raise ValueError(f"features: the layout has {layout.n_joints} joints, the arrays {J}")
+    return layout
 
 
 def clip_features_from_arrays(positions, rotations, velocities, root_pos, root_rot, fps: float,
@@ -292,7 +300,8 @@ def frame_features(motion, skeleton, phases: np.ndarray, contacts: np.ndarray,
     """
     fps = motion.fps if fps is None else float(fps)
     arrays = motion_arrays(motion, skeleton, fps)
-    return frame_features_from_arrays(*arrays, phases, contacts, fps, start, stop, dtype)
+    return frame_features_from_arrays(*arrays, phases, contacts, fps, start, stop, dtype,
+                                      FeatureLayout.for_skeleton(skeleton))
 
 
 def clip_features(motion, skeleton, clip_seconds: float = 4.0, stride_seconds: float = 2.0,

@@ -109,6 +109,12 @@ class FeatureLayout:
         """The layout for a :class:`minifilm.motion.skeletons.Skeleton` (its exported joints)."""
         return cls(len(skeleton.joints), tuple(skeleton.parents), tuple(skeleton.joints))
 
+    @classmethod
+    def generic(cls, n_joints: int) -> "FeatureLayout":
+        """A layout for J joints named ``joint0 ..`` in a chain: for code that needs only the
+        column positions (they depend on J alone)."""
+        return cls(n_joints, (-1,) + tuple(range(n_joints - 1)), tuple(f"joint{j}" for j in range(n_joints)))
+
     def to_dict(self) -> dict:
         """JSON-ready description, saved next to a model so the runtime rebuilds the same layout."""
         return {"n_joints": self.n_joints, "parents": list(self.parents),
