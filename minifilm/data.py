@@ -557,69 +557,92 @@ def build_dataset(source: Union[str, Path, Sequence[MotionFile]],
 
 
 def _build(files: List[MotionFile], settings: DatasetSettings, skeleton, progress: bool, dtype) -> Dataset:
-    styles = sorted({f.style for f in files})
-    style_id = {s: i for i, s in enumerate(styles)}
-    has_primary_clips: set = set()          # styles with a training clip from a clip-gait file
-    fallback: Dict[str, list] = {}          # other files' clips, kept while a style has none
-    layout = FeatureLayout.for_skeleton(skeleton)
-    parts = {s: {"rows": [], "clips": []} for s in SPLITS}
-    sources: List[dict] = []
-    fps_seen = settings.fps
+    builder = _Builder(files, settings, skeleton, dtype)
     bar = _Progress(len(files), "dataset", progress)
-    whole_files = None
-    if settings.split_unit == "files":
-        splittable = [f for f in files if settings.split_transitions or not f.gait.startswith("TR")]
-        whole_files = split_files(splittable, settings.seed, settings.split_fractions)
     for i, f in enumerate(files):
-        motion = _load_motion(f, skeleton, settings.fps)
-        if fps_seen is None:
-            fps_seen = motion.fps
-        elif abs(motion.fps - fps_seen) > 1e-3 * fps_seen:
-            raise ValueError(f"{f.path}: {motion.fps:g} fps differs from the other files' {fps_seen:g} fps; "
+        try:
+            builder.add(f)
+        except Exception as e:          # say which file, whatever went wrong inside
+            if hasattr(e, "add_note"):
+                e.add_note(f"(while building the dataset from {f.path})")
+            raise
+        bar.update(i + 1, Path(f.path).name)
+    return builder.finish()
+
+
+class _Builder:
+    """Collects the rows and clips of every file, then stacks them into a Dataset."""
+
+    def __init__(self, files: List[MotionFile], settings: DatasetSettings, skeleton, dtype):
+        self.settings, self.skeleton, self.dtype = settings, skeleton, dtype
+        self.styles = sorted({f.style for f in files})
+        self.style_id = {s: i for i, s in enumerate(self.styles)}
+        self.layout = FeatureLayout.for_skeleton(skeleton)
+        self.parts = {s: {"rows": [], "clips": []} for s in SPLITS}
+        self.sources: List[dict] = []
+        self.fps = settings.fps
+        self.has_primary_clips: set = set()   # styles with a training clip from a clip-gait file
+        self.fallback: Dict[str, list] = {}   # other files' clips, kept while a style has none
+        self.whole_files = None
+        if settings.split_unit == "files":
+            splittable = [f for f in files if settings.split_transitions or not f.gait.startswith("TR")]
+            self.whole_files = split_files(splittable, settings.seed, settings.split_fractions)
+
+    def segments(self, f: MotionFile, n_frames: int) -> List[Tuple[int, int, str]]:
+        st = self.settings
+        if f.gait.startswith("TR") and not st.split_transitions:
+            return [(0, n_frames, "train")]
+        if self.whole_files is not None:
+            return [(0, n_frames, self.whole_files[Path(f.path)])]
+        segs = split_segments(n_frames, file_rng(st.seed, f), st.split_fractions)
+        return apply_gap(segs, int(round(st.gap_seconds * self.fps)))
+
+    def add(self, f: MotionFile) -> None:
+        st, sk = self.settings, self.skeleton
+        motion = _load_motion(f, sk, st.fps)
+        if self.fps is None:
+            self.fps = motion.fps
+        elif abs(motion.fps - self.fps) > 1e-3 * self.fps:
+            raise ValueError(f"{f.path}: {motion.fps:g} fps differs from the other files' {self.fps:g} fps; "
                              f"set DatasetSettings(fps=...) to resample")
-        fps = fps_seen
-        contacts, phases = _labels(motion, skeleton, f.style)
-        if f.gait.startswith("TR") and not settings.split_transitions:
-            segments = [(0, motion.n_frames, "train")]
-        elif whole_files is not None:
-            segments = [(0, motion.n_frames, whole_files[Path(f.path)])]
-        else:
-            segments = split_segments(motion.n_frames, file_rng(settings.seed, f), settings.split_fractions)
-            segments = apply_gap(segments, int(round(settings.gap_seconds * fps)))
-        primary = f.gait in settings.clip_gaits
-        want_clips = primary or (settings.clip_fallback and f.style not in has_primary_clips)
+        contacts, phases = _labels(motion, sk, f.style)
+        segments = self.segments(f, motion.n_frames)
+        primary = f.gait in st.clip_gaits
+        want_clips = primary or (st.clip_fallback and f.style not in self.has_primary_clips)
         variants = [(False, motion, contacts, phases)]
-        if settings.mirrors(f):
+        if st.mirrors(f):
             from .motion.kinematics import mirror
 
             variants.append((True, mirror(motion), *mirror_labels(contacts, phases)))
+        sid = self.style_id[f.style]
         for mirrored, m, c, p in variants:
-            src = len(sources)
-            sources.append({"path": str(f.path), "style": f.style, "gait": f.gait, "mirrored": mirrored,
-                            "n_frames": m.n_frames, "start": f.start, "end": f.end,
-                            "segments": segments})
-            rows, clips = _featurise(m, skeleton, c, p, segments, fps, want_clips, settings, dtype)
+            src = len(self.sources)
+            self.sources.append({"path": str(f.path), "style": f.style, "gait": f.gait,
+                                 "mirrored": mirrored, "n_frames": m.n_frames, "start": f.start,
+                                 "end": f.end, "segments": segments})
+            rows, clips = _featurise(m, sk, c, p, segments, self.fps, want_clips, st, self.dtype)
             for split, ff in rows:
-                parts[split]["rows"].append((src, style_id[f.style], ff))
+                self.parts[split]["rows"].append((src, sid, ff))
             for split, y in clips:
                 if primary:
-                    parts[split]["clips"].append((src, style_id[f.style], y))
+                    self.parts[split]["clips"].append((src, sid, y))
                     if split == "train" and len(y):
-                        has_primary_clips.add(f.style)
-                        fallback.pop(f.style, None)
-                elif f.style not in has_primary_clips:
-                    fallback.setdefault(f.style, []).append((split, (src, style_id[f.style], y)))
-        bar.update(i + 1, Path(f.path).name)
-    for style, items in fallback.items():       # styles without a training clip of a clip gait
-        if style not in has_primary_clips:
-            for split, item in items:
-                parts[split]["clips"].append(item)
-    T = int(round(settings.clip_seconds * fps_seen))
-    splits = {name: _stack(parts[name], layout, T, dtype) for name in SPLITS}
-    tr = splits["train"]
-    normalizer = Normalizer.fit(tr.x, tr.p, tr.z, settings.min_std)
-    return Dataset(layout, styles, float(fps_seen), skeleton.name, splits["train"], splits["val"],
-                   splits["test"], normalizer, sources, settings.to_dict())
+                        self.has_primary_clips.add(f.style)
+                        self.fallback.pop(f.style, None)
+                elif f.style not in self.has_primary_clips:
+                    self.fallback.setdefault(f.style, []).append((split, (src, sid, y)))
+
+    def finish(self) -> Dataset:
+        for style, items in self.fallback.items():   # styles without a training clip of a clip gait
+            if style not in self.has_primary_clips:
+                for split, item in items:
+                    self.parts[split]["clips"].append(item)
+        T = int(round(self.settings.clip_seconds * self.fps))
+        splits = {name: _stack(self.parts[name], self.layout, T, self.dtype) for name in SPLITS}
+        tr = splits["train"]
+        normalizer = Normalizer.fit(tr.x, tr.p, tr.z, self.settings.min_std)
+        return Dataset(self.layout, self.styles, float(self.fps), self.skeleton.name, splits["train"],
+                       splits["val"], splits["test"], normalizer, self.sources, self.settings.to_dict())
 
 
 def _stack(part, layout: FeatureLayout, T: int, dtype) -> Split:

@@ -337,3 +337,18 @@ def test_scan_100style_reads_frame_cuts_and_symmetry(tmp_path):
     (tmp_path / "Frame_Cuts.csv").write_text("STYLE_NAME,FW_START,FW_STOP\nZombie,900,800\n")
     with pytest.raises(ValueError, match=r"Frame_Cuts.csv: line 2: FW cut \[900, 800\]"):
         scan_100style(tmp_path)
+
+
+def test_resampling_and_errors_name_the_file(shared_data, tmp_path):
+    src = shared_data / "bandai2" / "dataset-2_walk_normal_001.bvh"
+    os.symlink(src, tmp_path / "Normal_FW.bvh")
+    ds = build_dataset(tmp_path, progress=False, fps=60.0, clip_seconds=2.0)
+    assert ds.fps == 60.0 and ds.train.clips.shape[1] == 120
+    n30 = int(open(src).read().split("Frames:")[1].split()[0])
+    assert ds.files[0]["n_frames"] == 2 * (n30 - 1) + 1            # every 30 fps frame plus midpoints
+    from minifilm.motion.skeletons import BANDAI
+
+    (tmp_path / "Broken_FW.bvh").write_text("HIERARCHY\nROOT Hips\n{\n")
+    with pytest.raises(ValueError) as info:                         # BVHError is a ValueError
+        build_dataset(tmp_path, progress=False, skeleton=BANDAI)
+    assert "Broken_FW.bvh" in str(info.value) + "".join(getattr(info.value, "__notes__", []))
