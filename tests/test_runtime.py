@@ -149,3 +149,18 @@ def test_speed_calibration_inverts_the_measured_map():
     np.testing.assert_allclose(cal.command_for(0.25), 0.5, atol=1e-6)   # through the origin
     v = cal.apply(np.array([[0.0, 1.2], [0.0, 0.0]]))
     np.testing.assert_allclose(v, [[0.0, 3.0], [0.0, 0.0]], atol=1e-5)
+
+
+def test_per_frame_films_reach_the_network_in_order():
+    net, script, stats, a, u = glide_setup()
+    seen = []
+    predict = net.predict
+    net.predict = lambda x, p, film: (seen.append(np.array(film, copy=True)), predict(x, p, film))[1]
+    ctrl = Controller(net, LAYOUT)
+    F = 12
+    films = np.arange(F * 4, dtype=float).reshape(F, 4)           # (n_frames, 4H): a style schedule
+    ctrl.run(script, F, films)
+    np.testing.assert_array_equal(np.array(seen), films)
+    seen.clear()
+    ctrl.run(script, F, lambda k: np.full(4, float(k)))             # or a callable frame -> film
+    np.testing.assert_array_equal(np.array(seen)[:, 0], np.arange(F))
