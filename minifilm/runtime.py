@@ -221,6 +221,33 @@ class Rollout:
     targets: np.ndarray
     fps: float
 
+    def metrics(self, parents: Sequence[int], path: Optional[np.ndarray] = None,
+                toes: Optional[Sequence[int]] = None, warmup_seconds: float = 1.0) -> List[dict]:
+        """Per character: the checks of the issue, after ``warmup_seconds`` (the start pose is the
+        data's mean pose). Keys: bone_cv_max (coefficient of variation of the worst bone),
+        hips_min / hips_max (m, joint 0 height), speed (mean root speed, m/s), and when given,
+        path_mean / path_max (m, root distance to the polyline ``path`` (N, 2)) and foot_sliding
+        (m/s, toes = joint index per contact column)."""
+        from minifilm.control import distance_to_path
+        from minifilm.motion.foot_ik import foot_sliding
+
+        parents = np.asarray(parents)
+        k0 = min(int(round(warmup_seconds * self.fps)), self.positions.shape[1] - 2)
+        out = []
+        for b in range(self.positions.shape[0]):
+            P = self.positions[b, k0:]
+            bones = np.linalg.norm(P[:, parents >= 0] - P[:, parents[parents >= 0]], axis=-1)
+            m = dict(bone_cv_max=float((bones.std(axis=0) / np.maximum(bones.mean(axis=0), 1e-9)).max()),
+                     hips_min=float(P[:, 0, 1].min()), hips_max=float(P[:, 0, 1].max()),
+                     speed=float(np.linalg.norm(np.diff(self.root_positions[b, k0:], axis=0), axis=1).mean() * self.fps))
+            if path is not None:
+                d = distance_to_path(self.root_positions[b, k0:], path)
+                m.update(path_mean=float(d.mean()), path_max=float(d.max()))
+            if toes is not None:
+                m["foot_sliding"] = foot_sliding(P, self.contacts[b, k0:], toes, self.fps)
+            out.append(m)
+        return out
+
     def to_motion(self, skeleton: Motion, joint_indices: Sequence[int], character: int = 0,
                   fit_positions: bool = True) -> Motion:
         """Character ``character`` as a Motion on ``skeleton`` (see :func:`retarget`), for BVH export."""

@@ -164,3 +164,15 @@ def test_per_frame_films_reach_the_network_in_order():
     seen.clear()
     ctrl.run(script, F, lambda k: np.full(4, float(k)))             # or a callable frame -> film
     np.testing.assert_array_equal(np.array(seen)[:, 0], np.arange(F))
+
+
+def test_rollout_metrics_closed_form():
+    net, script, stats, a, u = glide_setup(speed=1.5, heading_deg=0.0)
+    r = Controller(net, LAYOUT).run(script, 120, np.zeros(4))
+    m = r.metrics(PARENTS, path=np.array([[2.0, -10.0], [2.0, 10.0]]), toes=[4, 2])[0]
+    assert m["bone_cv_max"] < 1e-9                       # a rigid pose carried along
+    hips = stats.x_mean[LAYOUT.joint_columns("x", "position")][0, 1]
+    np.testing.assert_allclose([m["hips_min"], m["hips_max"]], [hips, hips], atol=1e-9)
+    np.testing.assert_allclose(m["speed"], 1.5, atol=1e-9)
+    assert m["path_mean"] < 1e-9
+    np.testing.assert_allclose(m["foot_sliding"], 1.5, atol=1e-9)  # contact [1, 0]: joint 4 glides at 1.5 m/s
