@@ -255,15 +255,20 @@ def expert_linear_backward(dout: np.ndarray, cache):
 # 1-D convolution over time and max pooling (the FiLM generator Psi, Eq. 2)
 # --------------------------------------------------------------------------------------------
 def _im2col(x: np.ndarray, k: int) -> np.ndarray:
-    """(B, T, C) -> (B*T, k*C): row (b, t) holds frames t - k//2 .. t + k//2, zero-padded.
+    """(B, T, C) -> cols (B*T, k*C): row (b, t) holds frames t - k//2 .. t + k//2, zero-padded.
 
-    sliding_window_view makes the windows without copying; the final reshape is the one copy.
+    In the zero-padded, channels-last sample xp (T + k - 1, C), the window of frame t is the k*C
+    CONSECUTIVE numbers starting at xp[t, 0]. So the windows are a strided view of the flat
+    padded samples (sliding windows of length k*C taken every C numbers), and the one copy that
+    makes cols contiguous for the matrix product is a row-by-row memcpy. Row layout is tap-major,
+    (j, c), matching W (k, C, F).
     """
     B, T, C = x.shape
     pad = k // 2
-    xp = np.pad(x, ((0, 0), (pad, pad), (0, 0)))                 # (B, T + k - 1, C)
-    windows = sliding_window_view(xp, k, axis=1)                 # (B, T, C, k)
-    return windows.transpose(0, 1, 3, 2).reshape(B * T, k * C)   # tap-major, like W (k, C, F)
+    xp = np.zeros((B, T + k - 1, C), dtype=x.dtype)
+    xp[:, pad: pad + T] = x
+    windows = sliding_window_view(xp.reshape(B, -1), k * C, axis=1)[:, ::C]   # (B, T, k*C) view
+    return windows.reshape(B * T, k * C)                                     # the one copy
 
 
 def conv1d_forward(x: np.ndarray, W: np.ndarray, b: np.ndarray):
@@ -271,7 +276,7 @@ def conv1d_forward(x: np.ndarray, W: np.ndarray, b: np.ndarray):
 
     ``y[b, t, f] = sum_j sum_c x[b, t + j - k//2, c] W[j, c, f] + b[f]`` with x zero outside [0, T).
     x: (B, T, C) channels-last; W: (k, C, F) with k odd; b: (F,) -> y: (B, T, F).
-    Vectorised as im2col + one matrix product.
+    One matrix product on the im2col matrix (see :func:`_im2col`), kept for the backward pass.
     """
     k, C, F = W.shape
     _require(k % 2 == 1, f"conv1d_forward: kernel size must be odd for 'same' padding, W is {W.shape}")
@@ -280,23 +285,30 @@ def conv1d_forward(x: np.ndarray, W: np.ndarray, b: np.ndarray):
     _require(b.shape == (F,), f"conv1d_forward: b is {b.shape}, expected ({F},)")
     B, T, _ = x.shape
     cols = _im2col(x, k)                                         # (B*T, k*C)
-    y = (cols @ W.reshape(k * C, F) + b).reshape(B, T, F)
-    return y, (cols, x.shape, W)
+    y = cols @ W.reshape(k * C, F)                               # (B*T, F)
+    y += b                                                       # in place: no second buffer
+    return y.reshape(B, T, F), (cols, x.shape, W)
 
 
-def conv1d_backward(dout: np.ndarray, cache):
+def conv1d_backward(dout: np.ndarray, cache, need_dx: bool = True):
     """Gradients of :func:`conv1d_forward`: dx (B, T, C), dW (k, C, F), db (F,).
 
-    dW = cols^T dout and db = sum(dout). dx is itself a 'same' convolution, of dout with the kernel
-    flipped in time and transposed to (k, F, C): dx[t] = sum_j dout[t - j + k//2] W[j]^T.
+    dW = cols^T dout (one matrix product on the forward's im2col matrix) and db = sum(dout).
+    dx is itself a 'same' convolution, of dout with the kernel flipped in time and transposed to
+    (k, F, C): dx[t] = sum_j dout[t - j + k//2] W[j]^T, again one product on an im2col matrix.
+    With ``need_dx=False`` dx is skipped (None is returned in its place): a network's first
+    layer never needs the gradient of its input data, and for the paper's Ψ that product costs as
+    much as the layer's whole forward pass.
     """
     cols, (B, T, C), W = cache
     k, _, F = W.shape
     d2 = dout.reshape(B * T, F)
     dW = (cols.T @ d2).reshape(k, C, F)
     db = d2.sum(axis=0)
-    W_flip = W[::-1].transpose(0, 2, 1).reshape(k * F, C)        # (k*F, C)
-    dx = (_im2col(dout, k) @ W_flip).reshape(B, T, C)
+    dx = None
+    if need_dx:
+        W_flip = W[::-1].transpose(0, 2, 1).reshape(k * F, C)    # (k*F, C)
+        dx = (_im2col(dout, k) @ W_flip).reshape(B, T, C)
     return dx, dW, db
 
 

@@ -13,6 +13,29 @@ import numpy as np
 
 from .params import Parameters
 
+CHUNK = 32768   # numbers per chunk: 5 float32 arrays of it (w, g, m, v, scratch) take 640 KB
+
+
+def _adam_chunk(w, g, m, v, buf, beta1, beta2, step_size, eps_hat):
+    """One Adam update of a chunk, in place, with ``buf`` as the only temporary.
+
+    m <- m + (1 - beta1)(g - m)         (= beta1 m + (1 - beta1) g)
+    v <- v + (1 - beta2)(g^2 - v)       (= beta2 v + (1 - beta2) g^2)
+    w <- w - step_size * m / (sqrt(v) + eps_hat)
+    """
+    np.subtract(g, m, out=buf)
+    buf *= 1 - beta1
+    m += buf
+    np.multiply(g, g, out=buf)
+    buf -= v
+    buf *= 1 - beta2
+    v += buf
+    np.sqrt(v, out=buf)
+    buf += eps_hat
+    np.divide(m, buf, out=buf)
+    buf *= step_size
+    w -= buf
+
 
 class Adam:
     """Adam with bias correction.
@@ -40,30 +63,28 @@ class Adam:
         self.m = [np.zeros_like(p.data) for p in self.sets]
         self.v = [np.zeros_like(p.data) for p in self.sets]
         self.steps = [0] * len(self.sets)
-        self._scratch = [np.empty_like(p.data) for p in self.sets]
+        # One scratch chunk per dtype is enough: sets are updated one after the other.
+        self._scratch = {p.dtype: np.empty(CHUNK, dtype=p.dtype) for p in self.sets}
 
     def step(self) -> None:
         """Update ``.data`` of every trainable set in place from its ``.grad``."""
-        b1, b2 = self.beta1, self.beta2
         for i, p in enumerate(self.sets):
             if not p.trainable:
                 continue
             self.steps[i] += 1
             t = self.steps[i]
-            m, v, buf, g = self.m[i], self.v[i], self._scratch[i], p.grad
-            m *= b1
-            m += (1 - b1) * g                     # one temporary; cheaper than two passes
-            np.multiply(g, g, out=buf)
-            buf *= 1 - b2
-            v *= b2
-            v += buf
-            correction = math.sqrt(1 - b2 ** t)
-            step_size = self.lr * correction / (1 - b1 ** t)
-            np.sqrt(v, out=buf)
-            buf += self.eps * correction
-            np.divide(m, buf, out=buf)
-            buf *= step_size
-            p.data -= buf
+            correction = math.sqrt(1 - self.beta2 ** t)
+            step_size = self.lr * correction / (1 - self.beta1 ** t)
+            eps_hat = self.eps * correction
+            m, v, g, w, buf = self.m[i], self.v[i], p.grad, p.data, self._scratch[p.dtype]
+            # Chunks small enough for the core's L2 cache: the ~11 passes below then run over
+            # cached numbers, and main memory is read (w, g, m, v) and written (w, m, v) once.
+            # Over the whole buffer at once every pass would go to main memory (about twice as
+            # slow for the paper's Φ, 4.9 M numbers, and Ψ, 39 M).
+            for lo in range(0, p.size, CHUNK):
+                hi = min(lo + CHUNK, p.size)
+                _adam_chunk(w[lo:hi], g[lo:hi], m[lo:hi], v[lo:hi], buf[: hi - lo],
+                            self.beta1, self.beta2, step_size, eps_hat)
 
     def state_dict(self) -> dict[str, np.ndarray]:
         """Moments and step counts as arrays (``np.savez``-ready): m.<i>, v.<i>, steps."""
