@@ -245,6 +245,7 @@ REAL_FILES = [  # (path under shared data, expected fps)
     ("100style/Neutral_FR_first3frames.bvh", 60),
     ("bvh/xia/neutral_01_000.bvh", 120),
     ("bvh/bandai1/dataset-1_walk-left_normal_001.bvh", 30),
+    ("bvh/cmu/08_01_trimmed.bvh", 120),
 ]
 
 
