@@ -47,7 +47,6 @@ from .motion.layout import FeatureLayout
 from .traindata import NormStats, TrainData
 
 SPLITS = ("train", "val", "test")
-_SPLIT_ID = {s: i for i, s in enumerate(SPLITS)}
 #: Bump when the meaning of the cached arrays changes without any source file changing.
 CACHE_FORMAT = 1
 
@@ -118,8 +117,8 @@ def split_segments(n_frames: int, rng: np.random.Generator,
                    fractions: Sequence[float] = (0.8, 0.1, 0.1)) -> List[Tuple[int, int, str]]:
     """Cut ``[0, n_frames)`` into contiguous segments ``(start, stop, split)`` (original §8.2).
 
-    The validation and test windows are ``floor(f L)`` frames each; they never overlap and their
-    order and positions are uniformly random; the rest, up to three pieces, is train.
+    The validation and test windows are ``floor(f L)`` frames each; they never overlap, their
+    order and positions are random (seeded by ``rng``); the rest, up to three pieces, is train.
     """
     L = int(n_frames)
     sizes = {"val": int(np.floor(fractions[1] * L)), "test": int(np.floor(fractions[2] * L))}
@@ -162,11 +161,16 @@ def split_files(files: Sequence[MotionFile], seed: int,
         rng = np.random.default_rng([int(seed), zlib.crc32(style.encode("utf-8"))])
         order = rng.permutation(len(group))
         n = len(group)
-        n_val = max(1, int(round(fractions[1] * n))) if n >= 3 else 0
-        n_test = max(1, int(round(fractions[2] * n))) if n >= 3 else 0
+        n_val, n_test = (_file_count(fr, n) for fr in fractions[1:])
         for rank, i in enumerate(order):
             out[Path(group[i].path)] = "val" if rank < n_val else "test" if rank < n_val + n_test else "train"
     return out
+
+
+def _file_count(fraction: float, n: int) -> int:
+    """Files of a style for a split of ``fraction``: rounded, at least 1 once there are 3 files."""
+    k = int(round(fraction * n))
+    return max(1, k) if fraction > 0 and n >= 3 else k if n >= 3 else 0
 
 
 def file_rng(seed: int, f: MotionFile) -> np.random.Generator:
@@ -190,9 +194,7 @@ class Normalizer(NormStats):
             raise ValueError("Normalizer.fit: no training rows")
         stats = {}
         for name, a in (("x", x), ("p", p), ("z", z)):
-            a = np.asarray(a, dtype=np.float64)
-            mean = a.mean(axis=0)
-            std = np.sqrt(np.mean((a - mean) ** 2, axis=0))      # biased, as the original
+            mean, std = _mean_std(a)
             std[std < min_std] = 1.0
             stats[f"{name}_mean"], stats[f"{name}_std"] = mean, std
         return cls(**stats)
@@ -218,6 +220,20 @@ class Normalizer(NormStats):
             return cls.from_state_dict({k: d[k] for k in d.files})
 
 
+def _mean_std(a: np.ndarray, chunk: int = 1 << 15) -> Tuple[np.ndarray, np.ndarray]:
+    """Column mean and biased std (as the original) in float64, two passes over row chunks so a
+    large float32 array is never copied whole into float64."""
+    n = a.shape[0]
+    total = np.zeros(a.shape[1])
+    for i in range(0, n, chunk):
+        total += a[i:i + chunk].sum(axis=0, dtype=np.float64)
+    mean = total / n
+    sq = np.zeros(a.shape[1])
+    for i in range(0, n, chunk):
+        sq += ((a[i:i + chunk].astype(np.float64) - mean) ** 2).sum(axis=0)
+    return mean, np.sqrt(sq / n)
+
+
 def _save_npz(path: Union[str, Path], arrays: dict) -> Path:
     """Write to a temporary file and rename, so a crash never leaves half a file."""
     path = Path(path)
@@ -232,7 +248,8 @@ def _save_npz(path: Union[str, Path], arrays: dict) -> Path:
 @dataclass
 class Split:
     """The rows of one split. x (N, x_dim), p (N, 8), z (N, z_dim) float32; style (N,) int;
-    file (N,) index into ``Dataset.files``; frame (N,) current frame in that file; clips (M, T, 12 J)
+    file (N,) index into ``Dataset.files``; frame (N,) current frame in that file (after its
+    start/end crop); clips (M, T, 12 J)
     float32 with clip_style (M,) and clip_file (M,)."""
     x: np.ndarray
     p: np.ndarray

@@ -297,6 +297,7 @@ def test_split_files_per_style():
     assert {got[Path("/d/c_00.bvh")], got[Path("/d/c_01.bvh")]} == {"train"}   # too few to split
     assert split_files(files[::-1], seed=1) == got                           # order does not matter
     assert any(split_files(files, seed=s) != got for s in range(2, 6))
+    assert set(split_files(files, seed=1, fractions=(1.0, 0.0, 0.0)).values()) == {"train"}
 
 
 def test_build_with_whole_file_splits(small):
@@ -352,3 +353,12 @@ def test_resampling_and_errors_name_the_file(shared_data, tmp_path):
     with pytest.raises(ValueError) as info:                         # BVHError is a ValueError
         build_dataset(tmp_path, progress=False, skeleton=BANDAI)
     assert "Broken_FW.bvh" in str(info.value) + "".join(getattr(info.value, "__notes__", []))
+
+
+def test_mean_std_in_chunks_matches_numpy():
+    from minifilm.data import _mean_std
+
+    a = np.random.default_rng(3).normal(5.0, 0.01, size=(1000, 4)).astype(np.float32)
+    mean, std = _mean_std(a, chunk=64)
+    np.testing.assert_allclose(mean, a.astype(np.float64).mean(axis=0), rtol=1e-13)
+    np.testing.assert_allclose(std, a.astype(np.float64).std(axis=0), rtol=1e-9)
