@@ -104,6 +104,8 @@ def main(argv=None):
     ap.add_argument("--foot-lock", action="store_true", help="pin feet in predicted contact (leg IK)")
     ap.add_argument("--no-calibrate", action="store_true", help="command the raw speed (no calibration)")
     ap.add_argument("--png", help="also draw the motion into this PNG")
+    ap.add_argument("--png-from", type=float, default=1.0, help="first drawn frame, seconds")
+    ap.add_argument("--png-every", type=int, default=10, help="frames between drawn figures")
     ap.add_argument("--list-styles", action="store_true")
     args = ap.parse_args(argv)
 
@@ -160,7 +162,8 @@ def main(argv=None):
           f"hips {hips.min():.2f}-{hips.max():.2f} m, bone CV max {bone_cv(r.positions[0, 60:], STYLE100.parents).max():.1%}, "
           f"foot sliding {foot_sliding(r.positions[0, 60:], r.contacts[0, 60:], toes, ctrl.fps):.3f} m/s")
     if args.png:
-        render(r, STYLE100.parents, script.path, args.png, title=label)
+        render(r, STYLE100.parents, script.path, args.png, every=args.png_every, title=label,
+               start=int(round(args.png_from * ctrl.fps)))
         print(f"  drawing -> {args.png}")
     return 0
 
