@@ -362,3 +362,15 @@ def test_mean_std_in_chunks_matches_numpy():
     mean, std = _mean_std(a, chunk=64)
     np.testing.assert_allclose(mean, a.astype(np.float64).mean(axis=0), rtol=1e-13)
     np.testing.assert_allclose(std, a.astype(np.float64).std(axis=0), rtol=1e-9)
+
+
+def test_gap_keeps_splits_apart(shared_data, tmp_path):
+    os.symlink(shared_data / "bandai2" / "dataset-2_walk_elderly_002.bvh", tmp_path / "Old_FW.bvh")
+    ds = build_dataset(tmp_path, progress=False, gap_seconds=0.5, clip_seconds=2.0, seed=3)
+    frames = {name: ds.split(name).frame for name in SPLITS}
+    assert all(len(frames[name]) for name in SPLITS)
+    for a in SPLITS:
+        for b in SPLITS:
+            if a < b:     # 0.5 s on each side, plus the segment ends that are never current
+                d = np.abs(frames[a][:, None] - frames[b][None, :]).min()
+                assert d >= 2 * 15 + 3
