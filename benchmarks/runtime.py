@@ -1,6 +1,7 @@
 """Runtime speed with the released network (paper config: 348 -> 512 -> 512 -> 342, 8 experts).
 
-    python benchmarks/runtime.py [--params DIR] [--frames 600] [--batch 64]
+    python benchmarks/runtime.py [--params DIR] [--frames 600] [--batch 8 64]
+    python benchmarks/runtime.py --quality [--styles Neutral Old Zombie] [--seconds 60]
 
 Prints a table:
   * the network alone at batch 1 with a precomputed FiLM vector, three ways: experts side by side
@@ -8,6 +9,10 @@ Prints a table:
     (Σ α_k W_k, then one product), and StyleModel.predict_single (the model's own batch-1 path);
   * one whole controller frame at batch 1 (input features + network + read-back + trajectory blend);
   * many characters updated together in one batch: frames per second and character-frames per second.
+With --quality it instead runs the checks of issue 7 for a minute (or --seconds) per style, all
+styles in one batch, along a figure-eight at 1.3 m/s with per-style speed calibration, without and
+with foot locking: bone-length CV, hips range, speed, distance to the path, foot sliding.
+
 The paper reports 4.53 ms per frame for the LPN FiLM in Unity (Table 2). BLAS threads default to 1
 here (the machine is shared); set OPENBLAS_NUM_THREADS / OMP_NUM_THREADS to change that.
 """
@@ -62,16 +67,45 @@ def blend_first(net: RuntimeNetwork, model, x, p, film):
     return h * net._z_std + net._z_mean
 
 
+def quality(rel, layout, styles, seconds):
+    """Minute-long rollouts of several styles (one batch), without and with foot locking."""
+    from minifilm.control import figure_eight
+    from minifilm.motion.foot_ik import FootLocker
+    from minifilm.runtime import calibrate_speed
+
+    net = RuntimeNetwork.from_model(rel.model, rel.stats, runtime_layer_norm=True)
+    n = int(round(seconds * 60))
+    toes = [layout.joint_names.index("RightToe"), layout.joint_names.index("LeftToe")]
+    print(f"{seconds:g} s per style along a figure-eight at 1.3 m/s (speed calibrated per style)")
+    print(f"{'style':16s} {'lock':>5s} {'bone CV':>8s} {'hips m':>11s} {'speed':>6s} {'path mean/max m':>16s} {'sliding m/s':>12s}")
+    for lock in (False, True):
+        for style in styles:   # calibration differs per style, so one style per run (the rollout is batch 1)
+            film = rel.styles[style]
+            cal = calibrate_speed(Controller(net, layout), film)
+            locker = FootLocker.from_names(layout.joint_names) if lock else None
+            script = figure_eight(seconds, speed=1.3)
+            r = Controller(net, layout, foot_locker=locker).run(script, n, film, calibration=cal)
+            m = r.metrics(STYLE100.parents, script.path, toes)[0]
+            print(f"{style:16s} {str(lock):>5s} {m['bone_cv_max']:8.1%} {m['hips_min']:5.2f}-{m['hips_max']:.2f} "
+                  f"{m['speed']:6.2f} {m['path_mean']:8.2f}/{m['path_max']:.2f} {m['foot_sliding']:12.3f}")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--params", default=str(REPO.parent / "shared" / "data" / "released-lpn"))
     ap.add_argument("--frames", type=int, default=600)
     ap.add_argument("--batch", type=int, nargs="+", default=[8, 64])
+    ap.add_argument("--quality", action="store_true", help="run the motion-quality checks instead")
+    ap.add_argument("--styles", nargs="+", default=["Neutral", "Old", "Zombie", "Aeroplane", "Strutting"])
+    ap.add_argument("--seconds", type=float, default=60.0)
     args = ap.parse_args()
 
     from minifilm.released import load_released
 
     rel = load_released(args.params)
+    if args.quality:
+        quality(rel, FeatureLayout.for_skeleton(STYLE100), args.styles, args.seconds)
+        return
     net = RuntimeNetwork.from_model(rel.model, rel.stats, runtime_layer_norm=True)
     layout = FeatureLayout.for_skeleton(STYLE100)
     film = rel.styles["Neutral"] if "Neutral" in rel.styles else next(iter(rel.styles.values()))
