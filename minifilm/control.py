@@ -21,8 +21,7 @@ angle ``theta`` means the direction ``(sin theta, cos theta)``: 0 is +z, +90 deg
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Callable, Optional, Sequence, Tuple, Union
+from typing import Optional, Sequence, Tuple, Union
 
 import numpy as np
 

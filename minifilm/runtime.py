@@ -22,7 +22,7 @@ Everything reads its columns from a :class:`~minifilm.motion.layout.FeatureLayou
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable, List, Optional, Sequence, Union
 
 import numpy as np
