@@ -169,6 +169,17 @@ def test_expert_linear_equals_per_sample_weights(rng, B):
         assert_close(got, ref)
 
 
+def test_expert_linear_single_equals_blended_weights(rng):
+    K, I, O = 5, 7, 3
+    x, W, b = rng.standard_normal(I), rng.standard_normal((K, I, O)), rng.standard_normal((K, O))
+    alpha = rng.dirichlet(np.ones(K))
+    expect = x @ np.einsum("k,kio->io", alpha, W) + alpha @ b
+    assert_close(F.expert_linear_single(x, alpha, W, b), expect)
+    W32, b32 = W.astype(np.float32), b.astype(np.float32)
+    y32 = F.expert_linear_single(x.astype(np.float32), alpha.astype(np.float32), W32, b32)
+    assert y32.dtype == np.float32
+
+
 @pytest.mark.parametrize("unbiased,eps", [(True, 1e-6), (False, 0.0)])
 def test_layer_norm_equals_explicit_jacobian(rng, unbiased, eps):
     x = 3 * rng.standard_normal((5, 9)) + 1

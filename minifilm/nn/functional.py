@@ -209,6 +209,18 @@ def blend_experts(alpha: np.ndarray, W: np.ndarray, b: np.ndarray):
     return (alpha @ W.reshape(K, I * O)).reshape(I, O), alpha @ b
 
 
+def expert_linear_single(x: np.ndarray, alpha: np.ndarray, W: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """One sample, no cache (run-time inference, Sec. 4.4): ``sum_k alpha_k (x W_k + b_k)``.
+
+    x: (I,); alpha: (K,); W: (K, I, O); b: (K, O) -> (O,). The fast form of
+    :func:`expert_linear_forward` for a single sample: one matrix-vector product over the K*I
+    numbers of outer(alpha, x). At batch 1 the cost is reading the K expert matrices (19.7 MB
+    for the paper's Φ), so nothing else is allocated or copied.
+    """
+    K, I, O = W.shape
+    return np.multiply.outer(alpha, x).reshape(K * I) @ W.reshape(K * I, O) + alpha @ b
+
+
 def expert_linear_forward(x: np.ndarray, alpha: np.ndarray, W: np.ndarray, b: np.ndarray):
     """Per-sample blend of K expert linear layers: ``y_b = x_b (sum_k a_bk W_k) + sum_k a_bk b_k``.
 
@@ -216,8 +228,10 @@ def expert_linear_forward(x: np.ndarray, alpha: np.ndarray, W: np.ndarray, b: np
 
     Fast form (never builds the (B, I, O) per-sample weights): since
     ``y_b = sum_k sum_i a_bk x_bi W_kio``, put Z_b = outer(a_b, x_b) flattened to K*I numbers and
-    ``y = Z @ W.reshape(K*I, O) + alpha @ b``: one matrix product. At batch 1 the weights are
-    blended first (:func:`blend_experts`), as the original does at run time.
+    ``y = Z @ W.reshape(K*I, O) + alpha @ b``: one matrix product. This holds at batch 1 too,
+    where it reads every expert weight once; blending the weights first (the original's run-time
+    path, :func:`blend_experts`) reads them once as well but also writes and re-reads the (I, O)
+    blend, about 10% slower in this memory-bound case.
     """
     K, I, O = W.shape
     _require(x.ndim == 2 and x.shape[1] == I,
@@ -225,9 +239,6 @@ def expert_linear_forward(x: np.ndarray, alpha: np.ndarray, W: np.ndarray, b: np
     _require(alpha.shape == (x.shape[0], K),
              f"expert_linear_forward: alpha is {alpha.shape}, expected ({x.shape[0]}, {K})")
     _require(b.shape == (K, O), f"expert_linear_forward: b is {b.shape}, expected ({K}, {O})")
-    if x.shape[0] == 1:
-        Wb, bb = blend_experts(alpha[0], W, b)
-        return x @ Wb + bb, (x, alpha, W, b, None)
     Z = (alpha[:, :, None] * x[:, None, :]).reshape(-1, K * I)   # (B, K*I)
     y = Z @ W.reshape(K * I, O) + alpha @ b                      # (B, O)
     return y, (x, alpha, W, b, Z)
@@ -241,8 +252,6 @@ def expert_linear_backward(dout: np.ndarray, cache):
     """
     x, alpha, W, b, Z = cache
     K, I, O = W.shape
-    if Z is None:
-        Z = (alpha[:, :, None] * x[:, None, :]).reshape(-1, K * I)
     dZ = (dout @ W.reshape(K * I, O).T).reshape(-1, K, I)       # (B, K, I)
     dW = (Z.T @ dout).reshape(K, I, O)
     db = alpha.T @ dout                                          # (K, O)

@@ -1,0 +1,80 @@
+"""Inference time of Φ + Ω with precomputed FiLM parameters: minifilm (NumPy) vs PyTorch eager.
+
+    batch 1   the real-time case: one character, one frame (Sec. 4.4); ms per frame
+    batch 64  many characters at once; frames per second
+
+The style is a precomputed FiLM vector (4 x 512 numbers), as at run time; Ψ is not run. NumPy
+batch 1 uses ``StyleModel.predict_single`` (the run-time path), larger batches
+``forward_with_film``; PyTorch runs the same model (copied weights) under ``torch.inference_mode()``.
+NumPy and PyTorch calls are interleaved (at batch 1 in blocks of 50 calls, so that each side's
+weights can stay in the cache as in a real-time loop); times are medians after warm-up.
+
+    python benchmarks/inference.py [--repeat 200] [--threads N]
+"""
+import common  # noqa: F401  (sets the BLAS thread count before numpy is imported)
+
+import argparse  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from common import THREADS, compare_ms, header, random_batch, table  # noqa: E402
+from minifilm.model.config import ModelConfig  # noqa: E402
+from minifilm.model.style_model import StyleModel  # noqa: E402
+from torch_reference import from_numpy, load_torch  # noqa: E402
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--batch", type=int, nargs="*", default=[1, 64])
+    ap.add_argument("--repeat", type=int, default=200)
+    ap.add_argument("--threads", type=int, default=THREADS, help="BLAS / torch threads")
+    ap.add_argument("--coretype", default=common.CORETYPE, help="OpenBLAS kernels (see common.py)")
+    ap.add_argument("--no-torch", action="store_true")
+    args = ap.parse_args()
+
+    torch = None if args.no_torch else load_torch(THREADS)
+    header("inference, Φ + Ω with a precomputed FiLM vector, paper config, float32, median ms per call"
+           + ("" if torch else "  [PyTorch not installed: NumPy only]"))
+    config = ModelConfig.paper()
+    rng = np.random.default_rng(0)
+    model = StyleModel(config, rng, with_film_generator=False)
+    tmodel = from_numpy(torch, model).eval() if torch is not None else None
+    rows, checks = [], []
+    for batch in args.batch:
+        x, p, film, _, _ = random_batch(config, batch, rng, with_clip=False)
+        style = film[0]                                  # one style for every character
+        if batch == 1:
+            np_fn = lambda: model.predict_single(x[0], p[0], style)          # noqa: E731
+            z_np = np_fn()[None, :]
+        else:
+            np_fn = lambda: model.forward_with_film(x, p, style)            # noqa: E731
+            z_np = np_fn()
+        fns = {"numpy": np_fn}
+        if torch is not None:
+            X, P = torch.from_numpy(x), torch.from_numpy(p)
+            S = torch.from_numpy(np.tile(style, (batch, 1)))
+
+            def torch_fn():
+                with torch.inference_mode():
+                    return tmodel.forward_with_film(X, P, S)
+            fns["torch"] = torch_fn
+            z_t = torch_fn().numpy()
+            checks.append({"batch": batch, "max rel diff z": f"{np.abs(z_np - z_t).max() / np.abs(z_t).max():.1e}"})
+        t = compare_ms(fns, args.repeat, warmup=10, block=50 if batch == 1 else 1)
+        row = {"batch": batch, "numpy ms": t["numpy"], "numpy ms/frame": t["numpy"] / batch,
+               "numpy frames/s": f"{1e3 * batch / t['numpy']:.0f}"}
+        if torch is not None:
+            row.update({"torch ms": t["torch"], "torch frames/s": f"{1e3 * batch / t['torch']:.0f}",
+                        "torch/numpy": t["torch"] / t["numpy"]})
+        rows.append(row)
+    if checks:
+        print("same model check (NumPy vs PyTorch with copied weights):")
+        table(checks, ["batch", "max rel diff z"])
+        print()
+    table(rows, ["batch", "numpy ms", "numpy ms/frame", "numpy frames/s", "torch ms", "torch frames/s",
+                 "torch/numpy"])
+    print(f"# load average at the end: {common.load_average()}")
+
+
+if __name__ == "__main__":
+    main()
