@@ -441,7 +441,7 @@ class Controller:
             for b, s in enumerate(scripts):
                 tf[b], tv[b] = s.command(t, self.state["root"][b], self.state["facing"][b])
             if calibration is not None:
-                tv = calibration.apply(tv)
+                tv = calibration.apply(tv, tf)
             fk = film(k) if callable(film) else (film[k] if per_frame else film)
             fr = self.step(tf, tv, fk)
             for key in ("positions", "forward", "up", "contacts", "phases", "root", "facing"):
@@ -456,46 +456,83 @@ class Controller:
 
 @dataclass
 class SpeedCalibration:
-    """Measured steady-state root speed (m/s) for each commanded speed (m/s), for one style.
+    """Measured steady-state root speed (m/s) for each commanded speed (m/s), for one style, per
+    direction of travel relative to the facing (degrees: 0 forwards, 90 sideways, 180 backwards;
+    left and right are taken as symmetric).
 
     The network follows the user's trajectory only partly (near future samples keep its own
     prediction, §10.4), so commanding v gives a slower walk. The original demo hid this behind a
     per-style "velocity bias" of unclear units (original-pipeline §12 item 16); here the map is
-    measured (:func:`calibrate_speed`) and inverted by linear interpolation.
+    measured (:func:`calibrate_speed`) and inverted by linear interpolation (in speed, then in
+    direction).
+
+    commanded (N,); achieved (N,) or (D, N); directions (D,) degrees in [0, 180].
     """
 
     commanded: np.ndarray
     achieved: np.ndarray
+    directions: Sequence[float] = (0.0,)
 
     def __post_init__(self):
         c = np.asarray(self.commanded, dtype=np.float64)
-        a = np.maximum.accumulate(np.asarray(self.achieved, dtype=np.float64))  # make it monotone
-        order = np.argsort(c)
-        self.commanded, self.achieved = np.r_[0.0, c[order]], np.r_[0.0, a[order]]
+        a = np.atleast_2d(np.asarray(self.achieved, dtype=np.float64))
+        d = np.asarray(self.directions, dtype=np.float64).reshape(-1)
+        if a.shape != (len(d), len(c)):
+            raise ValueError(f"SpeedCalibration: achieved has shape {a.shape}, expected "
+                             f"({len(d)} directions, {len(c)} commands)")
+        order, dorder = np.argsort(c), np.argsort(d)
+        a = np.maximum.accumulate(a[dorder][:, order], axis=1)     # monotone in the command
+        self.commanded = np.r_[0.0, c[order]]
+        self.achieved = np.concatenate([np.zeros((len(d), 1)), a], axis=1)
+        self.directions = d[dorder]
 
-    def command_for(self, speed) -> np.ndarray:
-        """Commanded speed that achieves ``speed`` (clamped to the largest calibrated command)."""
-        a = self.achieved + 1e-9 * np.arange(len(self.achieved))  # strictly increasing for interp
-        return np.interp(np.asarray(speed, dtype=np.float64), a, self.commanded)
+    def command_for(self, speed, direction=0.0) -> np.ndarray:
+        """Commanded speed that achieves ``speed`` when moving at ``direction`` degrees from the
+        facing (clamped to the largest calibrated command)."""
+        speed = np.asarray(speed, dtype=np.float64)
+        ramp = 1e-9 * np.arange(self.achieved.shape[1])          # strictly increasing for interp
+        per_dir = np.stack([np.interp(speed, a + ramp, self.commanded) for a in self.achieved])
+        if len(self.directions) == 1:
+            return per_dir[0]
+        ang = np.clip(np.abs(np.asarray(direction, dtype=np.float64)), 0.0, 180.0)
+        ang = np.broadcast_to(ang, speed.shape)
+        i = np.clip(np.searchsorted(self.directions, ang, side="right") - 1, 0, len(self.directions) - 2)
+        d0, d1 = self.directions[i], self.directions[i + 1]
+        t = np.clip((ang - d0) / np.maximum(d1 - d0, 1e-9), 0.0, 1.0)
+        c0 = np.take_along_axis(per_dir, i[None], axis=0)[0]
+        c1 = np.take_along_axis(per_dir, (i + 1)[None], axis=0)[0]
+        return (1 - t) * c0 + t * c1
 
-    def apply(self, velocity: np.ndarray) -> np.ndarray:
-        """Rescale velocities (..., 2) so their magnitude is the calibrated command."""
+    def apply(self, velocity: np.ndarray, facing: Optional[np.ndarray] = None) -> np.ndarray:
+        """Rescale velocities (..., 2) so their magnitude is the calibrated command; the direction
+        of travel is measured against ``facing`` (..., 2) (forwards if not given)."""
         v = np.asarray(velocity, dtype=np.float64)
-        n = np.linalg.norm(v, axis=-1, keepdims=True)
-        return np.where(n > 1e-9, v * self.command_for(n) / np.maximum(n, 1e-9), 0.0)
+        n = np.linalg.norm(v, axis=-1)
+        direction = 0.0
+        if facing is not None:
+            f = np.asarray(facing, dtype=np.float64)
+            cos = np.sum(v * f, axis=-1) / np.maximum(n * np.linalg.norm(f, axis=-1), 1e-9)
+            direction = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+        scale = self.command_for(n, direction) / np.maximum(n, 1e-9)
+        return np.where((n > 1e-9)[..., None], v * scale[..., None], 0.0)
 
 
 def calibrate_speed(controller: Controller, film: np.ndarray,
                     commands: Sequence[float] = (0.5, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0),
+                    directions: Sequence[float] = (0.0, 90.0, 180.0),
                     seconds: float = 8.0, settle: float = 4.0) -> SpeedCalibration:
-    """Walk straight at each commanded speed (all at once, as a batch) and measure the mean root
-    speed after ``settle`` seconds. ``film`` is the style (4H,)."""
-    from minifilm.control import straight_walk
+    """Move at each commanded speed in each direction (degrees from the facing: 0 forwards, 90
+    sideways, 180 backwards), all at once as one batch, and measure the mean root speed after
+    ``settle`` seconds. ``film`` is the style (4H,)."""
+    from minifilm.control import CommandScript
 
     n = int(round(seconds * controller.fps))
     k0 = int(round(settle * controller.fps))
     if k0 >= n - 1:
         raise ValueError(f"calibrate_speed: settle ({settle} s) must be shorter than seconds ({seconds} s)")
-    r = controller.run([straight_walk(seconds, speed=float(v)) for v in commands], n, film)
+    scripts = [CommandScript([(0.0, float(v), 0.0, float(d)), (seconds, float(v), 0.0, float(d))])
+               for d in directions for v in commands]
+    r = controller.run(scripts, n, film)
     dist = np.sum(np.linalg.norm(np.diff(r.root_positions[:, k0:], axis=1), axis=-1), axis=1)
-    return SpeedCalibration(np.asarray(commands, dtype=np.float64), dist / ((n - 1 - k0) / controller.fps))
+    achieved = (dist / ((n - 1 - k0) / controller.fps)).reshape(len(directions), len(commands))
+    return SpeedCalibration(np.asarray(commands, dtype=np.float64), achieved, tuple(directions))

@@ -149,6 +149,13 @@ def test_speed_calibration_inverts_the_measured_map():
     np.testing.assert_allclose(cal.command_for(0.25), 0.5, atol=1e-6)   # through the origin
     v = cal.apply(np.array([[0.0, 1.2], [0.0, 0.0]]))
     np.testing.assert_allclose(v, [[0.0, 3.0], [0.0, 0.0]], atol=1e-5)
+    # per direction: forwards as above, sideways everything is twice as slow
+    cal2 = SpeedCalibration([4.0, 1.0, 2.0], [[1.6, 0.5, 0.8], [0.8, 0.25, 0.4]], directions=(0.0, 90.0))
+    np.testing.assert_allclose(cal2.command_for(0.8, 0.0), 2.0, atol=1e-6)
+    np.testing.assert_allclose(cal2.command_for(0.8, 90.0), 4.0, atol=1e-6)
+    np.testing.assert_allclose(cal2.command_for(0.8, -45.0), 3.0, atol=1e-6)   # halfway, symmetric
+    side = cal2.apply(np.array([[0.8, 0.0]]), facing=np.array([[0.0, 1.0]]))    # moving +x, facing +z
+    np.testing.assert_allclose(side, [[4.0, 0.0]], atol=1e-5)
 
 
 def test_per_frame_films_reach_the_network_in_order():
