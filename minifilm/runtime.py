@@ -13,10 +13,16 @@ Each frame, for every character of a batch:
    and optional foot locking (:mod:`minifilm.motion.foot_ik`) post-processes the legs.
 
 Deviations from the Unity demo (original-pipeline §12): future samples at the training spacing
-(+0.2 .. +1.0 s, not 1/6 s), FiLM applied from hidden unit 0, user speed given in m/s (no per-style
-velocity bias), the root moves by the full predicted delta. The demo's smoothing of joint positions
-with the predicted velocities (``lerp(p_prev + v dt, p, 0.5)``) and of the future trajectory with
-the previous one (weight 0.15) are kept as options.
+(+0.2 .. +1.0 s, not 1/6 s), FiLM applied from hidden unit 0, user speed given in m/s and mapped
+to the command that makes the network really move at that speed by a measured per-style
+calibration (:func:`calibrate_speed`, instead of the demo's velocity bias of unclear units), the
+root moves by the full predicted delta. The demo's smoothing of joint positions with the predicted
+velocities (``lerp(p_prev + v dt, p, 0.5)``) and of the future trajectory with the previous one
+(weight 0.15) are kept as options. A run starts from the data's mean pose (the input means) with
+a still past trajectory and the mean phases. With foot locking, the next input takes the locked
+positions but the predicted forward/up axes (the demo feeds back the post-IK axes too). The
+demo's arm IK is replaced by fitting every bone to the predicted positions when the motion is put
+on the skeleton (:func:`minifilm.motion.retarget.retarget`).
 
 Everything reads its columns from a :class:`~minifilm.motion.layout.FeatureLayout`.
 """
