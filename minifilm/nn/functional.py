@@ -325,22 +325,25 @@ def max_pool1d_forward(x: np.ndarray):
     """Max pooling over time with size 2 and stride 2: (B, T, C) -> (B, T // 2, C).
 
     With odd T the last frame has no partner and is dropped (as with TF's 'valid' padding).
-    Ties pick the first frame of the pair.
+    Ties pick the first frame of the pair. The pairs are the even and odd frames (two strided
+    views), so the forward pass is one ``np.maximum`` and the cache one boolean array.
     """
     _require(x.ndim == 3 and x.shape[1] >= 2,
              f"max_pool1d_forward: x is {x.shape}, expected (B, T, C) with T >= 2")
-    B, T, C = x.shape
-    pairs = x[:, : 2 * (T // 2)].reshape(B, T // 2, 2, C)        # (B, T2, 2, C)
-    which = pairs.argmax(axis=2)[:, :, None, :]                  # (B, T2, 1, C) in {0, 1}
-    out = np.take_along_axis(pairs, which, axis=2)[:, :, 0, :]
-    return out, (x.shape, which)
+    T2 = x.shape[1] // 2
+    even, odd = x[:, 0: 2 * T2: 2], x[:, 1: 2 * T2: 2]          # (B, T2, C) views
+    first = even >= odd                                          # where the first frame wins
+    return np.maximum(even, odd), (x.shape, first)
 
 
 def max_pool1d_backward(dout: np.ndarray, cache):
     """dx for :func:`max_pool1d_forward`: each gradient goes to the frame that won its pair."""
-    (B, T, C), which = cache
-    dpairs = np.zeros((B, T // 2, 2, C), dtype=dout.dtype)
-    np.put_along_axis(dpairs, which, dout[:, :, None, :], axis=2)
+    (B, T, C), first = cache
+    T2 = T // 2
     dx = np.zeros((B, T, C), dtype=dout.dtype)
-    dx[:, : 2 * (T // 2)] = dpairs.reshape(B, 2 * (T // 2), C)
+    # Multiplying by the boolean masks is ~10x faster than np.copyto(..., where=) or np.where
+    # here; the only difference is that a non-finite dout (a diverged run) also reaches the losing
+    # frame, as inf * 0 = nan, where those would give 0.
+    np.multiply(dout, first, out=dx[:, 0: 2 * T2: 2])
+    np.multiply(dout, ~first, out=dx[:, 1: 2 * T2: 2])
     return dx
