@@ -338,3 +338,20 @@ def test_style_model_backward_equals_reference(rng):
             assert_close(nets[net].params.grads[pname], value)
             checked += 1
     assert checked == sum(len(n.params.names()) for n in nets.values())   # every parameter
+
+
+def test_skipping_the_clip_gradient_changes_no_parameter_gradient(rng):
+    """Training calls backward(dz, need_input_grads=False): same parameter gradients, dclip None."""
+    model, x, p, clip = small_model(rng)
+    dz = rng.standard_normal(model.forward(x, p, clip).shape)
+    model.zero_grad()
+    full = model.backward(dz)
+    grads_full = [ps.grad.copy() for ps in model.parameter_sets()]
+    model.forward(x, p, clip)
+    model.zero_grad()
+    lean = model.backward(dz, need_input_grads=False)
+    assert lean["clip"] is None and full["clip"] is not None
+    assert_close(lean["x"], full["x"])
+    assert_close(lean["p"], full["p"])
+    for ps, g in zip(model.parameter_sets(), grads_full):
+        np.testing.assert_array_equal(ps.grad, g)

@@ -130,16 +130,17 @@ class StyleModel:
             dfilm = dfilm.sum(axis=0)
         return dx, dp, dfilm
 
-    def backward(self, dz):
+    def backward(self, dz, need_input_grads=True):
         """Backward of `forward`: dz (B, z_dim) -> {'x': dx, 'p': dp, 'clip': dclip}.
 
-        Adds the gradients of every parameter of Ω, Φ and Ψ.
+        Adds the gradients of every parameter of Ω, Φ and Ψ. With need_input_grads=False the
+        clip's gradient (the costly one) is skipped and 'clip' is None; training passes False.
         """
         if not self._used_generator:
             raise RuntimeError("StyleModel.backward needs a preceding forward(x, p, clip); "
                                "use backward_with_film after forward_with_film")
         dx, dp, dfilm = self.backward_with_film(dz)
-        dclip = self.film.backward(dfilm)
+        dclip = self.film.backward(dfilm, need_input_grad=need_input_grads)
         return {"x": dx, "p": dp, "clip": dclip}
 
     # ---- run time ------------------------------------------------------------------------
