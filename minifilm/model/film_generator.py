@@ -66,6 +66,10 @@ class FilmGenerator:
     def forward(self, clip, train=False, rng=None, masks=None):
         """clip (B, T, C) -> film (B, 4*hidden)."""
         c, P, self.used_masks = self.config, self.params.params, {}
+        # Drop the previous pass's caches now, not when the new ones are complete: they hold the
+        # im2col matrices (~330 MB at the paper's size and batch 32), which would otherwise be
+        # alive twice at the peak of every training step.
+        self._caches = None
         if clip.ndim != 3 or clip.shape[1:] != (c.clip_frames, c.clip_channels):
             raise ValueError(f"FilmGenerator: clip must be (B, {c.clip_frames}, {c.clip_channels}), "
                              f"got {clip.shape}")
