@@ -189,7 +189,7 @@ def generate_per_style(trainer, ds, data_dir: Path, out: Path, seconds: float):
     joints = root_joint_indices(ds.layout, template)
     n_frames = int(round(seconds * ds.fps))
     (out / "generated").mkdir(exist_ok=True)
-    log(f"[generate] {seconds:g} s per style along a figure-eight; mean hips height and distance to the path:")
+    log(f"[generate] {seconds:g} s per style along a figure-eight:")
     for name in ds.styles:
         script = make_script("figure8", seconds)
         rollout = controller.run(script, n_frames, library[name])
