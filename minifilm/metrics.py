@@ -1,0 +1,127 @@
+"""Style metrics for the comparison of Sec. 5 (Figure 8, 10, 11): numbers computed from rollouts,
+style scores and FiLM vectors. Plain NumPy, no model code.
+
+- foot sliding and bone-length variation of generated motion (quality of rollouts);
+- smoothness of a style score along an interpolation weight (Figure 8: FiLM blends smoothly);
+- a 2-D PCA embedding and the silhouette score of FiLM vectors grouped by style (Figure 11).
+"""
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from minifilm.motion.foot_ik import foot_sliding
+
+
+# ---------------------------------------------------------------------------- rollouts
+def bone_length_variation(positions: np.ndarray, parents: Sequence[int]) -> dict:
+    """Coefficient of variation (std / mean over frames) of every bone's length.
+
+    positions (F, J, 3) world joint positions; parents (J,) with -1 for the root. The network
+    predicts joint positions independently, so nothing forces bone lengths to stay fixed; real
+    motion has cv 0. Returns {'mean': mean cv over bones, 'max': worst bone}.
+    """
+    P = np.asarray(positions, dtype=np.float64)
+    parents = np.asarray(parents)
+    if P.ndim != 3 or P.shape[1] != len(parents) or P.shape[2] != 3:
+        raise ValueError(f"bone_length_variation: positions {P.shape} must be (F, {len(parents)}, 3)")
+    child = np.nonzero(parents >= 0)[0]
+    lengths = np.linalg.norm(P[:, child] - P[:, parents[child]], axis=-1)        # (F, bones)
+    cv = lengths.std(axis=0) / np.maximum(lengths.mean(axis=0), 1e-9)
+    return {"mean": float(cv.mean()), "max": float(cv.max())}
+
+
+def rollout_quality(rollout, parents: Sequence[int], toes: Sequence[int], warmup_seconds: float = 1.0,
+                    contact_threshold: float = 0.5) -> dict:
+    """Foot sliding (m/s) and bone-length variation of a :class:`minifilm.runtime.Rollout`,
+    averaged over its characters, after ``warmup_seconds`` (the start pose is the mean pose).
+
+    toes: joint index of the toe for each contact column (the Rollout's order [right, left]).
+    """
+    k0 = min(int(round(warmup_seconds * rollout.fps)), rollout.positions.shape[1] - 2)
+    slide, cv_mean, cv_max = [], [], []
+    for b in range(rollout.positions.shape[0]):
+        P = rollout.positions[b, k0:]
+        slide.append(foot_sliding(P, rollout.contacts[b, k0:], toes, rollout.fps, contact_threshold))
+        v = bone_length_variation(P, parents)
+        cv_mean.append(v["mean"])
+        cv_max.append(v["max"])
+    return {"foot_sliding": float(np.mean(slide)), "bone_cv_mean": float(np.mean(cv_mean)),
+            "bone_cv_max": float(np.max(cv_max))}
+
+
+# ---------------------------------------------------------------------------- interpolation
+def interpolation_smoothness(weights: np.ndarray, scores: np.ndarray) -> dict:
+    """How smoothly a style score s(w) (e.g. the classifier's probability of style B) follows the
+    blend weight w from style A (w = 0) to style B (w = 1) (Figure 8).
+
+    weights (n,) increasing, scores (n,). Returns
+      change:       s(1) - s(0)  (how far the score moves at all);
+      monotonicity: |s(1) - s(0)| / sum |s_{k+1} - s_k|  (1 = monotone, less = back and forth);
+      max_step:     max |s_{k+1} - s_k| / max(|s(1) - s(0)|, 1e-9)  (1/(n-1) for a linear score on
+                    an even grid, 1 for a step: how much of the change happens between two weights);
+      linear_rmse:  RMS distance of s(w) from the straight line between its end points.
+    """
+    w = np.asarray(weights, dtype=np.float64)
+    s = np.asarray(scores, dtype=np.float64)
+    if w.ndim != 1 or w.shape != s.shape or len(w) < 2:
+        raise ValueError(f"interpolation_smoothness: weights {w.shape} and scores {s.shape} must be "
+                         f"equal 1-D arrays of length >= 2")
+    if np.any(np.diff(w) <= 0):
+        raise ValueError("interpolation_smoothness: weights must be strictly increasing")
+    steps = np.abs(np.diff(s))
+    change = s[-1] - s[0]
+    total = steps.sum()
+    line = s[0] + (w - w[0]) / (w[-1] - w[0]) * change
+    return {"change": float(change),
+            "monotonicity": float(abs(change) / total) if total > 0 else 1.0,
+            "max_step": float(steps.max() / max(abs(change), 1e-9)),
+            "linear_rmse": float(np.sqrt(np.mean((s - line) ** 2)))}
+
+
+# ---------------------------------------------------------------------------- FiLM codes
+def pca_2d(X: np.ndarray, basis_from: np.ndarray | None = None):
+    """Project rows of X (N, D) onto the first two principal axes.
+
+    basis_from (M, D): rows that define the mean and the axes (default X itself), so codes before
+    and after fine-tuning can be drawn in one frame. Returns (Y (N, 2), explained variance ratio (2,)).
+    """
+    X = np.asarray(X, dtype=np.float64)
+    B = X if basis_from is None else np.asarray(basis_from, dtype=np.float64)
+    mean = B.mean(axis=0)
+    _, sv, Vt = np.linalg.svd(B - mean, full_matrices=False)
+    var = sv ** 2
+    ratio = var[:2] / max(var.sum(), 1e-300)
+    if len(ratio) < 2:                         # one row or one column: pad the missing axis
+        Vt = np.vstack([Vt, np.zeros((2 - len(Vt), X.shape[1]))])
+        ratio = np.pad(ratio, (0, 2 - len(ratio)))
+    return (X - mean) @ Vt[:2].T, ratio
+
+
+def silhouette_score(X: np.ndarray, labels: np.ndarray) -> float:
+    """Mean silhouette (Rousseeuw 1987) of points X (N, D) with cluster labels (N,), Euclidean.
+
+    For point i: a = mean distance to the other points of its cluster, b = the smallest mean
+    distance to the points of another cluster, s = (b - a) / max(a, b); s = 0 for a point alone in
+    its cluster. In [-1, 1]; near 1 = compact, well separated clusters. Needs >= 2 clusters.
+    """
+    X = np.asarray(X, dtype=np.float64)
+    labels = np.asarray(labels)
+    if X.ndim != 2 or labels.shape != (len(X),):
+        raise ValueError(f"silhouette_score: X {X.shape} must be (N, D) with labels (N,), got {labels.shape}")
+    names, lab = np.unique(labels, return_inverse=True)
+    if len(names) < 2:
+        raise ValueError("silhouette_score: needs at least 2 clusters")
+    sq = (X * X).sum(axis=1)
+    D = np.sqrt(np.maximum(sq[:, None] + sq[None, :] - 2 * X @ X.T, 0.0))         # (N, N)
+    onehot = np.eye(len(names))[lab]                                              # (N, K)
+    counts = onehot.sum(axis=0)                                                    # (K,)
+    sums = D @ onehot                                                              # (N, K)
+    own = counts[lab]
+    a = sums[np.arange(len(X)), lab] / np.maximum(own - 1, 1)                      # self-distance is 0
+    other = sums / counts
+    other[np.arange(len(X)), lab] = np.inf
+    b = other.min(axis=1)
+    s = np.where(own > 1, (b - a) / np.maximum(np.maximum(a, b), 1e-300), 0.0)
+    return float(s.mean())
