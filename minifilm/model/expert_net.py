@@ -1,0 +1,93 @@
+"""Φ without FiLM: the synthesis network of the one-hot and residual-adapter variants (Sec. 5).
+
+Three blended-expert layers (experts = PFNN control points or MANN/LPN experts, blended by α):
+
+    a(1) = Σ_k α_k (W_k x + b_k) + shift          shift: the one-hot style term (or 0)
+    h(1) = ELU(a(1));  h(1) ← adapter(h(1))        adapter: residual adapter (or identity)
+    h(2) = ELU(Σ_k α_k (W_k h(1) + b_k))
+    z    = Σ_k α_k (W_k h(2) + b_k)
+
+as in the PFNN / MANN (ELU, no layer norm; the LPN's layer norm exists to be modulated by FiLM,
+Eq. 3). Dropout (rate config.dropout) on the input of every layer in training, with named sites
+("motion0..2") so a gradient check can replay the masks. Parameters have the same names and
+shapes as MotionNetwork's (motion_shapes), W{l} (K, in, out), b{l} (K, out).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from minifilm.model.config import ModelConfig
+from minifilm.model.dropout_masks import dropout_site, dropout_site_backward
+from minifilm.model.init import glorot_uniform
+from minifilm.model.motion_net import motion_shapes
+from minifilm.nn import functional as F
+from minifilm.nn.params import Parameters
+
+
+class ExpertNetwork:
+    """x (B, x_dim), α (B, K) [, shift (B, H), adapter] -> z (B, z_dim)."""
+
+    def __init__(self, config: ModelConfig, rng: np.random.Generator, dtype=np.float32):
+        self.config = config
+        sizes = [config.x_dim, config.hidden, config.hidden, config.z_dim]
+        shapes = motion_shapes(config)
+        self.params = Parameters(shapes, dtype=dtype)
+        for l in range(3):
+            self.params.params[f"W{l}"][...] = glorot_uniform(rng, shapes[f"W{l}"], sizes[l], sizes[l + 1], dtype)
+            self.params.params[f"b{l}"][...] = 0.0
+        self.used_masks: dict = {}
+        self._caches = None
+
+    def forward(self, x, alpha, train=False, rng=None, masks=None, shift=None, adapter=None):
+        """shift (B, H) is added before the first activation; adapter(h) -> h acts on h(1)."""
+        P, q, self.used_masks = self.params.params, self.config.dropout, {}
+        caches = []
+        h = x
+        for l in range(3):
+            h, c_drop = dropout_site(h, q, f"motion{l}", train, rng, masks, self.used_masks)
+            h, c_exp = F.expert_linear_forward(h, alpha, P[f"W{l}"], P[f"b{l}"])
+            c_act = None
+            if l == 0 and shift is not None:
+                h = h + shift
+            if l < 2:
+                h, c_act = F.elu_forward(h)
+            if l == 0 and adapter is not None:
+                h = adapter(h)
+            caches.append((c_drop, c_exp, c_act))
+        self._caches = caches
+        return h
+
+    def backward(self, dz, adapter_backward=None):
+        """dz (B, z_dim) -> dx (B, x_dim), dα (B, K), dshift (B, H); parameter grads are added."""
+        if self._caches is None:
+            raise RuntimeError("ExpertNetwork.backward called before forward")
+        G = self.params.grads
+        dalpha, dshift, dh = 0.0, None, dz
+        for l in reversed(range(3)):
+            c_drop, c_exp, c_act = self._caches[l]
+            if l == 0 and adapter_backward is not None:
+                dh = adapter_backward(dh)
+            if l < 2:
+                dh = F.elu_backward(dh, c_act)
+            if l == 0:
+                dshift = dh
+            dh, da, dW, db = F.expert_linear_backward(dh, c_exp)
+            G[f"W{l}"] += dW
+            G[f"b{l}"] += db
+            dalpha = dalpha + da
+            dh = dropout_site_backward(dh, c_drop)
+        return dh, dalpha, dshift
+
+    def predict_single(self, x, alpha, shift=None, adapter=None):
+        """Batch 1, no dropout: x (x_dim,), α (K,) [, shift (H,), adapter] -> z (z_dim,)."""
+        P = self.params.params
+        h = x
+        for l in range(3):
+            h = F.expert_linear_single(h, alpha, P[f"W{l}"], P[f"b{l}"])
+            if l == 0 and shift is not None:
+                h = h + shift
+            if l < 2:
+                h = np.where(h > 0, h, np.expm1(np.minimum(h, 0)))   # ELU
+            if l == 0 and adapter is not None:
+                h = adapter(h)
+        return h
