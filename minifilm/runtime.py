@@ -34,6 +34,7 @@ from typing import Callable, List, Optional, Sequence, Union
 import numpy as np
 
 from minifilm.control import Script, blend_future_trajectory
+from minifilm.motion.features import trajectory_offsets
 from minifilm.motion.layout import CURRENT_SAMPLE, FeatureLayout
 from minifilm.motion.motion import Motion
 from minifilm.motion.retarget import axes_to_rotation, retarget
@@ -293,7 +294,9 @@ class Controller:
         self.foot_locker = foot_locker
         L = layout
         ts = np.asarray(L.trajectory_seconds)
-        self.past_frames = np.round(-ts[:CURRENT_SAMPLE] * self.fps).astype(int)   # e.g. 60, 50, .., 10
+        # the training features' rounding (halves away from zero), so a sample on half a frame
+        # (e.g. -1/6 s at 15 fps) reads the same frame here as in the data set
+        self.past_frames = -trajectory_offsets(self.fps, L.trajectory_seconds)[:CURRENT_SAMPLE]  # 60, 50, .., 10
         fut = ts[CURRENT_SAMPLE:]
         self.sample_dt = float(np.mean(np.diff(fut)))                              # 0.2 s
         self.history = int(self.past_frames.max())
