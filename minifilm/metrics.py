@@ -100,7 +100,12 @@ def pca_2d(X: np.ndarray, basis_from: np.ndarray | None = None):
 
 
 def silhouette_score(X: np.ndarray, labels: np.ndarray) -> float:
-    """Mean silhouette (Rousseeuw 1987) of points X (N, D) with cluster labels (N,), Euclidean.
+    """Mean silhouette (Rousseeuw 1987) of points X (N, D) with labels (N,); see silhouette_samples."""
+    return float(silhouette_samples(X, labels).mean())
+
+
+def silhouette_samples(X: np.ndarray, labels: np.ndarray) -> np.ndarray:
+    """Silhouette (Rousseeuw 1987) of every point of X (N, D) with cluster labels (N,), Euclidean.
 
     For point i: a = mean distance to the other points of its cluster, b = the smallest mean
     distance to the points of another cluster, s = (b - a) / max(a, b); s = 0 for a point alone in
@@ -123,5 +128,4 @@ def silhouette_score(X: np.ndarray, labels: np.ndarray) -> float:
     other = sums / counts
     other[np.arange(len(X)), lab] = np.inf
     b = other.min(axis=1)
-    s = np.where(own > 1, (b - a) / np.maximum(np.maximum(a, b), 1e-300), 0.0)
-    return float(s.mean())
+    return np.where(own > 1, (b - a) / np.maximum(np.maximum(a, b), 1e-300), 0.0)

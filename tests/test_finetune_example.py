@@ -1,0 +1,28 @@
+"""Smoke test: the fine-tuning example's miniature runs end to end and reports sane numbers."""
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "finetune_new_style.py"
+
+
+def test_quick_run(tmp_path):
+    spec = importlib.util.spec_from_file_location("finetune_new_style", EXAMPLE)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    r = mod.run(out=tmp_path, quick=True)
+    assert r["holdout"] not in r["seen"]
+    assert r["finetune_steps"] > 0 and r["finetune_seconds"] > 0
+    for tag in ("before", "after"):
+        for group in ("new", "seen"):
+            assert np.isfinite(r[tag][group]["mse"]) and r[tag][group]["mse"] > 0
+        assert -1 <= r["separation"][tag]["silhouette"] <= 1
+    # only Ψ was trained: Ω and Φ of the fine-tuned checkpoint equal the base checkpoint's
+    with np.load(tmp_path / "base.npz") as a, np.load(tmp_path / "finetuned.npz") as b:
+        frozen = [k for k in a.files if k.startswith(("gating", "motion")) and not k.startswith("adam")]
+        changed = [k for k in a.files if k.startswith("film")]
+        assert frozen and changed
+        assert all(np.array_equal(a[k], b[k]) for k in frozen)
+        assert any(not np.array_equal(a[k], b[k]) for k in changed)
+    assert (tmp_path / "film_codes.png").is_file()
