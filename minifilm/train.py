@@ -149,6 +149,11 @@ class Trainer:
                 raise TrainingDiverged(f"step {self.step} ({where}): {name} is not finite "
                                        f"({'nan' if np.any(np.isnan(value)) else 'inf'}); weights not updated")
 
+    def _style_kw(self, style_ids):
+        """Style ids for models whose style modulation is indexed by style (the one-hot and
+        residual-adapter variants of minifilm.model.variants); nothing for FiLM models."""
+        return {"style": style_ids} if getattr(self.model, "takes_style_ids", False) else {}
+
     # -- one epoch ---------------------------------------------------------------------
     def train_epoch(self, data: TrainData):
         """One epoch of style-balanced minibatches; returns {'mse', 'bll', 'per_style'} means."""
@@ -162,7 +167,7 @@ class Trainer:
             x, p, z = data.x[idx].astype(dtype), data.p[idx].astype(dtype), data.z[idx].astype(dtype)
             clips = data.clips[clip_idx].astype(dtype)
             self.model.zero_grad()
-            pred = self.model.forward(x, p, clips, train=True, rng=self.rng)
+            pred = self.model.forward(x, p, clips, train=True, rng=self.rng, **self._style_kw(data.style[idx]))
             mse, bll, dpred = self.losses(pred, z)
             where = f"epoch {self.epoch + 1}, batch {i + 1}, style {self._name(s)}"
             self._check_finite(where, [("MSE loss", mse), ("bone-length loss", bll)])
@@ -197,7 +202,8 @@ class Trainer:
             for a in range(0, len(frames), self.config.eval_batch):
                 idx = frames[a:a + self.config.eval_batch]
                 clips = data.clips[draw_clips(data, data.style[idx], rng)].astype(dtype)
-                pred = self.model.forward(data.x[idx].astype(dtype), data.p[idx].astype(dtype), clips)
+                pred = self.model.forward(data.x[idx].astype(dtype), data.p[idx].astype(dtype), clips,
+                                          **self._style_kw(data.style[idx]))
                 mse, bll, _ = self.losses(pred, data.z[idx].astype(dtype))
                 acc = sums.setdefault(int(s), [0.0, 0.0, 0])
                 acc[0] += mse * len(idx)
@@ -242,6 +248,8 @@ class Trainer:
                 "epoch": self.epoch, "step": self.step, "history": self.history,
                 "rng_state": self.rng.bit_generator.state, "style_names": list(self.style_names),
                 "has_film_generator": self.model.film is not None,
+                "variant": ({"name": self.model.name, "n_styles": getattr(self.model, "n_styles", None)}
+                            if hasattr(self.model, "name") else None),
                 "positions_idx": None if self.positions_idx is None else np.asarray(self.positions_idx).tolist(),
                 "parents": None if self.parents is None else np.asarray(self.parents).tolist()}
         arrays = {**model_arrays(self.model), **self.stats.to_arrays("stats."),
@@ -262,7 +270,14 @@ class Trainer:
             stats = NormStats.from_arrays(arrays, "stats.")
         except (KeyError, ValueError, TypeError) as e:
             raise CheckpointError(f"checkpoint {path}: bad configuration or statistics ({e})") from e
-        model = StyleModel(mcfg, np.random.default_rng(0), with_film_generator=meta.get("has_film_generator", True))
+        variant = meta.get("variant")
+        if variant:       # a comparison model of Sec. 5 (minifilm.model.variants)
+            from minifilm.model.variants import build_variant
+            n_styles = variant.get("n_styles")
+            model = build_variant(variant["name"], mcfg, np.random.default_rng(0),
+                                  **({} if n_styles is None else {"n_styles": int(n_styles)}))
+        else:
+            model = StyleModel(mcfg, np.random.default_rng(0), with_film_generator=meta.get("has_film_generator", True))
         load_model_arrays(model, arrays, path)
         pos = meta.get("positions_idx")
         par = meta.get("parents")
