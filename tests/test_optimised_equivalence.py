@@ -140,6 +140,32 @@ def test_conv1d_equals_tap_loop(rng, B, T, C, Fo, k):
     assert_close(db2, rb)
 
 
+def test_workspaces_reuse_buffers_without_changing_results(rng):
+    """A layer's workspace (reused im2col and gradient buffers): successive calls with new data,
+    and a change of batch size, give exactly what calls without a workspace give."""
+    k, C, Fo = 5, 3, 4
+    W, b = rng.standard_normal((k, C, Fo)), rng.standard_normal(Fo)
+    work = {}
+    for B, T in [(2, 9), (2, 9), (3, 9), (2, 9)]:
+        x = rng.standard_normal((B, T, C))
+        y, cache = F.conv1d_forward(x, W, b, work=work)
+        dout = rng.standard_normal(y.shape)
+        got = F.conv1d_backward(dout, cache)
+        assert_close(y, conv_ref(x, W, b))
+        for g, r in zip(got, conv_ref_backward(dout, x, W)):
+            assert_close(g, r)
+    cols = work["cols"]
+    F.conv1d_forward(rng.standard_normal((2, 9, C)), W, b, work=work)
+    assert work["cols"] is cols                           # same shape: the buffer was reused
+    Wl, bl = rng.standard_normal((6, 4)), rng.standard_normal(4)
+    lwork = {}
+    for _ in range(2):
+        x = rng.standard_normal((5, 6))
+        _, cache = F.linear_forward(x, Wl, bl)
+        dout = rng.standard_normal((5, 4))
+        assert_close(F.linear_backward(dout, cache, work=lwork)[1], x.T @ dout)
+
+
 def test_conv1d_float32_agrees_with_float64_reference(rng):
     x, W, b = rng.standard_normal((2, 20, 6)), rng.standard_normal((5, 6, 4)), rng.standard_normal(4)
     y, _ = F.conv1d_forward(x.astype(np.float32), W.astype(np.float32), b.astype(np.float32))

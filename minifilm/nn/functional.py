@@ -35,6 +35,29 @@ def _sum_to_shape(grad: np.ndarray, shape: tuple) -> np.ndarray:
     return grad
 
 
+def _scratch(work: dict | None, name: str, shape: tuple, dtype, zeros: bool = False) -> np.ndarray:
+    """A scratch array kept in ``work`` between calls (a new one when ``work`` is None).
+
+    Why: on this kind of machine a fresh array of more than 32 MB is mapped from the operating
+    system on every call and the first write to each page costs a page fault (about 1.3 ms per MB
+    here, a third of a paper-size training step). A layer that keeps a ``work`` dict and passes
+    it to every call reuses its big buffers instead. A workspace belongs to ONE layer: arrays
+    taken from it (and the caches and gradients that point into them) are overwritten by that
+    layer's next call. ``zeros=True``: a new array starts zeroed (callers that write only part of
+    it rely on the rest staying zero across reuses).
+    """
+    shape = tuple(shape)
+    dtype = np.dtype(dtype)
+    if work is not None:
+        a = work.get(name)
+        if a is not None and a.shape == shape and a.dtype == dtype:
+            return a
+    a = np.zeros(shape, dtype) if zeros else np.empty(shape, dtype)
+    if work is not None:
+        work[name] = a
+    return a
+
+
 # --------------------------------------------------------------------------------------------
 # Linear
 # --------------------------------------------------------------------------------------------
@@ -51,12 +74,17 @@ def linear_forward(x: np.ndarray, W: np.ndarray, b: np.ndarray):
     return x @ W + b, (x, W)
 
 
-def linear_backward(dout: np.ndarray, cache):
-    """Gradients of :func:`linear_forward`: dx (..., I), dW (I, O), db (O,)."""
+def linear_backward(dout: np.ndarray, cache, work: dict | None = None):
+    """Gradients of :func:`linear_forward`: dx (..., I), dW (I, O), db (O,).
+
+    With ``work`` (see :func:`_scratch`) dW is written into a buffer kept there: add it to your
+    gradients before the next call.
+    """
     x, W = cache
     x2 = x.reshape(-1, W.shape[0])       # (N, I) with N = product of the leading axes
     d2 = dout.reshape(-1, W.shape[1])    # (N, O)
-    return dout @ W.T, x2.T @ d2, d2.sum(axis=0)
+    dW = np.matmul(x2.T, d2, out=_scratch(work, "dW", W.shape, np.result_type(x2, d2)))
+    return dout @ W.T, dW, d2.sum(axis=0)
 
 
 # --------------------------------------------------------------------------------------------
@@ -263,29 +291,34 @@ def expert_linear_backward(dout: np.ndarray, cache):
 # --------------------------------------------------------------------------------------------
 # 1-D convolution over time and max pooling (the FiLM generator Psi, Eq. 2)
 # --------------------------------------------------------------------------------------------
-def _im2col(x: np.ndarray, k: int) -> np.ndarray:
+def _im2col(x: np.ndarray, k: int, work: dict | None = None, name: str = "cols") -> np.ndarray:
     """(B, T, C) -> cols (B*T, k*C): row (b, t) holds frames t - k//2 .. t + k//2, zero-padded.
 
     In the zero-padded, channels-last sample xp (T + k - 1, C), the window of frame t is the k*C
     CONSECUTIVE numbers starting at xp[t, 0]. So the windows are a strided view of the flat
     padded samples (sliding windows of length k*C taken every C numbers), and the one copy that
     makes cols contiguous for the matrix product is a row-by-row memcpy. Row layout is tap-major,
-    (j, c), matching W (k, C, F).
+    (j, c), matching W (k, C, F). Both buffers come from ``work`` when given (see _scratch).
     """
     B, T, C = x.shape
     pad = k // 2
-    xp = np.zeros((B, T + k - 1, C), dtype=x.dtype)
+    # only the middle is written, so the zero padding of a reused buffer stays zero
+    xp = _scratch(work, name + ".padded", (B, T + k - 1, C), x.dtype, zeros=True)
     xp[:, pad: pad + T] = x
     windows = sliding_window_view(xp.reshape(B, -1), k * C, axis=1)[:, ::C]   # (B, T, k*C) view
-    return windows.reshape(B * T, k * C)                                     # the one copy
+    cols = _scratch(work, name, (B * T, k * C), x.dtype)
+    cols.reshape(B, T, k * C)[...] = windows                                  # the one copy
+    return cols
 
 
-def conv1d_forward(x: np.ndarray, W: np.ndarray, b: np.ndarray):
+def conv1d_forward(x: np.ndarray, W: np.ndarray, b: np.ndarray, work: dict | None = None):
     """1-D convolution over time, stride 1, 'same' zero padding (cross-correlation, as in TF).
 
     ``y[b, t, f] = sum_j sum_c x[b, t + j - k//2, c] W[j, c, f] + b[f]`` with x zero outside [0, T).
     x: (B, T, C) channels-last; W: (k, C, F) with k odd; b: (F,) -> y: (B, T, F).
     One matrix product on the im2col matrix (see :func:`_im2col`), kept for the backward pass.
+    ``work``: the layer's workspace (see :func:`_scratch`); the im2col matrix (230 MB for the
+    paper's first layer at batch 32) is then reused from call to call.
     """
     k, C, F = W.shape
     _require(k % 2 == 1, f"conv1d_forward: kernel size must be odd for 'same' padding, W is {W.shape}")
@@ -293,10 +326,10 @@ def conv1d_forward(x: np.ndarray, W: np.ndarray, b: np.ndarray):
              f"conv1d_forward: x is {x.shape}, expected (B, T, {C}) to match W {W.shape}")
     _require(b.shape == (F,), f"conv1d_forward: b is {b.shape}, expected ({F},)")
     B, T, _ = x.shape
-    cols = _im2col(x, k)                                         # (B*T, k*C)
+    cols = _im2col(np.asarray(x, dtype=np.result_type(x, W)), k, work)   # (B*T, k*C)
     y = cols @ W.reshape(k * C, F)                               # (B*T, F)
     y += b                                                       # in place: no second buffer
-    return y.reshape(B, T, F), (cols, x.shape, W)
+    return y.reshape(B, T, F), (cols, x.shape, W, work)
 
 
 def conv1d_backward(dout: np.ndarray, cache, need_dx: bool = True):
@@ -307,18 +340,19 @@ def conv1d_backward(dout: np.ndarray, cache, need_dx: bool = True):
     (k, F, C): dx[t] = sum_j dout[t - j + k//2] W[j]^T, again one product on an im2col matrix.
     With ``need_dx=False`` dx is skipped (None is returned in its place): a network's first
     layer never needs the gradient of its input data, and for the paper's Ψ that product costs as
-    much as the layer's whole forward pass.
+    much as the layer's whole forward pass. With a workspace (given to the forward pass) dW and
+    the im2col matrix of dout live in it: add dW to your gradients before the layer's next call.
     """
-    cols, (B, T, C), W = cache
+    cols, (B, T, C), W, work = cache
     k, _, F = W.shape
     d2 = dout.reshape(B * T, F)
-    dW = (cols.T @ d2).reshape(k, C, F)
+    dW = np.matmul(cols.T, d2, out=_scratch(work, "dW", (k * C, F), np.result_type(cols, d2)))
     db = d2.sum(axis=0)
     dx = None
     if need_dx:
         W_flip = W[::-1].transpose(0, 2, 1).reshape(k * F, C)    # (k*F, C)
-        dx = (_im2col(dout, k) @ W_flip).reshape(B, T, C)
-    return dx, dW, db
+        dx = (_im2col(dout, k, work, "dout_cols") @ W_flip).reshape(B, T, C)
+    return dx, dW.reshape(k, C, F), db
 
 
 def max_pool1d_forward(x: np.ndarray):

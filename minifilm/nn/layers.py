@@ -31,6 +31,7 @@ class Layer:
         self.params: dict[str, np.ndarray] = {}
         self.grads: dict[str, np.ndarray] = {}
         self._cache = None
+        self._work: dict = {}   # big scratch buffers reused from call to call (functional._scratch)
 
     def _bind(self, shapes: dict, parameters: Parameters | None, prefix: str, dtype) -> None:
         """Point ``params``/``grads`` at views of ``parameters`` (a new buffer when None)."""
@@ -78,7 +79,7 @@ class Linear(Layer):
         return out
 
     def backward(self, dout):
-        dx, dW, db = F.linear_backward(dout, self._take_cache())
+        dx, dW, db = F.linear_backward(dout, self._take_cache(), work=self._work)
         self.grads["W"] += dW
         self.grads["b"] += db
         return dx
@@ -138,7 +139,7 @@ class Conv1d(Layer):
             self.params["b"][...] = 0
 
     def forward(self, x, train=False, rng=None):
-        out, self._cache = F.conv1d_forward(x, self.params["W"], self.params["b"])
+        out, self._cache = F.conv1d_forward(x, self.params["W"], self.params["b"], work=self._work)
         return out
 
     def backward(self, dout):
