@@ -62,21 +62,24 @@ class FilmGenerator:
         P["dense1_b"][2 * H:3 * H] = 1.0    # γ2
         self.used_masks: dict = {}
         self._caches = None
+        # one workspace per layer: the big im2col matrices and weight gradients are reused from
+        # step to step instead of being mapped afresh (see minifilm.nn.functional._scratch)
+        self._work = {"conv0": {}, "conv1": {}, "dense0": {}, "dense1": {}}
 
     def forward(self, clip, train=False, rng=None, masks=None):
         """clip (B, T, C) -> film (B, 4*hidden)."""
         c, P, self.used_masks = self.config, self.params.params, {}
-        # Drop the previous pass's caches now, not when the new ones are complete: they hold the
-        # im2col matrices (~330 MB at the paper's size and batch 32), which would otherwise be
-        # alive twice at the peak of every training step.
+        # Drop the previous pass's caches now, not when the new ones are complete, so that no
+        # large array of the last step stays alive next to its successor.
         self._caches = None
         if clip.ndim != 3 or clip.shape[1:] != (c.clip_frames, c.clip_channels):
             raise ValueError(f"FilmGenerator: clip must be (B, {c.clip_frames}, {c.clip_channels}), "
                              f"got {clip.shape}")
-        h, c_conv0 = F.conv1d_forward(clip, P["conv0_W"], P["conv0_b"])   # (B, T, F)
+        W = self._work
+        h, c_conv0 = F.conv1d_forward(clip, P["conv0_W"], P["conv0_b"], work=W["conv0"])  # (B, T, F)
         h, c_relu0 = F.relu_forward(h)
         h, c_pool0 = F.max_pool1d_forward(h)                             # (B, T//2, F)
-        h, c_conv1 = F.conv1d_forward(h, P["conv1_W"], P["conv1_b"])
+        h, c_conv1 = F.conv1d_forward(h, P["conv1_W"], P["conv1_b"], work=W["conv1"])
         h, c_relu1 = F.relu_forward(h)
         h, c_pool1 = F.max_pool1d_forward(h)                             # (B, T//4, F)
         pooled_shape = h.shape
@@ -101,12 +104,12 @@ class FilmGenerator:
         (c_conv0, c_relu0, c_pool0, c_conv1, c_relu1, c_pool1, pooled_shape,
          c_dense0, c_relu2, c_drop, c_dense1) = self._caches
         G = self.params.grads
-        dh, dW, db = F.linear_backward(dfilm, c_dense1)
+        dh, dW, db = F.linear_backward(dfilm, c_dense1, work=self._work["dense1"])
         G["dense1_W"] += dW
         G["dense1_b"] += db
         dh = dropout_site_backward(dh, c_drop)
         dh = F.relu_backward(dh, c_relu2)
-        dh, dW, db = F.linear_backward(dh, c_dense0)
+        dh, dW, db = F.linear_backward(dh, c_dense0, work=self._work["dense0"])
         G["dense0_W"] += dW
         G["dense0_b"] += db
         dh = dh.reshape(pooled_shape)
