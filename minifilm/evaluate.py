@@ -33,6 +33,13 @@ def main(argv=None) -> int:
     if name not in SUBCOMMANDS:
         print(f"minifilm.evaluate: unknown subcommand {name!r}\n\n{usage()}", file=sys.stderr)
         return 2
+    if name == "table2" and "numpy" not in sys.modules:
+        # Batch-1 timing on one BLAS thread, like a game loop: a matrix-vector product gains
+        # nothing from threads, and on a busy machine threaded BLAS made it ~20x slower here.
+        # Must be set before NumPy is first imported; setdefault keeps a user's own choice.
+        import os
+        os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+        os.environ.setdefault("OMP_NUM_THREADS", "1")
     import importlib
     module = importlib.import_module(SUBCOMMANDS[name][0])
     return module.main(rest) or 0

@@ -123,7 +123,9 @@ class VariantModel:
     """
 
     def __init__(self, name: str, config: ModelConfig, rng: np.random.Generator, n_styles: int = 95,
-                 dtype=np.float32, rank: int = ADAPTER_RANK):
+                 dtype=np.float32, rank: int = ADAPTER_RANK, with_film_generator: bool = True):
+        """with_film_generator=False (FiLM variants): a run-time model without Ψ, driven by
+        precomputed FiLM vectors (forward_with_film, predict_single), as StyleModel's option."""
         self.name = name
         self.backbone, self.modulation = _spec(name)
         self.config = config
@@ -135,7 +137,7 @@ class VariantModel:
         self._gate = PhaseFunction(PFNN_CONTROL_POINTS) if self.backbone == "pfnn" else self.gating
         if self.modulation == "film":
             self.motion = MotionNetwork(cb, rng, dtype)
-            self.film = FilmGenerator(config, rng, dtype)
+            self.film = FilmGenerator(config, rng, dtype) if with_film_generator else None
         else:
             self.motion = ExpertNetwork(cb, rng, dtype)
             if self.modulation == "onehot":
@@ -172,6 +174,7 @@ class VariantModel:
     def forward(self, x, p, clip=None, train=False, rng=None, style=None, masks=None):
         """-> z (B, z_dim of the backbone)."""
         if self.modulation == "film":
+            self._require_film_generator()
             if clip is None:
                 raise ValueError(f"{self.name}: FiLM needs a style clip")
             film = self.film.forward(clip, train=train, rng=rng, masks=masks)
@@ -210,7 +213,7 @@ class VariantModel:
 
     # ---- FiLM variants: StyleModel's film interface --------------------------------------------
     def film_parameters(self, clip, train=False, rng=None, masks=None):
-        self._require_film()
+        self._require_film_generator()
         return self.film.forward(clip, train=train, rng=rng, masks=masks)
 
     def forward_with_film(self, x, p, film, train=False, rng=None, masks=None, style=None):
@@ -234,6 +237,11 @@ class VariantModel:
     def _require_film(self):
         if self.modulation != "film":
             raise RuntimeError(f"{self.name} has no FiLM generator")
+
+    def _require_film_generator(self):
+        self._require_film()
+        if self.film is None:
+            raise RuntimeError(f"{self.name} was built without its FiLM generator Ψ; use forward_with_film")
 
     # ---- run time ---------------------------------------------------------------------------
     def predict_single(self, x, p, style):
@@ -268,10 +276,12 @@ class LPNFilm(StyleModel):
 
 
 def build_variant(name: str, config: ModelConfig, rng: np.random.Generator, n_styles: int = 95,
-                  dtype=np.float32):
+                  dtype=np.float32, with_film_generator: bool = True):
     """A freshly initialised model of variant `name` (one of VARIANTS). `config` is the LPN's
-    configuration; the backbone's own sizes come from backbone_config. 'LPN FiLM' is a StyleModel."""
+    configuration; the backbone's own sizes come from backbone_config. 'LPN FiLM' is a StyleModel.
+    with_film_generator=False leaves Ψ out of the FiLM variants (run time only)."""
     _spec(name)
     if name == "LPN FiLM":
-        return LPNFilm(config, rng, dtype)
-    return VariantModel(name, config, rng, n_styles=n_styles, dtype=dtype)
+        return LPNFilm(config, rng, dtype, with_film_generator=with_film_generator)
+    return VariantModel(name, config, rng, n_styles=n_styles, dtype=dtype,
+                        with_film_generator=with_film_generator)
