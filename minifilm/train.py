@@ -275,6 +275,7 @@ class Trainer:
             from minifilm.model.variants import build_variant
             n_styles = variant.get("n_styles")
             model = build_variant(variant["name"], mcfg, np.random.default_rng(0),
+                                  with_film_generator=meta.get("has_film_generator", True),
                                   **({} if n_styles is None else {"n_styles": int(n_styles)}))
         else:
             model = StyleModel(mcfg, np.random.default_rng(0), with_film_generator=meta.get("has_film_generator", True))
