@@ -59,6 +59,8 @@ SPECS = {
     "LPN FiLM": ("lpn", "film"),
 }
 VARIANTS = tuple(SPECS)
+#: what each backbone's gate reads (its p input)
+GATE_INPUT = {"pfnn": "global phase in [0, 1)", "mann": "end-effector velocities", "lpn": "local phases"}
 PFNN_CONTROL_POINTS = 4
 ADAPTER_RANK = 30
 
@@ -166,9 +168,7 @@ class VariantModel:
     def _check_p(self, p):
         want = self.backbone_config.phase_dim
         if p.ndim != 2 or p.shape[1] != want:
-            raise ValueError(f"{self.name}: p must be (B, {want}) "
-                             f"({ {'pfnn': 'global phase', 'mann': 'end-effector velocities', 'lpn': 'local phases'}[self.backbone]}), "
-                             f"got {p.shape}")
+            raise ValueError(f"{self.name}: p must be (B, {want}) ({GATE_INPUT[self.backbone]}), got {p.shape}")
 
     # ---- forward / backward ---------------------------------------------------------------
     def forward(self, x, p, clip=None, train=False, rng=None, style=None, masks=None):
@@ -187,9 +187,9 @@ class VariantModel:
         if self.modulation == "onehot":
             shift = self.film.forward(style, alpha)
         else:
-            adapter = lambda h: self.film.forward(h, style, alpha)   # noqa: E731 (α = spline weights for the PFNN)
             if style is None:
                 raise ValueError(f"{self.name}: needs style ids (forward(..., style=ids))")
+            adapter = lambda h: self.film.forward(h, style, alpha)   # noqa: E731 (α = spline weights for the PFNN)
         z = self.motion.forward(x, alpha, train=train, rng=rng, masks=masks, shift=shift, adapter=adapter)
         self._state = "style"
         return z
