@@ -127,3 +127,17 @@ def test_predict_single_matches_forward(name):
     z = model.forward(x, p, clip, style=np.array([2]))
     style = 2 if model.takes_style_ids else model.film_parameters(clip)[0]
     np.testing.assert_allclose(model.predict_single(x[0], p[0], style), z[0], atol=1e-5)
+
+
+def test_lpn_film_variant_runs_in_the_runtime_network():
+    """build_variant('LPN FiLM') is a StyleModel: the run-time network takes it as it is."""
+    from minifilm.runtime import RuntimeNetwork
+    from minifilm.traindata import NormStats
+    rng = np.random.default_rng(6)
+    cfg = ModelConfig.small(z_dim=40)
+    model = build_variant("LPN FiLM", cfg, rng, with_film_generator=False)
+    net = RuntimeNetwork.from_model(model, NormStats.identity(cfg.x_dim, cfg.z_dim))
+    x = rng.standard_normal((1, cfg.x_dim)).astype(np.float32)
+    p = rng.standard_normal((1, 8)).astype(np.float32)
+    film = rng.standard_normal(cfg.film_dim).astype(np.float32)
+    np.testing.assert_allclose(net.predict(x, p, film)[0], model.predict_single(x[0], p[0], film), atol=1e-4)
