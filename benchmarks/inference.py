@@ -9,7 +9,7 @@ batch 1 uses ``StyleModel.predict_single`` (the run-time path), larger batches
 NumPy and PyTorch calls are interleaved (at batch 1 in blocks of 50 calls, so that each side's
 weights can stay in the cache as in a real-time loop); times are medians after warm-up.
 
-    python benchmarks/inference.py [--repeat 200] [--threads N]
+    python benchmarks/inference.py [--repeat 200] [--threads N] [--profile]
 """
 import common  # noqa: F401  (sets the BLAS thread count before numpy is imported)
 
@@ -23,6 +23,35 @@ from minifilm.model.style_model import StyleModel  # noqa: E402
 from torch_reference import from_numpy, load_torch  # noqa: E402
 
 
+def profile_batch1(model, x, p, film, repeat):
+    """Where a batch-1 frame's time goes: Ω, each expert product, the rest (median ms)."""
+    from common import median_ms
+    from minifilm.model.motion_net import split_film
+    from minifilm.nn import functional as F
+    P, H = model.motion.params.params, model.config.hidden
+    alpha = model.gating.forward(p[None, :])[0]
+    films = split_film(film, H)
+    ins = [x]
+    for l in range(2):                                   # the real inputs of layers 1 and 2
+        h = F.expert_linear_single(ins[-1], alpha, P[f"W{l}"], P[f"b{l}"])
+        h = F.layer_norm_forward(h[None, :])[0][0]
+        ins.append(F.elu_forward(films[l][0] * h + films[l][1])[0])
+    rows = [{"part": "Ω gating (3 small layers)", "ms": median_ms(lambda: model.gating.forward(p[None, :]), repeat, 20)}]
+    total_bytes = 0
+    for l in range(3):
+        W, b = P[f"W{l}"], P[f"b{l}"]
+        nbytes = W.nbytes + b.nbytes
+        total_bytes += nbytes
+        t = median_ms(lambda: F.expert_linear_single(ins[l], alpha, W, b), repeat, 20)
+        rows.append({"part": f"Φ expert product {l} {W.shape}", "ms": t,
+                     "weights MB": nbytes / 1e6, "GB/s": nbytes / t / 1e6})
+    whole = median_ms(lambda: model.predict_single(x, p, film), repeat, 20)
+    rows.append({"part": "whole predict_single", "ms": whole, "weights MB": total_bytes / 1e6,
+                 "GB/s": total_bytes / whole / 1e6})
+    print("\nbatch-1 profile (NumPy): the expert products must read all K expert matrices every frame")
+    table(rows, ["part", "ms", "weights MB", "GB/s"])
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--batch", type=int, nargs="*", default=[1, 64])
@@ -30,6 +59,7 @@ def main():
     ap.add_argument("--threads", type=int, default=THREADS, help="BLAS / torch threads")
     ap.add_argument("--coretype", default=common.CORETYPE, help="OpenBLAS kernels (see common.py)")
     ap.add_argument("--no-torch", action="store_true")
+    ap.add_argument("--profile", action="store_true", help="also break a batch-1 frame down")
     args = ap.parse_args()
 
     torch = None if args.no_torch else load_torch(THREADS)
@@ -73,6 +103,9 @@ def main():
         print()
     table(rows, ["batch", "numpy ms", "numpy ms/frame", "numpy frames/s", "torch ms", "torch frames/s",
                  "torch/numpy"])
+    if args.profile:
+        x, p, film, _, _ = random_batch(config, 1, rng, with_clip=False)
+        profile_batch1(model, x[0], p[0], film[0], args.repeat)
     print(f"# load average at the end: {common.load_average()}")
 
 

@@ -39,7 +39,7 @@ def numpy_step(model, opt, x, p, film, clip, target, rng):
         else:
             z = model.forward(x, p, clip, train=True, rng=rng)
             _, dz = mse_loss(z, target)
-            model.backward(dz)
+            model.backward(dz, need_input_grads=False)    # like PyTorch: the clip needs no gradient
         opt.step()
     return step
 
