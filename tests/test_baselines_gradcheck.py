@@ -106,3 +106,25 @@ def test_pfnn_layer_gradient_wrt_control_points():
     dx, _, dW, db = F.expert_linear_backward(y - t, cache)
     errors = check_gradients(loss, {"W": (W, dW), "b": (b, db), "x": (x, dx)})
     assert max(errors.values()) < 1e-7, errors
+
+
+def test_onehot_with_blended_style_weights():
+    """A blended one-hot vector (B, S): equals blending the pure styles' outputs of the first
+    layer, and its gradients check."""
+    model, x, p, clip, style, target, rng = make_problem("LPN one-hot", 4)
+    w = rng.dirichlet(np.ones(3), size=len(x))
+    alpha = model.gating.forward(p)
+    mixed = model.film.forward(w, alpha)
+    pure = [model.film.forward(np.full(len(x), s), alpha) for s in range(3)]
+    np.testing.assert_allclose(mixed, sum(w[:, [s]] * pure[s] for s in range(3)), atol=1e-12)
+
+    def loss():
+        return mse_loss(model.forward(x, p, None, style=w), target)[0]
+
+    model.zero_grad()
+    _, d = mse_loss(model.forward(x, p, None, style=w), target)
+    grads = model.backward(d)
+    pairs = {"p": (p, grads["p"]), "E": (model.film.params.params["E"], model.film.params.grads["E"]),
+             "gating.W0": (model.gating.params.params["W0"], model.gating.params.grads["W0"])}
+    errors = check_gradients(loss, pairs, h=1e-3, order=4)
+    assert max(errors.values()) < 1e-6, errors

@@ -66,15 +66,29 @@ class OneHotShift:
         self._cache = None
 
     def forward(self, style, alpha):
-        """style (B,) ints, alpha (B, K) blend weights -> shift (B, H)."""
+        """style (B,) ints, or (B, S) weights of a blended one-hot vector (style interpolation:
+        the term is linear in the vector, so it blends the style rows); alpha (B, K) -> shift (B, H)."""
+        E = self.params.params["E"]
+        if np.ndim(style) == 2:
+            weights = np.asarray(style, dtype=E.dtype)
+            if weights.shape != (alpha.shape[0], self.n_styles):
+                raise ValueError(f"OneHotShift: style weights must be ({alpha.shape[0]}, {self.n_styles}), "
+                                 f"got {weights.shape}")
+            self._cache = ("weights", weights, alpha)
+            return np.einsum("bk,bs,ksh->bh", alpha, weights, E)
         style = _check_styles(style, self.n_styles, alpha.shape[0], "OneHotShift")
-        rows = self.params.params["E"][:, style, :]                 # (K, B, H)
-        self._cache = (style, alpha, rows)
+        rows = E[:, style, :]                                       # (K, B, H)
+        self._cache = ("ids", style, alpha, rows)
         return np.einsum("bk,kbh->bh", alpha, rows)
 
     def backward(self, dshift):
         """dshift (B, H) -> dalpha (B, K); adds dE."""
-        style, alpha, rows = self._cache
+        if self._cache[0] == "weights":
+            _, weights, alpha = self._cache
+            E = self.params.params["E"]
+            self.params.grads["E"] += np.einsum("bk,bs,bh->ksh", alpha, weights, dshift)
+            return np.einsum("bh,bs,ksh->bk", dshift, weights, E)
+        _, style, alpha, rows = self._cache
         dE = np.einsum("bk,bh->kbh", alpha, dshift)                 # (K, B, H)
         np.add.at(self.params.grads["E"], (slice(None), style), dE)
         return np.einsum("bh,kbh->bk", dshift, rows)

@@ -172,7 +172,8 @@ class VariantModel:
 
     # ---- forward / backward ---------------------------------------------------------------
     def forward(self, x, p, clip=None, train=False, rng=None, style=None, masks=None):
-        """-> z (B, z_dim of the backbone)."""
+        """-> z (B, z_dim of the backbone). style: (B,) ids; for one-hot also (B, S) weights of
+        a blended one-hot vector (interpolating styles, Fig. 8)."""
         if self.modulation == "film":
             self._require_film_generator()
             if clip is None:
