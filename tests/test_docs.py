@@ -1,0 +1,265 @@
+"""The documentation is executable: nothing in README.md or docs/ may rot.
+
+* docs/features.md is exactly what scripts/gen_features_doc.py generates from the code's layout;
+* every ```python snippet runs (in order, per file, sharing one namespace, in a scratch folder
+  beside which ``../shared/data`` points at the real data). A snippet whose first line is
+  ``# needs: shared data`` is skipped when that data is absent, and nothing after it may depend
+  on it (it runs in a copy of the namespace);
+* every shell command line (```bash blocks and inline `python ...` spans) names a script or
+  module that exists and only options that script defines, and ``pip install -e ".[extra]"``
+  names extras that setup.cfg defines (the commands themselves are run by CI: .ci/run and
+  tests/test_train_small.py);
+* every reference ``path`` or ``path::name`` to the code (functions, classes, methods, tests)
+  points at a file that exists and a name defined in it, and every relative Markdown link or
+  image points at a file that exists (images under 200 KB).
+"""
+from __future__ import annotations
+
+import ast
+import configparser
+import importlib.util
+import os
+import re
+import shlex
+from functools import lru_cache
+from pathlib import Path
+
+import pytest
+
+from conftest import REPO_ROOT, SHARED_DATA
+
+DOCS = [REPO_ROOT / "README.md"] + sorted((REPO_ROOT / "docs").glob("*.md"))
+NEEDS_DATA = "# needs: shared data"
+
+
+def _rel(p: Path) -> str:
+    return str(p.relative_to(REPO_ROOT))
+
+
+# ---------------------------------------------------------------------------- markdown parsing
+FENCE = re.compile(r"^```(\w*)[ \t]*\n(.*?)^```[ \t]*$", re.S | re.M)
+
+
+def fenced_blocks(path: Path, lang: str):
+    """[(line number, code)] of the fenced blocks of one language."""
+    text = path.read_text(encoding="utf-8")
+    return [(text.count("\n", 0, m.start()) + 1, m.group(2))
+            for m in FENCE.finditer(text) if m.group(1) == lang]
+
+
+def shell_commands(path: Path):
+    """[(line, command)]: lines of ```bash blocks (continuations joined) and inline `python ...`
+    / `pip ...` code spans."""
+    out = []
+    for line, code in fenced_blocks(path, "bash"):
+        joined = re.sub(r"\\\n\s*", " ", code)
+        for i, cmd in enumerate(joined.splitlines()):
+            cmd = cmd.split(" #")[0].strip()
+            if cmd and not cmd.startswith("#"):
+                out.append((line + 1 + i, cmd))
+    text = FENCE.sub(lambda m: "\n" * m.group(0).count("\n"), path.read_text(encoding="utf-8"))
+    for m in re.finditer(r"`((?:python|pip) [^`]+)`", text):
+        out.append((text.count("\n", 0, m.start()) + 1, m.group(1)))
+    return out
+
+
+# ---------------------------------------------------------------------------- 1. features.md
+def test_features_doc_is_generated_from_the_layout():
+    spec = importlib.util.spec_from_file_location("gen_features_doc", REPO_ROOT / "scripts" / "gen_features_doc.py")
+    gen = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(gen)
+    committed = (REPO_ROOT / "docs" / "features.md").read_text(encoding="utf-8")
+    assert committed == gen.render(), \
+        "docs/features.md differs from the layout: run python scripts/gen_features_doc.py"
+
+
+def test_features_doc_covers_every_column_once():
+    """Independent of the generator's grouping: the index ranges of each table tile 0..size-1."""
+    text = (REPO_ROOT / "docs" / "features.md").read_text(encoding="utf-8")
+    sizes = {"x": 348, "p": 8, "z": 342, "y": 300}
+    for section in re.split(r"^## ", text, flags=re.M)[1:]:
+        key = section.split(" ", 1)[0]
+        if key not in sizes:
+            continue
+        covered = []
+        for a, b in re.findall(r"^\| (\d+)(?:–(\d+))? \|", section, flags=re.M):
+            covered.extend(range(int(a), int(b or a) + 1))
+        assert covered == list(range(sizes[key])), f"features.md section {key!r}"
+
+
+# ---------------------------------------------------------------------------- 2. python snippets
+def _run_snippets(path: Path, workdir: Path):
+    ns = {"__name__": "__docs__"}
+    ran = skipped = 0
+    for line, code in fenced_blocks(path, "python"):
+        needs_data = code.lstrip().startswith(NEEDS_DATA)
+        if needs_data and not SHARED_DATA.is_dir():
+            skipped += 1
+            continue
+        where = f"{_rel(path)}, python snippet at line {line}"
+        try:
+            exec(compile(code, where, "exec"), dict(ns) if needs_data else ns)
+        except Exception as e:  # name the snippet, keep the traceback
+            raise AssertionError(f"{where} failed: {type(e).__name__}: {e}") from e
+        ran += 1
+    return ran, skipped
+
+
+@pytest.mark.parametrize("path", [p for p in DOCS if fenced_blocks(p, "python")], ids=_rel)
+def test_python_snippets_run(path, tmp_path, monkeypatch):
+    work = tmp_path / "work"
+    work.mkdir()
+    if SHARED_DATA.is_dir():                       # ../shared/data from the scratch folder
+        (tmp_path / "shared").mkdir()
+        os.symlink(SHARED_DATA, tmp_path / "shared" / "data")
+    monkeypatch.chdir(work)
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    ran, skipped = _run_snippets(path, work)
+    assert ran + skipped > 0
+
+
+# ---------------------------------------------------------------------------- 3. shell commands
+@lru_cache(maxsize=None)
+def script_options(path: Path) -> frozenset:
+    """Every '--option' string literal of a script (argparse definitions)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    return frozenset(n.value for n in ast.walk(tree)
+                     if isinstance(n, ast.Constant) and isinstance(n.value, str)
+                     and re.fullmatch(r"--[\w-]+", n.value))
+
+
+def setup_extras() -> set:
+    cfg = configparser.ConfigParser()
+    cfg.read(REPO_ROOT / "setup.cfg")
+    return set(cfg["options.extras_require"]) if cfg.has_section("options.extras_require") else set()
+
+
+def check_python_command(words) -> str | None:
+    """None if `python ...` refers to things that exist, else what is wrong."""
+    if len(words) >= 3 and words[1] == "-m":
+        module, args = words[2], words[3:]
+        spec = importlib.util.find_spec(module.split(".")[0])
+        if spec is None:
+            return f"module {module} not found"
+        if module.startswith("minifilm"):
+            spec = importlib.util.find_spec(module)
+            if spec is None or spec.origin is None:
+                return f"module {module} not found"
+            source = Path(spec.origin)
+        else:
+            return None
+    elif len(words) >= 2 and words[1].endswith(".py"):
+        source, args = REPO_ROOT / words[1], words[2:]
+        if not source.is_file():
+            return f"script {words[1]} does not exist"
+    else:
+        return None
+    known = script_options(source)
+    bad = [a.split("=")[0] for a in args if a.startswith("--") and a.split("=")[0] not in known | {"--help"}]
+    return f"{_rel(source)} has no option(s) {bad}" if bad else None
+
+
+def check_command(cmd: str) -> list:
+    problems = []
+    for part in re.split(r"&&|;|\|", cmd):
+        try:
+            words = shlex.split(part)
+        except ValueError as e:
+            return [f"cannot parse: {e}"]
+        if not words:
+            continue
+        if words[0] == "python":
+            msg = check_python_command(words)
+            if msg:
+                problems.append(msg)
+        elif words[0] == "pip" and "-e" in words:
+            target = words[words.index("-e") + 1]
+            extras = re.findall(r"\[([\w,]+)\]", target)
+            for extra in (extras[0].split(",") if extras else []):
+                if extra not in setup_extras():
+                    problems.append(f"setup.cfg defines no extra [{extra}]")
+    return problems
+
+
+def test_shell_commands_name_existing_scripts_and_options():
+    problems, n = [], 0
+    for path in DOCS:
+        for line, cmd in shell_commands(path):
+            n += 1
+            problems += [f"{_rel(path)}:{line}: `{cmd}`: {p}" for p in check_command(cmd)]
+    assert n > 0
+    assert not problems, "\n".join(problems)
+
+
+def test_the_command_checker_can_fail():
+    assert check_command("python examples/train_small.py --quick") == []
+    assert check_command("python examples/train_small.py --no-such-option")
+    assert check_command("python examples/no_such_script.py")
+    assert check_command('pip install -e ".[nonexistent]"')
+    assert check_command("python -m minifilm.no_such_module --help")
+
+
+# ---------------------------------------------------------------------------- 4. code references
+REF = re.compile(r"`((?:minifilm|examples|benchmarks|scripts|tests|docs)/[\w/.-]+\.(?:py|md|png|csv))"
+                 r"(?:::([\w.]+))?`")
+
+
+@lru_cache(maxsize=None)
+def defined_names(path: Path) -> frozenset:
+    """Top-level functions, classes and assignments, and Class.method names, of a Python file."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    names = set()
+    for node in tree.body:
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            names.add(node.name)
+            if isinstance(node, ast.ClassDef):
+                for sub in node.body:
+                    if isinstance(sub, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                        names.add(f"{node.name}.{sub.name}")
+                    elif isinstance(sub, (ast.AnnAssign, ast.Assign)):
+                        for t in (sub.targets if isinstance(sub, ast.Assign) else [sub.target]):
+                            if isinstance(t, ast.Name):
+                                names.add(f"{node.name}.{t.id}")
+        elif isinstance(node, (ast.Assign, ast.AnnAssign)):
+            for t in (node.targets if isinstance(node, ast.Assign) else [node.target]):
+                if isinstance(t, ast.Name):
+                    names.add(t.id)
+    return frozenset(names)
+
+
+def test_code_references_exist():
+    problems, n = [], 0
+    for path in DOCS:
+        text = path.read_text(encoding="utf-8")
+        for m in REF.finditer(text):
+            n += 1
+            file, name = REPO_ROOT / m.group(1), m.group(2)
+            line = text.count("\n", 0, m.start()) + 1
+            if not file.exists():
+                problems.append(f"{_rel(path)}:{line}: {m.group(1)} does not exist")
+            elif name and name not in defined_names(file):
+                problems.append(f"{_rel(path)}:{line}: {m.group(1)} defines no {name}")
+    assert n > 0
+    assert not problems, "\n".join(problems)
+
+
+LINK = re.compile(r"\]\(([^)\s#]+)(?:#[^)]*)?\)")
+
+
+def test_relative_links_and_images_exist():
+    problems, n = [], 0
+    for path in DOCS:
+        text = path.read_text(encoding="utf-8")
+        for m in LINK.finditer(text):
+            target = m.group(1)
+            if re.match(r"\w+:", target):          # http:, https:, mailto:
+                continue
+            n += 1
+            file = (path.parent / target).resolve()
+            line = text.count("\n", 0, m.start()) + 1
+            if not file.is_file():
+                problems.append(f"{_rel(path)}:{line}: link to {target}, which does not exist")
+            elif file.suffix == ".png" and file.stat().st_size > 200_000:
+                problems.append(f"{_rel(path)}:{line}: {target} is over 200 KB")
+    assert n > 0
+    assert not problems, "\n".join(problems)
