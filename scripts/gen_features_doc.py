@@ -104,9 +104,10 @@ def render(layout: FeatureLayout | None = None) -> str:
      (minifilm/motion/layout.py). Do not edit by hand: run the script; tests/test_docs.py fails
      when this file differs from what the code describes. -->
 
-These are the "magic numbers" of the paper's Sec. 3.2 and of the original code
-(`/work/shared/reference/original-pipeline.md` §5–§9), for the **100STYLE skeleton** (J = {J}
-exported joints). In code, never hard-code an index: ask the layout.
+These are the "magic numbers" of the paper's Sec. 3.2 and of the original code (its exporters,
+§5–§9 of the project's description of the original pipeline), for the **100STYLE skeleton**
+(J = {J} exported joints). Other skeletons have the same layout with their own J. In code, never
+hard-code an index: ask the layout.
 
 ```python
 from minifilm.motion.layout import FeatureLayout
@@ -139,8 +140,15 @@ axes of a joint are the 3rd and 2nd columns of its world rotation matrix. Trajec
 always [0, 0, 0, 1] in x (its normalisation std is therefore set to 1). The joints, in export
 order: {", ".join(f"{j} {n}" for j, n in enumerate(L.joint_names))}.
 
+Where the numbers come from: `minifilm/motion/features.py::frame_features` (x, p, z) and
+`minifilm/motion/features.py::clip_features` (y) compute them from a motion, its contacts
+(`minifilm/motion/contacts.py::foot_contacts`) and its local phases
+(`minifilm/motion/phases.py::extract_local_phases`); the runtime turns predicted columns back into
+world space with `minifilm/motion/features.py::decode_joints` and
+`minifilm/motion/features.py::decode_trajectory`.
+
 Normalisation: the network sees every column minus its training mean, divided by its training
-std (`minifilm/data.py`); the clip uses the statistics of x's joint block. The phase-update
+std (`minifilm/data.py::Normalizer`); the clip uses the statistics of x's joint block. The phase-update
 columns are a per-frame difference of the phase vectors (next minus current), which the runtime
 uses to advance the phases.
 """]
