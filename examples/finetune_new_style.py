@@ -1,6 +1,6 @@
 """Learn a new style by fine-tuning only the FiLM generator Ψ (Sec. 5.3.2, Figure 11).
 
-    python examples/finetune_new_style.py                      # synthetic data, hold out HandsAbove
+    python examples/finetune_new_style.py                      # synthetic data, hold out Drunk
     python examples/finetune_new_style.py --holdout Swimming   # another held-out style
     python examples/finetune_new_style.py --data DIR           # your own <Style>_<Gait>.bvh folder
     python examples/finetune_new_style.py --quick              # a miniature of the same run
@@ -37,7 +37,7 @@ from minifilm.train import TrainConfig, Trainer, finetune                       
 
 SEED = 0
 OUT = Path("runs/finetune_new_style")
-HOLDOUT = "HandsAbove"
+HOLDOUT = "Drunk"
 GAITS = ("FW", "BW", "FR", "SW", "TR", "ID")
 SECONDS = 10.0                     # synthetic seconds per style and gait
 FPS = 30                           # resampled from the generator's 60 fps: half the work, same motion

@@ -182,7 +182,7 @@ class StyleClassifier:
 
 
 def train_style_classifier(ds, window_seconds: float = 0.75, stride_seconds: float = 0.25,
-                           hidden: int = 64, epochs: int = 150, seed: int = 0):
+                           hidden: int = 64, epochs: int = 80, seed: int = 0):
     """Fit a classifier on the training split of a :class:`minifilm.data.Dataset`; its accuracy on
     windows of the held-out rows (val + test, never seen in training) is the ceiling for rollouts.
 

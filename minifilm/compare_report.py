@@ -1,0 +1,223 @@
+"""The markdown report and PNG plots of `python -m minifilm.evaluate compare` (evaluate_compare.py)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+PHASE_STYLES = ("Swimming", "PendulumHands", "LeftHop")
+
+
+def _fmt(v, digits=4):
+    return "n/a" if v is None or (isinstance(v, float) and not np.isfinite(v)) else f"{v:.{digits}f}"
+
+
+def _plots(out: Path, name: str, ctx, results, ft) -> dict:
+    """Draw the PNGs; returns {key: file name} (empty without matplotlib)."""
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return {}
+    files = {}
+    names = list(results)
+    # Figure 10: test MSE and BLL per variant
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    for ax, key in zip(axes, ("mse", "bll")):
+        vals = [results[v]["errors"][key] for v in names]
+        ax.bar(range(len(names)), vals, color=[f"C{i}" for i in range(len(names))])
+        ax.set_xticks(range(len(names)))
+        ax.set_xticklabels(names, rotation=30, ha="right", fontsize=8)
+        ax.set_title(f"test {key.upper()} (seen styles, normalised units)", fontsize=9)
+    fig.tight_layout()
+    files["errors"] = f"compare_{name}_errors.png"
+    fig.savefig(out / files["errors"], dpi=80)
+    plt.close(fig)
+    # Figure 8: style score along the blend weight
+    interp = [v for v in names if "interp" in results[v] and not results[v]["interp"].get("diverged")]
+    if interp:
+        fig, ax = plt.subplots(figsize=(6, 4))
+        for i, v in enumerate(interp):
+            r = results[v]["interp"]
+            ax.plot(r["weights"], r["score"], "-o" if "FiLM" in v else "--s", ms=3, label=v)
+        ax.plot([0, 1], [0, 1], ":", color="gray", lw=1)
+        ax.set_xlabel("blend weight w (0 = style A, 1 = style B)")
+        ax.set_ylabel("classifier P(B) / (P(A) + P(B))")
+        ax.legend(fontsize=7)
+        fig.tight_layout()
+        files["interp"] = f"compare_{name}_interpolation.png"
+        fig.savefig(out / files["interp"], dpi=80)
+        plt.close(fig)
+    # Figure 11: FiLM codes before / after fine-tuning
+    if ft is not None:
+        styles = ctx.seen + [ctx.holdout]
+        fig, axes = plt.subplots(1, 2, figsize=(10, 4.5))
+        for ax, tag in zip(axes, ("before", "after")):
+            sep = ft["separation"][tag]
+            Y = sep["embedding"]
+            for k, s in enumerate(styles):
+                pts = Y[ft["labels"] == k]
+                new = s == ctx.holdout
+                ax.scatter(pts[:, 0], pts[:, 1], s=50 if new else 14, marker="*" if new else "o",
+                           color="black" if new else f"C{k % 10}", label=s + (" (held out)" if new else ""))
+            ax.set_title(f"{tag} fine-tuning Ψ: silhouette {sep['silhouette']:.2f}, "
+                         f"{ctx.holdout} {sep['focus_silhouette']:.2f}", fontsize=9)
+            ax.set_xlabel("PC 1")
+            ax.set_ylabel("PC 2")
+        axes[1].legend(fontsize=7)
+        fig.tight_layout()
+        files["film"] = f"compare_{name}_film_codes.png"
+        fig.savefig(out / files["film"], dpi=80)
+        plt.close(fig)
+    return files
+
+
+def claims(ctx, results, ft) -> list:
+    """The paper's claims, each with a verdict computed from the numbers of this run."""
+    out = []
+    mse = {v: r["errors"]["mse"] for v, r in results.items()}
+    film = [v for v in mse if "FiLM" in v]
+    other = [v for v in mse if "FiLM" not in v]
+    if film and other:
+        best_other = min(other, key=mse.get)
+        holds = max(mse[v] for v in film) < mse[best_other]
+        best = min(mse, key=mse.get)
+        out.append(f"FiLM variants have the lowest test error: **{'holds' if holds else 'does not hold'}** "
+                   f"(lowest overall: {best} {mse[best]:.4f}; FiLM variants "
+                   + ", ".join(f"{v} {mse[v]:.4f}" for v in film)
+                   + f"; best non-FiLM {best_other} {mse[best_other]:.4f}).")
+    phase = [s for s in PHASE_STYLES if s in ctx.seen]
+    trio = [v for v in ("LPN FiLM", "PFNN FiLM", "MANN FiLM") if v in results]
+    if phase and "LPN FiLM" in results and len(trio) > 1:
+        parts, wins = [], 0
+        for s in phase:
+            e = {v: results[v]["errors"]["per_style"][s]["mse"] for v in trio}
+            win = e["LPN FiLM"] < min(e[v] for v in trio if v != "LPN FiLM")
+            wins += win
+            parts.append(f"{s}: " + ", ".join(f"{v.split()[0]} {e[v]:.4f}" for v in trio))
+        out.append(f"LPN beats PFNN and MANN (all with FiLM) on styles whose limbs have different phase cycles: "
+                   f"**LPN lowest on {wins} of {len(phase)}** ({'; '.join(parts)}).")
+    if ft is not None:
+        b, a = ft["separation"]["before"]["focus_silhouette"], ft["separation"]["after"]["focus_silhouette"]
+        holds = a > b and a > 0
+        out.append(f"Fine-tuning Ψ alone makes an unseen style separable: **{'holds' if holds else 'does not hold'}** "
+                   f"(silhouette of {ctx.holdout}'s FiLM codes {b:.3f} -> {a:.3f}; all styles "
+                   f"{ft['separation']['before']['silhouette']:.3f} -> {ft['separation']['after']['silhouette']:.3f}).")
+    return out
+
+
+def write_report(out: Path, name: str, ctx, results, ft, meta) -> Path:
+    out.mkdir(parents=True, exist_ok=True)
+    files = _plots(out, name, ctx, results, ft)
+    a, ds = ctx.args, ctx.ds
+    L = []
+    w = L.append
+    w(f"# Comparison of the variants on {name} data (Figure 10, style metrics)\n")
+    w(f"Generated by `OPENBLAS_NUM_THREADS=1 python -m minifilm.evaluate compare --data {a.data} --budget-steps "
+      f"{a.budget_steps} --finetune-steps {a.finetune_steps}" + (" --tiny" if a.tiny else "")
+      + f"` in {meta['total_seconds'] / 60:.1f} min on a shared 2-core machine.\n")
+    w("## Setup\n")
+    w(f"- Data: {name}, {len(ds.styles)} styles at {ds.fps:g} fps ({len(ds.train)} training frames); held out of "
+      f"training: **{ctx.holdout}**; seen: {', '.join(ctx.seen)}. Normalisation statistics from the seen styles only.")
+    w(f"- Budget, identical for every variant: **{meta['epochs']} epoch(s) x {meta['steps_per_epoch']} style-balanced "
+      f"minibatches of {a.batch_size} = {meta['epochs'] * meta['steps_per_epoch']} Adam steps** (lr {a.lr:g}, "
+      f"dropout {a.model['dropout']}), asked for: {a.budget_steps}. Small models: hidden {a.model['hidden']}, "
+      f"{a.model['n_experts']} experts, Ψ conv {a.model['conv_filters']} filters / dense {a.model['film_dense']}, "
+      f"clips {a.clip_seconds:g} s. These are tiny budgets next to the paper's 90 epochs: read the numbers as a "
+      f"comparison at equal (small) cost, not as converged results.")
+    w("- Test errors are on held-out test frames of the seen styles, over the 324 motion outputs (trajectory and "
+      "joints) that every variant predicts (the LPN's phase outputs and the PFNN's phase update are left out so the "
+      "numbers are comparable), normalised units, each style weighted equally. BLL = bone-length loss (Eq. 6-7), m.")
+    w(f"- Rollouts: {a.rollout_seconds:g} s per seen style along a figure-eight (1.3 m/s commanded) with "
+      "`minifilm.runtime.Controller`; every variant is driven through `compare_tools.VariantRuntime` (PFNN: global "
+      "phase advanced by its predicted update; MANN: end-effector velocities; one-hot / Resad: style ids; FiLM: the "
+      "mean Ψ(clip) over the style's training clips). The first second (mean start pose) is dropped.")
+    ci = ctx.clf_info
+    w(f"- Style classifier (`minifilm.style_classifier`): MLP (64 ReLU units) on the mean and std over "
+      f"{ci['window']}-frame windows of the normalised clip features; trained on {ci['n_train']} windows of the "
+      f"training rows (all {len(ds.styles)} styles); **ceiling = accuracy on {ci['n_heldout']} windows of held-out "
+      f"real rows: {ci['heldout_acc']:.3f}** (training accuracy {ci['train_acc']:.3f}).\n")
+    w("## Figure 10: test error\n")
+    w("| variant | parameters | test MSE | test BLL | final train loss | train time |")
+    w("|---|---:|---:|---:|---:|---:|")
+    for v, r in results.items():
+        w(f"| {v} | {r['params']:,} | {r['errors']['mse']:.4f} | {r['errors']['bll']:.4f} | "
+          f"{r['final_train_loss']:.4f} | {r['seconds']:.0f} s |")
+    if "errors" in files:
+        w(f"\n![test errors]({files['errors']})\n")
+    w("Test MSE per seen style:\n")
+    w("| variant | " + " | ".join(ctx.seen) + " |")
+    w("|---|" + "---:|" * len(ctx.seen))
+    for v, r in results.items():
+        w(f"| {v} | " + " | ".join(f"{r['errors']['per_style'][s]['mse']:.4f}" for s in ctx.seen) + " |")
+    w("\n## Generated motion: style recognition, foot sliding, bone lengths\n")
+    w(f"Classifier ceiling on real held-out rows: **{ci['heldout_acc']:.3f}** (chance {1 / len(ds.styles):.3f}).\n")
+    w("| variant | style accuracy | foot sliding (m/s) | bone-length cv mean | bone-length cv max | root speed (m/s) |")
+    w("|---|---:|---:|---:|---:|---:|")
+    for v, r in results.items():
+        q = r["rollout"]
+        if q["diverged"]:
+            w(f"| {v} | diverged | | | | |")
+            continue
+        w(f"| {v} | {q['accuracy']:.3f} | {_fmt(q['foot_sliding'], 3)} | {_fmt(q['bone_cv_mean'])} | "
+          f"{_fmt(q['bone_cv_max'])} | {_fmt(q['speed'], 2)} |")
+    w("\nStyle accuracy per seen style (fraction of rollout windows classified as the commanded style):\n")
+    w("| variant | " + " | ".join(ctx.seen) + " |")
+    w("|---|" + "---:|" * len(ctx.seen))
+    for v, r in results.items():
+        if not r["rollout"]["diverged"]:
+            w(f"| {v} | " + " | ".join(f"{r['rollout']['per_style'][s]:.2f}" for s in ctx.seen) + " |")
+    pa, pb = meta["interpolate"]
+    w(f"\n## Figure 8: interpolation {pa} -> {pb}\n")
+    w(f"Score = P({pb}) / (P({pa}) + P({pb})) of the classifier, averaged over the windows of a "
+      f"{a.rollout_seconds:g} s rollout, at 11 blend weights. FiLM blends the two styles' FiLM vectors, one-hot "
+      "blends the one-hot vectors (the one-hot term is linear in them); Resad variants are not blended here. "
+      "monotonicity = |s(1) - s(0)| / total variation (1 = monotone); max step = largest change between "
+      "neighbouring weights as a fraction of s(1) - s(0) (0.1 = linear, 1 = a jump).\n")
+    w("| variant | s(0) | s(1) | monotonicity | max step | RMS from linear |")
+    w("|---|---:|---:|---:|---:|---:|")
+    for v, r in results.items():
+        i = r.get("interp")
+        if i is None:
+            continue
+        if i.get("diverged"):
+            w(f"| {v} | diverged | | | | |")
+            continue
+        small = abs(i["change"]) < 0.2             # the score hardly moves: the ratio means little
+        step = "n/a" if small else f"{i['max_step']:.2f}"
+        w(f"| {v} | {i['score'][0]:.3f} | {i['score'][-1]:.3f} | {i['monotonicity']:.2f} | {step} | "
+          f"{i['linear_rmse']:.3f} |")
+    if "interp" in files:
+        w(f"\n![interpolation]({files['interp']})\n")
+    w("\n## Figure 11: FiLM codes before and after fine-tuning Ψ on the held-out style\n")
+    if ft is None:
+        w("Not run (needs the LPN FiLM variant and a held-out style).\n")
+    else:
+        sb, sa = ft["separation"]["before"], ft["separation"]["after"]
+        w(f"LPN FiLM: Ψ alone fine-tuned on {ctx.holdout}'s training frames ({ft['steps']} steps, "
+          f"{ft['seconds']:.0f} s; Ω and Φ frozen). FiLM codes Ψ(clip) of every training clip of all styles; "
+          "silhouette (Euclidean, full 4H-dimensional codes and in the 2-D PCA plane).\n")
+        w("| | silhouette (all styles) | silhouette 2-D | silhouette of the held-out style's codes | "
+          f"held-out test MSE | held-out test BLL |")
+        w("|---|---:|---:|---:|---:|---:|")
+        w(f"| before | {sb['silhouette']:.3f} | {sb['silhouette_2d']:.3f} | {sb['focus_silhouette']:.3f} | "
+          f"{ft['before_new']['mse']:.4f} | {ft['before_new']['bll']:.4f} |")
+        w(f"| after | {sa['silhouette']:.3f} | {sa['silhouette_2d']:.3f} | {sa['focus_silhouette']:.3f} | "
+          f"{ft['after_new']['mse']:.4f} | {ft['after_new']['bll']:.4f} |")
+        seen_before = results["LPN FiLM"]["errors"]["mse"]
+        w(f"\nSeen styles' test MSE with the fine-tuned Ψ: {ft['seen_after']['mse']:.4f} (before: {seen_before:.4f}); "
+          "Ψ was trained on the new style only, so this shows how much it forgot.")
+        if "film" in files:
+            w(f"\n![FiLM codes]({files['film']})\n")
+    w("\n## The paper's claims, here\n")
+    for c in claims(ctx, results, ft):
+        w(f"- {c}")
+    bad = [v for v, r in results.items() if r["rollout"]["diverged"]]
+    if bad:
+        w(f"- Rollouts of {', '.join(bad)} diverged (a joint more than 10 m from the root, or non-finite): the "
+          "autoregressive loop blew up, so no rollout metrics are given for them. Their one-step test errors "
+          "above are unaffected.")
+    path = out / f"compare_{name}.md"
+    path.write_text("\n".join(L) + "\n")
+    return path

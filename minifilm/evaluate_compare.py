@@ -1,0 +1,330 @@
+"""Figure 10 and the style metrics of Sec. 5: train the seven variants with one budget on one data
+set and compare them (issue 8).
+
+    python -m minifilm.evaluate compare                        # synthetic data (generated here)
+    python -m minifilm.evaluate compare --data /path/to/bandai2 --fps 30
+    python -m minifilm.evaluate compare --variants "LPN FiLM,PFNN one-hot" --budget-steps 50
+
+One style is held out of training (--holdout). On held-out test frames of the seen styles:
+  - test MSE and bone-length loss on the 324 motion outputs every variant predicts (Figure 10),
+    overall and per style;
+  - style recognition of generated motion: a classifier (minifilm.style_classifier) trained on
+    the dataset's training rows, applied to 10-second rollouts of every seen style (its accuracy
+    on held-out real rows is the ceiling);
+  - foot sliding and bone-length variation of those rollouts;
+  - interpolation smoothness (Figure 8): the classifier's probability of style B along a blend
+    from style A to B, for FiLM (blended FiLM vectors) and one-hot (blended one-hot vectors);
+  - FiLM-code separation (Figure 11): silhouette of Ψ(clip) per style before and after
+    fine-tuning Ψ alone on the held-out style (LPN FiLM).
+Writes reports/compare_<data>.md and PNG plots next to it.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from minifilm.compare_tools import (VariantRuntime, film_codes, film_separation, fit_normalizer, motion_errors,
+                                    style_subset)
+from minifilm.metrics import interpolation_smoothness, rollout_quality
+
+
+SYNTH_HOLDOUT = "Drunk"
+MODEL = dict(n_experts=4, hidden=128, gating_hidden=32, conv_filters=32, conv_kernel=9, film_dense=128,
+             dropout=0.3)
+
+
+def log(msg=""):
+    print(msg, flush=True)
+
+
+# ---------------------------------------------------------------------------- data
+def load_data(args):
+    from minifilm.data import build_dataset
+    from minifilm.motion import synthetic
+
+    cache = Path(args.work) / "cache"
+    if args.data in (None, "synthetic"):
+        folder = Path(args.work) / "synthetic"      # made once; delete it after changing --styles etc.
+        if not any(folder.glob("*.bvh")):
+            clips = synthetic.default_dataset(seed=args.seed, seconds=args.seconds, styles=args.styles,
+                                              gaits=args.gaits)
+            synthetic.write_dataset(folder, clips)
+        name = "synthetic"
+        extra = {}
+    else:
+        folder, name = Path(args.data), Path(args.data).name
+        extra = {"split_unit": "files"} if args.split_files else {}
+    ds = build_dataset(folder, cache_dir=cache, progress=False, clip_seconds=args.clip_seconds,
+                       clip_stride_seconds=args.clip_seconds / 2, seed=args.seed, fps=args.fps, **extra)
+    return ds, name
+
+
+def skeleton_of(ds):
+    from minifilm.motion.skeletons import BUILTIN_SKELETONS
+    for sk in BUILTIN_SKELETONS:
+        if sk.name == ds.skeleton:
+            return sk
+    raise ValueError(f"compare: dataset skeleton {ds.skeleton!r} is not a built-in skeleton")
+
+
+class Context:
+    """The data every variant shares: seen / held-out styles, statistics, splits, classifier."""
+
+    def __init__(self, ds, holdout, args):
+        from minifilm.style_classifier import train_style_classifier
+        from minifilm.variant_data import end_effector_indices
+
+        self.ds, self.args, self.layout = ds, args, ds.layout
+        self.holdout = holdout
+        self.seen = [s for s in ds.styles if s != holdout]
+        self.norm = fit_normalizer(ds, self.seen)
+        self.data = {sp: style_subset(ds, sp, self.seen, self.norm) for sp in ("train", "test")}
+        self.new_train = style_subset(ds, "train", [holdout], self.norm) if holdout else None
+        self.all_train = style_subset(ds, "train", self.seen + ([holdout] if holdout else []), self.norm)
+        self.skeleton = skeleton_of(ds)
+        self.end_effectors = end_effector_indices(self.layout, self.skeleton)
+        names = list(self.layout.joint_names)
+        # the feet's phase bones (exported joints; the contact sensors are End Sites): [right, left],
+        # the order of the contact columns
+        self.toes = [names.index(self.skeleton.phase_bones[3]), names.index(self.skeleton.phase_bones[2])]
+        t0 = time.perf_counter()
+        self.classifier, self.clf_info = train_style_classifier(ds, seed=args.seed)
+        log(f"[classifier] {self.clf_info['n_train']} training windows; held-out real accuracy "
+            f"{self.clf_info['heldout_acc']:.3f} ({self.clf_info['n_heldout']} windows), "
+            f"{time.perf_counter() - t0:.0f} s")
+
+
+# ---------------------------------------------------------------------------- one variant
+def model_config(ctx, sizes):
+    from minifilm.model.config import ModelConfig
+    L = ctx.layout
+    return ModelConfig(x_dim=L.x_dim, z_dim=L.z_dim, phase_dim=L.phase_dim,
+                       clip_frames=ctx.data["train"].clips.shape[1], clip_channels=L.clip_dim, **sizes)
+
+
+def steps_per_epoch(style, batch_size):
+    counts = np.bincount(style)
+    counts = counts[counts > 0]
+    size = min(batch_size, counts.min())
+    return int(counts.min() // size * len(counts))
+
+
+def train_variant(name, ctx, epochs):
+    from minifilm.model.variants import build_variant
+    from minifilm.train import TrainConfig, Trainer
+    from minifilm.variant_data import variant_data
+
+    a, L = ctx.args, ctx.layout
+    model = build_variant(name, model_config(ctx, a.model), np.random.default_rng(a.seed), n_styles=len(ctx.seen))
+    vtrain, info = variant_data(name, ctx.data["train"], L, ctx.norm, ctx.end_effectors)
+    vtest, _ = variant_data(name, ctx.data["test"], L, ctx.norm, ctx.end_effectors, reference=info)
+    trainer = Trainer(model, ctx.norm, TrainConfig(epochs=epochs, batch_size=a.batch_size, lr=a.lr, seed=a.seed,
+                                                   progress=False),
+                      positions_idx=L.joint_columns("z", "position"), parents=np.asarray(L.parents),
+                      style_names=ctx.seen)
+    t0 = time.perf_counter()
+    trainer.fit(vtrain)
+    seconds = time.perf_counter() - t0
+    errors = motion_errors(model, vtest, L, ctx.norm, L.z_phases.start, seed=a.seed,
+                           style_kw=getattr(model, "takes_style_ids", False))
+    n_params = sum(ps.size for ps in model.parameter_sets())
+    return {"trainer": trainer, "info": info, "seconds": seconds, "steps": trainer.step, "errors": errors,
+            "params": n_params, "final_train_loss": trainer.history[-1]["train"]["loss"]}
+
+
+def style_conditions(model, ctx):
+    """Per seen style: the FiLM vector (mean Ψ over its training clips) or the style id."""
+    if getattr(model, "takes_style_ids", False):
+        return np.arange(len(ctx.seen))
+    tr = ctx.data["train"]
+    return np.stack([film_codes(model, tr.clips[tr.clip_style == s]).mean(axis=0) for s in range(len(ctx.seen))])
+
+
+def controller_for(model, info, ctx):
+    from minifilm.runtime import Controller
+    return Controller(VariantRuntime(model, ctx.norm, ctx.layout, info), ctx.layout, fps=ctx.ds.fps)
+
+
+def run_rollouts(controller, cond, ids, ctx, seconds):
+    """One character per row of `cond` along a figure-eight. ids=True: cond holds style ids or
+    one-hot weights, handed to the network every frame; else (B, 4H) FiLM vectors."""
+    from minifilm.control import make_script
+    n = int(round(seconds * ctx.ds.fps))
+    scripts = [make_script("figure8", seconds) for _ in range(len(cond))]
+    with np.errstate(all="ignore"):     # a diverging variant overflows; diverged() reports it
+        return controller.run(scripts, n, (lambda k: cond) if ids else cond)
+
+
+def style_recognition(model, info, ctx):
+    """Rollouts of every seen style: classifier accuracy per style, foot sliding, bone variation."""
+    from minifilm.style_classifier import classify_rollout
+    a = ctx.args
+    cond = style_conditions(model, ctx)
+    ids = getattr(model, "takes_style_ids", False)
+    rollout = run_rollouts(controller_for(model, info, ctx), cond, ids, ctx, a.rollout_seconds)
+    if diverged(rollout):
+        return {"diverged": True, "accuracy": None, "per_style": {n: None for n in ctx.seen},
+                "foot_sliding": None, "bone_cv_mean": None, "bone_cv_max": None, "speed": None}
+    w, s = ctx.clf_info["window"], ctx.clf_info["stride"]
+    probs = classify_rollout(ctx.classifier, ctx.ds, rollout, window=w, stride=s)     # (B, M, classes)
+    target = np.array([ctx.ds.styles.index(n) for n in ctx.seen])
+    hit = probs.argmax(axis=2) == target[:, None]
+    per_style = {n: float(hit[b].mean()) for b, n in enumerate(ctx.seen)}
+    quality = rollout_quality(rollout, ctx.layout.parents, ctx.toes)
+    return {"diverged": False, "accuracy": float(hit.mean()), "per_style": per_style, **quality,
+            "speed": float(np.mean([m["speed"] for m in rollout.metrics(ctx.layout.parents)]))}
+
+
+def diverged(rollout, limit=10.0):
+    """Non-finite joints, or a joint further than `limit` metres from its root: the autoregressive
+    loop has blown up and rollout metrics would be meaningless."""
+    P = rollout.positions
+    if not np.all(np.isfinite(P)):
+        return True
+    root = np.zeros(P.shape[:2] + (1, 3))
+    root[..., 0, 0], root[..., 0, 2] = rollout.root_positions[..., 0], rollout.root_positions[..., 1]
+    return bool(np.abs(P - root).max() > limit)
+
+
+def interpolation(model, info, ctx, style_a, style_b, n=11):
+    """Classifier probability of style B along a blend A -> B (FiLM vectors or one-hot weights)."""
+    from minifilm.style_classifier import classify_rollout
+    a = ctx.args
+    w = np.linspace(0.0, 1.0, n)
+    ia, ib = ctx.seen.index(style_a), ctx.seen.index(style_b)
+    ids = getattr(model, "takes_style_ids", False)
+    if ids:
+        cond = np.zeros((n, len(ctx.seen)))
+        cond[:, ia], cond[:, ib] = 1 - w, w
+    else:
+        c = style_conditions(model, ctx)
+        cond = (1 - w)[:, None] * c[ia] + w[:, None] * c[ib]
+    rollout = run_rollouts(controller_for(model, info, ctx), cond, ids, ctx, a.rollout_seconds)
+    if diverged(rollout):
+        return {"diverged": True}
+    probs = classify_rollout(ctx.classifier, ctx.ds, rollout, window=ctx.clf_info["window"],
+                             stride=ctx.clf_info["stride"])
+    kb, ka = ctx.ds.styles.index(style_b), ctx.ds.styles.index(style_a)
+    pb, pa = probs[:, :, kb].mean(axis=1), probs[:, :, ka].mean(axis=1)
+    score = pb / np.maximum(pa + pb, 1e-12)           # B against A only: other styles do not count
+    return {"weights": w, "score": score, **interpolation_smoothness(w, score)}
+
+
+def finetune_separation(result, ctx):
+    """Fine-tune Ψ alone on the held-out style; FiLM-code silhouette before and after."""
+    from minifilm.train import TrainConfig, finetune
+    a = ctx.args
+    trainer = result["trainer"]
+    path = Path(a.work) / "lpn_film_base.npz"
+    trainer.save(path)
+    epochs = max(1, math.ceil(a.finetune_steps / steps_per_epoch(ctx.new_train.style, a.batch_size)))
+    before_new = trainer.evaluate(style_subset(ctx.ds, "test", [ctx.holdout], ctx.norm))
+    t0 = time.perf_counter()
+    ft = finetune(path, ctx.new_train, config=TrainConfig(epochs=epochs, batch_size=a.batch_size, lr=a.lr,
+                                                          seed=a.seed + 1, progress=False),
+                  style_names=[ctx.holdout])
+    seconds = time.perf_counter() - t0
+    after_new = ft.evaluate(style_subset(ctx.ds, "test", [ctx.holdout], ctx.norm))
+    labels = ctx.all_train.clip_style
+    focus = len(ctx.seen)
+    sep = {"before": film_separation(film_codes(trainer.model, ctx.all_train.clips), labels, focus),
+           "after": film_separation(film_codes(ft.model, ctx.all_train.clips), labels, focus)}
+    seen_after = motion_errors(ft.model, ctx.data["test"], ctx.layout, ctx.norm, ctx.layout.z_phases.start,
+                               seed=a.seed)
+    return {"separation": sep, "labels": labels, "seconds": seconds, "steps": ft.step,
+            "before_new": before_new, "after_new": after_new, "seen_after": seen_after}
+
+
+# ---------------------------------------------------------------------------- the run
+def run(args):
+    from minifilm.model.variants import VARIANTS
+
+    t_start = time.perf_counter()
+    Path(args.work).mkdir(parents=True, exist_ok=True)
+    ds, name = load_data(args)
+    holdout = args.holdout or (SYNTH_HOLDOUT if name == "synthetic" and SYNTH_HOLDOUT in ds.styles else ds.styles[-1])
+    if holdout not in ds.styles:
+        raise SystemExit(f"compare: --holdout {holdout!r} is not a style of the data ({', '.join(ds.styles)})")
+    log(f"[data] {name}: {len(ds.styles)} styles, {len(ds.train)} training frames at {ds.fps:g} fps; "
+        f"held out: {holdout}")
+    ctx = Context(ds, holdout, args)
+    spe = steps_per_epoch(ctx.data["train"].style, args.batch_size)
+    epochs = max(1, math.ceil(args.budget_steps / spe))
+    log(f"[budget] {args.budget_steps} steps asked -> {epochs} epoch(s) of {spe} style-balanced batches of "
+        f"{args.batch_size} = {epochs * spe} steps per variant")
+    variants = [v.strip() for v in args.variants.split(",")] if args.variants else list(VARIANTS)
+    unknown = [v for v in variants if v not in VARIANTS]
+    if unknown:
+        raise SystemExit(f"compare: unknown variant(s) {unknown}; choose from {list(VARIANTS)}")
+    pa, pb = args.interpolate.split(",") if args.interpolate else (ctx.seen[0], ctx.seen[1])
+    results = {}
+    for v in variants:
+        r = train_variant(v, ctx, epochs)
+        log(f"[train] {v:<13} {r['params']:>9,} params  {r['steps']} steps in {r['seconds']:.0f} s  "
+            f"test MSE {r['errors']['mse']:.4f}  BLL {r['errors']['bll']:.4f}")
+        t0 = time.perf_counter()
+        r["rollout"] = style_recognition(r["trainer"].model, r["info"], ctx)
+        if getattr(r["trainer"].model, "modulation", "film") in ("film", "onehot"):
+            r["interp"] = interpolation(r["trainer"].model, r["info"], ctx, pa, pb)
+        q, i = r["rollout"], r.get("interp", {})
+        log("        rollouts: " + ("diverged" if q["diverged"] else
+                                    f"style accuracy {q['accuracy']:.3f}, foot sliding {q['foot_sliding']:.3f} m/s, "
+                                    f"bone cv {q['bone_cv_mean']:.4f}")
+            + ("" if not i else ", interpolation diverged" if i.get("diverged") else
+               f", interpolation score {i['score'][0]:.2f} -> {i['score'][-1]:.2f}, monotonicity "
+               f"{i['monotonicity']:.2f}") + f" ({time.perf_counter() - t0:.0f} s)")
+        results[v] = r
+    ft = None
+    if "LPN FiLM" in results and ctx.new_train is not None:
+        ft = finetune_separation(results["LPN FiLM"], ctx)
+        sb, sa = ft["separation"]["before"], ft["separation"]["after"]
+        log(f"[finetune] Ψ only on {holdout}: {ft['steps']} steps in {ft['seconds']:.0f} s; held-out test MSE "
+            f"{ft['before_new']['mse']:.4f} -> {ft['after_new']['mse']:.4f}; silhouette {holdout} "
+            f"{sb['focus_silhouette']:.3f} -> {sa['focus_silhouette']:.3f} (all styles {sb['silhouette']:.3f} -> "
+            f"{sa['silhouette']:.3f})")
+    total = time.perf_counter() - t_start
+    from minifilm.compare_report import write_report
+    path = write_report(Path(args.out), name, ctx, results, ft, dict(epochs=epochs, steps_per_epoch=spe,
+                        total_seconds=total, interpolate=(pa, pb)))
+    log(f"[report] {path} ({total:.0f} s in all)")
+    return {"name": name, "results": results, "finetune": ft, "report": path, "ctx": ctx}
+
+
+def parse_args(argv):
+    p = argparse.ArgumentParser(prog="python -m minifilm.evaluate compare", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--data", default="synthetic", help="'synthetic' (default) or a folder of BVH files")
+    p.add_argument("--budget-steps", type=int, default=500,
+                   help="training steps per variant, rounded up to whole epochs (default 500)")
+    p.add_argument("--finetune-steps", type=int, default=150, help="Ψ fine-tuning steps (default 150)")
+    p.add_argument("--out", default="reports", help="folder of the markdown report and PNGs")
+    p.add_argument("--work", default="runs/compare", help="folder for generated data and caches")
+    p.add_argument("--variants", help="comma-separated subset of the seven variants (default: all)")
+    p.add_argument("--holdout", help=f"style held out for fine-tuning (synthetic default {SYNTH_HOLDOUT})")
+    p.add_argument("--interpolate", help="two seen styles A,B for the interpolation test (default: first two)")
+    p.add_argument("--fps", type=float, default=30.0, help="resample the data to this rate (default 30)")
+    p.add_argument("--clip-seconds", type=float, default=2.0)
+    p.add_argument("--seconds", type=float, default=10.0, help="synthetic seconds per style and gait")
+    p.add_argument("--styles", help="comma-separated synthetic styles (default: all)")
+    p.add_argument("--gaits", help="comma-separated synthetic gaits (default: all)")
+    p.add_argument("--split-files", action="store_true", help="whole files per split (for many short files)")
+    p.add_argument("--rollout-seconds", type=float, default=10.0)
+    p.add_argument("--batch-size", type=int, default=32)
+    p.add_argument("--lr", type=float, default=1e-3)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--tiny", action="store_true", help="a tiny model (tests and smoke runs)")
+    a = p.parse_args(argv)
+    a.styles = a.styles.split(",") if a.styles else None
+    a.gaits = a.gaits.split(",") if a.gaits else None
+    a.model = dict(MODEL, hidden=16, conv_filters=4, film_dense=16, n_experts=2, gating_hidden=8) if a.tiny else MODEL
+    return a
+
+
+def main(argv=None):
+    run(parse_args(sys.argv[1:] if argv is None else argv))
+    return 0

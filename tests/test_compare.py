@@ -1,0 +1,86 @@
+"""The comparison: the run-time adapter for the variants, style subsets, and a tiny end-to-end run."""
+import numpy as np
+import pytest
+
+from minifilm.compare_tools import VariantRuntime
+from minifilm.model.config import ModelConfig
+from minifilm.model.variants import build_variant
+from minifilm.motion.layout import FeatureLayout
+from minifilm.motion.skeletons import STYLE100
+from minifilm.traindata import NormStats
+
+LAYOUT = FeatureLayout.for_skeleton(STYLE100)
+
+
+def _stats(rng):
+    L = LAYOUT
+    return NormStats(rng.normal(size=L.x_dim), rng.uniform(0.5, 2, L.x_dim), rng.normal(size=L.z_dim),
+                     rng.uniform(0.5, 2, L.z_dim), rng.normal(size=8), rng.uniform(0.5, 2, 8))
+
+
+def _model(name, rng, n_styles=3):
+    L = LAYOUT
+    cfg = ModelConfig(x_dim=L.x_dim, z_dim=L.z_dim, phase_dim=8, clip_frames=8, clip_channels=L.clip_dim,
+                      n_experts=2, hidden=8, gating_hidden=4, conv_filters=2, conv_kernel=3, film_dense=4,
+                      dropout=0.0)
+    return build_variant(name, cfg, rng, n_styles=n_styles, dtype=np.float64)
+
+
+def test_lpn_onehot_runtime_equals_the_model():
+    rng = np.random.default_rng(0)
+    m, st = _model("LPN one-hot", rng), _stats(rng)
+    x_raw, p_raw = rng.normal(size=(4, LAYOUT.x_dim)), rng.normal(size=(4, 8))
+    ids = np.array([0, 2, 1, 2])
+    rt = VariantRuntime(m, st, LAYOUT, {"backbone": "lpn"})
+    z = rt.predict(x_raw, p_raw, ids)
+    zn = m.forward((x_raw - st.x_mean) / st.x_std, (p_raw - st.p_mean) / st.p_std, None, style=ids)
+    np.testing.assert_allclose(z, zn * st.z_std + st.z_mean, rtol=1e-12, atol=1e-12)
+    # a one-hot weight row is the same as the style id (the one-hot term is linear in the vector)
+    np.testing.assert_allclose(rt.predict(x_raw, p_raw, np.eye(3)[ids]), z, rtol=1e-10, atol=1e-10)
+    # half-way weights give the mean of the two styles' first-layer shifts, not either style
+    half = rt.predict(x_raw[:1], p_raw[:1], np.array([[0.5, 0.5, 0.0]]))
+    assert not np.allclose(half, rt.predict(x_raw[:1], p_raw[:1], np.array([0])))
+
+
+def test_pfnn_runtime_advances_the_global_phase():
+    rng = np.random.default_rng(1)
+    m, st = _model("PFNN one-hot", rng), _stats(rng)
+    info = {"backbone": "pfnn", "phase_slot": 3, "phase_update_mean": 0.01, "phase_update_std": 0.02,
+            "phase_update_column": 324, "contact_columns": (325, 327)}
+    rt = VariantRuntime(m, st, LAYOUT, info)
+    x_raw = rng.normal(size=(2, LAYOUT.x_dim))
+    p_raw = rng.normal(size=(2, 8))
+    z = rt.predict(x_raw, p_raw, np.array([1, 0]))
+    phase = np.mod(np.arctan2(p_raw[:, 6], p_raw[:, 7]) / (2 * np.pi), 1.0)     # right-foot pair
+    zn = m.forward((x_raw - st.x_mean) / st.x_std, phase[:, None], None, style=np.array([1, 0]))
+    new = phase + zn[:, 324] * 0.02 + 0.01
+    L = LAYOUT
+    got = z[:, L.z_phases][:, 6:8]
+    amp = np.linalg.norm(p_raw[:, 6:8], axis=1)
+    np.testing.assert_allclose(got, amp[:, None] * np.stack([np.sin(2 * np.pi * new), np.cos(2 * np.pi * new)], 1),
+                               atol=1e-12)
+    # the controller averages (phase + update) with the phase: both must give the new phase
+    np.testing.assert_allclose(p_raw + z[:, L.z_phase_updates], z[:, L.z_phases], atol=1e-12)
+    zc = np.arange(L.z_contacts.start, L.z_contacts.stop)
+    np.testing.assert_allclose(z[:, zc], zn[:, 325:327] * st.z_std[zc] + st.z_mean[zc], atol=1e-12)
+
+
+def test_tiny_compare_run(tmp_path):
+    from minifilm.evaluate_compare import parse_args, run
+    args = parse_args(["--tiny", "--variants", "LPN FiLM,LPN one-hot", "--budget-steps", "1",
+                       "--finetune-steps", "1", "--seconds", "8", "--styles", "Neutral,LeftHop,Crouched",
+                       "--gaits", "FW", "--holdout", "Crouched", "--rollout-seconds", "2",
+                       "--work", str(tmp_path / "work"), "--out", str(tmp_path / "reports")])
+    out = run(args)
+    ctx = out["ctx"]
+    assert ctx.seen == ["LeftHop", "Neutral"] and ctx.holdout == "Crouched"
+    # the held-out style is in no training array
+    assert set(ctx.data["train"].style_names) == set(ctx.seen)
+    for v in ("LPN FiLM", "LPN one-hot"):
+        r = out["results"][v]
+        assert np.isfinite(r["errors"]["mse"]) and r["errors"]["mse"] > 0
+        assert set(r["errors"]["per_style"]) == set(ctx.seen)
+    ft = out["finetune"]
+    assert ft is not None and -1 <= ft["separation"]["after"]["silhouette"] <= 1
+    text = out["report"].read_text()
+    assert "LPN FiLM" in text and "LPN one-hot" in text and "Figure 10" in text
