@@ -19,7 +19,9 @@ calibration (:func:`calibrate_speed`, instead of the demo's velocity bias of unc
 root moves by the full predicted delta. The demo's smoothing of joint positions with the predicted
 velocities (``lerp(p_prev + v dt, p, 0.5)``) and of the future trajectory with the previous one
 (weight 0.15) are kept as options. A run starts from the data's mean pose (the input means) with
-a still past trajectory and the mean phases. With foot locking, the next input takes the locked
+a still past trajectory and the mean phases, or (``start_x``, :func:`start_from_dataset`) from a
+frame of the style's own data: pose, trajectory and phases in mid-stride; a small trained
+network may never leave the mean pose. With foot locking, the next input takes the locked
 positions but the predicted forward/up axes (the demo feeds back the post-IK axes too). The
 demo's arm IK is replaced by fitting every bone to the predicted positions when the motion is put
 on the skeleton (:func:`minifilm.motion.retarget.retarget`).
@@ -40,7 +42,7 @@ from minifilm.motion.motion import Motion
 from minifilm.motion.retarget import axes_to_rotation, retarget
 
 __all__ = ["RuntimeStats", "RuntimeNetwork", "Controller", "Rollout", "root_joint_indices",
-           "SpeedCalibration", "calibrate_speed"]
+           "SpeedCalibration", "calibrate_speed", "start_from_dataset"]
 
 
 # =============================================================================== network
@@ -267,6 +269,30 @@ def root_joint_indices(layout: FeatureLayout, skeleton: Motion) -> np.ndarray:
     return np.array([skeleton.index(n) for n in layout.joint_names], dtype=np.int64)
 
 
+def start_from_dataset(dataset, style: str, gait: str = "FW", split: str = "train"):
+    """A start state for :meth:`Controller.run` taken from a style's own data: the raw input frame
+    x (x_dim,) and phases p (8,) of the middle row of its unmirrored ``gait`` file (any of its
+    files when it has none), as ``run(..., phases=p, start_x=x)``.
+
+    The data's mean pose and mean phases (the default start) belong to no style and to no phase
+    of a gait cycle; a small network may not get from there into its style's cycle (it stands
+    still). ``dataset`` is a :class:`minifilm.data.Dataset` (raw, unnormalised rows).
+    """
+    sp = dataset.split(split)
+    if style not in dataset.styles:
+        raise KeyError(f"start_from_dataset: style {style!r} is not in the data set ({dataset.styles})")
+    s = dataset.styles.index(style)
+    files = [i for i, f in enumerate(dataset.files)
+             if f.get("style") == style and f.get("gait") == gait and not f.get("mirrored")]
+    rows = np.flatnonzero((sp.style == s) & np.isin(sp.file, files))
+    if rows.size == 0:
+        rows = np.flatnonzero(sp.style == s)
+    if rows.size == 0:
+        raise ValueError(f"start_from_dataset: style {style!r} has no rows in the {split!r} split")
+    r = rows[len(rows) // 2]
+    return np.asarray(sp.x[r], np.float64), np.asarray(sp.p[r], np.float64)
+
+
 class Controller:
     """Frame-by-frame autoregressive synthesis for a batch of characters.
 
@@ -309,31 +335,65 @@ class Controller:
 
     # ------------------------------------------------------------------ state
     def reset(self, start_positions: np.ndarray, start_facing: np.ndarray,
-              phases: Optional[np.ndarray] = None) -> None:
+              phases: Optional[np.ndarray] = None, start_x: Optional[np.ndarray] = None) -> None:
         """Start B characters standing at (B, 2) world (x, z) positions facing (B, 2), in the mean
-        pose of the training data (from the input statistics); ``phases`` (B, 8) or the mean."""
+        pose of the training data (from the input statistics); ``phases`` (B, 8) or the mean.
+
+        ``start_x`` (x_dim,) or (B, x_dim): raw input frames (e.g. a frame of a style's data,
+        with its phases as ``phases``) whose joint block gives the start pose instead of the mean
+        pose, which no style ever takes (its joints are an average of different gait cycles),
+        and whose trajectory gives the past (interpolated between the samples) and future
+        trajectory instead of standing still: the character starts in mid-stride, as in the data."""
         pos = np.asarray(start_positions, dtype=np.float64).reshape(-1, 2)
         face = _unit2(np.asarray(start_facing, dtype=np.float64).reshape(-1, 2), np.array([0.0, 1.0]))
         B = len(pos)
         mean = self.net.stats.x_mean
+        if start_x is not None:
+            mean = np.asarray(start_x, dtype=np.float64)
+            if mean.shape[-1] != self.layout.x_dim or mean.ndim > 2 or (mean.ndim == 2 and len(mean) not in (1, B)):
+                raise ValueError(f"Controller.reset: start_x must be ({self.layout.x_dim},) or ({B}, "
+                                 f"{self.layout.x_dim}), got {mean.shape}")
+            mean = mean[:, None] if mean.ndim == 2 else mean      # (B, 1, x) broadcasts per character
         st = dict(root=pos.copy(), facing=face.copy())
         st["hist_pos"] = np.repeat(pos[:, None], self.history, axis=1)      # [:, -n] = root n frames ago
         st["hist_dir"] = np.repeat(face[:, None], self.history, axis=1)
         S = self.layout.n_future_samples
         st["fut_pos"] = np.repeat(pos[:, None], S, axis=1)
         st["fut_dir"] = np.repeat(face[:, None], S, axis=1)
-        local = {f: np.broadcast_to(mean[c], (B,) + c.shape) for f, c in self.x_cols.items()}
+        if start_x is not None:
+            self._trajectory_from_x(st, np.broadcast_to(mean.reshape(-1, self.layout.x_dim), (B, self.layout.x_dim)))
+        local = {f: np.broadcast_to(mean[..., c].reshape(-1, *c.shape) if mean.ndim > 1 else mean[c],
+                                    (B,) + c.shape) for f, c in self.x_cols.items()}
         st["jpos"] = _to_world3(local["position"], face)
         st["jpos"][..., 0] += pos[:, 0, None]
         st["jpos"][..., 2] += pos[:, 1, None]
         for f, key in (("forward", "jfwd"), ("up", "jup"), ("velocity", "jvel")):
             st[key] = _to_world3(local[f], face)
         st["phase"] = (np.broadcast_to(self.net.stats.p_mean, (B, 8)).copy() if phases is None
-                       else np.asarray(phases, dtype=np.float64).reshape(B, -1).copy())
+                       else np.broadcast_to(np.asarray(phases, dtype=np.float64).reshape(-1, 8), (B, 8)).copy())
         st["contacts"] = np.zeros((B, 2))
         self.state = st
         if self.foot_locker is not None:
             self.foot_locker.reset(B)
+
+    def _trajectory_from_x(self, st: dict, x: np.ndarray) -> None:
+        """Past root history and future trajectory from raw input frames x (B, x_dim), placed at
+        the characters' roots: the future samples as they are, the history interpolated linearly
+        between the past samples (directions renormalised)."""
+        traj = x[:, self.x_traj_cols]                                       # (B, 12, 4), root frame
+        f = st["facing"][:, None]
+        wp = _to_world2(traj[..., :2], f) + st["root"][:, None]
+        wd = _unit2(_to_world2(traj[..., 2:], f), f)
+        st["fut_pos"], st["fut_dir"] = wp[:, CURRENT_SAMPLE:].copy(), wd[:, CURRENT_SAMPLE:].copy()
+        # samples at -past_frames .. 0; history slot -n is n frames ago (n = history .. 1)
+        known = np.r_[-self.past_frames, 0].astype(np.float64)
+        n = -np.arange(self.history, 0, -1).astype(np.float64)
+        order = np.argsort(known)
+        for key, src in (("hist_pos", wp), ("hist_dir", wd)):
+            vals = src[:, :CURRENT_SAMPLE + 1][:, order]                      # (B, 7, 2)
+            out = np.array([[np.interp(n, known[order], vals[b, :, c]) for c in range(2)]
+                            for b in range(len(vals))]).transpose(0, 2, 1)     # (B, history, 2)
+            st[key] = out if key == "hist_pos" else _unit2(out, st["facing"][:, None])
 
     # ------------------------------------------------------------------ one frame
     def build_input(self) -> np.ndarray:
@@ -418,7 +478,7 @@ class Controller:
     # ------------------------------------------------------------------ whole rollouts
     def run(self, scripts: Union[Script, Sequence[Script]], n_frames: int,
             film: Union[np.ndarray, Callable[[int], np.ndarray]], phases: Optional[np.ndarray] = None,
-            calibration: Optional["SpeedCalibration"] = None) -> Rollout:
+            calibration: Optional["SpeedCalibration"] = None, start_x: Optional[np.ndarray] = None) -> Rollout:
         """Run B = len(scripts) characters for ``n_frames`` frames.
 
         Args:
@@ -428,6 +488,7 @@ class Controller:
                 (style transitions), or a callable frame -> film.
             calibration: maps the user's speed (m/s) to the command that makes this network
                 actually move at that speed (see :func:`calibrate_speed`); None = use as given.
+            phases, start_x: the start phases (B, 8) and pose (raw input frames), see :meth:`reset`.
         """
         if isinstance(scripts, Script):
             scripts = [scripts]
@@ -435,7 +496,7 @@ class Controller:
         for s in scripts:
             s.reset()
         starts = [s.start() for s in scripts]
-        self.reset(np.array([p for p, _ in starts]), np.array([f for _, f in starts]), phases)
+        self.reset(np.array([p for p, _ in starts]), np.array([f for _, f in starts]), phases, start_x)
         J = self.layout.n_joints
         out = dict(positions=np.empty((B, n_frames, J, 3)), forward=np.empty((B, n_frames, J, 3)),
                    up=np.empty((B, n_frames, J, 3)),
@@ -529,10 +590,12 @@ class SpeedCalibration:
 def calibrate_speed(controller: Controller, film: np.ndarray,
                     commands: Sequence[float] = (0.5, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0),
                     directions: Sequence[float] = (0.0, 90.0, 180.0),
-                    seconds: float = 8.0, settle: float = 4.0) -> SpeedCalibration:
+                    seconds: float = 8.0, settle: float = 4.0, phases: Optional[np.ndarray] = None,
+                    start_x: Optional[np.ndarray] = None) -> SpeedCalibration:
     """Move at each commanded speed in each direction (degrees from the facing: 0 forwards, 90
     sideways, 180 backwards), all at once as one batch, and measure the mean root speed after
-    ``settle`` seconds. ``film`` is the style (4H,)."""
+    ``settle`` seconds. ``film`` is the style (4H,); ``phases`` (8,) and ``start_x`` (x_dim,)
+    the start state (see :meth:`Controller.reset`; default the data's means)."""
     from minifilm.control import CommandScript
 
     n = int(round(seconds * controller.fps))
@@ -541,7 +604,7 @@ def calibrate_speed(controller: Controller, film: np.ndarray,
         raise ValueError(f"calibrate_speed: settle ({settle} s) must be shorter than seconds ({seconds} s)")
     scripts = [CommandScript([(0.0, float(v), 0.0, float(d)), (seconds, float(v), 0.0, float(d))])
                for d in directions for v in commands]
-    r = controller.run(scripts, n, film)
+    r = controller.run(scripts, n, film, phases=phases, start_x=start_x)
     dist = np.sum(np.linalg.norm(np.diff(r.root_positions[:, k0:], axis=1), axis=-1), axis=1)
     achieved = (dist / ((n - 1 - k0) / controller.fps)).reshape(len(directions), len(commands))
     return SpeedCalibration(np.asarray(commands, dtype=np.float64), achieved, tuple(directions))

@@ -129,3 +129,21 @@ def test_future_smoothing_keeps_root_and_joints_exact():
     ctl._apply_output(feats.z[len(feats) // 2][None])
     np.testing.assert_allclose(ctl.state["root"][0], _xz(root_pos[k + 1]), atol=1e-9)
     np.testing.assert_allclose(ctl.state["jpos"][0], positions[k + 1], atol=1e-9)
+
+
+def test_start_from_a_data_frame_reproduces_its_input():
+    """reset(start_x=x) puts the character in x's pose and trajectory: the first input is x again
+    (the history between the past samples is interpolated, the samples themselves are exact),
+    wherever the character stands and whichever way it faces."""
+    fps = 60
+    arrays, phases, layout, feats = _clip(fps)
+    ctl = Controller(_NoNetwork(layout), layout, fps=fps)
+    rows = feats.x[[60, 120, 180]]
+    ctl.reset(np.array([[1.0, -2.0], [0.0, 0.0], [5.0, 3.0]]), np.array([[1.0, 0.0], [0.0, 1.0], [-0.6, -0.8]]),
+              phases=feats.p[[60, 120, 180]], start_x=rows)
+    np.testing.assert_allclose(ctl.build_input(), rows, atol=1e-9)
+    np.testing.assert_allclose(ctl.state["phase"], feats.p[[60, 120, 180]])
+    ctl.reset(np.zeros((2, 2)), np.array([[0.0, 1.0], [1.0, 0.0]]), start_x=rows[0])   # one row for all
+    np.testing.assert_allclose(ctl.build_input(), rows[[0, 0]], atol=1e-9)
+    with pytest.raises(ValueError, match="start_x"):
+        ctl.reset(np.zeros((2, 2)), np.array([[0.0, 1.0], [1.0, 0.0]]), start_x=rows)

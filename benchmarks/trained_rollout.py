@@ -1,0 +1,127 @@
+"""Minute-long rollouts of a minifilm-trained model, one character per style (issue 7's checks).
+
+    python benchmarks/trained_rollout.py --checkpoint runs/train_small
+    python benchmarks/trained_rollout.py --checkpoint DIR --start mean --no-calibrate --png out.png
+
+DIR is what ``examples/train_small.py --out DIR`` writes: model.npz (checkpoint with the
+normalisation statistics), styles.npz (FiLM vector per style) and data/ (the BVH files the model
+was trained on; the data set is rebuilt from them, from DIR/cache when it is there). Every style
+walks a figure-eight at --speed m/s for --seconds (default 60 s = 3,600 frames at 60 fps), all
+styles in one batch. Printed per style (after the first second): the worst bone's coefficient
+of variation of length, the hips' height range, the mean root speed, the mean and largest
+distance of the root to the path, and foot sliding (toe speed while the predicted contact is on).
+
+--start data (default) starts each style from a frame of its own forward-walk data (pose and
+phases); --start mean from the data's mean pose and mean phases. --calibrate (default) maps the
+commanded speed through each style's measured speed calibration (runtime.calibrate_speed).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+from minifilm.control import figure_eight                              # noqa: E402
+from minifilm.data import build_dataset                                # noqa: E402
+from minifilm.runtime import Controller, RuntimeNetwork, calibrate_speed, start_from_dataset  # noqa: E402
+from minifilm.style_library import StyleLibrary                        # noqa: E402
+from minifilm.train import Trainer                                     # noqa: E402
+
+
+def rollout_metrics(checkpoint: Path, seconds: float = 60.0, speed: float = 1.3, start: str = "data",
+                    calibrate: bool = True, styles=None, png=None):
+    """Run every style for ``seconds`` along a figure-eight; returns (style names, metrics list)."""
+    checkpoint = Path(checkpoint)
+    trainer = Trainer.resume(checkpoint / "model.npz")
+    cache = checkpoint / "cache"
+    ds = build_dataset(checkpoint / "data", cache_dir=cache if cache.exists() else None, progress=False,
+                       clip_seconds=trainer.model.config.clip_frames / 60.0,
+                       clip_stride_seconds=trainer.model.config.clip_frames / 120.0, seed=0)
+    library = StyleLibrary.load(checkpoint / "styles.npz")
+    names = list(styles or library.names)
+    films = np.stack([library[n] for n in names])
+    net = RuntimeNetwork.from_model(trainer.model, trainer.stats)
+    layout, fps = ds.layout, ds.fps
+    x0 = p0 = None
+    if start == "data":
+        x0, p0 = (np.stack(a) for a in zip(*(start_from_dataset(ds, n) for n in names)))
+    ctl = Controller(net, layout, fps=fps)
+    cals = []
+    if calibrate:
+        for b in range(len(names)):
+            cals.append(calibrate_speed(ctl, films[b], phases=None if p0 is None else p0[b],
+                                        start_x=None if x0 is None else x0[b]))
+
+    class PerStyle:   # one calibration per character of the batch
+        def apply(self, v, f):
+            return np.stack([c.apply(v[b], f[b]) for b, c in enumerate(cals)])
+
+    n = int(round(seconds * fps))
+    scripts = [figure_eight(seconds, speed=speed) for _ in names]
+    t0 = time.perf_counter()
+    r = ctl.run(scripts, n, films, phases=p0, calibration=PerStyle() if calibrate else None, start_x=x0)
+    elapsed = time.perf_counter() - t0
+    toes = [layout.joint_names.index("RightToe"), layout.joint_names.index("LeftToe")]
+    metrics = r.metrics(layout.parents, scripts[0].path, toes)
+    if png:
+        _render(r, layout.parents, scripts[0].path, names, png)
+    return names, metrics, elapsed, r
+
+
+def _render(r, parents, path, names, out):
+    """Top view of every style's root path and the phases (sin of each slot) of the first style."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    B = r.root_positions.shape[0]
+    fig, axes = plt.subplots(2, B, figsize=(2.6 * B, 5.4), squeeze=False)
+    t = np.arange(r.phases.shape[1]) / r.fps
+    for b in range(B):
+        ax = axes[0, b]
+        ax.plot(path[:, 0], path[:, 1], color="0.8", lw=3)
+        ax.plot(r.root_positions[b, :, 0], r.root_positions[b, :, 1], "r", lw=0.8)
+        ax.set_title(names[b], fontsize=8)
+        ax.set_aspect("equal")
+        ax.tick_params(labelsize=6)
+        ax = axes[1, b]
+        k = min(len(t), int(5 * r.fps))
+        for slot in range(4):
+            ax.plot(t[:k], r.phases[b, :k, 2 * slot], lw=0.8)
+        ax.plot(t[:k], r.positions[b, :k, 0, 1], "k", lw=0.8)
+        ax.set_xlabel("s (first 5)", fontsize=6)
+        ax.tick_params(labelsize=6)
+    fig.tight_layout()
+    fig.savefig(out, dpi=90)
+    plt.close(fig)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--checkpoint", required=True, type=Path, help="train_small output folder")
+    ap.add_argument("--seconds", type=float, default=60.0)
+    ap.add_argument("--speed", type=float, default=1.3, help="commanded speed along the path, m/s")
+    ap.add_argument("--start", choices=("data", "mean"), default="data")
+    ap.add_argument("--no-calibrate", dest="calibrate", action="store_false")
+    ap.add_argument("--styles", nargs="+")
+    ap.add_argument("--png", help="write root paths and phases to this PNG")
+    a = ap.parse_args()
+    names, ms, elapsed, r = rollout_metrics(a.checkpoint, a.seconds, a.speed, a.start, a.calibrate, a.styles, a.png)
+    print(f"{a.checkpoint}: {a.seconds:g} s figure-eight at {a.speed} m/s, start={a.start}, "
+          f"calibrated={a.calibrate}, {len(names)} styles in one batch ({elapsed:.1f} s)")
+    print(f"{'style':14s} {'bone CV':>8s} {'hips m':>10s} {'speed':>6s} {'path mean/max m':>16s} {'sliding m/s':>12s}")
+    for n, m in zip(names, ms):
+        print(f"{n:14s} {m['bone_cv_max']:8.1%} {m['hips_min']:4.2f}-{m['hips_max']:.2f} {m['speed']:6.2f} "
+              f"{m['path_mean']:8.2f}/{m['path_max']:<7.2f} {m['foot_sliding']:12.3f}")
+    worst = max(m["bone_cv_max"] for m in ms)
+    print(f"worst bone CV {worst:.1%}; mean path distance {np.mean([m['path_mean'] for m in ms]):.2f} m")
+
+
+if __name__ == "__main__":
+    main()
