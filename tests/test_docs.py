@@ -269,3 +269,40 @@ def test_relative_links_and_images_exist():
                 problems.append(f"{_rel(path)}:{line}: {target} is over 200 KB")
     assert n > 0
     assert not problems, "\n".join(problems)
+
+
+# ---------------------------------------------------------------------------- 5. README examples
+def test_readme_example_commands_run_in_miniature(tmp_path):
+    """The example scripts the README tells a newcomer to run, on tiny inputs (one process each,
+    in parallel): make_synthetic -> plot_phases, build_dataset; generate_released if the released
+    network is there. train_small.py is run by tests/test_train_small.py, pytest by CI."""
+    import subprocess
+    import sys
+
+    env = dict(os.environ, MPLBACKEND="Agg")
+    py = [sys.executable]
+    syn = tmp_path / "syn"
+    subprocess.run(py + ["examples/make_synthetic.py", str(syn), "--seconds", "3", "--styles",
+                         "Limp", "--gaits", "FW"], cwd=REPO_ROOT, env=env, check=True,
+                   capture_output=True, timeout=120)
+    jobs = {"plot_phases": py + ["examples/plot_phases.py", str(syn / "Limp_FW.bvh"), "--out",
+                                 str(tmp_path / "phases.png")],
+            "build_dataset": py + ["examples/build_dataset.py", str(syn), "--no-cache",
+                                   "--clip-seconds", "1"]}
+    if (SHARED_DATA / "released-lpn").is_dir():
+        jobs["generate_released"] = py + [
+            "examples/generate_released.py", "--params", str(SHARED_DATA / "released-lpn"),
+            "--style", "Zombie", "--script", "figure8", "--seconds", "0.5", "--no-calibrate",
+            "--out", str(tmp_path / "zombie.bvh")]
+    procs = {k: subprocess.Popen(cmd, cwd=REPO_ROOT, env=env, stdout=subprocess.PIPE,
+                                 stderr=subprocess.PIPE, text=True) for k, cmd in jobs.items()}
+    failed = []
+    for name, p in procs.items():
+        out, err = p.communicate(timeout=300)
+        if p.returncode != 0:
+            failed.append(f"{name} exited {p.returncode}:\n{err[-2000:]}")
+    assert not failed, "\n".join(failed)
+    assert (tmp_path / "phases.png").stat().st_size > 0
+    if "generate_released" in jobs:
+        from minifilm.motion.bvh import read_bvh
+        assert read_bvh(tmp_path / "zombie.bvh").n_frames == 30
