@@ -130,6 +130,17 @@ def script_options(path: Path) -> frozenset:
                      and re.fullmatch(r"--[\w-]+", n.value))
 
 
+def dispatched_options(source: Path) -> frozenset:
+    """Options of the minifilm modules a command module dispatches to by name (string literals
+    such as "minifilm.table2" in minifilm/evaluate.py)."""
+    out = set()
+    for name in re.findall(r"[\"'](minifilm(?:\.\w+)+)[\"']", source.read_text(encoding="utf-8")):
+        path = REPO_ROOT / (name.replace(".", "/") + ".py")
+        if path.is_file():
+            out |= script_options(path)
+    return frozenset(out)
+
+
 def setup_extras() -> set:
     cfg = configparser.ConfigParser()
     cfg.read(REPO_ROOT / "setup.cfg")
@@ -160,7 +171,7 @@ def check_python_command(words) -> str | None:
             return f"script {words[1]} does not compile: {e}"
     else:
         return None
-    known = script_options(source)
+    known = script_options(source) | dispatched_options(source)
     bad = [a.split("=")[0] for a in args if a.startswith("--") and a.split("=")[0] not in known | {"--help"}]
     return f"{_rel(source)} has no option(s) {bad}" if bad else None
 
@@ -203,6 +214,7 @@ def test_the_command_checker_can_fail():
     assert check_command("python examples/no_such_script.py")
     assert check_command('pip install -e ".[nonexistent]"')
     assert check_command("python -m minifilm.no_such_module --help")
+    assert check_command("python -m minifilm.evaluate table2 --no-such-option")
 
 
 # ---------------------------------------------------------------------------- 4. code references
