@@ -37,7 +37,7 @@ from minifilm.motion.phases import default_sources, extract_local_phases        
 from minifilm.motion.skeletons import STYLE100                                  # noqa: E402
 from minifilm.control import make_script                                        # noqa: E402
 from minifilm.motion.bvh import read_bvh, write_bvh                             # noqa: E402
-from minifilm.runtime import Controller, RuntimeNetwork, root_joint_indices     # noqa: E402
+from minifilm.runtime import Controller, RuntimeNetwork, root_joint_indices, start_from_dataset  # noqa: E402
 from minifilm.style_library import StyleLibrary                                 # noqa: E402
 from minifilm.train import TrainConfig, Trainer                                 # noqa: E402
 
@@ -177,7 +177,9 @@ def save_loss_curve(history, path: Path):
 
 def generate_per_style(trainer, ds, data_dir: Path, out: Path, seconds: float):
     """One BVH per style from the autoregressive runtime (Sec. 4.4): FiLM vectors precomputed from
-    the style's training clips, a figure-eight path, the motion put back on the source skeleton."""
+    the style's training clips, a figure-eight path, the motion put back on the source skeleton.
+    Each style starts in mid-stride from a frame of its own forward walk (pose, trajectory and
+    phases): from the data's mean pose a network this small may never get going."""
     train_data = ds.train_data("train")
     library = StyleLibrary()
     for s, name in enumerate(ds.styles):
@@ -192,11 +194,13 @@ def generate_per_style(trainer, ds, data_dir: Path, out: Path, seconds: float):
     log(f"[generate] {seconds:g} s per style along a figure-eight:")
     for name in ds.styles:
         script = make_script("figure8", seconds)
-        rollout = controller.run(script, n_frames, library[name])
+        start_x, phases = start_from_dataset(ds, name)
+        rollout = controller.run(script, n_frames, library[name], phases=phases, start_x=start_x)
         path = out / "generated" / f"{name}.bvh"
         write_bvh(rollout.to_motion(template, joints), path)
         hips = rollout.positions[0, :, 0, 1]
-        log(f"    {name:<14} hips {hips.mean():.2f} m   -> {path}")
+        speed = np.linalg.norm(np.diff(rollout.root_positions[0], axis=0), axis=1).mean() * ds.fps
+        log(f"    {name:<14} hips {hips.mean():.2f} m  speed {speed:.2f} m/s   -> {path}")
 
 
 def main(argv=None):
