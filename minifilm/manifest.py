@@ -40,8 +40,9 @@ class MotionFile:
 
 
 def scan_100style(folder: Union[str, Path]) -> List[MotionFile]:
-    """Every ``<Style>_<Gait>.bvh`` in ``folder`` (sorted by name). Files whose names do not follow
-    the pattern are ignored; a folder without a single matching file is an error.
+    """Every ``<Style>_<Gait>.bvh`` in ``folder`` or its sub-folders (sorted by name; the 100STYLE
+    download keeps one sub-folder per style). Files whose names do not follow the pattern are
+    ignored; a folder without a single matching file, or two files of the same name, is an error.
 
     The 100STYLE metadata is used when it sits in the folder (original-pipeline.md §11):
     ``Frame_Cuts.csv`` crops each file to its stylised part (``<GAIT>_START`` / ``_STOP`` are 1-based
@@ -55,10 +56,14 @@ def scan_100style(folder: Union[str, Path]) -> List[MotionFile]:
     cuts = read_frame_cuts(folder / "Frame_Cuts.csv") if (folder / "Frame_Cuts.csv").is_file() else {}
     symmetric = (read_symmetric_styles(folder / "Dataset_List.csv")
                  if (folder / "Dataset_List.csv").is_file() else None)
-    out = []
-    for path in sorted(folder.glob("*.bvh")):
+    out, seen = [], {}
+    for path in sorted(folder.rglob("*.bvh"), key=lambda p: (p.name, str(p))):
         m = _STYLE100_NAME.match(path.name)
         if m:
+            if path.name in seen:
+                raise ValueError(f"scan_100style: {path.name} is both {seen[path.name]} and {path}; "
+                                 f"keep one copy of each <Style>_<Gait>.bvh under {folder}")
+            seen[path.name] = path
             style, gait = m["style"], m["gait"]
             start, end = cuts.get((style, "TR1" if gait == "TR" else gait), (None, None))
             mirror = None if symmetric is None else style in symmetric

@@ -120,8 +120,9 @@ def test_scan_100style_names(tmp_path):
     got = [(f.path.name, f.style, f.gait) for f in scan_100style(tmp_path)]
     assert got == [("Aeroplane_TR2.bvh", "Aeroplane", "TR2"), ("Zombie_FW.bvh", "Zombie", "FW"),
                    ("Zombie_ID.bvh", "Zombie", "ID")]
+    (tmp_path / "empty").mkdir()
     with pytest.raises(ValueError, match="no file in .* is named <Style>_<Gait>.bvh"):
-        scan_100style(tmp_path / "..")
+        scan_100style(tmp_path / "empty")
 
 
 # ----------------------------------------------------------------------------- building (real data)
