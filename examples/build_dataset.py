@@ -54,4 +54,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    from minifilm.cli import run
+
+    run(main)

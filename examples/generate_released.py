@@ -169,4 +169,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from minifilm.cli import run
+
+    run(main)
