@@ -13,7 +13,7 @@ EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 def test_input_errors_become_one_line_and_exit_code_2(capsys):
     def main():
-        raise BVHError("walk.bvh, line 7: expected 'OFFSET'")
+        raise BVHError("walk.bvh", 7, "expected 'OFFSET'")
     with pytest.raises(SystemExit) as stop:
         run(main)
     assert stop.value.code == 2
