@@ -57,7 +57,11 @@ def load_data(args):
         name = "synthetic"
         extra = {}
     else:
-        folder, name = Path(args.data), Path(args.data).name
+        from minifilm.manifest import bandai_files
+        name = Path(args.data).name
+        folder = Path(args.data)
+        if any(folder.glob("dataset-*_*_*_*.bvh")):     # Bandai Namco naming: content_style_id
+            folder = bandai_files(folder)
         extra = {"split_unit": "files"} if args.split_files else {}
     ds = build_dataset(folder, cache_dir=cache, progress=False, clip_seconds=args.clip_seconds,
                        clip_stride_seconds=args.clip_seconds / 2, seed=args.seed, fps=args.fps, **extra)
@@ -223,19 +227,20 @@ def finetune_separation(result, ctx):
     path = Path(a.work) / "lpn_film_base.npz"
     trainer.save(path)
     epochs = max(1, math.ceil(a.finetune_steps / steps_per_epoch(ctx.new_train.style, a.batch_size)))
-    before_new = trainer.evaluate(style_subset(ctx.ds, "test", [ctx.holdout], ctx.norm))
+    new_test = style_subset(ctx.ds, "test", [ctx.holdout], ctx.norm)
+    n_motion = ctx.layout.z_phases.start
+    before_new = motion_errors(trainer.model, new_test, ctx.layout, ctx.norm, n_motion, seed=a.seed)
     t0 = time.perf_counter()
     ft = finetune(path, ctx.new_train, config=TrainConfig(epochs=epochs, batch_size=a.batch_size, lr=a.lr,
                                                           seed=a.seed + 1, progress=False),
                   style_names=[ctx.holdout])
     seconds = time.perf_counter() - t0
-    after_new = ft.evaluate(style_subset(ctx.ds, "test", [ctx.holdout], ctx.norm))
+    after_new = motion_errors(ft.model, new_test, ctx.layout, ctx.norm, n_motion, seed=a.seed)
     labels = ctx.all_train.clip_style
     focus = len(ctx.seen)
     sep = {"before": film_separation(film_codes(trainer.model, ctx.all_train.clips), labels, focus),
            "after": film_separation(film_codes(ft.model, ctx.all_train.clips), labels, focus)}
-    seen_after = motion_errors(ft.model, ctx.data["test"], ctx.layout, ctx.norm, ctx.layout.z_phases.start,
-                               seed=a.seed)
+    seen_after = motion_errors(ft.model, ctx.data["test"], ctx.layout, ctx.norm, n_motion, seed=a.seed)
     return {"separation": sep, "labels": labels, "seconds": seconds, "steps": ft.step,
             "before_new": before_new, "after_new": after_new, "seen_after": seen_after}
 
@@ -299,9 +304,9 @@ def parse_args(argv):
     p = argparse.ArgumentParser(prog="python -m minifilm.evaluate compare", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--data", default="synthetic", help="'synthetic' (default) or a folder of BVH files")
-    p.add_argument("--budget-steps", type=int, default=500,
-                   help="training steps per variant, rounded up to whole epochs (default 500)")
-    p.add_argument("--finetune-steps", type=int, default=150, help="Ψ fine-tuning steps (default 150)")
+    p.add_argument("--budget-steps", type=int, default=2500,
+                   help="training steps per variant, rounded up to whole epochs (default 2500)")
+    p.add_argument("--finetune-steps", type=int, default=300, help="Ψ fine-tuning steps (default 300)")
     p.add_argument("--out", default="reports", help="folder of the markdown report and PNGs")
     p.add_argument("--work", default="runs/compare", help="folder for generated data and caches")
     p.add_argument("--variants", help="comma-separated subset of the seven variants (default: all)")
@@ -312,7 +317,8 @@ def parse_args(argv):
     p.add_argument("--seconds", type=float, default=10.0, help="synthetic seconds per style and gait")
     p.add_argument("--styles", help="comma-separated synthetic styles (default: all)")
     p.add_argument("--gaits", help="comma-separated synthetic gaits (default: all)")
-    p.add_argument("--split-files", action="store_true", help="whole files per split (for many short files)")
+    p.add_argument("--split-files", action="store_true",
+                   help="whole files per split (for many short files, e.g. Bandai's ~5 s files)")
     p.add_argument("--rollout-seconds", type=float, default=10.0)
     p.add_argument("--batch-size", type=int, default=32)
     p.add_argument("--lr", type=float, default=1e-3)
