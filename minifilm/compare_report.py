@@ -12,6 +12,18 @@ def _fmt(v, digits=4):
     return "n/a" if v is None or (isinstance(v, float) and not np.isfinite(v)) else f"{v:.{digits}f}"
 
 
+def seed_summary(r) -> dict:
+    """Mean and sample std over the seeds of a variant's test errors (r['seed_errors'], or just
+    r['errors']): {'mse', 'mse_sd', 'bll', 'bll_sd', 'n', 'per_style': {style: mean mse}}."""
+    runs = r.get("seed_errors") or [r["errors"]]
+    out = {"n": len(runs)}
+    for key in ("mse", "bll"):
+        v = np.array([e[key] for e in runs])
+        out[key], out[key + "_sd"] = float(v.mean()), float(v.std(ddof=1)) if len(v) > 1 else float("nan")
+    out["per_style"] = {s: float(np.mean([e["per_style"][s]["mse"] for e in runs])) for s in runs[0]["per_style"]}
+    return out
+
+
 def _plots(out: Path, name: str, ctx, results, ft) -> dict:
     """Draw the PNGs; returns {key: file name} (empty without matplotlib)."""
     try:
@@ -24,12 +36,14 @@ def _plots(out: Path, name: str, ctx, results, ft) -> dict:
     names = list(results)
     # Figure 10: test MSE and BLL per variant
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    summ = {v: seed_summary(results[v]) for v in names}
     for ax, key in zip(axes, ("mse", "bll")):
-        vals = [results[v]["errors"][key] for v in names]
-        ax.bar(range(len(names)), vals, color=[f"C{i}" for i in range(len(names))])
+        vals = [summ[v][key] for v in names]
+        err = [summ[v][key + "_sd"] if summ[v]["n"] > 1 else 0.0 for v in names]
+        ax.bar(range(len(names)), vals, yerr=err, capsize=3, color=[f"C{i}" for i in range(len(names))])
         ax.set_xticks(range(len(names)))
         ax.set_xticklabels(names, rotation=30, ha="right", fontsize=8)
-        ax.set_title(f"test {key.upper()} (seen styles, normalised units)", fontsize=9)
+        ax.set_title(f"test {key.upper()} (seen styles; mean, sd over {summ[names[0]]['n']} seeds)", fontsize=9)
     fig.tight_layout()
     files["errors"] = f"compare_{name}_errors.png"
     fig.savefig(out / files["errors"], dpi=80)
@@ -76,7 +90,8 @@ def _plots(out: Path, name: str, ctx, results, ft) -> dict:
 def claims(ctx, results, ft) -> list:
     """The paper's claims, each with a verdict computed from the numbers of this run."""
     out = []
-    mse = {v: r["errors"]["mse"] for v, r in results.items()}
+    summ = {v: seed_summary(r) for v, r in results.items()}
+    mse = {v: summ[v]["mse"] for v in results}
     film = [v for v in mse if "FiLM" in v]
     other = [v for v in mse if "FiLM" not in v]
     if film and other:
@@ -91,14 +106,14 @@ def claims(ctx, results, ft) -> list:
         out.append(f"FiLM variants have the lowest test error: **{verdict}** "
                    f"(lowest overall: {best} {mse[best]:.4f}; FiLM variants "
                    + ", ".join(f"{v} {mse[v]:.4f}" for v in film)
-                   + f"; best non-FiLM {best_other} {mse[best_other]:.4f}). One seed: differences of a few "
-                   "per cent may be noise.")
+                   + f"; best non-FiLM {best_other} {mse[best_other]:.4f}; means over {summ[best]['n']} seed(s), "
+                   f"sd about {np.nanmean([summ[v]['mse_sd'] for v in summ]):.4f}).")
     phase = [s for s in PHASE_STYLES if s in ctx.seen]
     trio = [v for v in ("LPN FiLM", "PFNN FiLM", "MANN FiLM") if v in results]
     if phase and "LPN FiLM" in results and len(trio) > 1:
         parts, wins = [], 0
         for s in phase:
-            e = {v: results[v]["errors"]["per_style"][s]["mse"] for v in trio}
+            e = {v: summ[v]["per_style"][s] for v in trio}
             win = e["LPN FiLM"] < min(e[v] for v in trio if v != "LPN FiLM")
             wins += win
             parts.append(f"{s}: " + ", ".join(f"{v.split()[0]} {e[v]:.4f}" for v in trio))
@@ -145,18 +160,25 @@ def write_report(out: Path, name: str, ctx, results, ft, meta) -> Path:
       f"training rows (all {len(ds.styles)} styles); **ceiling = accuracy on {ci['n_heldout']} windows of held-out "
       f"real rows: {ci['heldout_acc']:.3f}** (training accuracy {ci['train_acc']:.3f}).\n")
     w("## Figure 10: test error\n")
-    w("| variant | parameters | test MSE | test BLL | final train loss | train time |")
+    n_seeds = seed_summary(next(iter(results.values())))["n"]
+    seeds = ", ".join(str(x) for x in [a.seed] + list(getattr(a, "extra_seeds", [])))
+    w(f"Mean ± sample std over {n_seeds} model seed(s) ({seeds}; same data, different initialisation and batch "
+      f"order); rollouts and everything below use the model of seed {a.seed}.\n")
+    w("| variant | parameters | test MSE | test BLL | final train loss (seed " + str(a.seed) + ") | train time |")
     w("|---|---:|---:|---:|---:|---:|")
+    pm = lambda m, sd: f"{m:.4f}" + (f" ± {sd:.4f}" if np.isfinite(sd) else "")   # noqa: E731
     for v, r in results.items():
-        w(f"| {v} | {r['params']:,} | {r['errors']['mse']:.4f} | {r['errors']['bll']:.4f} | "
+        e = seed_summary(r)
+        w(f"| {v} | {r['params']:,} | {pm(e['mse'], e['mse_sd'])} | {pm(e['bll'], e['bll_sd'])} | "
           f"{r['final_train_loss']:.4f} | {r['seconds']:.0f} s |")
     if "errors" in files:
         w(f"\n![test errors]({files['errors']})\n")
-    w("Test MSE per seen style:\n")
+    w(f"Test MSE per seen style (mean over the seeds):\n")
     w("| variant | " + " | ".join(ctx.seen) + " |")
     w("|---|" + "---:|" * len(ctx.seen))
     for v, r in results.items():
-        w(f"| {v} | " + " | ".join(f"{r['errors']['per_style'][s]['mse']:.4f}" for s in ctx.seen) + " |")
+        e = seed_summary(r)
+        w(f"| {v} | " + " | ".join(f"{e['per_style'][s]:.4f}" for s in ctx.seen) + " |")
     w("\n## Generated motion: style recognition, foot sliding, bone lengths\n")
     w(f"Classifier ceiling on real held-out rows: **{ci['heldout_acc']:.3f}** (chance {1 / len(ds.styles):.3f}).\n")
     w("| variant | style accuracy | foot sliding (m/s) | bone-length cv mean | bone-length cv max | root speed (m/s) |")
@@ -211,7 +233,7 @@ def write_report(out: Path, name: str, ctx, results, ft, meta) -> Path:
           f"{ft['before_new']['mse']:.4f} | {ft['before_new']['bll']:.4f} |")
         w(f"| after | {sa['silhouette']:.3f} | {sa['silhouette_2d']:.3f} | {sa['focus_silhouette']:.3f} | "
           f"{ft['after_new']['mse']:.4f} | {ft['after_new']['bll']:.4f} |")
-        seen_before = results["LPN FiLM"]["errors"]["mse"]
+        seen_before = results["LPN FiLM"]["errors"]["mse"]             # seed of the fine-tuned model
         w(f"\nSeen styles' test MSE with the fine-tuned Ψ: {ft['seen_after']['mse']:.4f} (before: {seen_before:.4f}); "
           "Ψ was trained on the new style only, so this shows how much it forgot.")
         if "film" in files:

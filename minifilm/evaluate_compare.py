@@ -118,16 +118,19 @@ def steps_per_epoch(style, batch_size):
     return int(counts.min() // size * len(counts))
 
 
-def train_variant(name, ctx, epochs):
+def train_variant(name, ctx, epochs, seed=None):
+    """Train one variant (model initialisation and batch order from `seed`, default --seed) and
+    measure its test errors."""
     from minifilm.model.variants import build_variant
     from minifilm.train import TrainConfig, Trainer
     from minifilm.variant_data import variant_data
 
     a, L = ctx.args, ctx.layout
-    model = build_variant(name, model_config(ctx, a.model), np.random.default_rng(a.seed), n_styles=len(ctx.seen))
+    seed = a.seed if seed is None else seed
+    model = build_variant(name, model_config(ctx, a.model), np.random.default_rng(seed), n_styles=len(ctx.seen))
     vtrain, info = variant_data(name, ctx.data["train"], L, ctx.norm, ctx.end_effectors)
     vtest, _ = variant_data(name, ctx.data["test"], L, ctx.norm, ctx.end_effectors, reference=info)
-    trainer = Trainer(model, ctx.norm, TrainConfig(epochs=epochs, batch_size=a.batch_size, lr=a.lr, seed=a.seed,
+    trainer = Trainer(model, ctx.norm, TrainConfig(epochs=epochs, batch_size=a.batch_size, lr=a.lr, seed=seed,
                                                    progress=False),
                       positions_idx=L.joint_columns("z", "position"), parents=np.asarray(L.parents),
                       style_names=ctx.seen)
@@ -283,6 +286,11 @@ def run(args):
             + ("" if not i else ", interpolation diverged" if i.get("diverged") else
                f", interpolation score {i['score'][0]:.2f} -> {i['score'][-1]:.2f}, monotonicity "
                f"{i['monotonicity']:.2f}") + f" ({time.perf_counter() - t0:.0f} s)")
+        r["seed_errors"] = [r["errors"]]
+        for seed in args.extra_seeds:          # test errors only: how much of a difference is noise
+            e = train_variant(v, ctx, epochs, seed=seed)["errors"]
+            r["seed_errors"].append(e)
+            log(f"        seed {seed}: test MSE {e['mse']:.4f}  BLL {e['bll']:.4f}")
         results[v] = r
     ft = None
     if "LPN FiLM" in results and ctx.new_train is not None:
@@ -322,9 +330,12 @@ def parse_args(argv):
     p.add_argument("--rollout-seconds", type=float, default=10.0)
     p.add_argument("--batch-size", type=int, default=32)
     p.add_argument("--lr", type=float, default=1e-3)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="data, split, classifier and first model seed")
+    p.add_argument("--extra-seeds", default="1",
+                   help="comma-separated further model seeds for the test errors (default '1'; '' for none)")
     p.add_argument("--tiny", action="store_true", help="a tiny model (tests and smoke runs)")
     a = p.parse_args(argv)
+    a.extra_seeds = [int(x) for x in a.extra_seeds.split(",") if x.strip()]
     a.styles = a.styles.split(",") if a.styles else None
     a.gaits = a.gaits.split(",") if a.gaits else None
     a.model = dict(MODEL, hidden=16, conv_filters=4, film_dense=16, n_experts=2, gating_hidden=8) if a.tiny else MODEL
