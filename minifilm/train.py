@@ -171,7 +171,7 @@ class Trainer:
             mse, bll, dpred = self.losses(pred, z)
             where = f"epoch {self.epoch + 1}, batch {i + 1}, style {self._name(s)}"
             self._check_finite(where, [("MSE loss", mse), ("bone-length loss", bll)])
-            self.model.backward(dpred)
+            self.model.backward(dpred, need_input_grads=False)   # the inputs are data: skip dx, dclip
             self._check_finite(where, [(f"gradient of the {net} network", getattr(self.model, net).params.grad)
                                        for net in NETWORKS if getattr(self.model, net) is not None])
             self.optimizer.step()

@@ -167,8 +167,8 @@ def test_nan_gradient_is_named(monkeypatch):
     trainer = new_trainer(epochs=1)
     real_backward = trainer.model.backward
 
-    def poisoned(dz):
-        out = real_backward(dz)
+    def poisoned(dz, **options):
+        out = real_backward(dz, **options)
         trainer.model.motion.params.grads["W1"][0, 0, 0] = np.inf
         return out
 
