@@ -11,9 +11,11 @@ styles in one batch. Printed per style (after the first second): the worst bone'
 of variation of length, the hips' height range, the mean root speed, the mean and largest
 distance of the root to the path, and foot sliding (toe speed while the predicted contact is on).
 
---start data (default) starts each style from a frame of its own forward-walk data (pose and
-phases); --start mean from the data's mean pose and mean phases. --calibrate (default) maps the
-commanded speed through each style's measured speed calibration (runtime.calibrate_speed).
+--start data (default) starts each style from a frame of its own forward-walk data (pose,
+trajectory and phases); --start mean from the data's mean pose and mean phases. --calibrate maps
+the commanded speed through each style's measured speed calibration (runtime.calibrate_speed).
+"foot phase sd" is the smallest standard deviation of a foot phase channel: near 0 when the gait
+has stopped and the character slides along in a frozen pose.
 """
 from __future__ import annotations
 
@@ -36,7 +38,7 @@ from minifilm.train import Trainer                                     # noqa: E
 
 
 def rollout_metrics(checkpoint: Path, seconds: float = 60.0, speed: float = 1.3, start: str = "data",
-                    calibrate: bool = True, styles=None, png=None):
+                    calibrate: bool = False, styles=None, png=None, controller_options=None):
     """Run every style for ``seconds`` along a figure-eight; returns (style names, metrics list)."""
     checkpoint = Path(checkpoint)
     trainer = Trainer.resume(checkpoint / "model.npz")
@@ -52,7 +54,7 @@ def rollout_metrics(checkpoint: Path, seconds: float = 60.0, speed: float = 1.3,
     x0 = p0 = None
     if start == "data":
         x0, p0 = (np.stack(a) for a in zip(*(start_from_dataset(ds, n) for n in names)))
-    ctl = Controller(net, layout, fps=fps)
+    ctl = Controller(net, layout, fps=fps, **(controller_options or {}))
     cals = []
     if calibrate:
         for b in range(len(names)):
@@ -70,6 +72,9 @@ def rollout_metrics(checkpoint: Path, seconds: float = 60.0, speed: float = 1.3,
     elapsed = time.perf_counter() - t0
     toes = [layout.joint_names.index("RightToe"), layout.joint_names.index("LeftToe")]
     metrics = r.metrics(layout.parents, scripts[0].path, toes)
+    k0 = int(round(fps))
+    for b, m in enumerate(metrics):   # a gait that stopped (frozen pose sliding along) has still foot phases
+        m["foot_phase_std"] = float(r.phases[b, k0:, 4:8].std(axis=0).min())
     if png:
         _render(r, layout.parents, scripts[0].path, names, png)
     return names, metrics, elapsed, r
@@ -108,19 +113,29 @@ def main():
     ap.add_argument("--seconds", type=float, default=60.0)
     ap.add_argument("--speed", type=float, default=1.3, help="commanded speed along the path, m/s")
     ap.add_argument("--start", choices=("data", "mean"), default="data")
-    ap.add_argument("--no-calibrate", dest="calibrate", action="store_false")
+    ap.add_argument("--calibrate", action="store_true",
+                    help="map the speed through each style's calibrate_speed (off: it commands far more "
+                         "than the data's speeds, which small trained models do not survive)")
     ap.add_argument("--styles", nargs="+")
     ap.add_argument("--png", help="write root paths and phases to this PNG")
+    ap.add_argument("--velocity-blend", type=float, default=0.5, help="Controller velocity_blend (1 = off)")
+    ap.add_argument("--future-smoothing", type=float, default=0.15, help="Controller future_smoothing (0 = off)")
     a = ap.parse_args()
-    names, ms, elapsed, r = rollout_metrics(a.checkpoint, a.seconds, a.speed, a.start, a.calibrate, a.styles, a.png)
+    names, ms, elapsed, r = rollout_metrics(a.checkpoint, a.seconds, a.speed, a.start, a.calibrate, a.styles, a.png,
+                                            dict(velocity_blend=a.velocity_blend, future_smoothing=a.future_smoothing))
     print(f"{a.checkpoint}: {a.seconds:g} s figure-eight at {a.speed} m/s, start={a.start}, "
-          f"calibrated={a.calibrate}, {len(names)} styles in one batch ({elapsed:.1f} s)")
-    print(f"{'style':14s} {'bone CV':>8s} {'hips m':>10s} {'speed':>6s} {'path mean/max m':>16s} {'sliding m/s':>12s}")
+          f"calibrated={a.calibrate}, velocity_blend={a.velocity_blend}, future_smoothing={a.future_smoothing}, "
+          f"{len(names)} styles in one batch ({elapsed:.1f} s)")
+    print(f"{'style':14s} {'bone CV':>8s} {'hips m':>10s} {'speed':>6s} {'path mean/max m':>16s} {'sliding m/s':>12s} "
+          f"{'foot phase sd':>14s}")
     for n, m in zip(names, ms):
         print(f"{n:14s} {m['bone_cv_max']:8.1%} {m['hips_min']:4.2f}-{m['hips_max']:.2f} {m['speed']:6.2f} "
-              f"{m['path_mean']:8.2f}/{m['path_max']:<7.2f} {m['foot_sliding']:12.3f}")
+              f"{m['path_mean']:8.2f}/{m['path_max']:<7.2f} {m['foot_sliding']:12.3f} {m['foot_phase_std']:14.2f}")
     worst = max(m["bone_cv_max"] for m in ms)
-    print(f"worst bone CV {worst:.1%}; mean path distance {np.mean([m['path_mean'] for m in ms]):.2f} m")
+    print(f"worst bone CV {worst:.1%}; styles under 5 %: {sum(m['bone_cv_max'] < 0.05 for m in ms)}/{len(ms)}; "
+          f"mean path distance {np.mean([m['path_mean'] for m in ms]):.2f} m; mean speed "
+          f"{np.mean([m['speed'] for m in ms]):.2f} m/s; styles still stepping (foot phase sd > 0.2): "
+          f"{sum(m['foot_phase_std'] > 0.2 for m in ms)}/{len(ms)}")
 
 
 if __name__ == "__main__":
