@@ -97,6 +97,7 @@ def claims(ctx, results, ft) -> list:
     if film and other:
         best_other = min(other, key=mse.get)
         best = min(mse, key=mse.get)
+        sds = [summ[v]["mse_sd"] for v in summ if summ[v]["n"] > 1]
         if max(mse[v] for v in film) < mse[best_other]:
             verdict = "holds"
         elif best in film:
@@ -106,8 +107,8 @@ def claims(ctx, results, ft) -> list:
         out.append(f"FiLM variants have the lowest test error: **{verdict}** "
                    f"(lowest overall: {best} {mse[best]:.4f}; FiLM variants "
                    + ", ".join(f"{v} {mse[v]:.4f}" for v in film)
-                   + f"; best non-FiLM {best_other} {mse[best_other]:.4f}; means over {summ[best]['n']} seed(s), "
-                   f"sd about {np.nanmean([summ[v]['mse_sd'] for v in summ]):.4f}).")
+                   + f"; best non-FiLM {best_other} {mse[best_other]:.4f}; means over {summ[best]['n']} seed(s)"
+                   + (f", seed-to-seed sd {min(sds):.4f} to {max(sds):.4f})." if sds else "; one seed)."))
     phase = [s for s in PHASE_STYLES if s in ctx.seen]
     trio = [v for v in ("LPN FiLM", "PFNN FiLM", "MANN FiLM") if v in results]
     if phase and "LPN FiLM" in results and len(trio) > 1:
