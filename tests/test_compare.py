@@ -84,3 +84,19 @@ def test_tiny_compare_run(tmp_path):
     assert ft is not None and -1 <= ft["separation"]["after"]["silhouette"] <= 1
     text = out["report"].read_text()
     assert "LPN FiLM" in text and "LPN one-hot" in text and "Figure 10" in text
+
+
+def test_claims_use_seed_means():
+    import types
+    from minifilm.compare_report import claims, seed_summary
+
+    def e(m):
+        return {"mse": m, "bll": 0.0, "per_style": {"Swimming": {"mse": m}}}
+    res = {"LPN FiLM": {"errors": e(1.0), "seed_errors": [e(1.0), e(1.2)]},          # mean 1.1
+           "PFNN one-hot": {"errors": e(0.9), "seed_errors": [e(0.9), e(1.5)]},      # mean 1.2: seed 0 alone would win
+           "PFNN FiLM": {"errors": e(0.9), "seed_errors": [e(0.9), e(1.0)]}}         # mean 0.95
+    s = seed_summary(res["PFNN one-hot"])
+    assert s["mse"] == pytest.approx(1.2) and s["mse_sd"] == pytest.approx(np.std([0.9, 1.5], ddof=1))
+    text = claims(types.SimpleNamespace(seen=["Swimming"], holdout=None), res, None)
+    assert "lowest test error: **holds**" in text[0]
+    assert "LPN lowest on 0 of 1" in text[1]
