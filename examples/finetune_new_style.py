@@ -5,6 +5,8 @@
     python examples/finetune_new_style.py --data DIR           # your own <Style>_<Gait>.bvh folder
     python examples/finetune_new_style.py --quick              # a miniature of the same run
 
+About a minute on 2 cores (OPENBLAS_NUM_THREADS=1 helps a lot when other jobs share the machine).
+
 Steps:
  1. data:      the synthetic set (as examples/train_small.py makes it) or --data; one style is held
                out: the normalisation statistics and the training see only the other styles;
