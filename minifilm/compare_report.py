@@ -236,7 +236,9 @@ def write_report(out: Path, name: str, ctx, results, ft, meta) -> Path:
           f"{ft['after_new']['mse']:.4f} | {ft['after_new']['bll']:.4f} |")
         seen_before = results["LPN FiLM"]["errors"]["mse"]             # seed of the fine-tuned model
         w(f"\nSeen styles' test MSE with the fine-tuned Ψ: {ft['seen_after']['mse']:.4f} (before: {seen_before:.4f}); "
-          "Ψ was trained on the new style only, so this shows how much it forgot.")
+          "Ψ was trained on the new style only, so this shows how much it forgot. Held-out errors are in the seen "
+          "styles' normalised units (the statistics never saw the held-out style), so a style outside their range "
+          "gives large numbers: compare before with after, not with the seen styles.")
         if "film" in files:
             w(f"\n![FiLM codes]({files['film']})\n")
     w("\n## The paper's claims, here\n")
