@@ -595,7 +595,12 @@ def calibrate_speed(controller: Controller, film: np.ndarray,
     """Move at each commanded speed in each direction (degrees from the facing: 0 forwards, 90
     sideways, 180 backwards), all at once as one batch, and measure the mean root speed after
     ``settle`` seconds. ``film`` is the style (4H,); ``phases`` (8,) and ``start_x`` (x_dim,)
-    the start state (see :meth:`Controller.reset`; default the data's means)."""
+    the start state (see :meth:`Controller.reset`; default the data's means).
+
+    Made for the released network. A small network trained on little data may move at its data's
+    speeds only (a walk and a run, nothing between), so the calibration asks for commands far
+    outside its data; in ``benchmarks/trained_rollout.py`` that made the train_small model's
+    bones stretch (CV up to 69 %) and its path error grow, so check before using it there."""
     from minifilm.control import CommandScript
 
     n = int(round(seconds * controller.fps))
