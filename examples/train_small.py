@@ -5,7 +5,7 @@
     python examples/train_small.py --quick              # a one-minute miniature of the same run
 
 Steps (each prints what it did):
- 1. data:     generate the synthetic stylised locomotion set (8 styles x 5 gaits, 100STYLE skeleton,
+ 1. data:     generate the synthetic stylised locomotion set (8 styles x 6 gaits, 100STYLE skeleton,
               60 fps) and write it as BVH files, so it flows through the same pipeline as real data;
  2. phases:   measure local-phase extraction against the generator's true phases (Sec. 4.1);
  3. dataset:  read the BVH files, detect contacts, extract local phases, build x / p / z / clips,
@@ -34,7 +34,7 @@ from minifilm.model.style_model import StyleModel                               
 from minifilm.motion import synthetic                                           # noqa: E402
 from minifilm.motion.contacts import foot_contacts                              # noqa: E402
 from minifilm.motion.phases import default_sources, extract_local_phases        # noqa: E402
-from minifilm.motion.skeletons import STYLE100                                  # noqa: E402
+from minifilm.motion.skeletons import BUILTIN_SKELETONS, STYLE100                # noqa: E402
 from minifilm.control import make_script                                        # noqa: E402
 from minifilm.motion.bvh import read_bvh, write_bvh                             # noqa: E402
 from minifilm.runtime import Controller, RuntimeNetwork, root_joint_indices, start_from_dataset  # noqa: E402
@@ -192,7 +192,9 @@ def generate_per_style(trainer, ds, data_dir: Path, out: Path, seconds: float):
     library.save(out / "styles.npz")
     network = RuntimeNetwork.from_model(trainer.model, trainer.stats)
     controller = Controller(network, ds.layout, fps=ds.fps)
-    template = read_bvh(next(iter(sorted(Path(data_dir).glob("*.bvh")))), scale=STYLE100.bvh_scale)
+    # the output skeleton is the first source file's own, written back in its own units
+    skeleton = {s.name: s for s in BUILTIN_SKELETONS}.get(ds.skeleton, STYLE100)
+    template = read_bvh(ds.files[0]["path"], scale=skeleton.bvh_scale)
     joints = root_joint_indices(ds.layout, template)
     n_frames = int(round(seconds * ds.fps))
     (out / "generated").mkdir(exist_ok=True)
@@ -202,7 +204,7 @@ def generate_per_style(trainer, ds, data_dir: Path, out: Path, seconds: float):
         start_x, phases = start_from_dataset(ds, name)
         rollout = controller.run(script, n_frames, library[name], phases=phases, start_x=start_x)
         path = out / "generated" / f"{name}.bvh"
-        write_bvh(rollout.to_motion(template, joints), path)
+        write_bvh(rollout.to_motion(template, joints), path, scale=skeleton.bvh_scale)
         hips = rollout.positions[0, :, 0, 1]
         speed = np.linalg.norm(np.diff(rollout.root_positions[0], axis=0), axis=1).mean() * ds.fps
         log(f"    {name:<14} hips {hips.mean():.2f} m  speed {speed:.2f} m/s   -> {path}")
@@ -210,7 +212,8 @@ def generate_per_style(trainer, ds, data_dir: Path, out: Path, seconds: float):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--data", type=Path, help="folder of <Style>_<Gait>.bvh files (default: synthetic)")
+    parser.add_argument("--data", type=Path, help="folder of <Style>_<Gait>.bvh files, or a CSV manifest "
+                        "(file,style,gait[,start,end]) for other datasets (default: synthetic data)")
     parser.add_argument("--out", type=Path, default=OUT, help=f"output folder (default {OUT})")
     parser.add_argument("--epochs", type=int, help=f"training epochs (default {EPOCHS})")
     parser.add_argument("--seed", type=int, default=SEED)

@@ -98,7 +98,24 @@ def test_fit_positions_follows_positions_when_axes_are_off():
 
 def test_retarget_errors_name_the_problem():
     skel, local, P, R, idx = exported_pose()
-    with pytest.raises(ValueError, match="not the root"):
-        retarget(P[:, idx[1:]], R[:, idx[1:]], skel, idx[1:])
+    swapped = idx.copy()
+    swapped[[0, 1]] = idx[[1, 0]]                     # Spine first, below the exported Hips
+    with pytest.raises(ValueError, match="must be the first exported joint of its chain"):
+        retarget(P[:, swapped], R[:, swapped], skel, swapped)
+    with pytest.raises(ValueError, match="Leg is not below Spine"):
+        retarget(P[:, idx[1:]], R[:, idx[1:]], skel, idx[1:])   # the leg hangs from the Hips
     with pytest.raises(ValueError, match="disagree"):
         retarget(P[:, idx], R[:, idx], skel, idx[:-1])
+
+
+@pytest.mark.parametrize("fit", [False, True])
+def test_joints_above_the_exported_root_stay_at_rest(fit):
+    """Bandai files have a floor marker ``joint_Root`` above ``Hips``; exporting from the hips
+    keeps the marker at rest and still reproduces every exported joint."""
+    skel, local, P, R, idx = exported_pose(seed=7)
+    below = np.array([1, 2, 4, 5, 6])                 # Spine and everything under it, no Hips
+    m = retarget(P[:, below], R[:, below], skel, below, fit_positions=fit)
+    np.testing.assert_allclose(m.rotations[:, 0], np.broadcast_to(np.eye(3), (20, 3, 3)), atol=1e-12)
+    np.testing.assert_allclose(m.translations[:, 0], np.broadcast_to(skel.offsets[0], (20, 3)))
+    P2, _ = fk(m.rotations, m.translations, m.parents)
+    np.testing.assert_allclose(P2[:, below], P[:, below], atol=1e-9)

@@ -115,12 +115,13 @@ def retarget(positions: np.ndarray, rotations: np.ndarray, skeleton: Motion, joi
         skeleton: a Motion whose hierarchy, offsets and channels define the output skeleton
             (its frames are not used), e.g. the 100STYLE BVH header.
         joint_indices: (Je,) index into ``skeleton`` joints of each exported joint; exported joint 0
-            must be the skeleton's root.
+            is the skeleton's root or hangs below joints that are not exported (Bandai's
+            ``joint_Root`` above ``Hips``), which are then kept at rest with no rotation.
         frame_time: seconds per frame of the output (default: the skeleton's).
         fit_positions: fit rotations to the predicted positions (see module doc).
     Returns:
-        Motion on ``skeleton`` with F frames: root translation = positions[:, 0], other joints at
-        their rest offsets.
+        Motion on ``skeleton`` with F frames: exported joint 0 placed at positions[:, 0], every
+        other joint at its rest offset.
     """
     P = np.asarray(positions, dtype=np.float64)
     Rw = np.asarray(rotations, dtype=np.float64)
@@ -134,13 +135,27 @@ def retarget(positions: np.ndarray, rotations: np.ndarray, skeleton: Motion, joi
         raise ValueError(f"retarget: joint_indices must be {Je} distinct indices into the "
                          f"{J} joints of {skeleton.source}, got {idx.tolist()}")
     root = idx[0]
-    if skeleton.parents[root] != -1:
-        raise ValueError(f"retarget: exported joint 0 ({skeleton.names[root]}) is not the root of "
-                         f"{skeleton.source}")
     parents = skeleton.parents
     offsets = skeleton.offsets
     exported = -np.ones(J, dtype=np.int64)
     exported[idx] = np.arange(Je)
+    ancestors = []                          # joints above exported joint 0, from the top down
+    a = parents[root]
+    while a >= 0:
+        ancestors.insert(0, a)
+        a = parents[a]
+    if any(exported[a] >= 0 for a in ancestors):
+        raise ValueError(f"retarget: exported joint 0 ({skeleton.names[root]}) must be the first "
+                         f"exported joint of its chain in {skeleton.source}")
+    for j in idx[1:]:
+        a = parents[j]
+        while a >= 0 and a != root:
+            a = parents[a]
+        if a != root:
+            raise ValueError(f"retarget: exported joint {skeleton.names[j]} is not below "
+                             f"{skeleton.names[root]} (exported joint 0) in {skeleton.source}")
+    # ancestors stay at rest with identity rotations, so exported joint 0's parent sits here
+    above_root = offsets[ancestors].sum(axis=0) if ancestors else np.zeros(3)
 
     world = np.empty((F, J, 3, 3))
     for j in range(J):  # parents come first, so world[parent] is ready
@@ -153,10 +168,10 @@ def retarget(positions: np.ndarray, rotations: np.ndarray, skeleton: Motion, joi
     if fit_positions:
         children = [[c for c in range(J) if parents[c] == j and exported[c] >= 0
                      and np.linalg.norm(offsets[c]) > 1e-9] for j in range(J)]
-        fk = np.empty((F, J, 3))             # where forward kinematics puts each joint so far
+        fk = np.zeros((F, J, 3))             # where forward kinematics puts each joint so far
         fk[:, root] = P[:, 0]
         for j in range(J):  # parents first: fk[j] and the parent's final rotation are known
-            if parents[j] >= 0:
+            if parents[j] >= 0 and j != root:
                 if exported[j] < 0:
                     world[:, j] = world[:, parents[j]]
                 fk[:, j] = fk[:, parents[j]] + world[:, parents[j]] @ offsets[j]
@@ -173,6 +188,6 @@ def retarget(positions: np.ndarray, rotations: np.ndarray, skeleton: Motion, joi
                 world[:, j] = _best_fit_rotation(rest, want, world[:, j])
     local = world_to_local(world, parents)
     translations = np.broadcast_to(offsets, (F, J, 3)).copy()
-    translations[:, root] = P[:, 0]
+    translations[:, root] = P[:, 0] - above_root
     return Motion(list(skeleton.names), parents.copy(), offsets.copy(), list(skeleton.channels), local,
                   translations, skeleton.frame_time if frame_time is None else frame_time, source)
