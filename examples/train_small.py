@@ -2,7 +2,7 @@
 
     python examples/train_small.py                      # synthetic data, default settings
     python examples/train_small.py --data DIR           # your own folder of <Style>_<Gait>.bvh files
-    python examples/train_small.py --quick              # a one-minute miniature of the same run
+    python examples/train_small.py --quick              # a smaller, faster run of the same steps
 
 Steps (each prints what it did):
  1. data:     generate the synthetic stylised locomotion set (8 styles x 6 gaits, 100STYLE skeleton,
@@ -217,7 +217,7 @@ def main(argv=None):
     parser.add_argument("--out", type=Path, default=OUT, help=f"output folder (default {OUT})")
     parser.add_argument("--epochs", type=int, help=f"training epochs (default {EPOCHS})")
     parser.add_argument("--seed", type=int, default=SEED)
-    parser.add_argument("--quick", action="store_true", help="a smaller run of every step (about a minute)")
+    parser.add_argument("--quick", action="store_true", help="a smaller, faster run of every step")
     parser.add_argument("--styles", help="comma-separated synthetic styles (default: all)")
     parser.add_argument("--gaits", help=f"comma-separated synthetic gaits (default: {','.join(GAITS)})")
     parser.add_argument("--seconds", type=float, help="synthetic seconds per style and gait")
@@ -262,4 +262,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    from minifilm.cli import run
+
+    run(lambda: main() and 0)
