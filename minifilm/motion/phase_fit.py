@@ -40,10 +40,13 @@ and for all frames at once:
 * **Time in seconds.** The window is 0.5 s (2P+1 frames, P = round(0.25 fps)), so 30 and 120 fps
   data are fitted over the same duration as the original's 60 fps.
 
-What a 0.5 s window can and cannot tell: the phase is well determined (< 0.01 cycle median error
-at 5 % noise from 0.5 to 3 Hz), the frequency below 1 Hz is not (the window then holds less than
-half a cycle; tests/test_phases.py quotes the Cramér-Rao bound). The frequency only sets the
-amplitude's speed window (§4.5), so this matters little.
+* **Frequency from the phase track.** A 0.5 s window pins the phase down (< 0.01 cycle median
+  error at 5 % noise from 0.5 to 3 Hz) but not the frequency below 1 Hz, where it holds less than
+  half a cycle (the Cramér-Rao bound of one 31-sample window is a relative std of 48 % at 0.5 Hz).
+  So the reported frequency of frame k is the slope of the unwrapped fitted phase over the 1 s
+  around k (least-squares line through ``phase_slope_seconds`` of phases), where every frame of
+  that second was fitted; elsewhere (ends, skipped stretches) the window's own F is kept. The
+  phases and the fit are unchanged. The frequency sets the amplitude's speed window (§4.5).
 
 Speed: the normal matrices of all interior windows are the same for a given frequency (computed
 once), the right-hand sides for the whole grid are one matrix product, and infeasible grid
@@ -60,7 +63,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["SinusoidFit", "fit_sinusoids", "overflow_window", "range_reduce", "window_half_width"]
+__all__ = ["SinusoidFit", "fit_sinusoids", "overflow_window", "phase_slope_frequency", "range_reduce",
+           "window_half_width"]
 
 
 @dataclass
@@ -279,7 +283,8 @@ def range_reduce(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, op) -> np.ndarra
 
 def fit_sinusoids(signal, fps: float, window_seconds: float = 0.5, min_frequency: float = 0.25,
                   max_frequency: float = 4.0, n_frequencies: int = 48, sweeps: int = 3,
-                  skip_threshold: float = 1e-3, block: int = 2048) -> SinusoidFit:
+                  skip_threshold: float = 1e-3, block: int = 2048,
+                  phase_slope_seconds: float = 1.0) -> SinusoidFit:
     """Fit ``A sin(2π(F t − S)) + B`` around every frame of ``signal`` (deterministic, vectorised).
 
     Args:
@@ -291,6 +296,8 @@ def fit_sinusoids(signal, fps: float, window_seconds: float = 0.5, min_frequency
         sweeps:  Jacobi sweeps; the first fits the data alone, the others add the connect terms.
         skip_threshold: frames whose data window has Σ|v| below this keep all parameters 0.
         block:   frames processed at once (bounds memory at about block * 3 * n_frequencies floats).
+        phase_slope_seconds: span of the phase track whose slope is the reported frequency (see
+            the module docstring); 0 reports each window's own F.
     Returns:
         SinusoidFit with (F,) arrays.
     """
@@ -337,4 +344,29 @@ def fit_sinusoids(signal, fps: float, window_seconds: float = 0.5, min_frequency
     amplitude = np.hypot(c1, c2)
     phase = np.mod(np.arctan2(c2, c1) / (2 * np.pi), 1.0)
     phase[(amplitude == 0) | (phase >= 1.0)] = 0.0
+    F = phase_slope_frequency(phase, F, ~skipped & (amplitude > 0), fps, phase_slope_seconds,
+                              min_frequency, max_frequency)
     return SinusoidFit(amplitude, F, phase, B, fit, skipped)
+
+
+def phase_slope_frequency(phase, window_frequency, valid, fps: float, seconds: float,
+                          min_frequency: float, max_frequency: float) -> np.ndarray:
+    """(F,) frequency in Hz = slope of the unwrapped phase (cycles) over ``seconds`` around each
+    frame, by least squares, where all of those frames are ``valid`` and inside the signal; the
+    per-window frequency ``window_frequency`` elsewhere. Clipped to the frequency bounds."""
+    n = phase.size
+    half = int(round(seconds * fps / 2))
+    out = np.asarray(window_frequency, dtype=np.float64).copy()
+    width = 2 * half + 1
+    if half < 1 or n < width:
+        return out
+    cycles = np.unwrap(2 * np.pi * phase) / (2 * np.pi)
+    t = np.arange(n) / fps
+    ok = np.lib.stride_tricks.sliding_window_view(valid, width).all(axis=1)     # (n - 2 half,)
+    tw = np.lib.stride_tricks.sliding_window_view(t, width)
+    cw = np.lib.stride_tricks.sliding_window_view(cycles, width)
+    tc = tw - tw.mean(axis=1, keepdims=True)
+    slope = (tc * cw).sum(axis=1) / (tc * tc).sum(axis=1)
+    centre = np.arange(half, n - half)
+    out[centre[ok]] = np.clip(slope[ok], min_frequency, max_frequency)
+    return out
