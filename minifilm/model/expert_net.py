@@ -18,7 +18,7 @@ import numpy as np
 
 from minifilm.model.config import ModelConfig
 from minifilm.model.dropout_masks import dropout_site, dropout_site_backward
-from minifilm.model.init import glorot_uniform
+from minifilm.model.init import init_dense_stack
 from minifilm.model.motion_net import motion_shapes
 from minifilm.nn import functional as F
 from minifilm.nn.params import Parameters
@@ -32,9 +32,7 @@ class ExpertNetwork:
         sizes = [config.x_dim, config.hidden, config.hidden, config.z_dim]
         shapes = motion_shapes(config)
         self.params = Parameters(shapes, dtype=dtype)
-        for l in range(3):
-            self.params.params[f"W{l}"][...] = glorot_uniform(rng, shapes[f"W{l}"], sizes[l], sizes[l + 1], dtype)
-            self.params.params[f"b{l}"][...] = 0.0
+        init_dense_stack(self.params, sizes, rng, dtype)
         self.used_masks: dict = {}
         self._caches = None
 

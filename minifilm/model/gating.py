@@ -12,7 +12,7 @@ import numpy as np
 
 from minifilm.model.config import ModelConfig
 from minifilm.model.dropout_masks import dropout_site, dropout_site_backward
-from minifilm.model.init import glorot_uniform
+from minifilm.model.init import init_dense_stack
 from minifilm.nn import functional as F
 from minifilm.nn.params import Parameters
 
@@ -35,9 +35,7 @@ class GatingNetwork:
         sizes = [config.phase_dim, config.gating_hidden, config.gating_hidden, config.n_experts]
         shapes = gating_shapes(config)
         self.params = Parameters(shapes, dtype=dtype)
-        for l in range(3):
-            self.params.params[f"W{l}"][...] = glorot_uniform(rng, shapes[f"W{l}"], sizes[l], sizes[l + 1], dtype)
-            self.params.params[f"b{l}"][...] = 0.0
+        init_dense_stack(self.params, sizes, rng, dtype)
         self.used_masks: dict = {}
         self._caches = None
 

@@ -9,3 +9,12 @@ def glorot_uniform(rng: np.random.Generator, shape, fan_in: int, fan_out: int, d
     code initialises its expert weights."""
     bound = np.sqrt(6.0 / (fan_in + fan_out))
     return rng.uniform(-bound, bound, size=shape).astype(dtype)
+
+
+def init_dense_stack(params, sizes, rng: np.random.Generator, dtype) -> None:
+    """Glorot-uniform weights ``W{l}`` and zero biases ``b{l}`` for the layers sizes[l] -> sizes[l+1]
+    of a plain (Ω) or gated-expert (Φ) stack, in place; ``params`` is a Parameters."""
+    for l in range(len(sizes) - 1):
+        W = params.params[f"W{l}"]
+        W[...] = glorot_uniform(rng, W.shape, sizes[l], sizes[l + 1], dtype)
+        params.params[f"b{l}"][...] = 0.0
