@@ -196,3 +196,35 @@ def test_progress_line_on_stderr(capsys):
     trainer.fit(make_data(0))
     err = capsys.readouterr().err
     assert "\repoch 1/1  batch 12/12" in err and "loss" in err
+
+
+def test_input_noise_perturbs_only_the_training_inputs(monkeypatch):
+    """With input_noise the model sees x and p plus N(0, sigma^2) noise in training steps (the
+    targets and the evaluation stay clean); without it, exactly the data rows."""
+    data = make_data(0)
+    for sigma in (0.0, 0.3):
+        trainer = new_trainer(epochs=1, input_noise=sigma)
+        seen = []
+        real_forward = trainer.model.forward
+
+        def spy(x, p, clip, train=False, **kw):
+            if train:
+                seen.append((x.copy(), p.copy()))
+            return real_forward(x, p, clip, train=train, **kw)
+
+        monkeypatch.setattr(trainer.model, "forward", spy)
+        batches = epoch_batches(data.style, trainer.config.batch_size, np.random.default_rng(0))
+        trainer.fit(data)
+        dx = np.concatenate([x - data.x[idx] for (x, _), (_, idx) in zip(seen, batches)])
+        dp = np.concatenate([p - data.p[idx] for (_, p), (_, idx) in zip(seen, batches)])
+        assert len(seen) == len(batches)
+        if sigma == 0:
+            assert np.all(dx == 0) and np.all(dp == 0)
+        else:
+            assert abs(dx.std() - sigma) < 0.03 and abs(dp.std() - sigma) < 0.05
+            assert abs(dx.mean()) < 0.02
+
+
+def test_negative_input_noise_is_refused():
+    with pytest.raises(ValueError, match="input_noise"):
+        TrainConfig(input_noise=-0.1)
