@@ -43,9 +43,9 @@ class TrainConfig:
     freeze              networks not updated: () for training, ("gating", "motion") to fine-tune Ψ
     input_noise         std of Gaussian noise added to the normalised inputs x and p of every
                         training minibatch (0: none, the paper). At run time the network reads its
-                        own slightly wrong predictions; small models trained with a little noise
-                        keep stepping and follow the path better in long rollouts
-                        (benchmarks/trained_rollout.py)
+                        own slightly wrong predictions. For train_small's model, one seed each,
+                        0.1-0.2 kept more styles stepping but stretched more bones in 60 s
+                        rollouts (benchmarks/trained_rollout.py): not a clear win, so off by default
     checkpoint_path     where to write a checkpoint after every `checkpoint_every` epochs (None: never)
     progress            a one-line progress display on stderr (None: only when stderr is a terminal)
     """
