@@ -85,7 +85,7 @@ class ExpertNetwork:
             if l == 0 and shift is not None:
                 h = h + shift
             if l < 2:
-                h = np.where(h > 0, h, np.expm1(np.minimum(h, 0)))   # ELU
+                h = F.elu_forward(h)[0]
             if l == 0 and adapter is not None:
                 h = adapter(h)
         return h

@@ -18,7 +18,7 @@ import numpy as np
 
 from minifilm.model.config import ModelConfig
 from minifilm.model.dropout_masks import dropout_site, dropout_site_backward
-from minifilm.model.init import glorot_uniform
+from minifilm.model.init import init_dense_stack
 from minifilm.nn import functional as F
 from minifilm.nn.params import Parameters
 
@@ -48,10 +48,7 @@ class MotionNetwork:
         self.sizes = [config.x_dim, config.hidden, config.hidden, config.z_dim]
         shapes = motion_shapes(config)
         self.params = Parameters(shapes, dtype=dtype)
-        for l in range(3):
-            fan_in, fan_out = self.sizes[l], self.sizes[l + 1]
-            self.params.params[f"W{l}"][...] = glorot_uniform(rng, shapes[f"W{l}"], fan_in, fan_out, dtype)
-            self.params.params[f"b{l}"][...] = 0.0
+        init_dense_stack(self.params, self.sizes, rng, dtype)
         self.used_masks: dict = {}
         self._caches = None
 
