@@ -30,6 +30,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
+from minifilm.compare_report import draw_film_codes                                             # noqa: E402
 from minifilm.compare_tools import film_codes, film_separation, fit_normalizer, style_subset  # noqa: E402
 from minifilm.data import build_dataset                                                        # noqa: E402
 from minifilm.model.config import ModelConfig                                                  # noqa: E402
@@ -154,18 +155,7 @@ def plot_codes(sep, labels, names, holdout, path):
         log("[plot] matplotlib is not installed: no PNG")
         return
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.5))
-    for ax, tag in zip(axes, ("before", "after")):
-        Y = sep[tag]["embedding"]
-        for k, name in enumerate(names):
-            pts = Y[labels == k]
-            new = name == holdout
-            ax.scatter(pts[:, 0], pts[:, 1], s=40 if new else 14, marker="*" if new else "o",
-                       color="black" if new else f"C{k % 10}", label=name + (" (held out)" if new else ""))
-        ax.set_title(f"{tag} fine-tuning Ψ: silhouette {sep[tag]['silhouette']:.2f} "
-                     f"({holdout} {sep[tag]['focus_silhouette']:.2f})", fontsize=9)
-        ax.set_xlabel("PC 1")
-        ax.set_ylabel("PC 2")
-    axes[1].legend(fontsize=7, loc="best")
+    draw_film_codes(axes, sep, labels, names, holdout)
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     plt.close(fig)

@@ -67,19 +67,7 @@ def _plots(out: Path, name: str, ctx, results, ft) -> dict:
     if ft is not None:
         styles = ctx.seen + [ctx.holdout]
         fig, axes = plt.subplots(1, 2, figsize=(10, 4.5))
-        for ax, tag in zip(axes, ("before", "after")):
-            sep = ft["separation"][tag]
-            Y = sep["embedding"]
-            for k, s in enumerate(styles):
-                pts = Y[ft["labels"] == k]
-                new = s == ctx.holdout
-                ax.scatter(pts[:, 0], pts[:, 1], s=50 if new else 14, marker="*" if new else "o",
-                           color="black" if new else f"C{k % 10}", label=s + (" (held out)" if new else ""))
-            ax.set_title(f"{tag} fine-tuning Ψ: silhouette {sep['silhouette']:.2f}, "
-                         f"{ctx.holdout} {sep['focus_silhouette']:.2f}", fontsize=9)
-            ax.set_xlabel("PC 1")
-            ax.set_ylabel("PC 2")
-        axes[1].legend(fontsize=7)
+        draw_film_codes(axes, ft["separation"], ft["labels"], styles, ctx.holdout)
         fig.tight_layout()
         files["film"] = f"compare_{name}_film_codes.png"
         fig.savefig(out / files["film"], dpi=80)
@@ -252,3 +240,24 @@ def write_report(out: Path, name: str, ctx, results, ft, meta) -> Path:
     path = out / f"compare_{name}.md"
     path.write_text("\n".join(L) + "\n")
     return path
+
+
+def draw_film_codes(axes, separation, labels, names, holdout):
+    """Figure 11 on two matplotlib axes: the 2-D PCA embedding of FiLM codes before and after
+    fine-tuning Ψ, one colour per style, the held-out style as black stars.
+
+    separation: {'before'|'after': {'embedding' (M, 2), 'silhouette', 'focus_silhouette'}};
+    labels (M,) style index of each code into ``names``."""
+    for ax, tag in zip(axes, ("before", "after")):
+        sep = separation[tag]
+        Y = sep["embedding"]
+        for k, name in enumerate(names):
+            pts = Y[labels == k]
+            new = name == holdout
+            ax.scatter(pts[:, 0], pts[:, 1], s=50 if new else 14, marker="*" if new else "o",
+                       color="black" if new else f"C{k % 10}", label=name + (" (held out)" if new else ""))
+        ax.set_title(f"{tag} fine-tuning Ψ: silhouette {sep['silhouette']:.2f}, "
+                     f"{holdout} {sep['focus_silhouette']:.2f}", fontsize=9)
+        ax.set_xlabel("PC 1")
+        ax.set_ylabel("PC 2")
+    axes[1].legend(fontsize=7)
