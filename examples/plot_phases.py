@@ -24,16 +24,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from minifilm.motion.bvh import read_bvh  # noqa: E402
 from minifilm.motion.contacts import foot_contacts  # noqa: E402
 from minifilm.motion.phases import SLOTS, default_sources, extract_local_phases  # noqa: E402
-from minifilm.motion.skeletons import BUILTIN_SKELETONS, detect_skeleton  # noqa: E402
+from minifilm.motion.skeletons import builtin_skeleton, detect_skeleton  # noqa: E402
 
 
 def load(path, skeleton_name=None):
     """Read ``path`` in metres with its skeleton (named, or detected from the joint names)."""
     if skeleton_name:
-        known = {s.name: s for s in BUILTIN_SKELETONS}
-        if skeleton_name not in known:
-            raise SystemExit(f"unknown skeleton {skeleton_name!r}; known: {sorted(known)}")
-        skeleton = known[skeleton_name]
+        skeleton = builtin_skeleton(skeleton_name)
     else:
         skeleton = detect_skeleton(read_bvh(path, scale=1.0))
     return read_bvh(path, scale=skeleton.bvh_scale), skeleton

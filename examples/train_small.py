@@ -34,7 +34,7 @@ from minifilm.model.style_model import StyleModel                               
 from minifilm.motion import synthetic                                           # noqa: E402
 from minifilm.motion.contacts import foot_contacts                              # noqa: E402
 from minifilm.motion.phases import default_sources, extract_local_phases        # noqa: E402
-from minifilm.motion.skeletons import BUILTIN_SKELETONS, STYLE100                # noqa: E402
+from minifilm.motion.skeletons import STYLE100, builtin_skeleton                 # noqa: E402
 from minifilm.control import make_script                                        # noqa: E402
 from minifilm.motion.bvh import read_bvh, write_bvh                             # noqa: E402
 from minifilm.runtime import Controller, RuntimeNetwork, root_joint_indices, start_from_dataset  # noqa: E402
@@ -193,7 +193,7 @@ def generate_per_style(trainer, ds, data_dir: Path, out: Path, seconds: float):
     network = RuntimeNetwork.from_model(trainer.model, trainer.stats)
     controller = Controller(network, ds.layout, fps=ds.fps)
     # the output skeleton is the first source file's own, written back in its own units
-    skeleton = {s.name: s for s in BUILTIN_SKELETONS}.get(ds.skeleton, STYLE100)
+    skeleton = builtin_skeleton(ds.skeleton)
     template = read_bvh(ds.files[0]["path"], scale=skeleton.bvh_scale)
     joints = root_joint_indices(ds.layout, template)
     n_frames = int(round(seconds * ds.fps))

@@ -527,10 +527,10 @@ def _pick_skeleton(settings: DatasetSettings, first: MotionFile):
     from .motion import skeletons
 
     if settings.skeleton is not None:
-        known = {s.name: s for s in skeletons.BUILTIN_SKELETONS}
-        if settings.skeleton not in known:
-            raise ValueError(f"DatasetSettings.skeleton {settings.skeleton!r} is not one of {sorted(known)}")
-        return known[settings.skeleton]
+        try:
+            return skeletons.builtin_skeleton(settings.skeleton)
+        except ValueError as e:
+            raise ValueError(f"DatasetSettings.skeleton: {e}") from None
     from .motion.bvh import read_bvh
 
     return skeletons.detect_skeleton(read_bvh(first.path))

@@ -151,3 +151,11 @@ def test_root_facing_agrees_with_direction_of_travel(shared_data, name):
         else:
             assert info["mean_cos"] > 0.8, (f.name, info)
     assert checked > 0
+
+
+def test_builtin_skeleton_by_name():
+    from minifilm.motion.skeletons import BUILTIN_SKELETONS, builtin_skeleton
+    for s in BUILTIN_SKELETONS:
+        assert builtin_skeleton(s.name) is s
+    with pytest.raises(ValueError, match=r"unknown skeleton 'nope'.*'100style'"):
+        builtin_skeleton("nope")

@@ -218,6 +218,15 @@ CMU_MB = Skeleton(
 BUILTIN_SKELETONS: Tuple[Skeleton, ...] = (STYLE100, BANDAI, CMU, CMU_MB)
 
 
+def builtin_skeleton(name: str) -> Skeleton:
+    """The built-in skeleton called ``name`` ('100style', 'bandai', 'cmu', 'cmu-mb'); ValueError
+    naming the known ones otherwise."""
+    known = {s.name: s for s in BUILTIN_SKELETONS}
+    if name not in known:
+        raise ValueError(f"unknown skeleton {name!r}; the built-in skeletons are {sorted(known)}")
+    return known[name]
+
+
 def detect_skeleton(motion, candidates: Sequence[Skeleton] = BUILTIN_SKELETONS) -> Skeleton:
     """The candidate whose required joints are all present in ``motion`` (the one with most exported
     joints if several fit). ValueError listing every candidate and what it misses otherwise."""
