@@ -36,10 +36,12 @@ from typing import Callable, List, Optional, Sequence, Union
 import numpy as np
 
 from minifilm.control import Script, blend_future_trajectory
+from minifilm.model.motion_net import split_film
 from minifilm.motion.features import trajectory_offsets
 from minifilm.motion.layout import CURRENT_SAMPLE, FeatureLayout
 from minifilm.motion.motion import Motion
 from minifilm.motion.retarget import axes_to_rotation, retarget
+from minifilm.nn import functional as F
 
 __all__ = ["RuntimeStats", "RuntimeNetwork", "Controller", "Rollout", "root_joint_indices",
            "SpeedCalibration", "calibrate_speed", "start_from_dataset"]
@@ -78,10 +80,6 @@ class RuntimeStats:
         except (KeyError, AttributeError) as e:
             raise ValueError(f"normalisation statistics need x_mean, x_std, p_mean, p_std, z_mean, "
                              f"z_std; missing {e}") from None
-
-
-def _elu(h: np.ndarray) -> np.ndarray:
-    return np.where(h > 0, h, np.expm1(np.minimum(h, 0)))
 
 
 class RuntimeNetwork:
@@ -153,9 +151,8 @@ class RuntimeNetwork:
         for l, (W, b) in enumerate(self.gating):
             h = h @ W + b
             if l < 2:
-                h = _elu(h)
-        h = np.exp(h - h.max(axis=-1, keepdims=True))
-        return h / h.sum(axis=-1, keepdims=True)
+                h = F.elu_forward(h)[0]
+        return F.softmax_forward(h)[0]
 
     def predict(self, x_raw: np.ndarray, p_raw: np.ndarray, film: np.ndarray) -> np.ndarray:
         """Raw (de-normalised) output Z (B, z_dim) from raw x (B, x_dim), raw p (B, 8), film (4H,) or (B, 4H)."""
@@ -163,7 +160,7 @@ class RuntimeNetwork:
         B = alpha.shape[0]
         h = (np.asarray(x_raw, self.dtype) - self._x_mean) * self._x_inv
         film = np.asarray(film, self.dtype)
-        H = self.hidden
+        films = split_film(film, self.hidden)
         for l, (Wc, b, O) in enumerate(self.layers):
             if 1 < B < 5:   # BLAS is slower on a skinny matrix product than on a few vector products
                 y = np.stack([row @ Wc for row in h]).reshape(B, self.K, O)
@@ -171,12 +168,9 @@ class RuntimeNetwork:
                 y = (h @ Wc).reshape(B, self.K, O)                    # every expert's output
             h = np.matmul(alpha[:, None, :], y)[:, 0] + alpha @ b     # Σ_k α_k (h W_k + b_k)
             if l < 2:
-                mu = h.mean(axis=-1, keepdims=True)
-                sd = h.std(axis=-1, keepdims=True, ddof=1 if self.ln_unbiased else 0)
-                h = (h - mu) / (sd + self.ln_eps)
-                gamma = film[..., 2 * l * H:(2 * l + 1) * H]
-                beta = film[..., (2 * l + 1) * H:(2 * l + 2) * H]
-                h = _elu(gamma * h + beta)                             # Eq. (3)
+                h = F.layer_norm_forward(h, unbiased=self.ln_unbiased, eps=self.ln_eps)[0]
+                gamma, beta = films[l]
+                h = F.elu_forward(gamma * h + beta)[0]                 # Eq. (3)
         return h * self._z_std + self._z_mean
 
 
