@@ -3,12 +3,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from minifilm.nn.params import init_uniform_fan
+
 
 def glorot_uniform(rng: np.random.Generator, shape, fan_in: int, fan_out: int, dtype) -> np.ndarray:
     """U(-a, a) with a = sqrt(6 / (fan_in + fan_out)) (Glorot & Bengio 2010), as the original
     code initialises its expert weights."""
-    bound = np.sqrt(6.0 / (fan_in + fan_out))
-    return rng.uniform(-bound, bound, size=shape).astype(dtype)
+    return init_uniform_fan(np.empty(shape, dtype), fan_in, fan_out, rng)
 
 
 def init_dense_stack(params, sizes, rng: np.random.Generator, dtype) -> None:
