@@ -21,10 +21,11 @@ velocities (``lerp(p_prev + v dt, p, 0.5)``) and of the future trajectory with t
 (weight 0.15) are kept as options. A run starts from the data's mean pose (the input means) with
 a still past trajectory and the mean phases, or (``start_x``, :func:`start_from_dataset`) from a
 frame of the style's own data: pose, trajectory and phases in mid-stride; a small trained
-network may never leave the mean pose. With foot locking, the next input takes the locked
-positions but the predicted forward/up axes (the demo feeds back the post-IK axes too). The
-demo's arm IK is replaced by fitting every bone to the predicted positions when the motion is put
-on the skeleton (:func:`minifilm.motion.retarget.retarget`).
+network may never leave the mean pose. The demo's arm IK becomes an optional fit of the whole
+body onto the source skeleton every frame (``skeleton=``, :class:`~minifilm.motion.skeleton_fit.SkeletonFit`):
+rigid bones aimed at the predicted positions; like the demo's post-IK pose, the fitted pose is what
+the network sees next. Without it, with foot locking, the next input takes the locked positions but
+the predicted forward/up axes.
 
 Everything reads its columns from a :class:`~minifilm.motion.layout.FeatureLayout`.
 """
@@ -41,6 +42,7 @@ from minifilm.motion.features import trajectory_offsets
 from minifilm.motion.layout import CURRENT_SAMPLE, FeatureLayout
 from minifilm.motion.motion import Motion
 from minifilm.motion.retarget import axes_to_rotation, retarget
+from minifilm.motion.skeleton_fit import SkeletonFit
 from minifilm.nn import functional as F
 
 __all__ = ["RuntimeStats", "RuntimeNetwork", "Controller", "Rollout", "root_joint_indices",
@@ -212,7 +214,9 @@ class Rollout:
     rotations (B, F, J, 3, 3) world joint rotations from the predicted forward/up axes;
     contacts (B, F, 2) predicted foot contacts [right, left]; phases (B, F, 8);
     root_positions (B, F, 2) and root_facing (B, F, 2) world (x, z) of the root on the floor;
-    targets (B, F, 2) the commanded velocities (m/s); fps.
+    targets (B, F, 2) the commanded velocities (m/s); fps;
+    network_positions (B, F, J, 3) float32: the joints exactly as the network predicted them,
+    before the velocity blend, the skeleton fit and foot locking.
     """
 
     positions: np.ndarray
@@ -223,11 +227,13 @@ class Rollout:
     root_facing: np.ndarray
     targets: np.ndarray
     fps: float
+    network_positions: Optional[np.ndarray] = None
 
     def metrics(self, parents: Sequence[int], path: Optional[np.ndarray] = None,
                 toes: Optional[Sequence[int]] = None, warmup_seconds: float = 1.0) -> List[dict]:
         """Per character: the checks of the issue, after ``warmup_seconds`` (the start pose is the
-        data's mean pose). Keys: bone_cv_max (coefficient of variation of the worst bone),
+        data's mean pose). Keys: bone_cv_max (coefficient of variation of the worst bone, output
+        positions), network_bone_cv_max (the same for the network's own positions),
         hips_min / hips_max (m, joint 0 height), speed (mean root speed, m/s), and when given,
         path_mean / path_max (m, root distance to the polyline ``path`` (N, 2)) and foot_sliding
         (m/s, toes = joint index per contact column)."""
@@ -237,12 +243,17 @@ class Rollout:
         parents = np.asarray(parents)
         k0 = min(int(round(warmup_seconds * self.fps)), self.positions.shape[1] - 2)
         out = []
+        def bone_cv_max(P):
+            bones = np.linalg.norm(P[:, parents >= 0] - P[:, parents[parents >= 0]], axis=-1)
+            return float((bones.std(axis=0) / np.maximum(bones.mean(axis=0), 1e-9)).max())
+
         for b in range(self.positions.shape[0]):
             P = self.positions[b, k0:]
-            bones = np.linalg.norm(P[:, parents >= 0] - P[:, parents[parents >= 0]], axis=-1)
-            m = dict(bone_cv_max=float((bones.std(axis=0) / np.maximum(bones.mean(axis=0), 1e-9)).max()),
+            m = dict(bone_cv_max=bone_cv_max(P),
                      hips_min=float(P[:, 0, 1].min()), hips_max=float(P[:, 0, 1].max()),
                      speed=float(np.linalg.norm(np.diff(self.root_positions[b, k0:], axis=0), axis=1).mean() * self.fps))
+            if self.network_positions is not None:
+                m["network_bone_cv_max"] = bone_cv_max(self.network_positions[b, k0:].astype(np.float64))
             if path is not None:
                 d = distance_to_path(self.root_positions[b, k0:], path)
                 m.update(path_mean=float(d.mean()), path_max=float(d.max()))
@@ -300,11 +311,20 @@ class Controller:
             (original: 0.15; 0 = none).
         position_bias, direction_bias: exponents of the user-trajectory blend (original: 0.75, 1.25).
         foot_locker: optional :class:`minifilm.motion.foot_ik.FootLocker` applied every frame.
+        skeleton: optional :class:`minifilm.motion.skeleton_fit.SkeletonFit` (e.g.
+            :meth:`Controller.skeleton_for`): every frame the predicted joints are put on this
+            rigid skeleton (bones swung onto the predicted positions at their rest lengths, the
+            demo's arm IK for the whole body), before foot locking. The output is then a pose the
+            skeleton can take (a BVH on it reproduces it exactly); the network's own positions
+            stay in ``Rollout.network_positions``.
+        feed_back_fit: with ``skeleton``, the next input takes the fitted pose (positions and
+            axes), as the demo feeds back its post-IK pose; False = the network's own prediction.
     """
 
     def __init__(self, network: RuntimeNetwork, layout: FeatureLayout, fps: float = 60.0,
                  velocity_blend: float = 0.5, future_smoothing: float = 0.15,
-                 position_bias: float = 0.75, direction_bias: float = 1.25, foot_locker=None):
+                 position_bias: float = 0.75, direction_bias: float = 1.25, foot_locker=None,
+                 skeleton: Optional[SkeletonFit] = None, feed_back_fit: bool = True):
         if network.x_dim != layout.x_dim or network.z_dim != layout.z_dim:
             raise ValueError(f"Controller: network sizes (x {network.x_dim}, z {network.z_dim}) do not match "
                              f"the layout (x {layout.x_dim}, z {layout.z_dim})")
@@ -312,6 +332,10 @@ class Controller:
         self.velocity_blend, self.future_smoothing = float(velocity_blend), float(future_smoothing)
         self.position_bias, self.direction_bias = position_bias, direction_bias
         self.foot_locker = foot_locker
+        if skeleton is not None and len(skeleton.joint_indices) != layout.n_joints:
+            raise ValueError(f"Controller: the skeleton fit places {len(skeleton.joint_indices)} joints, "
+                             f"the layout has {layout.n_joints}")
+        self.skeleton, self.feed_back_fit = skeleton, bool(feed_back_fit)
         L = layout
         ts = np.asarray(L.trajectory_seconds)
         # the training features' rounding (halves away from zero), so a sample on half a frame
@@ -326,6 +350,12 @@ class Controller:
         self.x_cols = {f: L.joint_columns("x", f) for f in ("position", "forward", "up", "velocity")}
         self.z_cols = {f: L.joint_columns("z", f) for f in ("position", "forward", "up", "velocity")}
         self.state = None
+
+    @staticmethod
+    def skeleton_for(layout: FeatureLayout, skeleton: Motion) -> SkeletonFit:
+        """The ``skeleton=`` argument for a source skeleton (e.g. a BVH of the training data),
+        its joints matched to the layout's by name."""
+        return SkeletonFit(skeleton, root_joint_indices(layout, skeleton))
 
     # ------------------------------------------------------------------ state
     def reset(self, start_positions: np.ndarray, start_facing: np.ndarray,
@@ -366,6 +396,7 @@ class Controller:
         st["phase"] = (np.broadcast_to(self.net.stats.p_mean, (B, 8)).copy() if phases is None
                        else np.broadcast_to(np.asarray(phases, dtype=np.float64).reshape(-1, 8), (B, 8)).copy())
         st["contacts"] = np.zeros((B, 2))
+        st["network_jpos"], st["out_pos"], st["out_fwd"], st["out_up"] = st["jpos"], st["jpos"], st["jfwd"], st["jup"]
         self.state = st
         if self.foot_locker is not None:
             self.foot_locker.reset(B)
@@ -441,11 +472,12 @@ class Controller:
         jpos[..., 0] += root[:, 0, None]
         jpos[..., 2] += root[:, 1, None]
         jvel = _to_world3(z[:, self.z_cols["velocity"]], face)
+        st["network_jpos"] = jpos
         if self.velocity_blend < 1.0:
             integrated = st["jpos"] + jvel / self.fps
             jpos = self.velocity_blend * jpos + (1 - self.velocity_blend) * integrated
-        st["jfwd"] = _to_world3(z[:, self.z_cols["forward"]], face)
-        st["jup"] = _to_world3(z[:, self.z_cols["up"]], face)
+        jfwd = _to_world3(z[:, self.z_cols["forward"]], face)
+        jup = _to_world3(z[:, self.z_cols["up"]], face)
         st["jvel"] = jvel
         # phases: average of the predicted phase and previous + predicted update (§10.2 step 7)
         st["phase"] = 0.5 * z[:, L.z_phases] + 0.5 * (st["phase"] + z[:, L.z_phase_updates])
@@ -459,15 +491,28 @@ class Controller:
         fut_pos[:, 0], fut_dir[:, 0] = new_pos[:, 0], new_dir[:, 0]
         st["fut_pos"], st["fut_dir"] = fut_pos, fut_dir
         st["root"], st["facing"] = new_pos[:, 0].copy(), new_dir[:, 0].copy()
+        blended = jpos
+        if self.skeleton is not None:
+            fit_pos, fit_rot = self.skeleton.fit(jpos, axes_to_rotation(jfwd, jup))
+            st["out_fwd"], st["out_up"] = fit_rot[..., 2], fit_rot[..., 1]
+            jpos = fit_pos
+        else:
+            st["out_fwd"], st["out_up"] = jfwd, jup
         if self.foot_locker is not None:
             jpos = self.foot_locker.apply(jpos, st["contacts"])
-        st["jpos"] = jpos
+        st["out_pos"] = jpos
+        if self.skeleton is None or self.feed_back_fit:
+            st["jpos"], st["jfwd"], st["jup"] = jpos, st["out_fwd"], st["out_up"]
+        else:
+            st["jpos"], st["jfwd"], st["jup"] = blended, jfwd, jup
 
     def frame(self) -> dict:
-        """The current frame: positions (B, J, 3), forward/up axes (B, J, 3), contacts, phases, root."""
+        """The current frame: positions (B, J, 3) and forward/up axes (B, J, 3) as output (after the
+        skeleton fit and foot locking, when on), contacts, phases, root, and network_positions
+        (B, J, 3): the joints exactly as the network predicted them (before any smoothing or fit)."""
         st = self.state
-        return dict(positions=st["jpos"], forward=st["jfwd"], up=st["jup"], contacts=st["contacts"],
-                    phases=st["phase"], root=st["root"], facing=st["facing"])
+        return dict(positions=st["out_pos"], forward=st["out_fwd"], up=st["out_up"], contacts=st["contacts"],
+                    phases=st["phase"], root=st["root"], facing=st["facing"], network_positions=st["network_jpos"])
 
     # ------------------------------------------------------------------ whole rollouts
     def run(self, scripts: Union[Script, Sequence[Script]], n_frames: int,
@@ -493,6 +538,7 @@ class Controller:
         self.reset(np.array([p for p, _ in starts]), np.array([f for _, f in starts]), phases, start_x)
         J = self.layout.n_joints
         out = dict(positions=np.empty((B, n_frames, J, 3)), forward=np.empty((B, n_frames, J, 3)),
+                   network_positions=np.empty((B, n_frames, J, 3), dtype=np.float32),
                    up=np.empty((B, n_frames, J, 3)),
                    contacts=np.empty((B, n_frames, 2)), phases=np.empty((B, n_frames, 8)),
                    root=np.empty((B, n_frames, 2)), facing=np.empty((B, n_frames, 2)),
@@ -508,12 +554,12 @@ class Controller:
                 tv = calibration.apply(tv, tf)
             fk = film(k) if callable(film) else (film[k] if per_frame else film)
             fr = self.step(tf, tv, fk)
-            for key in ("positions", "forward", "up", "contacts", "phases", "root", "facing"):
+            for key in ("positions", "forward", "up", "contacts", "phases", "root", "facing", "network_positions"):
                 out[key][:, k] = fr[key]
             out["targets"][:, k] = tv
         rotations = axes_to_rotation(out["forward"], out["up"])
         return Rollout(out["positions"], rotations, out["contacts"], out["phases"], out["root"],
-                       out["facing"], out["targets"], self.fps)
+                       out["facing"], out["targets"], self.fps, out["network_positions"])
 
 
 # =============================================================================== speed calibration
