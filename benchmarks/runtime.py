@@ -8,7 +8,9 @@ Prints a table:
     (one (I, K*O) product per layer, what RuntimeNetwork does), blend the weights first
     (Σ α_k W_k, then one product), and StyleModel.predict_single (the model's own batch-1 path);
   * one whole controller frame at batch 1 (input features + network + read-back + trajectory blend);
-  * many characters updated together in one batch: frames per second and character-frames per second.
+  * many characters updated together in one batch: frames per second and character-frames per second;
+  * the same with every frame put on the 100STYLE skeleton (Controller ``skeleton=``, the default of
+    examples/generate_released.py).
 With --quality it instead runs the checks of issue 7 for a minute (or --seconds) per style, all
 styles in one batch, along a figure-eight at 1.3 m/s with per-style speed calibration, without and
 with foot locking: bone-length CV, hips range, speed, distance to the path, foot sliding.
@@ -67,8 +69,9 @@ def blend_first(net: RuntimeNetwork, model, x, p, film):
     return h * net._z_std + net._z_mean
 
 
-def quality(rel, layout, styles, seconds):
-    """Minute-long rollouts of several styles (one batch), without and with foot locking."""
+def quality(rel, layout, styles, seconds, body):
+    """Minute-long rollouts of several styles, without and with foot locking, every frame put on
+    the skeleton ``body`` (a SkeletonFit): bone CV of the network's own prediction and of the output."""
     from minifilm.control import figure_eight
     from minifilm.motion.foot_ik import FootLocker
     from minifilm.runtime import calibrate_speed
@@ -77,16 +80,18 @@ def quality(rel, layout, styles, seconds):
     n = int(round(seconds * 60))
     toes = [layout.joint_names.index("RightToe"), layout.joint_names.index("LeftToe")]
     print(f"{seconds:g} s per style along a figure-eight at 1.3 m/s (speed calibrated per style)")
-    print(f"{'style':16s} {'lock':>5s} {'bone CV':>8s} {'hips m':>11s} {'speed':>6s} {'path mean/max m':>16s} {'sliding m/s':>12s}")
+    print(f"{'style':16s} {'lock':>5s} {'bone CV':>8s} {'output':>7s} {'hips m':>11s} {'speed':>6s} {'path mean/max m':>16s} "
+          f"{'sliding m/s':>12s}")
     for lock in (False, True):
         for style in styles:   # calibration differs per style, so one style per run (the rollout is batch 1)
             film = rel.styles[style]
             cal = calibrate_speed(Controller(net, layout), film)
             locker = FootLocker.from_names(layout.joint_names) if lock else None
             script = figure_eight(seconds, speed=1.3)
-            r = Controller(net, layout, foot_locker=locker).run(script, n, film, calibration=cal)
+            r = Controller(net, layout, foot_locker=locker, skeleton=body).run(script, n, film, calibration=cal)
             m = r.metrics(STYLE100.parents, script.path, toes)[0]
-            print(f"{style:16s} {str(lock):>5s} {m['bone_cv_max']:8.1%} {m['hips_min']:5.2f}-{m['hips_max']:.2f} "
+            print(f"{style:16s} {str(lock):>5s} {m['network_bone_cv_max']:8.1%} {m['bone_cv_max']:7.1%} "
+                  f"{m['hips_min']:5.2f}-{m['hips_max']:.2f} "
                   f"{m['speed']:6.2f} {m['path_mean']:8.2f}/{m['path_max']:.2f} {m['foot_sliding']:12.3f}")
 
 
@@ -98,13 +103,17 @@ def main():
     ap.add_argument("--quality", action="store_true", help="run the motion-quality checks instead")
     ap.add_argument("--styles", nargs="+", default=["Neutral", "Old", "Zombie", "Aeroplane", "Strutting"])
     ap.add_argument("--seconds", type=float, default=60.0)
+    ap.add_argument("--skeleton-bvh", default=str(REPO.parent / "shared" / "data" / "100style" / "Neutral_FR_first3frames.bvh"),
+                    help="skeleton every frame is put on (Controller skeleton=)")
     args = ap.parse_args()
 
+    from minifilm.motion.bvh import read_bvh
     from minifilm.released import load_released
 
     rel = load_released(args.params)
+    body = Controller.skeleton_for(FeatureLayout.for_skeleton(STYLE100), read_bvh(args.skeleton_bvh))
     if args.quality:
-        quality(rel, FeatureLayout.for_skeleton(STYLE100), args.styles, args.seconds)
+        quality(rel, FeatureLayout.for_skeleton(STYLE100), args.styles, args.seconds, body)
         return
     net = RuntimeNetwork.from_model(rel.model, rel.stats, runtime_layer_norm=True)
     layout = FeatureLayout.for_skeleton(STYLE100)
@@ -140,6 +149,13 @@ def main():
         tfB, tvB = np.tile(tf, (B, 1)), np.tile(tv, (B, 1))
         t = timeit(lambda: ctrl.step(tfB, tvB, films), number=20)
         rows.append((f"controller.step(), batch {B}", t * 1e3, B / t))
+    fitted = Controller(net, layout, skeleton=body)
+    for B in [1] + list(args.batch):
+        films = np.stack([film] * B)
+        fitted.reset(rng.normal(size=(B, 2)) * 10, np.tile([0.0, 1.0], (B, 1)))
+        tfB, tvB = np.tile(tf, (B, 1)), np.tile(tv, (B, 1))
+        t = timeit(lambda: fitted.step(tfB, tvB, films), number=20)
+        rows.append((f"controller.step() with the skeleton fit, batch {B}", t * 1e3, B / t))
 
     print(f"BLAS threads: OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS')}; "
           f"paper (Unity, Table 2): 4.53 ms/frame")

@@ -8,7 +8,8 @@
 
 Scripts: straight, figure8, walk_run_stop, strafe (minifilm.control). The BVH goes onto the
 100STYLE skeleton read from --skeleton-bvh (default: ../shared/data/100style/Neutral_FR_first3frames.bvh),
-in its own channel order. --png draws side-view stick figures, the path from above, and the hips
+in its own channel order; every frame is put on that skeleton (rigid bones, the demo's arm IK for
+the whole body) and fed back, unless --no-fit. --png draws side-view stick figures, the path from above, and the hips
 height / root speed over time.
 """
 from __future__ import annotations
@@ -102,6 +103,8 @@ def main(argv=None):
     ap.add_argument("--skeleton-bvh", default=str(SHARED / "100style" / "Neutral_FR_first3frames.bvh"),
                     help="BVH whose hierarchy, offsets and channel order the output uses")
     ap.add_argument("--foot-lock", action="store_true", help="pin feet in predicted contact (leg IK)")
+    ap.add_argument("--no-fit", action="store_true", help="do not put each frame on the skeleton (rigid bones); "
+                    "output and feed back the network's own positions")
     ap.add_argument("--no-calibrate", action="store_true", help="command the raw speed (no calibration)")
     ap.add_argument("--png", help="also draw the motion into this PNG")
     ap.add_argument("--png-from", type=float, default=1.0, help="first drawn frame, seconds")
@@ -119,7 +122,9 @@ def main(argv=None):
     layout = FeatureLayout.for_skeleton(STYLE100)
     net = RuntimeNetwork.from_model(rel.model, rel.stats, runtime_layer_norm=True)
     locker = FootLocker.from_names(layout.joint_names) if args.foot_lock else None
-    ctrl = Controller(net, layout, foot_locker=locker)
+    skeleton = read_bvh(args.skeleton_bvh)
+    body = None if args.no_fit else Controller.skeleton_for(layout, skeleton)
+    ctrl = Controller(net, layout, foot_locker=locker, skeleton=body)
 
     if args.style3:
         if not args.weights:
@@ -150,7 +155,6 @@ def main(argv=None):
     r = ctrl.run(script, n, films, calibration=cal)
     dt = time.perf_counter() - t0
 
-    skeleton = read_bvh(args.skeleton_bvh)
     motion = r.to_motion(skeleton, root_joint_indices(layout, skeleton))
     write_bvh(motion, args.out)
     toes = [layout.joint_names.index("RightToe"), layout.joint_names.index("LeftToe")]
@@ -159,7 +163,8 @@ def main(argv=None):
     speed = np.linalg.norm(np.diff(r.root_positions[0], axis=0), axis=1).mean() * ctrl.fps
     print(f"{label}: {n} frames in {dt:.1f} s ({dt / n * 1e3:.2f} ms/frame) -> {args.out}")
     print(f"  path distance mean {d.mean():.2f} m (max {d.max():.2f}), mean speed {speed:.2f} m/s, "
-          f"hips {hips.min():.2f}-{hips.max():.2f} m, bone CV max {bone_cv(r.positions[0, 60:], STYLE100.parents).max():.1%}, "
+          f"hips {hips.min():.2f}-{hips.max():.2f} m, bone CV max {bone_cv(r.network_positions[0, 60:], STYLE100.parents).max():.1%} "
+          f"as predicted ({bone_cv(r.positions[0, 60:], STYLE100.parents).max():.1%} output), "
           f"foot sliding {foot_sliding(r.positions[0, 60:], r.contacts[0, 60:], toes, ctrl.fps):.3f} m/s")
     if args.png:
         render(r, STYLE100.parents, script.path, args.png, every=args.png_every, title=label,

@@ -191,11 +191,12 @@ def generate_per_style(trainer, ds, data_dir: Path, out: Path, seconds: float):
         library.add_from_clips(name, trainer.model, train_data.clips[train_data.clip_style == s])
     library.save(out / "styles.npz")
     network = RuntimeNetwork.from_model(trainer.model, trainer.stats)
-    controller = Controller(network, ds.layout, fps=ds.fps)
-    # the output skeleton is the first source file's own, written back in its own units
+    # the output skeleton is the first source file's own, written back in its own units; every
+    # frame is put on it (rigid bones), and that pose is what the network sees next
     skeleton = builtin_skeleton(ds.skeleton)
     template = read_bvh(ds.files[0]["path"], scale=skeleton.bvh_scale)
     joints = root_joint_indices(ds.layout, template)
+    controller = Controller(network, ds.layout, fps=ds.fps, skeleton=Controller.skeleton_for(ds.layout, template))
     n_frames = int(round(seconds * ds.fps))
     (out / "generated").mkdir(exist_ok=True)
     log(f"[generate] {seconds:g} s per style along a figure-eight:")
