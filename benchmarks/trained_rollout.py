@@ -34,7 +34,8 @@ from minifilm.control import figure_eight                              # noqa: E
 from minifilm.data import build_dataset                                # noqa: E402
 from minifilm.motion.bvh import read_bvh                               # noqa: E402
 from minifilm.motion.skeletons import builtin_skeleton                 # noqa: E402
-from minifilm.runtime import Controller, RuntimeNetwork, calibrate_speed, start_from_dataset  # noqa: E402
+from minifilm.runtime import (Controller, PerCharacterCalibration, RuntimeNetwork, calibrate_speed,  # noqa: E402
+                              start_from_dataset)
 from minifilm.style_library import StyleLibrary                        # noqa: E402
 from minifilm.train import Trainer                                     # noqa: E402
 
@@ -68,14 +69,10 @@ def rollout_metrics(checkpoint: Path, seconds: float = 60.0, speed: float = 1.3,
             cals.append(calibrate_speed(ctl, films[b], phases=None if p0 is None else p0[b],
                                         start_x=None if x0 is None else x0[b]))
 
-    class PerStyle:   # one calibration per character of the batch
-        def apply(self, v, f):
-            return np.stack([c.apply(v[b], f[b]) for b, c in enumerate(cals)])
-
     n = int(round(seconds * fps))
     scripts = [figure_eight(seconds, speed=speed) for _ in names]
     t0 = time.perf_counter()
-    r = ctl.run(scripts, n, films, phases=p0, calibration=PerStyle() if calibrate else None, start_x=x0)
+    r = ctl.run(scripts, n, films, phases=p0, calibration=PerCharacterCalibration(cals) if calibrate else None, start_x=x0)
     elapsed = time.perf_counter() - t0
     toes = [layout.joint_names.index("RightToe"), layout.joint_names.index("LeftToe")]
     metrics = r.metrics(layout.parents, scripts[0].path, toes)

@@ -46,7 +46,7 @@ from minifilm.motion.skeleton_fit import SkeletonFit
 from minifilm.nn import functional as F
 
 __all__ = ["RuntimeStats", "RuntimeNetwork", "Controller", "Rollout", "root_joint_indices",
-           "SpeedCalibration", "calibrate_speed", "start_from_dataset"]
+           "SpeedCalibration", "PerCharacterCalibration", "calibrate_speed", "start_from_dataset"]
 
 
 # =============================================================================== network
@@ -625,6 +625,22 @@ class SpeedCalibration:
             direction = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
         scale = self.command_for(n, direction) / np.maximum(n, 1e-9)
         return np.where((n > 1e-9)[..., None], v * scale[..., None], 0.0)
+
+
+class PerCharacterCalibration:
+    """One :class:`SpeedCalibration` per character of a batch (e.g. one per style), usable as
+    ``Controller.run(..., calibration=)``."""
+
+    def __init__(self, calibrations: Sequence[SpeedCalibration]):
+        self.calibrations = list(calibrations)
+
+    def apply(self, velocity: np.ndarray, facing: Optional[np.ndarray] = None) -> np.ndarray:
+        """velocity, facing (B, 2) -> (B, 2), character b through calibration b."""
+        v = np.asarray(velocity, dtype=np.float64)
+        if v.ndim != 2 or len(v) != len(self.calibrations):
+            raise ValueError(f"PerCharacterCalibration: velocity {v.shape} must be ({len(self.calibrations)}, 2)")
+        return np.stack([c.apply(v[b], None if facing is None else facing[b])
+                         for b, c in enumerate(self.calibrations)])
 
 
 def calibrate_speed(controller: Controller, film: np.ndarray,

@@ -183,3 +183,51 @@ def test_rollout_metrics_closed_form():
     np.testing.assert_allclose(m["speed"], 1.5, atol=1e-9)
     assert m["path_mean"] < 1e-9
     np.testing.assert_allclose(m["foot_sliding"], 1.5, atol=1e-9)  # contact [1, 0]: joint 4 glides at 1.5 m/s
+
+
+def glide_skeleton(stats, stretch=1.3):
+    """A Motion for LAYOUT's joints whose bones are ``stretch`` times the mean pose's: the fit must
+    change every bone's length."""
+    from minifilm.motion.motion import Motion
+
+    local = stats.x_mean[LAYOUT.joint_columns("x", "position")]
+    offsets = np.zeros((5, 3))
+    for j, p in enumerate(PARENTS):
+        if p >= 0:
+            offsets[j] = stretch * (local[j] - local[p])   # rest pose: the mean pose's directions, identity rotations
+    ch = [("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")] + \
+         [("Zrotation", "Xrotation", "Yrotation")] * 4
+    return Motion(list(LAYOUT.joint_names), np.array(PARENTS), offsets, ch, np.broadcast_to(np.eye(3), (1, 5, 3, 3)).copy(),
+                  np.broadcast_to(offsets, (1, 5, 3)).copy(), 1 / 60, "glide")
+
+
+@pytest.mark.parametrize("feed_back", [True, False])
+def test_skeleton_fit_in_the_loop(feed_back):
+    net, script, stats, a, u = glide_setup(speed=1.5, heading_deg=30.0)
+    skel = glide_skeleton(stats)
+    body = Controller.skeleton_for(LAYOUT, skel)
+    r = Controller(net, LAYOUT, skeleton=body, feed_back_fit=feed_back).run(script, 30, np.zeros(4))
+    rest = np.linalg.norm(skel.offsets[1:], axis=-1)
+    out = np.linalg.norm(r.positions[0][:, 1:] - r.positions[0][:, np.array(PARENTS[1:])], axis=-1)
+    np.testing.assert_allclose(out, np.broadcast_to(rest, out.shape), rtol=1e-9)    # the output is rigid, at rest length
+    # the network's own prediction is kept beside it: it carries the previous input's pose
+    x_pos = net.inputs[-1][0][LAYOUT.joint_columns("x", "position")]
+    net_bones = np.linalg.norm(x_pos[1:] - x_pos[np.array(PARENTS[1:])], axis=-1)
+    if feed_back:   # the fitted pose is what the network sees next
+        np.testing.assert_allclose(net_bones, rest, rtol=1e-6)
+    else:           # its own (mean-pose) bones, 1/1.3 of the skeleton's
+        np.testing.assert_allclose(net_bones, rest / 1.3, rtol=1e-6)
+    own = np.linalg.norm(r.network_positions[0, -1, 1:] - r.network_positions[0, -1, np.array(PARENTS[1:])], axis=-1)
+    np.testing.assert_allclose(own, net_bones, rtol=1e-5)               # float32 storage
+
+
+def test_per_character_calibration():
+    from minifilm.runtime import PerCharacterCalibration
+
+    slow = SpeedCalibration(commanded=[1.0, 2.0], achieved=[0.5, 1.0])
+    fast = SpeedCalibration(commanded=[1.0, 2.0], achieved=[1.0, 2.0])
+    both = PerCharacterCalibration([slow, fast])
+    v = both.apply(np.array([[0.0, 1.0], [0.0, 1.0]]), np.array([[0.0, 1.0], [0.0, 1.0]]))
+    np.testing.assert_allclose(v, [[0.0, 2.0], [0.0, 1.0]], atol=1e-6)
+    with pytest.raises(ValueError, match=r"must be \(2, 2\)"):
+        both.apply(np.zeros((3, 2)))
