@@ -1,14 +1,14 @@
 """Every style of the authors' released network for a minute, all in one batch (issue 7's checks).
 
     python benchmarks/released_styles.py                      # 100 styles, 60 s, skeleton fit, calibrated
-    python benchmarks/released_styles.py --no-fit --no-calibrate --seconds 180
+    python benchmarks/released_styles.py --fit none --no-calibrate --seconds 180
     python benchmarks/released_styles.py --styles Neutral Morris Lunge
 
 Every style walks a figure-eight at --speed m/s (default 1.3; with each style's measured speed
 calibration unless --no-calibrate), as one batch of characters. Printed per style, after the first
 second: the worst bone's coefficient of variation of length in the network's *own* prediction
 (before the velocity blend and the skeleton fit) and which bone it is, the same for the output
-(0 with the fit: the output is a pose of the skeleton), the hips' height range, the mean root speed,
+(0 with a fit: the output is a pose of the skeleton), the hips' height range, the mean root speed,
 the mean and largest distance of the root to the path. Then a summary: how many styles stay under
 5 % bone CV, the median, and how the network's CV changes between the first and the last 10 s
 (growth would mean drift; a constant level means the network's accuracy).
@@ -50,7 +50,8 @@ def main(argv=None):
     ap.add_argument("--styles", nargs="+", help="default: all")
     ap.add_argument("--seconds", type=float, default=60.0)
     ap.add_argument("--speed", type=float, default=1.3)
-    ap.add_argument("--no-fit", action="store_true", help="feed back the network's own pose (no skeleton fit)")
+    ap.add_argument("--fit", choices=("feedback", "output", "none"), default="feedback",
+                    help="skeleton fit fed back to the network (default, as generate_released.py), output only, or none")
     ap.add_argument("--no-calibrate", action="store_true", help="command the raw speed")
     args = ap.parse_args(argv)
 
@@ -64,8 +65,8 @@ def main(argv=None):
     layout = FeatureLayout.for_skeleton(STYLE100)
     parents = np.asarray(STYLE100.parents)
     net = RuntimeNetwork.from_model(rel.model, rel.stats, runtime_layer_norm=True)
-    body = None if args.no_fit else Controller.skeleton_for(layout, read_bvh(args.skeleton_bvh))
-    ctrl = Controller(net, layout, skeleton=body)
+    body = None if args.fit == "none" else Controller.skeleton_for(layout, read_bvh(args.skeleton_bvh))
+    ctrl = Controller(net, layout, skeleton=body, feed_back_fit=args.fit == "feedback")
     films = np.stack([rel.styles[n] for n in names])
     cal = None
     if not args.no_calibrate:
@@ -77,7 +78,7 @@ def main(argv=None):
     t0 = time.perf_counter()
     r = ctrl.run(scripts, n, films, calibration=cal)
     print(f"{len(names)} styles x {n} frames in {time.perf_counter() - t0:.0f} s; figure-eight at {args.speed} m/s, "
-          f"skeleton fit {'off' if args.no_fit else 'on'}, calibration {'off' if args.no_calibrate else 'on'}")
+          f"skeleton fit {args.fit}, calibration {'off' if args.no_calibrate else 'on'}")
     metrics = r.metrics(parents, scripts[0].path)
     print(f"{'style':18s} {'bone CV':>8s} {'worst bone':>14s} {'output':>7s} {'hips m':>10s} {'speed':>6s} {'path mean/max m':>16s}")
     cvs, early, late = [], [], []

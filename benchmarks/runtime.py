@@ -88,7 +88,8 @@ def quality(rel, layout, styles, seconds, body):
             cal = calibrate_speed(Controller(net, layout), film)
             locker = FootLocker.from_names(layout.joint_names) if lock else None
             script = figure_eight(seconds, speed=1.3)
-            r = Controller(net, layout, foot_locker=locker, skeleton=body).run(script, n, film, calibration=cal)
+            r = Controller(net, layout, foot_locker=locker, skeleton=body, feed_back_fit=True).run(
+                script, n, film, calibration=cal)
             m = r.metrics(STYLE100.parents, script.path, toes)[0]
             print(f"{style:16s} {str(lock):>5s} {m['network_bone_cv_max']:8.1%} {m['bone_cv_max']:7.1%} "
                   f"{m['hips_min']:5.2f}-{m['hips_max']:.2f} "
@@ -149,7 +150,7 @@ def main():
         tfB, tvB = np.tile(tf, (B, 1)), np.tile(tv, (B, 1))
         t = timeit(lambda: ctrl.step(tfB, tvB, films), number=20)
         rows.append((f"controller.step(), batch {B}", t * 1e3, B / t))
-    fitted = Controller(net, layout, skeleton=body)
+    fitted = Controller(net, layout, skeleton=body, feed_back_fit=True)
     for B in [1] + list(args.batch):
         films = np.stack([film] * B)
         fitted.reset(rng.normal(size=(B, 2)) * 10, np.tile([0.0, 1.0], (B, 1)))

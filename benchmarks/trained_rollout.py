@@ -41,9 +41,10 @@ from minifilm.train import Trainer                                     # noqa: E
 
 
 def rollout_metrics(checkpoint: Path, seconds: float = 60.0, speed: float = 1.3, start: str = "data",
-                    calibrate: bool = False, styles=None, png=None, controller_options=None, fit: bool = True):
+                    calibrate: bool = False, styles=None, png=None, controller_options=None, fit: str = "output"):
     """Run every style for ``seconds`` along a figure-eight; returns (style names, metrics list).
-    ``fit``: put every frame on the training data's skeleton (Controller ``skeleton=``)."""
+    ``fit``: "output" puts every frame on the training data's skeleton (Controller ``skeleton=``),
+    as train_small does; "feedback" also feeds that pose back to the network; "none" does not fit."""
     checkpoint = Path(checkpoint)
     trainer = Trainer.resume(checkpoint / "model.npz")
     cache = checkpoint / "cache"
@@ -59,7 +60,10 @@ def rollout_metrics(checkpoint: Path, seconds: float = 60.0, speed: float = 1.3,
     if start == "data":
         x0, p0 = (np.stack(a) for a in zip(*(start_from_dataset(ds, n) for n in names)))
     options = dict(controller_options or {})
-    if fit:
+    if fit not in ("feedback", "output", "none"):
+        raise ValueError(f"fit must be feedback, output or none, got {fit!r}")
+    if fit != "none":
+        options["feed_back_fit"] = fit == "feedback"
         skeleton = builtin_skeleton(ds.skeleton)
         options["skeleton"] = Controller.skeleton_for(layout, read_bvh(ds.files[0]["path"], scale=skeleton.bvh_scale))
     ctl = Controller(net, layout, fps=fps, **options)
@@ -124,15 +128,16 @@ def main():
     ap.add_argument("--png", help="write root paths and phases to this PNG")
     ap.add_argument("--velocity-blend", type=float, default=0.5, help="Controller velocity_blend (1 = off)")
     ap.add_argument("--future-smoothing", type=float, default=0.15, help="Controller future_smoothing (0 = off)")
-    ap.add_argument("--no-fit", action="store_true",
-                    help="do not put the frames on the data's skeleton (feed the network's own pose back)")
+    ap.add_argument("--fit", choices=("output", "feedback", "none"), default="output",
+                    help="put every frame on the data's skeleton (default, as train_small), also feed that "
+                         "pose back to the network, or no fit")
     a = ap.parse_args()
     names, ms, elapsed, r = rollout_metrics(a.checkpoint, a.seconds, a.speed, a.start, a.calibrate, a.styles, a.png,
                                             dict(velocity_blend=a.velocity_blend, future_smoothing=a.future_smoothing),
-                                            fit=not a.no_fit)
+                                            fit=a.fit)
     print(f"{a.checkpoint}: {a.seconds:g} s figure-eight at {a.speed} m/s, start={a.start}, "
           f"calibrated={a.calibrate}, velocity_blend={a.velocity_blend}, future_smoothing={a.future_smoothing}, "
-          f"skeleton fit={not a.no_fit}, {len(names)} styles in one batch ({elapsed:.1f} s)")
+          f"skeleton fit={a.fit}, {len(names)} styles in one batch ({elapsed:.1f} s)")
     print("bone CV: the worst bone's coefficient of variation in the network's own prediction (output: after the fit)")
     print(f"{'style':14s} {'bone CV':>8s} {'output':>7s} {'hips m':>10s} {'speed':>6s} {'path mean/max m':>16s} "
           f"{'sliding m/s':>12s} {'foot phase sd':>14s}")

@@ -9,7 +9,7 @@
 Scripts: straight, figure8, walk_run_stop, strafe (minifilm.control). The BVH goes onto the
 100STYLE skeleton read from --skeleton-bvh (default: ../shared/data/100style/Neutral_FR_first3frames.bvh),
 in its own channel order; every frame is put on that skeleton (rigid bones, the demo's arm IK for
-the whole body) and fed back, unless --no-fit. --png draws side-view stick figures, the path from above, and the hips
+the whole body) and fed back to the network, as the demo does (--fit). --png draws side-view stick figures, the path from above, and the hips
 height / root speed over time.
 """
 from __future__ import annotations
@@ -103,8 +103,9 @@ def main(argv=None):
     ap.add_argument("--skeleton-bvh", default=str(SHARED / "100style" / "Neutral_FR_first3frames.bvh"),
                     help="BVH whose hierarchy, offsets and channel order the output uses")
     ap.add_argument("--foot-lock", action="store_true", help="pin feet in predicted contact (leg IK)")
-    ap.add_argument("--no-fit", action="store_true", help="do not put each frame on the skeleton (rigid bones); "
-                    "output and feed back the network's own positions")
+    ap.add_argument("--fit", choices=("feedback", "output", "none"), default="feedback",
+                    help="put each frame on the skeleton (rigid bones) and feed that pose back, as the demo "
+                         "feeds back its post-IK pose (default); fit the output only; or no fit")
     ap.add_argument("--no-calibrate", action="store_true", help="command the raw speed (no calibration)")
     ap.add_argument("--png", help="also draw the motion into this PNG")
     ap.add_argument("--png-from", type=float, default=1.0, help="first drawn frame, seconds")
@@ -123,8 +124,8 @@ def main(argv=None):
     net = RuntimeNetwork.from_model(rel.model, rel.stats, runtime_layer_norm=True)
     locker = FootLocker.from_names(layout.joint_names) if args.foot_lock else None
     skeleton = read_bvh(args.skeleton_bvh)
-    body = None if args.no_fit else Controller.skeleton_for(layout, skeleton)
-    ctrl = Controller(net, layout, foot_locker=locker, skeleton=body)
+    body = None if args.fit == "none" else Controller.skeleton_for(layout, skeleton)
+    ctrl = Controller(net, layout, foot_locker=locker, skeleton=body, feed_back_fit=args.fit == "feedback")
 
     if args.style3:
         if not args.weights:

@@ -192,7 +192,8 @@ def generate_per_style(trainer, ds, data_dir: Path, out: Path, seconds: float):
     library.save(out / "styles.npz")
     network = RuntimeNetwork.from_model(trainer.model, trainer.stats)
     # the output skeleton is the first source file's own, written back in its own units; every
-    # frame is put on it (rigid bones), and that pose is what the network sees next
+    # frame is put on it (rigid bones); the network keeps seeing its own prediction (fed back, the
+    # fitted pose made small models stop stepping more often: benchmarks/trained_rollout.py --fit)
     skeleton = builtin_skeleton(ds.skeleton)
     template = read_bvh(ds.files[0]["path"], scale=skeleton.bvh_scale)
     joints = root_joint_indices(ds.layout, template)

@@ -23,9 +23,9 @@ a still past trajectory and the mean phases, or (``start_x``, :func:`start_from_
 frame of the style's own data: pose, trajectory and phases in mid-stride; a small trained
 network may never leave the mean pose. The demo's arm IK becomes an optional fit of the whole
 body onto the source skeleton every frame (``skeleton=``, :class:`~minifilm.motion.skeleton_fit.SkeletonFit`):
-rigid bones aimed at the predicted positions; like the demo's post-IK pose, the fitted pose is what
-the network sees next. Without it, with foot locking, the next input takes the locked positions but
-the predicted forward/up axes.
+rigid bones aimed at the predicted positions, fed back to the network like the demo's post-IK pose
+only when asked (``feed_back_fit``). Without feedback, with foot locking, the next input takes
+the locked positions but the predicted forward/up axes.
 
 Everything reads its columns from a :class:`~minifilm.motion.layout.FeatureLayout`.
 """
@@ -318,13 +318,17 @@ class Controller:
             skeleton can take (a BVH on it reproduces it exactly); the network's own positions
             stay in ``Rollout.network_positions``.
         feed_back_fit: with ``skeleton``, the next input takes the fitted pose (positions and
-            axes), as the demo feeds back its post-IK pose; False = the network's own prediction.
+            axes), as the demo feeds back its post-IK pose. Default False: the network sees its
+            own prediction, so the fit is a pure post-process that cannot change the motion. Fed
+            back, the released network's own bone-length CV drops a little (median over its 100
+            styles 5.1 % -> 4.6 %, ``benchmarks/released_styles.py``), but small models trained
+            here stopped stepping more often (``benchmarks/trained_rollout.py --fit``).
     """
 
     def __init__(self, network: RuntimeNetwork, layout: FeatureLayout, fps: float = 60.0,
                  velocity_blend: float = 0.5, future_smoothing: float = 0.15,
                  position_bias: float = 0.75, direction_bias: float = 1.25, foot_locker=None,
-                 skeleton: Optional[SkeletonFit] = None, feed_back_fit: bool = True):
+                 skeleton: Optional[SkeletonFit] = None, feed_back_fit: bool = False):
         if network.x_dim != layout.x_dim or network.z_dim != layout.z_dim:
             raise ValueError(f"Controller: network sizes (x {network.x_dim}, z {network.z_dim}) do not match "
                              f"the layout (x {layout.x_dim}, z {layout.z_dim})")

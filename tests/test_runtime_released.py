@@ -46,7 +46,8 @@ def minute(released, skeleton):
     net, layout, lib = released
     scripts = [figure_eight(MINUTE / 60, speed=1.3) for _ in WALKING]
     films = np.stack([lib[s] for s in WALKING])
-    ctrl = Controller(net, layout, skeleton=Controller.skeleton_for(layout, skeleton))
+    # as examples/generate_released.py runs it: the fitted pose fed back, as the demo feeds back its post-IK pose
+    ctrl = Controller(net, layout, skeleton=Controller.skeleton_for(layout, skeleton), feed_back_fit=True)
     return ctrl.run(scripts, MINUTE, films), scripts
 
 

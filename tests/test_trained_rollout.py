@@ -15,6 +15,8 @@ from minifilm.data import build_dataset
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
 from minifilm.motion import synthetic
+from minifilm.motion.bvh import read_bvh
+from minifilm.motion.skeletons import builtin_skeleton
 from minifilm.runtime import Controller, RuntimeNetwork, start_from_dataset
 from minifilm.style_library import StyleLibrary
 from minifilm.train import TrainConfig, Trainer
@@ -66,3 +68,21 @@ def test_minute_long_rollout_of_a_trained_model(trained, script):
     assert m["path_mean"] < limit, f"{script}: mean distance to the path {m['path_mean']:.2f} m"
     if script == "straight":    # and along it: the path runs along +z from the origin
         assert r.root_positions[0, -1, 1] > 0.5 * SPEED * seconds
+
+
+def test_skeleton_fit_of_the_output_leaves_the_rollout_unchanged(trained):
+    """Fitting only the output (what train_small does) gives rigid bones and the very same network
+    trajectory as no fit: the fit is a pure post-process unless it is fed back."""
+    ds, net, film = trained
+    L, n = ds.layout, 600
+    x0, p0 = start_from_dataset(ds, "Neutral")
+    body = Controller.skeleton_for(L, read_bvh(ds.files[0]["path"], scale=builtin_skeleton(ds.skeleton).bvh_scale))
+    plain = Controller(net, L, fps=ds.fps).run(figure_eight(10.0, SPEED), n, film, phases=p0, start_x=x0)
+    fitted = Controller(net, L, fps=ds.fps, skeleton=body, feed_back_fit=False).run(
+        figure_eight(10.0, SPEED), n, film, phases=p0, start_x=x0)
+    np.testing.assert_array_equal(fitted.network_positions, plain.network_positions)
+    np.testing.assert_array_equal(fitted.root_positions, plain.root_positions)
+    m = fitted.metrics(L.parents)[0]
+    assert m["bone_cv_max"] < 1e-6
+    # each joint stays near the network's pose: the fit only corrects bone lengths and directions
+    assert np.abs(fitted.positions - plain.positions).max() < 0.05
