@@ -53,6 +53,7 @@ def main(argv=None):
     ap.add_argument("--fit", choices=("feedback", "output", "none"), default="feedback",
                     help="skeleton fit fed back to the network (default, as generate_released.py), output only, or none")
     ap.add_argument("--no-calibrate", action="store_true", help="command the raw speed")
+    ap.add_argument("--position-bias", type=float, default=0.75, help="Controller position_bias")
     args = ap.parse_args(argv)
 
     from minifilm.released import load_released
@@ -66,7 +67,7 @@ def main(argv=None):
     parents = np.asarray(STYLE100.parents)
     net = RuntimeNetwork.from_model(rel.model, rel.stats, runtime_layer_norm=True)
     body = None if args.fit == "none" else Controller.skeleton_for(layout, read_bvh(args.skeleton_bvh))
-    ctrl = Controller(net, layout, skeleton=body, feed_back_fit=args.fit == "feedback")
+    ctrl = Controller(net, layout, skeleton=body, feed_back_fit=args.fit == "feedback", position_bias=args.position_bias)
     films = np.stack([rel.styles[n] for n in names])
     cal = None
     if not args.no_calibrate:
@@ -78,7 +79,7 @@ def main(argv=None):
     t0 = time.perf_counter()
     r = ctrl.run(scripts, n, films, calibration=cal)
     print(f"{len(names)} styles x {n} frames in {time.perf_counter() - t0:.0f} s; figure-eight at {args.speed} m/s, "
-          f"skeleton fit {args.fit}, calibration {'off' if args.no_calibrate else 'on'}")
+          f"skeleton fit {args.fit}, calibration {'off' if args.no_calibrate else 'on'}, position_bias {args.position_bias}")
     metrics = r.metrics(parents, scripts[0].path)
     print(f"{'style':18s} {'bone CV':>8s} {'worst bone':>14s} {'output':>7s} {'hips m':>10s} {'speed':>6s} {'path mean/max m':>16s}")
     cvs, early, late = [], [], []

@@ -128,15 +128,20 @@ def main():
     ap.add_argument("--png", help="write root paths and phases to this PNG")
     ap.add_argument("--velocity-blend", type=float, default=0.5, help="Controller velocity_blend (1 = off)")
     ap.add_argument("--future-smoothing", type=float, default=0.15, help="Controller future_smoothing (0 = off)")
+    ap.add_argument("--position-bias", type=float, default=2.0,
+                    help="Controller position_bias (default 2 as in train_small; the demo's is 0.75; larger: "
+                         "the user's trajectory weighs more in near samples)")
     ap.add_argument("--fit", choices=("output", "feedback", "none"), default="output",
                     help="put every frame on the data's skeleton (default, as train_small), also feed that "
                          "pose back to the network, or no fit")
     a = ap.parse_args()
     names, ms, elapsed, r = rollout_metrics(a.checkpoint, a.seconds, a.speed, a.start, a.calibrate, a.styles, a.png,
-                                            dict(velocity_blend=a.velocity_blend, future_smoothing=a.future_smoothing),
+                                            dict(velocity_blend=a.velocity_blend, future_smoothing=a.future_smoothing,
+                                                 position_bias=a.position_bias),
                                             fit=a.fit)
     print(f"{a.checkpoint}: {a.seconds:g} s figure-eight at {a.speed} m/s, start={a.start}, "
           f"calibrated={a.calibrate}, velocity_blend={a.velocity_blend}, future_smoothing={a.future_smoothing}, "
+          f"position_bias={a.position_bias}, "
           f"skeleton fit={a.fit}, {len(names)} styles in one batch ({elapsed:.1f} s)")
     print("bone CV: the worst bone's coefficient of variation in the network's own prediction (output: after the fit)")
     print(f"{'style':14s} {'bone CV':>8s} {'output':>7s} {'hips m':>10s} {'speed':>6s} {'path mean/max m':>16s} "

@@ -180,25 +180,38 @@ class RuntimeNetwork:
 
 def _to_local2(v: np.ndarray, f: np.ndarray) -> np.ndarray:
     """World (x, z) vectors (..., 2) into the frame of a root facing f (..., 2): R^T v."""
-    return np.stack([f[..., 1] * v[..., 0] - f[..., 0] * v[..., 1],
-                     f[..., 0] * v[..., 0] + f[..., 1] * v[..., 1]], axis=-1)
+    out = np.empty(np.broadcast_shapes(v.shape, f.shape))   # filled in place: np.stack costs more per frame
+    out[..., 0] = f[..., 1] * v[..., 0] - f[..., 0] * v[..., 1]
+    out[..., 1] = f[..., 0] * v[..., 0] + f[..., 1] * v[..., 1]
+    return out
 
 
 def _to_world2(v: np.ndarray, f: np.ndarray) -> np.ndarray:
     """Inverse of :func:`_to_local2`: R v for R = LookRotation(f)."""
-    return np.stack([f[..., 1] * v[..., 0] + f[..., 0] * v[..., 1],
-                     -f[..., 0] * v[..., 0] + f[..., 1] * v[..., 1]], axis=-1)
+    out = np.empty(np.broadcast_shapes(v.shape, f.shape))
+    out[..., 0] = f[..., 1] * v[..., 0] + f[..., 0] * v[..., 1]
+    out[..., 1] = -f[..., 0] * v[..., 0] + f[..., 1] * v[..., 1]
+    return out
 
 
 def _to_local3(v: np.ndarray, f: np.ndarray) -> np.ndarray:
     """World 3-vectors (B, J, 3) into root frames facing f (B, 2): R^T v (y unchanged)."""
     fx, fz = f[:, 0, None], f[:, 1, None]
-    return np.stack([fz * v[..., 0] - fx * v[..., 2], v[..., 1], fx * v[..., 0] + fz * v[..., 2]], axis=-1)
+    out = np.empty(np.broadcast_shapes(v.shape, (len(f), 1, 3)))
+    out[..., 0] = fz * v[..., 0] - fx * v[..., 2]
+    out[..., 1] = v[..., 1]
+    out[..., 2] = fx * v[..., 0] + fz * v[..., 2]
+    return out
 
 
 def _to_world3(v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`_to_local3`."""
     fx, fz = f[:, 0, None], f[:, 1, None]
-    return np.stack([fz * v[..., 0] + fx * v[..., 2], v[..., 1], -fx * v[..., 0] + fz * v[..., 2]], axis=-1)
+    out = np.empty(np.broadcast_shapes(v.shape, (len(f), 1, 3)))
+    out[..., 0] = fz * v[..., 0] + fx * v[..., 2]
+    out[..., 1] = v[..., 1]
+    out[..., 2] = -fx * v[..., 0] + fz * v[..., 2]
+    return out
 
 
 def _unit2(v: np.ndarray, fallback: np.ndarray) -> np.ndarray:

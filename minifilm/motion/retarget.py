@@ -23,7 +23,7 @@ from typing import Optional, Sequence
 import numpy as np
 
 from .motion import Motion
-from .skeleton_fit import SkeletonFit, _unit, rotation_between
+from .skeleton_fit import SkeletonFit, _cross, _unit, rotation_between
 
 __all__ = ["axes_to_rotation", "rotation_between", "world_to_local", "retarget"]  # rotation_between: re-exported
 
@@ -39,9 +39,10 @@ def axes_to_rotation(forward: np.ndarray, up: np.ndarray) -> np.ndarray:
     """
     f = _unit(np.asarray(forward, dtype=np.float64))
     u = np.asarray(up, dtype=np.float64)
-    u = _unit(u - np.sum(u * f, axis=-1, keepdims=True) * f)
-    x = np.cross(u, f)
-    return np.stack([x, u, f], axis=-1)
+    u = _unit(u - np.einsum("...i,...i->...", u, f)[..., None] * f)
+    R = np.empty(f.shape + (3,))
+    R[..., 0], R[..., 1], R[..., 2] = _cross(u, f), u, f
+    return R
 
 
 def world_to_local(world: np.ndarray, parents: np.ndarray) -> np.ndarray:

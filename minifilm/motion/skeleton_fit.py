@@ -32,35 +32,46 @@ __all__ = ["SkeletonFit", "rotation_between", "best_fit_rotation"]
 
 
 def _unit(v: np.ndarray, eps: float = 1e-9) -> np.ndarray:
-    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), eps)
+    # einsum rather than np.linalg.norm: this runs every frame on tiny arrays, where call overhead rules
+    return v / np.sqrt(np.maximum(np.einsum("...i,...i->...", v, v), eps * eps))[..., None]
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b along the last axis (np.cross costs several times more on tiny arrays)."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
 
 
 def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The smallest rotation taking direction a to direction b (Rodrigues): (..., 3, 3).
+    """The smallest rotation taking direction a to direction b: (..., 3, 3).
 
+    Rodrigues with v = a x b and c = a . b (unit a, b): ``R = c I + [v]x + v v^T / (1 + c)``.
     Opposite directions (a = -b) have no unique smallest rotation; they get a half turn about an
     axis perpendicular to a.
     """
     a = _unit(np.asarray(a, dtype=np.float64))
     b = _unit(np.asarray(b, dtype=np.float64))
-    v = np.cross(a, b)
-    c = np.sum(a * b, axis=-1)
+    v = _cross(a, b)
+    c = np.einsum("...i,...i->...", a, b)
     opposite = c < -1 + 1e-9
+    R = v[..., :, None] * (v / np.maximum(1.0 + c, 1e-12)[..., None])[..., None, :]
+    for i in range(3):
+        R[..., i, i] += c
+    R[..., 0, 1] -= v[..., 2]
+    R[..., 0, 2] += v[..., 1]
+    R[..., 1, 0] += v[..., 2]
+    R[..., 1, 2] -= v[..., 0]
+    R[..., 2, 0] -= v[..., 1]
+    R[..., 2, 1] += v[..., 0]
     if np.any(opposite):
-        # any axis perpendicular to a: cross with whichever basis vector is least parallel
+        # half turn R = 2 n n^T - I about an axis n perpendicular to a: cross a with whichever
+        # basis vector is least parallel to it
         e = np.where(np.abs(a[..., :1]) < 0.9, np.array([1.0, 0, 0]), np.array([0, 1.0, 0]))
-        axis = _unit(np.cross(a, e))
-        v = np.where(opposite[..., None], axis, v)
-    K = np.zeros(v.shape[:-1] + (3, 3))
-    K[..., 0, 1], K[..., 0, 2] = -v[..., 2], v[..., 1]
-    K[..., 1, 0], K[..., 1, 2] = v[..., 2], -v[..., 0]
-    K[..., 2, 0], K[..., 2, 1] = -v[..., 1], v[..., 0]
-    scale = np.where(opposite, 1.0, 1.0 / np.maximum(1.0 + c, 1e-12))[..., None, None]
-    I = np.broadcast_to(np.eye(3), K.shape)
-    R = I + K + scale * (K @ K)
-    # half turn: R = 2 n n^T - I for the chosen perpendicular unit axis n
-    if np.any(opposite):
-        half = 2.0 * v[..., :, None] * v[..., None, :] - I
+        n = _unit(_cross(a, e))
+        half = 2.0 * n[..., :, None] * n[..., None, :] - np.eye(3)
         R = np.where(opposite[..., None, None], half, R)
     return R
 
@@ -145,6 +156,10 @@ class SkeletonFit:
                                    for c in range(J))}
         self.rest_length = np.linalg.norm(self.offsets, axis=-1)
         self.levels = self._plan()
+        rotated = {j for level in self.levels for j in level[4]}
+        self.late = np.array([j for j in self.swing if j not in rotated], dtype=np.int64)
+        self.late_child = np.array([self.fit_children[j][0] for j in self.late], dtype=np.int64)
+        self.leaves = np.array([j for j in idx if j not in rotated and j not in self.late], dtype=np.int64)
 
     def _plan(self):
         """Forward kinematics level by level (a level = joints at the same depth below exported
@@ -212,16 +227,14 @@ class SkeletonFit:
                     c = self.fit_children[j][0]
                     world[:, j] = rotation_between(Rw[:, ex[j]] @ off[c], P[:, ex[c]] - fk[:, j]) @ Rw[:, ex[j]]
                 done[j] = True
-        late = [j for j in self.swing if not done[j]]
-        if late:  # every remaining swing in one batched call
-            kids = [self.fit_children[j][0] for j in late]
+        late, kids = self.late, self.late_child
+        if len(late):  # every remaining swing in one batched call
             R0 = Rw[:, ex[late]]                                           # (N, k, 3, 3)
             swing = rotation_between(np.einsum("nkij,kj->nki", R0, off[kids]), fk[:, kids] - fk[:, late])
             world[:, late] = swing @ R0
             done[late] = True
-        leaves = [j for j in self.joint_indices if not done[j]]
-        world[:, leaves] = Rw[:, ex[leaves]]           # exported joints with nothing to aim at
-        done[leaves] = True
+        world[:, self.leaves] = Rw[:, ex[self.leaves]]     # exported joints with nothing to aim at
+        done[self.leaves] = True
         if all_joints:
             for j in range(J):  # joints outside the fit follow their parent
                 if not done[j]:
