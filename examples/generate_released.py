@@ -148,8 +148,9 @@ def main(argv=None):
     if not args.no_calibrate:
         t0 = time.perf_counter()
         cal = calibrate_speed(Controller(net, layout), film)
+        achieved = "; ".join(f"{d:g} deg: {row[1:].round(2).tolist()}" for d, row in zip(cal.directions, cal.achieved))
         print(f"speed calibration ({time.perf_counter() - t0:.1f} s): commands {cal.commanded[1:].round(1).tolist()} m/s "
-              f"-> achieved {cal.achieved[1:].round(2).tolist()} m/s")
+              f"-> achieved m/s by direction from the facing ({achieved})")
     script = make_script(args.script, args.seconds, speed=args.speed) if args.script != "strafe" else \
         make_script(args.script, args.seconds, speed=min(args.speed, 1.0))
     t0 = time.perf_counter()
