@@ -1,15 +1,18 @@
 """Minute-long rollouts of a minifilm-trained model, one character per style (issue 7's checks).
 
     python benchmarks/trained_rollout.py --checkpoint runs/train_small
-    python benchmarks/trained_rollout.py --checkpoint DIR --start mean --no-calibrate --png out.png
+    python benchmarks/trained_rollout.py --checkpoint DIR --start mean --fit none --position-bias 0.75 --png out.png
 
 DIR is what ``examples/train_small.py --out DIR`` writes: model.npz (checkpoint with the
 normalisation statistics), styles.npz (FiLM vector per style) and data/ (the BVH files the model
 was trained on; the data set is rebuilt from them, from DIR/cache when it is there). Every style
 walks a figure-eight at --speed m/s for --seconds (default 60 s = 3,600 frames at 60 fps), all
-styles in one batch. Printed per style (after the first second): the worst bone's coefficient
-of variation of length, the hips' height range, the mean root speed, the mean and largest
-distance of the root to the path, and foot sliding (toe speed while the predicted contact is on).
+styles in one batch, with the runtime settings of train_small (every frame put on the data's
+skeleton, ``--fit``; user trajectory weight ``--position-bias 2``). Printed per style (after the
+first second): the worst bone's coefficient of variation of length in the network's own
+prediction and in the output (0 on the skeleton), the hips' height range, the mean root speed,
+the mean and largest distance of the root to the path, and foot sliding (toe speed while the
+predicted contact is on).
 
 --start data (default) starts each style from a frame of its own forward-walk data (pose,
 trajectory and phases); --start mean from the data's mean pose and mean phases. --calibrate maps

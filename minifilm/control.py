@@ -245,10 +245,13 @@ def figure_eight(seconds: float = 30.0, speed: float = 1.3, size: float = 3.0) -
 def walk_run_stop(seconds: float = 30.0, speed: float = 1.3, run: float = 3.5) -> PathScript:
     """Straight line: walk at ``speed``, speed up to ``run``, slow down to a walk, then stop
     (in thirds of the time)."""
+    if seconds <= 0:
+        raise ValueError(f"walk_run_stop: seconds must be positive, got {seconds}")
     walk = speed
     a, b = seconds / 3.0, 2 * seconds / 3.0
-    keys = [(0.0, walk), (a - 1.0, walk), (a, run), (b - 1.5, run), (b - 0.5, walk),
-            (b + 0.5 * (seconds - b), walk), (b + 0.5 * (seconds - b) + 1.0, 0.0), (seconds, 0.0)]
+    r = min(1.0, seconds / 12.0)     # speed changes take 1 s, less in short scripts (times keep increasing)
+    keys = [(0.0, walk), (a - r, walk), (a, run), (b - 1.5 * r, run), (b - 0.5 * r, walk),
+            (b + 0.5 * (seconds - b), walk), (b + 0.5 * (seconds - b) + r, 0.0), (seconds, 0.0)]
     return PathScript([[0.0, 0.0], [0.0, run * seconds + 5.0]], speed=keys, duration=seconds)
 
 

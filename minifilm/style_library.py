@@ -20,7 +20,15 @@ from typing import Dict, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-__all__ = ["StyleLibrary", "smoothstep"]
+__all__ = ["StyleLibrary", "UnknownStyleError", "smoothstep"]
+
+
+class UnknownStyleError(KeyError, ValueError):
+    """A style name the library does not hold. A KeyError for dict-like use and a ValueError so
+    command-line tools report it as bad input (:func:`minifilm.cli.run`) instead of a traceback."""
+
+    def __str__(self) -> str:      # KeyError would print the message in quotes
+        return str(self.args[0]) if self.args else ""
 
 
 def smoothstep(u: np.ndarray) -> np.ndarray:
@@ -59,7 +67,7 @@ class StyleLibrary:
         try:
             return self._films[name]
         except KeyError:
-            raise KeyError(f"style {name!r} is not in the library; known styles: {self.names}") from None
+            raise UnknownStyleError(f"style {name!r} is not in the library; known styles: {self.names}") from None
 
     def add(self, name: str, film: np.ndarray) -> None:
         """Add or replace one style's FiLM vector (D,)."""

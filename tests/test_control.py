@@ -61,6 +61,18 @@ def test_walk_run_stop_speeds():
     assert speed[-60:].max() < 1e-9  # stopped at the end
 
 
+@pytest.mark.parametrize("seconds", [1.0, 5.0, 9.0])
+def test_walk_run_stop_any_length(seconds):
+    """Short scripts keep their keyframes in order: walk, run, walk, stop in thirds of the time."""
+    track = simulate(walk_run_stop(seconds=seconds, speed=1.0, run=2.0), seconds)
+    speed = np.linalg.norm(np.diff(track, axis=0), axis=1) * 60
+    n = len(speed)
+    assert abs(speed[n // 6] - 1.0) < 1e-6 and abs(speed[n // 3: 2 * n // 3].max() - 2.0) < 1e-6
+    assert speed[-2] < 1e-6
+    with pytest.raises(ValueError, match="positive"):
+        walk_run_stop(seconds=0.0)
+
+
 def test_strafe_keeps_facing_while_moving_sideways():
     s = strafe(seconds=12, speed=1.0)
     s.reset()

@@ -30,7 +30,7 @@ def test_blend_endpoints_are_exact_and_middle_is_linear():
     np.testing.assert_allclose(mid, 0.25 * lib["Angry"].astype(float) + 0.75 * lib["Old"], rtol=1e-6)
     with pytest.raises(ValueError, match="sum to 1"):
         lib.blend({"Angry": 0.5, "Old": 0.2})
-    with pytest.raises(KeyError, match="known styles"):
+    with pytest.raises(KeyError, match="known styles"):   # also a ValueError: bad input for the command-line tools
         lib.blend({"Moonwalk": 1.0})
 
 

@@ -418,3 +418,10 @@ def test_write_dataset_round_trips_through_bvh(tmp_path):
         np.testing.assert_allclose(_fk(back)[0], _fk(clip.motion)[0], atol=1e-4)
         truth = np.load(path.with_suffix(".truth.npz"), allow_pickle=False)
         np.testing.assert_array_equal(truth["true_phase"], clip.true_phase)
+
+
+def test_unknown_style_or_gait_is_named():
+    with pytest.raises(ValueError, match=r"unknown styles or gaits \['Moonwalk'\]"):
+        default_dataset(styles=["Neutral", "Moonwalk"], gaits=["FW"], seconds=1.0)
+    with pytest.raises(ValueError, match=r"\['XX'\]"):
+        default_dataset(styles=["Neutral"], gaits=["XX"], seconds=1.0)

@@ -223,11 +223,14 @@ def default_dataset(seed: int = 0, seconds: float = 6.0, styles: Optional[Iterab
     """
     styles = list(STYLES if styles is None else styles)
     gaits = list(DEFAULT_GAITS if gaits is None else gaits)
+    unknown = [s for s in styles if s not in STYLE_PARAMS] + [g for g in gaits if g not in GAITS]
+    if unknown:
+        raise ValueError(f"default_dataset: unknown styles or gaits {unknown}; styles are {STYLES}, "
+                         f"gaits {list(GAITS)}")
     clips = []
     for style in styles:
         for gait in gaits:
-            key = [int(seed), STYLES.index(style) if style in STYLES else -1,
-                   GAITS.index(gait) if gait in GAITS else -1]
+            key = [int(seed), list(STYLE_PARAMS).index(style), GAITS.index(gait)]
             clips.append(generate_style(style, gait, seconds, np.random.default_rng(key), fps))
     return clips
 
