@@ -24,8 +24,10 @@ frame of the style's own data: pose, trajectory and phases in mid-stride; a smal
 network may never leave the mean pose. The demo's arm IK becomes an optional fit of the whole
 body onto the source skeleton every frame (``skeleton=``, :class:`~minifilm.motion.skeleton_fit.SkeletonFit`):
 rigid bones aimed at the predicted positions, fed back to the network like the demo's post-IK pose
-only when asked (``feed_back_fit``). Without feedback, with foot locking, the next input takes
-the locked positions but the predicted forward/up axes.
+only when asked (``feed_back_fit``; foot locking then applies to the fitted pose and is fed back
+with it). Without a skeleton, with foot locking, the next input takes the locked positions but
+the predicted forward/up axes; with a skeleton that is not fed back, the next input is the
+network's own (velocity-blended) pose, so neither the fit nor the locking changes the motion.
 
 Everything reads its columns from a :class:`~minifilm.motion.layout.FeatureLayout`.
 """
@@ -330,9 +332,9 @@ class Controller:
             demo's arm IK for the whole body), before foot locking. The output is then a pose the
             skeleton can take (a BVH on it reproduces it exactly); the network's own positions
             stay in ``Rollout.network_positions``.
-        feed_back_fit: with ``skeleton``, the next input takes the fitted pose (positions and
-            axes), as the demo feeds back its post-IK pose. Default False: the network sees its
-            own prediction, so the fit is a pure post-process that cannot change the motion. Fed
+        feed_back_fit: with ``skeleton``, the next input takes the fitted (and foot-locked) pose,
+            positions and axes, as the demo feeds back its post-IK pose. Default False: the network
+            sees its own prediction, so the fit and the locking are pure post-processes. Fed
             back, the released network's own bone-length CV drops a little (median over its 100
             styles 5.1 % -> 4.6 %, ``benchmarks/released_styles.py``), but small models trained
             here stopped stepping more often (``benchmarks/trained_rollout.py --fit``).
