@@ -285,7 +285,12 @@ class Rollout:
 
 
 def root_joint_indices(layout: FeatureLayout, skeleton: Motion) -> np.ndarray:
-    """Index into ``skeleton`` joints of each exported joint of ``layout``, matched by name."""
+    """Index into ``skeleton`` joints of each exported joint of ``layout``, matched by name;
+    ValueError naming every missing joint when the skeleton is not the layout's."""
+    missing = [n for n in layout.joint_names if n not in skeleton.names]
+    if missing:
+        raise ValueError(f"{skeleton.source}: the skeleton lacks {len(missing)} of the network's "
+                         f"{layout.n_joints} joints ({missing}); its joints are {skeleton.names}")
     return np.array([skeleton.index(n) for n in layout.joint_names], dtype=np.int64)
 
 

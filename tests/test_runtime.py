@@ -231,3 +231,13 @@ def test_per_character_calibration():
     np.testing.assert_allclose(v, [[0.0, 2.0], [0.0, 1.0]], atol=1e-6)
     with pytest.raises(ValueError, match=r"must be \(2, 2\)"):
         both.apply(np.zeros((3, 2)))
+
+
+def test_a_skeleton_without_the_layouts_joints_is_named():
+    from minifilm.runtime import root_joint_indices
+
+    net, script, stats, a, u = glide_setup()
+    skel = glide_skeleton(stats)
+    skel.names[2] = "Skull"                          # the layout wants "Head"
+    with pytest.raises(ValueError, match=r"lacks 1 of the network's 5 joints \(\['Head'\]\)"):
+        root_joint_indices(LAYOUT, skel)
