@@ -29,18 +29,13 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from minifilm.control import figure_eight  # noqa: E402
+from minifilm.metrics import bone_length_cv  # noqa: E402
 from minifilm.motion.bvh import read_bvh  # noqa: E402
 from minifilm.motion.layout import FeatureLayout  # noqa: E402
 from minifilm.motion.skeletons import STYLE100  # noqa: E402
 from minifilm.runtime import Controller, PerCharacterCalibration, RuntimeNetwork, calibrate_speed  # noqa: E402
 
 SHARED = REPO.parent / "shared" / "data"
-
-
-def bone_cv(P: np.ndarray, parents: np.ndarray) -> np.ndarray:
-    """(F, J, 3) positions -> (J-1,) coefficient of variation of each bone's length."""
-    bones = np.linalg.norm(P[:, 1:] - P[:, parents[1:]], axis=-1)
-    return bones.std(axis=0) / bones.mean(axis=0)
 
 
 def main(argv=None):
@@ -85,12 +80,12 @@ def main(argv=None):
     cvs, early, late = [], [], []
     k10 = 600
     for b, (name, m) in enumerate(zip(names, metrics)):
-        net_pos = r.network_positions[b, 60:].astype(np.float64)
-        cv = bone_cv(net_pos, parents)
+        net_pos = r.network_positions[b, 60:]
+        cv = bone_length_cv(net_pos, parents)
         cvs.append(cv.max())
-        early.append(bone_cv(net_pos[:k10], parents).max())
-        late.append(bone_cv(net_pos[-k10:], parents).max())
-        print(f"{name:18s} {cv.max():8.1%} {STYLE100.joints[1 + cv.argmax()]:>14s} {m['bone_cv_max']:7.1%} "
+        early.append(bone_length_cv(net_pos[:k10], parents).max())
+        late.append(bone_length_cv(net_pos[-k10:], parents).max())
+        print(f"{name:18s} {cv.max():8.1%} {STYLE100.joints[cv.argmax()]:>14s} {m['bone_cv_max']:7.1%} "
               f"{m['hips_min']:4.2f}-{m['hips_max']:.2f} {m['speed']:6.2f} {m['path_mean']:8.2f}/{m['path_max']:<7.2f}")
     cvs = np.array(cvs)
     hips_ok = sum(0.6 < m["hips_min"] and m["hips_max"] < 1.2 for m in metrics)

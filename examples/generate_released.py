@@ -25,6 +25,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from minifilm.control import distance_to_path, make_script, SCRIPTS  # noqa: E402
+from minifilm.metrics import bone_length_cv  # noqa: E402
 from minifilm.motion.bvh import read_bvh, write_bvh  # noqa: E402
 from minifilm.motion.foot_ik import FootLocker, foot_sliding  # noqa: E402
 from minifilm.motion.layout import FeatureLayout  # noqa: E402
@@ -78,12 +79,6 @@ def render(rollout, parents, path, out, every=10, max_figures=14, title="", star
     ax3.legend(fontsize=7, loc="upper right")
     fig.savefig(out, dpi=75)
     plt.close(fig)
-
-
-def bone_cv(positions, parents):
-    parents = np.asarray(parents)
-    bones = np.linalg.norm(positions[:, 1:] - positions[:, parents[1:]], axis=-1)
-    return bones.std(axis=0) / bones.mean(axis=0)
 
 
 def main(argv=None):
@@ -165,8 +160,8 @@ def main(argv=None):
     speed = np.linalg.norm(np.diff(r.root_positions[0], axis=0), axis=1).mean() * ctrl.fps
     print(f"{label}: {n} frames in {dt:.1f} s ({dt / n * 1e3:.2f} ms/frame) -> {args.out}")
     print(f"  path distance mean {d.mean():.2f} m (max {d.max():.2f}), mean speed {speed:.2f} m/s, "
-          f"hips {hips.min():.2f}-{hips.max():.2f} m, bone CV max {bone_cv(r.network_positions[0, 60:], STYLE100.parents).max():.1%} "
-          f"as predicted ({bone_cv(r.positions[0, 60:], STYLE100.parents).max():.1%} output), "
+          f"hips {hips.min():.2f}-{hips.max():.2f} m, bone CV max {bone_length_cv(r.network_positions[0, 60:], STYLE100.parents).max():.1%} "
+          f"as predicted ({bone_length_cv(r.positions[0, 60:], STYLE100.parents).max():.1%} output), "
           f"foot sliding {foot_sliding(r.positions[0, 60:], r.contacts[0, 60:], toes, ctrl.fps):.3f} m/s")
     if args.png:
         render(r, STYLE100.parents, script.path, args.png, every=args.png_every, title=label,

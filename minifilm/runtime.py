@@ -253,22 +253,19 @@ class Rollout:
         path_mean / path_max (m, root distance to the polyline ``path`` (N, 2)) and foot_sliding
         (m/s, toes = joint index per contact column)."""
         from minifilm.control import distance_to_path
+        from minifilm.metrics import bone_length_cv
         from minifilm.motion.foot_ik import foot_sliding
 
         parents = np.asarray(parents)
         k0 = min(int(round(warmup_seconds * self.fps)), self.positions.shape[1] - 2)
         out = []
-        def bone_cv_max(P):
-            bones = np.linalg.norm(P[:, parents >= 0] - P[:, parents[parents >= 0]], axis=-1)
-            return float((bones.std(axis=0) / np.maximum(bones.mean(axis=0), 1e-9)).max())
-
         for b in range(self.positions.shape[0]):
             P = self.positions[b, k0:]
-            m = dict(bone_cv_max=bone_cv_max(P),
+            m = dict(bone_cv_max=float(bone_length_cv(P, parents).max()),
                      hips_min=float(P[:, 0, 1].min()), hips_max=float(P[:, 0, 1].max()),
                      speed=float(np.linalg.norm(np.diff(self.root_positions[b, k0:], axis=0), axis=1).mean() * self.fps))
             if self.network_positions is not None:
-                m["network_bone_cv_max"] = bone_cv_max(self.network_positions[b, k0:].astype(np.float64))
+                m["network_bone_cv_max"] = float(bone_length_cv(self.network_positions[b, k0:], parents).max())
             if path is not None:
                 d = distance_to_path(self.root_positions[b, k0:], path)
                 m.update(path_mean=float(d.mean()), path_max=float(d.max()))

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from minifilm.metrics import (bone_length_variation, interpolation_smoothness, pca_2d, rollout_quality,
+from minifilm.metrics import (bone_length_cv, bone_length_variation, interpolation_smoothness, pca_2d, rollout_quality,
                               silhouette_score)
 from minifilm.runtime import Rollout
 
@@ -75,6 +75,8 @@ def test_bone_variation_rigid_vs_stretching():
     # lengths 0.75 / 0.5 half each: mean 0.625, std 0.125 -> cv 0.2; bone 1 stays at cv 0
     assert v["max"] == pytest.approx(0.2)
     assert v["mean"] == pytest.approx(0.1)
+    # per joint: the bone ending at joint j, 0 for the root, so argmax names the stretched bone
+    np.testing.assert_allclose(bone_length_cv(stretch.astype(np.float32), parents), [0.0, 0.0, 0.2], atol=1e-6)
 
 
 def _rollout(toe_x):
