@@ -1,4 +1,4 @@
-"""Feature extraction throughput (frames per second), paper Sec. 3.2 / minifilm/motion/features.py.
+"""Feature extraction throughput (frames per second), paper Sec. 3.2 / minifilm/features/compute.py.
 
     python benchmarks/features.py            # add --quick for fewer repeats
 
@@ -21,7 +21,7 @@ sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
 
-from minifilm.motion.features import (  # noqa: E402
+from minifilm.features.compute import (  # noqa: E402
     clip_features_from_arrays, frame_features, frame_features_from_arrays)
 
 DATA = Path(os.environ.get("MINIFILM_SHARED_DATA", ROOT.parent / "shared" / "data"))
@@ -67,7 +67,7 @@ def main():
     rows.append(("clips from arrays", f"{F} frames, 4 s / 2 s", F, t))
 
     if BANDAI_FILE.is_file():
-        from minifilm.data import DatasetSettings, _featurise, _labels, mirror_labels, split_segments
+        from minifilm.dataset.build import DatasetSettings, _featurise, _labels, mirror_labels, split_segments
         from minifilm.motion.bvh import read_bvh
         from minifilm.motion.kinematics import mirror
         from minifilm.motion.skeletons import BANDAI

@@ -33,10 +33,10 @@ import numpy as np  # noqa: E402
 from scipy.optimize import least_squares  # noqa: E402
 
 from minifilm.motion.bvh import read_bvh  # noqa: E402
-from minifilm.motion.contacts import foot_contacts  # noqa: E402
+from minifilm.phases.contacts import foot_contacts  # noqa: E402
 from minifilm.motion.kinematics import resample  # noqa: E402
-from minifilm.motion.phase_fit import fit_sinusoids, overflow_window, window_half_width  # noqa: E402
-from minifilm.motion.phases import SLOTS, extract_local_phases  # noqa: E402
+from minifilm.phases.sinusoid_fit import fit_sinusoids, overflow_window, window_half_width  # noqa: E402
+from minifilm.phases.local_phases import SLOTS, extract_local_phases  # noqa: E402
 from minifilm.motion.skeletons import BANDAI  # noqa: E402
 
 DATA = Path(os.environ.get("MINIFILM_SHARED_DATA", ROOT.parent / "shared" / "data"))

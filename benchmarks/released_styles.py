@@ -28,12 +28,12 @@ import numpy as np  # noqa: E402
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from minifilm.control import figure_eight  # noqa: E402
-from minifilm.metrics import bone_length_cv  # noqa: E402
+from minifilm.runtime.control import figure_eight  # noqa: E402
+from minifilm.evaluation.metrics import bone_length_cv  # noqa: E402
 from minifilm.motion.bvh import read_bvh  # noqa: E402
-from minifilm.motion.layout import FeatureLayout  # noqa: E402
+from minifilm.features.layout import FeatureLayout  # noqa: E402
 from minifilm.motion.skeletons import STYLE100  # noqa: E402
-from minifilm.runtime import Controller, PerCharacterCalibration, RuntimeNetwork, calibrate_speed  # noqa: E402
+from minifilm.runtime.controller import Controller, PerCharacterCalibration, RuntimeNetwork, calibrate_speed  # noqa: E402
 
 SHARED = REPO.parent / "shared" / "data"
 
@@ -51,7 +51,7 @@ def main(argv=None):
     ap.add_argument("--position-bias", type=float, default=0.75, help="Controller position_bias")
     args = ap.parse_args(argv)
 
-    from minifilm.released import load_released
+    from minifilm.runtime.released import load_released
 
     rel = load_released(args.params)
     names = args.styles or list(rel.styles)

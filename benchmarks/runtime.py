@@ -35,10 +35,10 @@ import numpy as np  # noqa: E402
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from minifilm.control import CommandScript  # noqa: E402
-from minifilm.motion.layout import FeatureLayout  # noqa: E402
+from minifilm.runtime.control import CommandScript  # noqa: E402
+from minifilm.features.layout import FeatureLayout  # noqa: E402
 from minifilm.motion.skeletons import STYLE100  # noqa: E402
-from minifilm.runtime import Controller, RuntimeNetwork  # noqa: E402
+from minifilm.runtime.controller import Controller, RuntimeNetwork  # noqa: E402
 
 
 def timeit(fn, repeat=5, number=100):
@@ -72,9 +72,9 @@ def blend_first(net: RuntimeNetwork, model, x, p, film):
 def quality(rel, layout, styles, seconds, body):
     """Minute-long rollouts of several styles, without and with foot locking, every frame put on
     the skeleton ``body`` (a SkeletonFit): bone CV of the network's own prediction and of the output."""
-    from minifilm.control import figure_eight
+    from minifilm.runtime.control import figure_eight
     from minifilm.motion.foot_ik import FootLocker
-    from minifilm.runtime import calibrate_speed
+    from minifilm.runtime.controller import calibrate_speed
 
     net = RuntimeNetwork.from_model(rel.model, rel.stats, runtime_layer_norm=True)
     n = int(round(seconds * 60))
@@ -109,7 +109,7 @@ def main():
     args = ap.parse_args()
 
     from minifilm.motion.bvh import read_bvh
-    from minifilm.released import load_released
+    from minifilm.runtime.released import load_released
 
     rel = load_released(args.params)
     body = Controller.skeleton_for(FeatureLayout.for_skeleton(STYLE100), read_bvh(args.skeleton_bvh))

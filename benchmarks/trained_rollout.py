@@ -33,14 +33,14 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from minifilm.control import figure_eight                              # noqa: E402
-from minifilm.data import build_dataset                                # noqa: E402
+from minifilm.runtime.control import figure_eight                              # noqa: E402
+from minifilm.dataset.build import build_dataset                                # noqa: E402
 from minifilm.motion.bvh import read_bvh                               # noqa: E402
 from minifilm.motion.skeletons import builtin_skeleton                 # noqa: E402
-from minifilm.runtime import (Controller, PerCharacterCalibration, RuntimeNetwork, calibrate_speed,  # noqa: E402
+from minifilm.runtime.controller import (Controller, PerCharacterCalibration, RuntimeNetwork, calibrate_speed,  # noqa: E402
                               start_from_dataset)
-from minifilm.style_library import StyleLibrary                        # noqa: E402
-from minifilm.train import Trainer                                     # noqa: E402
+from minifilm.runtime.style_library import StyleLibrary                        # noqa: E402
+from minifilm.train.trainer import Trainer                                     # noqa: E402
 
 
 def rollout_metrics(checkpoint: Path, seconds: float = 60.0, speed: float = 1.3, start: str = "data",

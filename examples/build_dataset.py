@@ -16,8 +16,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from minifilm.data import build_dataset  # noqa: E402
-from minifilm.manifest import write_bandai_manifest  # noqa: E402
+from minifilm.dataset.build import build_dataset  # noqa: E402
+from minifilm.dataset.manifest import write_bandai_manifest  # noqa: E402
 
 
 def main(argv=None):

@@ -13,7 +13,7 @@ Steps:
  2. train:     a small LPN + FiLM model on the seen styles;
  3. before:    test error of the held-out style with Ψ as trained (it has never seen that style);
  4. fine-tune: Ω and Φ frozen, only Ψ trained on the held-out style's training frames
-               (minifilm.train.finetune), timed;
+               (minifilm.train.trainer.finetune), timed;
  5. after:     test error of the held-out style again, and of the seen styles (Ψ changed for them too);
                FiLM-code separation (silhouette of Ψ(clip) grouped by style, all styles, before and
                after) and a PCA plot of the codes.
@@ -30,13 +30,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
-from minifilm.compare_report import draw_film_codes                                             # noqa: E402
-from minifilm.compare_tools import film_codes, film_separation, fit_normalizer, style_subset  # noqa: E402
-from minifilm.data import build_dataset                                                        # noqa: E402
+from minifilm.evaluation.compare_report import draw_film_codes                                             # noqa: E402
+from minifilm.evaluation.compare_tools import film_codes, film_separation, fit_normalizer, style_subset  # noqa: E402
+from minifilm.dataset.build import build_dataset                                                        # noqa: E402
 from minifilm.model.config import ModelConfig                                                  # noqa: E402
 from minifilm.model.style_model import StyleModel                                              # noqa: E402
-from minifilm.motion import synthetic                                                          # noqa: E402
-from minifilm.train import TrainConfig, Trainer, finetune                                      # noqa: E402
+from minifilm.synthetic import generator as synthetic                                                          # noqa: E402
+from minifilm.train.trainer import TrainConfig, Trainer, finetune                                      # noqa: E402
 
 SEED = 0
 OUT = Path("runs/finetune_new_style")

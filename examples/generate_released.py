@@ -6,7 +6,7 @@
     python examples/generate_released.py --style Neutral --switch-to Zombie --switch-at 10 --out switch.bvh
     python examples/generate_released.py --list-styles
 
-Scripts: straight, figure8, walk_run_stop, strafe (minifilm.control). The BVH goes onto the
+Scripts: straight, figure8, walk_run_stop, strafe (minifilm.runtime.control). The BVH goes onto the
 100STYLE skeleton read from --skeleton-bvh (default: ../shared/data/100style/Neutral_FR_first3frames.bvh),
 in its own channel order; every frame is put on that skeleton (rigid bones, the demo's arm IK for
 the whole body) and fed back to the network, as the demo does (--fit). --png draws side-view stick figures, the path from above, and the hips
@@ -24,14 +24,14 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from minifilm.control import distance_to_path, make_script, SCRIPTS  # noqa: E402
-from minifilm.metrics import bone_length_cv  # noqa: E402
+from minifilm.runtime.control import distance_to_path, make_script, SCRIPTS  # noqa: E402
+from minifilm.evaluation.metrics import bone_length_cv  # noqa: E402
 from minifilm.motion.bvh import read_bvh, write_bvh  # noqa: E402
 from minifilm.motion.foot_ik import FootLocker, foot_sliding  # noqa: E402
-from minifilm.motion.layout import FeatureLayout  # noqa: E402
+from minifilm.features.layout import FeatureLayout  # noqa: E402
 from minifilm.motion.skeletons import STYLE100  # noqa: E402
-from minifilm.runtime import Controller, RuntimeNetwork, calibrate_speed, root_joint_indices  # noqa: E402
-from minifilm.style_library import StyleLibrary  # noqa: E402
+from minifilm.runtime.controller import Controller, RuntimeNetwork, calibrate_speed, root_joint_indices  # noqa: E402
+from minifilm.runtime.style_library import StyleLibrary  # noqa: E402
 
 SHARED = REPO.parent / "shared" / "data"
 
@@ -108,7 +108,7 @@ def main(argv=None):
     ap.add_argument("--list-styles", action="store_true")
     args = ap.parse_args(argv)
 
-    from minifilm.released import load_released
+    from minifilm.runtime.released import load_released
 
     rel = load_released(args.params)
     lib = StyleLibrary(rel.styles)

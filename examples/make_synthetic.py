@@ -16,7 +16,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
-from minifilm.motion.synthetic import DEFAULT_GAITS, STYLES, default_dataset, write_dataset  # noqa: E402
+from minifilm.synthetic.generator import DEFAULT_GAITS, STYLES, default_dataset, write_dataset  # noqa: E402
 
 # ---- settings -----------------------------------------------------------------------------------
 SEED = 0

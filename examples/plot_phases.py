@@ -22,8 +22,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from minifilm.motion.bvh import read_bvh  # noqa: E402
-from minifilm.motion.contacts import foot_contacts  # noqa: E402
-from minifilm.motion.phases import SLOTS, default_sources, extract_local_phases  # noqa: E402
+from minifilm.phases.contacts import foot_contacts  # noqa: E402
+from minifilm.phases.local_phases import SLOTS, default_sources, extract_local_phases  # noqa: E402
 from minifilm.motion.skeletons import builtin_skeleton, detect_skeleton  # noqa: E402
 
 
@@ -100,7 +100,7 @@ def main(argv=None):
     keep = (t >= args.start) & (t <= (args.stop if args.stop is not None else t[-1]))
     if not np.any(keep):
         raise SystemExit(f"no frames between {args.start} s and {args.stop} s (the file lasts {t[-1]:.2f} s)")
-    from minifilm.motion.phases import LocalPhases
+    from minifilm.phases.local_phases import LocalPhases
     view = LocalPhases(*(None if a is None else a[keep] for a in
                          (phases.phase, phases.amplitude, phases.source, phases.fit, phases.frequency)))
     title = f"{Path(args.bvh).name}: {motion.n_frames} frames at {motion.fps:.0f} fps, skeleton {skeleton.name}"

@@ -28,18 +28,18 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
-from minifilm.data import build_dataset                                         # noqa: E402
+from minifilm.dataset.build import build_dataset                                         # noqa: E402
 from minifilm.model.config import ModelConfig                                   # noqa: E402
 from minifilm.model.style_model import StyleModel                               # noqa: E402
-from minifilm.motion import synthetic                                           # noqa: E402
-from minifilm.motion.contacts import foot_contacts                              # noqa: E402
-from minifilm.motion.phases import default_sources, extract_local_phases        # noqa: E402
+from minifilm.synthetic import generator as synthetic                                           # noqa: E402
+from minifilm.phases.contacts import foot_contacts                              # noqa: E402
+from minifilm.phases.local_phases import default_sources, extract_local_phases        # noqa: E402
 from minifilm.motion.skeletons import STYLE100, builtin_skeleton                 # noqa: E402
-from minifilm.control import make_script                                        # noqa: E402
+from minifilm.runtime.control import make_script                                        # noqa: E402
 from minifilm.motion.bvh import read_bvh, write_bvh                             # noqa: E402
-from minifilm.runtime import Controller, RuntimeNetwork, root_joint_indices, start_from_dataset  # noqa: E402
-from minifilm.style_library import StyleLibrary                                 # noqa: E402
-from minifilm.train import TrainConfig, Trainer                                 # noqa: E402
+from minifilm.runtime.controller import Controller, RuntimeNetwork, root_joint_indices, start_from_dataset  # noqa: E402
+from minifilm.runtime.style_library import StyleLibrary                                 # noqa: E402
+from minifilm.train.trainer import TrainConfig, Trainer                                 # noqa: E402
 
 # ---- settings -------------------------------------------------------------------------------------
 SEED = 0

@@ -4,7 +4,7 @@
         Table 2: parameter counts (A.S.N., S.M.N., P.S.R.) of the seven variants in the paper's
         configuration, paper vs ours, and the batch-1 time per frame measured here.
     python -m minifilm.evaluate compare ...
-        Figure 10 and the style metrics (minifilm/evaluate_compare.py; see its --help).
+        Figure 10 and the style metrics (minifilm/evaluation/compare.py; see its --help).
 
 Each subcommand lives in its own module, imported only when asked for.
 """
@@ -13,8 +13,8 @@ from __future__ import annotations
 import sys
 
 SUBCOMMANDS = {
-    "table2": ("minifilm.table2", "Table 2: parameter counts and run time of the seven variants"),
-    "compare": ("minifilm.evaluate_compare", "Figure 10 and style metrics (train and compare the variants)"),
+    "table2": ("minifilm.evaluation.table2", "Table 2: parameter counts and run time of the seven variants"),
+    "compare": ("minifilm.evaluation.compare", "Figure 10 and style metrics (train and compare the variants)"),
 }
 
 

@@ -6,8 +6,8 @@ import pytest
 
 from minifilm.model.config import ModelConfig
 from minifilm.model.losses import mse_loss
-from minifilm.model.phase_function import catmull_rom_weights
-from minifilm.model.variants import VARIANTS, VariantModel
+from minifilm.baselines.phase_function import catmull_rom_weights
+from minifilm.baselines.variants import VARIANTS, VariantModel
 from minifilm.nn import functional as F
 from minifilm.nn.gradcheck import check_gradients
 

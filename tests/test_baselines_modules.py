@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from minifilm.model.config import ModelConfig
-from minifilm.model.phase_function import catmull_rom_weights
-from minifilm.model.style_modulation import CPResidualAdapter, OneHotShift, ResidualAdapter
-from minifilm.model.variants import VARIANTS, build_variant
+from minifilm.baselines.phase_function import catmull_rom_weights
+from minifilm.baselines.style_modulation import CPResidualAdapter, OneHotShift, ResidualAdapter
+from minifilm.baselines.variants import VARIANTS, build_variant
 from minifilm.nn import functional as F
 
 
@@ -131,8 +131,8 @@ def test_predict_single_matches_forward(name):
 
 def test_lpn_film_variant_runs_in_the_runtime_network():
     """build_variant('LPN FiLM') is a StyleModel: the run-time network takes it as it is."""
-    from minifilm.runtime import RuntimeNetwork
-    from minifilm.traindata import NormStats
+    from minifilm.runtime.controller import RuntimeNetwork
+    from minifilm.dataset.arrays import NormStats
     rng = np.random.default_rng(6)
     cfg = ModelConfig.small(z_dim=40)
     model = build_variant("LPN FiLM", cfg, rng, with_film_generator=False)

@@ -1,13 +1,13 @@
-"""The variants' data path (minifilm.variant_data) and training every variant with train.Trainer."""
+"""The variants' data path (minifilm.baselines.variant_data) and training every variant with train.Trainer."""
 import numpy as np
 import pytest
 
 from minifilm.model.config import ModelConfig
-from minifilm.model.variants import VARIANTS, build_variant
-from minifilm.motion.layout import FeatureLayout
-from minifilm.train import TrainConfig, Trainer
-from minifilm.traindata import NormStats, TrainData
-from minifilm.variant_data import variant_data
+from minifilm.baselines.variants import VARIANTS, build_variant
+from minifilm.features.layout import FeatureLayout
+from minifilm.train.trainer import TrainConfig, Trainer
+from minifilm.dataset.arrays import NormStats, TrainData
+from minifilm.baselines.variant_data import variant_data
 
 J = 3
 LAYOUT = FeatureLayout.generic(J)               # x 84, z 78 (motion 60, phases 8, updates 8, contacts 2)

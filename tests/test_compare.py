@@ -2,12 +2,12 @@
 import numpy as np
 import pytest
 
-from minifilm.compare_tools import VariantRuntime
+from minifilm.evaluation.compare_tools import VariantRuntime
 from minifilm.model.config import ModelConfig
-from minifilm.model.variants import build_variant
-from minifilm.motion.layout import FeatureLayout
+from minifilm.baselines.variants import build_variant
+from minifilm.features.layout import FeatureLayout
 from minifilm.motion.skeletons import STYLE100
-from minifilm.traindata import NormStats
+from minifilm.dataset.arrays import NormStats
 
 LAYOUT = FeatureLayout.for_skeleton(STYLE100)
 
@@ -66,7 +66,7 @@ def test_pfnn_runtime_advances_the_global_phase():
 
 
 def test_tiny_compare_run(tmp_path):
-    from minifilm.evaluate_compare import parse_args, run
+    from minifilm.evaluation.compare import parse_args, run
     args = parse_args(["--tiny", "--variants", "LPN FiLM,LPN one-hot", "--budget-steps", "1",
                        "--finetune-steps", "1", "--seconds", "8", "--styles", "Neutral,LeftHop,Crouched",
                        "--gaits", "FW", "--holdout", "Crouched", "--rollout-seconds", "2",
@@ -88,7 +88,7 @@ def test_tiny_compare_run(tmp_path):
 
 def test_claims_use_seed_means():
     import types
-    from minifilm.compare_report import claims, seed_summary
+    from minifilm.evaluation.compare_report import claims, seed_summary
 
     def e(m):
         return {"mse": m, "bll": 0.0, "per_style": {"Swimming": {"mse": m}}}

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from minifilm.motion.contacts import estimate_floor_height, foot_contacts, majority_filter
+from minifilm.phases.contacts import estimate_floor_height, foot_contacts, majority_filter
 
 
 def test_majority_filter_by_hand():

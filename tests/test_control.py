@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from minifilm.control import (CommandScript, PathScript, blend_future_trajectory, distance_to_path,
+from minifilm.runtime.control import (CommandScript, PathScript, blend_future_trajectory, distance_to_path,
                               figure_eight, heading_vector, make_script, strafe, walk_run_stop)
 
 

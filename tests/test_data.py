@@ -1,4 +1,4 @@
-"""Datasets (minifilm/data.py, minifilm/manifest.py): files, splits, mirroring, normalisation,
+"""Datasets (minifilm/dataset/build.py, minifilm/dataset/manifest.py): files, splits, mirroring, normalisation,
 cache, style-balanced minibatches. Expected values are properties or independent computations."""
 import os
 from pathlib import Path
@@ -6,13 +6,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import minifilm.data as data_module
-from minifilm.data import (
+import minifilm.dataset.build as data_module
+from minifilm.dataset.build import (
     SPLITS, Dataset, DatasetSettings, Normalizer, apply_gap, build_dataset,
     file_rng, mirror_labels, split_files, split_segments)
-from minifilm.manifest import (
+from minifilm.dataset.manifest import (
     MotionFile, bandai_files, read_manifest, scan_100style, write_bandai_manifest, write_manifest)
-from minifilm.traindata import NormStats, TrainData
+from minifilm.dataset.arrays import NormStats, TrainData
 
 
 # ----------------------------------------------------------------------------- splits
@@ -357,7 +357,7 @@ def test_resampling_and_errors_name_the_file(shared_data, tmp_path):
 
 
 def test_mean_std_in_chunks_matches_numpy():
-    from minifilm.data import _mean_std
+    from minifilm.dataset.build import _mean_std
 
     a = np.random.default_rng(3).normal(5.0, 0.01, size=(1000, 4)).astype(np.float32)
     mean, std = _mean_std(a, chunk=64)

@@ -132,7 +132,7 @@ def script_options(path: Path) -> frozenset:
 
 def dispatched_options(source: Path) -> frozenset:
     """Options of the minifilm modules a command module dispatches to by name (string literals
-    such as "minifilm.table2" in minifilm/evaluate.py)."""
+    such as "minifilm.evaluation.table2" in minifilm/evaluate.py)."""
     out = set()
     for name in re.findall(r"[\"'](minifilm(?:\.\w+)+)[\"']", source.read_text(encoding="utf-8")):
         path = REPO_ROOT / (name.replace(".", "/") + ".py")

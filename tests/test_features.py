@@ -1,4 +1,4 @@
-"""Features x, p, z and clips y (minifilm/motion/features.py).
+"""Features x, p, z and clips y (minifilm/features/compute.py).
 
 Expected values come from closed forms (a character walking on a straight line or on a circle,
 built by hand here), from forward kinematics of real BVH files, and from the authors' released
@@ -7,10 +7,10 @@ normalisation statistics; never from running the code under test.
 import numpy as np
 import pytest
 
-from minifilm.motion.features import (
+from minifilm.features.compute import (
     clip_features_from_arrays, decode_joints, decode_trajectory, frame_features_from_arrays,
     seconds_to_frames, trajectory_offsets, trajectory_sample_frames)
-from minifilm.motion.layout import FeatureLayout
+from minifilm.features.layout import FeatureLayout
 
 
 # ----------------------------------------------------------------------------- toy character
@@ -269,7 +269,7 @@ def _root_of_frame(motion, skeleton, k):
 def test_reconstruct_world_joints_from_x_and_root_trajectory(shared_data, rel, fps):
     """Chain z's root deltas from the first root, then rebuild the world joints of every row from
     x's joint block: they match forward kinematics within 1e-5 m (features stored in float32)."""
-    from minifilm.motion.features import frame_features
+    from minifilm.features.compute import frame_features
 
     motion, skeleton = _load(shared_data, rel)
     assert round(motion.fps) == fps
@@ -307,7 +307,7 @@ def test_matches_released_statistics_on_100style(shared_data):
     """The real 100STYLE frame against the authors' released Xmean / Xstd (original §13.1): the
     current sample is [0,0,0,1], the hips sit at x = z = 0 facing +z, and every column is within
     4 released standard deviations of the released mean (a wrong order or axis would not be)."""
-    from minifilm.motion.features import frame_features
+    from minifilm.features.compute import frame_features
 
     motion, skeleton = _load(shared_data, "100style/Neutral_FR_first3frames.bvh")
     assert skeleton.name == "100style"

@@ -1,4 +1,4 @@
-"""FeatureLayout (minifilm/motion/layout.py): sizes and column indices of x, z, p and the clip.
+"""FeatureLayout (minifilm/features/layout.py): sizes and column indices of x, z, p and the clip.
 
 Expected numbers come from the paper (x 348, z 342, clip 240 x 300 for 100STYLE) and from
 original-pipeline.md §6-§7 (joint j at 48 + 12 j in x, positions at 24 + 12 j in z, phases at
@@ -9,8 +9,8 @@ import json
 import numpy as np
 import pytest
 
-from minifilm.motion.features import FeatureLayout as ReExported
-from minifilm.motion.layout import TRAJECTORY_SECONDS, FeatureLayout
+from minifilm.features.compute import FeatureLayout as ReExported
+from minifilm.features.layout import TRAJECTORY_SECONDS, FeatureLayout
 
 PARENTS_100STYLE = (-1, 0, 1, 2, 3, 4, 5, 4, 7, 8, 9, 10, 4, 12, 13, 14, 15, 0, 17, 18, 19, 0, 21, 22, 23)
 NAMES = tuple(f"joint{j}" for j in range(25))
@@ -115,7 +115,7 @@ def test_bad_layouts_are_named():
 
 
 def test_generic_layout_and_mismatch():
-    from minifilm.motion.features import frame_features_from_arrays
+    from minifilm.features.compute import frame_features_from_arrays
 
     g = FeatureLayout.generic(25)
     assert (g.x_dim, g.z_dim) == (348, 342) and g.parents[:3] == (-1, 0, 1)

@@ -1,7 +1,7 @@
 """100STYLE folder scanning: the download keeps one sub-folder per style."""
 import pytest
 
-from minifilm.manifest import scan_100style
+from minifilm.dataset.manifest import scan_100style
 
 
 def _touch(path):

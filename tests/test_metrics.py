@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from minifilm.metrics import (bone_length_cv, bone_length_variation, interpolation_smoothness, pca_2d, rollout_quality,
+from minifilm.evaluation.metrics import (bone_length_cv, bone_length_variation, interpolation_smoothness, pca_2d, rollout_quality,
                               silhouette_score)
-from minifilm.runtime import Rollout
+from minifilm.runtime.controller import Rollout
 
 
 def test_silhouette_matches_hand_computation():

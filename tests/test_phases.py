@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 from minifilm.motion.motion import Motion
-from minifilm.motion.phase_fit import fit_sinusoids, overflow_window, window_half_width
-from minifilm.motion.phase_sources import (butterworth, pca_source, preprocess_source,
+from minifilm.phases.sinusoid_fit import fit_sinusoids, overflow_window, window_half_width
+from minifilm.phases.sources import (butterworth, pca_source, preprocess_source,
                                            window_normalise)
-from minifilm.motion.phases import (LocalPhases, default_sources, extract_local_phases,
+from minifilm.phases.local_phases import (LocalPhases, default_sources, extract_local_phases,
                                     phase_and_amplitude, phase_updates)
 from minifilm.motion.skeletons import Skeleton
 

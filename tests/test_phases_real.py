@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from minifilm.motion.bvh import read_bvh
-from minifilm.motion.contacts import foot_contacts
+from minifilm.phases.contacts import foot_contacts
 from minifilm.motion.kinematics import resample
-from minifilm.motion.phases import extract_local_phases, hips_local_positions
+from minifilm.phases.local_phases import extract_local_phases, hips_local_positions
 from minifilm.motion.skeletons import BANDAI, CMU
 
 WALKS = ("normal_001", "elderly_001", "exhausted_001", "feminine_001")

@@ -8,8 +8,8 @@ import pytest
 
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
-from minifilm.released import ReleasedFormatError, load_released, write_released
-from minifilm.traindata import NormStats
+from minifilm.runtime.released import ReleasedFormatError, load_released, write_released
+from minifilm.dataset.arrays import NormStats
 
 
 def f32(d, name):

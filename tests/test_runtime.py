@@ -6,11 +6,11 @@ These tests need no data: the loop is driven by a stand-in network whose outputs
 import numpy as np
 import pytest
 
-from minifilm.control import CommandScript
+from minifilm.runtime.control import CommandScript
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
-from minifilm.motion.layout import FeatureLayout
-from minifilm.runtime import Controller, RuntimeNetwork, RuntimeStats, SpeedCalibration
+from minifilm.features.layout import FeatureLayout
+from minifilm.runtime.controller import Controller, RuntimeNetwork, RuntimeStats, SpeedCalibration
 
 PARENTS = (-1, 0, 1, 0, 3)
 LAYOUT = FeatureLayout(5, PARENTS, ("Hips", "Spine", "Head", "Leg", "Foot"))
@@ -222,7 +222,7 @@ def test_skeleton_fit_in_the_loop(feed_back):
 
 
 def test_per_character_calibration():
-    from minifilm.runtime import PerCharacterCalibration
+    from minifilm.runtime.controller import PerCharacterCalibration
 
     slow = SpeedCalibration(commanded=[1.0, 2.0], achieved=[0.5, 1.0])
     fast = SpeedCalibration(commanded=[1.0, 2.0], achieved=[1.0, 2.0])
@@ -234,7 +234,7 @@ def test_per_character_calibration():
 
 
 def test_a_skeleton_without_the_layouts_joints_is_named():
-    from minifilm.runtime import root_joint_indices
+    from minifilm.runtime.controller import root_joint_indices
 
     net, script, stats, a, u = glide_setup()
     skel = glide_skeleton(stats)

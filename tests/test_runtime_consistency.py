@@ -1,12 +1,12 @@
 """The runtime sees what training saw: Controller.build_input / _apply_output against the dataset.
 
 A synthetic clip is turned into training rows by the dataset code
-(:func:`minifilm.motion.features.frame_features_from_arrays`). The Controller is then put in the
+(:func:`minifilm.features.compute.frame_features_from_arrays`). The Controller is then put in the
 TRUE state of frame k (root history, future trajectory, joints, phases), and
 
 * ``build_input()`` must reproduce the dataset's x row of frame k column for column (same frame
   of reference, same trajectory sample times, including the rounding of
-  :func:`minifilm.motion.features.trajectory_offsets` at frame rates where a sample falls on half
+  :func:`minifilm.features.compute.trajectory_offsets` at frame rates where a sample falls on half
   a frame, e.g. -1/6 s at 15 fps);
 * feeding the dataset's TRUE z row of frame k through the output path (``_apply_output``) must
   move the state to the true frame k+1: root, facing, joints, phases (the §10.2 step 7 rule
@@ -18,11 +18,11 @@ Expected values come from the dataset code and the generator, never from the run
 import numpy as np
 import pytest
 
-from minifilm.motion import synthetic
-from minifilm.motion.features import frame_features_from_arrays, motion_arrays, trajectory_offsets
-from minifilm.motion.layout import CURRENT_SAMPLE, FeatureLayout
+from minifilm.synthetic import generator as synthetic
+from minifilm.features.compute import frame_features_from_arrays, motion_arrays, trajectory_offsets
+from minifilm.features.layout import CURRENT_SAMPLE, FeatureLayout
 from minifilm.motion.skeletons import STYLE100
-from minifilm.runtime import Controller, RuntimeStats
+from minifilm.runtime.controller import Controller, RuntimeStats
 
 
 class _NoNetwork:

@@ -8,13 +8,13 @@ reader; foot locking.
 import numpy as np
 import pytest
 
-from minifilm.control import distance_to_path, figure_eight, straight_walk
+from minifilm.runtime.control import distance_to_path, figure_eight, straight_walk
 from minifilm.motion.bvh import read_bvh, write_bvh
 from minifilm.motion.foot_ik import FootLocker, foot_sliding
-from minifilm.motion.layout import FeatureLayout
+from minifilm.features.layout import FeatureLayout
 from minifilm.motion.skeletons import STYLE100
-from minifilm.runtime import Controller, RuntimeNetwork, root_joint_indices
-from minifilm.style_library import StyleLibrary
+from minifilm.runtime.controller import Controller, RuntimeNetwork, root_joint_indices
+from minifilm.runtime.style_library import StyleLibrary
 
 WALKING = ("Neutral", "Old", "Zombie")
 MINUTE = 3600
@@ -22,7 +22,7 @@ MINUTE = 3600
 
 @pytest.fixture(scope="module")
 def released(shared_data):
-    from minifilm.released import load_released
+    from minifilm.runtime.released import load_released
 
     folder = shared_data / "released-lpn"
     if not folder.is_dir():

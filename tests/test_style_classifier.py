@@ -3,12 +3,12 @@ the dataset's clip features for the same motion."""
 import numpy as np
 import pytest
 
-from minifilm.motion import synthetic
-from minifilm.motion.features import clip_features_from_arrays, motion_arrays
+from minifilm.synthetic import generator as synthetic
+from minifilm.features.compute import clip_features_from_arrays, motion_arrays
 from minifilm.motion.skeletons import STYLE100
 from minifilm.nn.gradcheck import check_gradients
-from minifilm.runtime import Rollout
-from minifilm.style_classifier import StyleClassifier, cut_windows, rollout_blocks, window_summary
+from minifilm.runtime.controller import Rollout
+from minifilm.evaluation.style_classifier import StyleClassifier, cut_windows, rollout_blocks, window_summary
 
 
 @pytest.mark.parametrize("hidden", [0, 5])

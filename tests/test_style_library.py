@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from minifilm.style_library import StyleLibrary, smoothstep
+from minifilm.runtime.style_library import StyleLibrary, smoothstep
 
 
 def lib3(D=16):

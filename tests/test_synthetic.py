@@ -1,4 +1,4 @@
-"""Tests of the synthetic locomotion generator (minifilm/motion/synthetic.py).
+"""Tests of the synthetic locomotion generator (minifilm/synthetic/generator.py).
 
 Each style claims a property (a hopping foot that never lands, hands above the head, arms cycling
 at another frequency than the legs, ...). These tests measure the claims on the generated motion
@@ -9,8 +9,8 @@ kinematics, PCA, FFT), never by comparing the generator with itself.
 import numpy as np
 import pytest
 
-from minifilm.motion.contacts import foot_contacts
-from minifilm.motion.synthetic import (DEFAULT_GAITS, GAITS, STYLES, default_dataset, generate_style,
+from minifilm.phases.contacts import foot_contacts
+from minifilm.synthetic.generator import (DEFAULT_GAITS, GAITS, STYLES, default_dataset, generate_style,
                                        skeleton_100style, write_dataset)
 
 FPS = 60
@@ -236,7 +236,7 @@ def test_swimming_arm_frequency_differs_from_step_frequency():
 
 
 def test_swimming_frequencies_through_the_phase_pipeline():
-    from minifilm.motion.phases import extract_local_phases
+    from minifilm.phases.local_phases import extract_local_phases
     from minifilm.motion.skeletons import STYLE100
 
     c = generate_style("Swimming", "FW", 8.0, np.random.default_rng(12))
@@ -382,7 +382,7 @@ def test_lifted_foot_truth_peaks_at_the_forward_extreme(clips):
 
 @pytest.mark.parametrize("style", ["Neutral", "LeftHop"])
 def test_phase_pipeline_recovers_the_true_phases(style):
-    from minifilm.motion.phases import default_sources, extract_local_phases
+    from minifilm.phases.local_phases import default_sources, extract_local_phases
     from minifilm.motion.skeletons import STYLE100
 
     c = generate_style(style, "FW", 6.0, np.random.default_rng(21))

@@ -4,9 +4,10 @@ architecture determines them, the shape-only counts equal what the models alloca
 import numpy as np
 import pytest
 
-from minifilm import evaluate, table2
+from minifilm import evaluate
+from minifilm.evaluation import table2
 from minifilm.model.config import ModelConfig
-from minifilm.model.variants import VARIANTS, build_variant, variant_parameter_counts
+from minifilm.baselines.variants import VARIANTS, build_variant, variant_parameter_counts
 
 # The paper's Table 2 (A.S.N., S.M.N., P.S.R.), typed in from the paper. The FiLM rows' S.M.N.
 # (Ψ, paper 35,668,530) is ours 39,214,592 (film_generator.py explains), asserted separately.

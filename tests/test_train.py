@@ -5,12 +5,12 @@ import json
 import numpy as np
 import pytest
 
-from minifilm.checkpoint import CheckpointError, load_checkpoint
+from minifilm.train.checkpoint import CheckpointError, load_checkpoint
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
-from minifilm.train import (TrainConfig, Trainer, TrainingDiverged, draw_clips, epoch_batches,
+from minifilm.train.trainer import (TrainConfig, Trainer, TrainingDiverged, draw_clips, epoch_batches,
                             finetune, train)
-from minifilm.traindata import NormStats, TrainData
+from minifilm.dataset.arrays import NormStats, TrainData
 
 PARENTS = np.array([-1, 0, 1, 0])
 POS_IDX = 4 + np.arange(12).reshape(4, 3)      # z columns 4..15 hold 4 joint positions
@@ -140,7 +140,7 @@ def test_corrupt_checkpoints_give_clear_errors(tmp_path):
     # a parameter of the wrong shape
     meta, arrays = load_checkpoint(path)
     arrays["motion.W1"] = np.zeros((2, 2), np.float32)
-    from minifilm.checkpoint import save_checkpoint
+    from minifilm.train.checkpoint import save_checkpoint
     meta.pop("format")
     save_checkpoint(tmp_path / "shape.npz", meta, arrays)
     with pytest.raises(CheckpointError, match="motion"):

@@ -5,9 +5,9 @@ from pathlib import Path
 
 import numpy as np
 
-from minifilm.checkpoint import load_checkpoint
+from minifilm.train.checkpoint import load_checkpoint
 from minifilm.motion.bvh import read_bvh
-from minifilm.style_library import StyleLibrary
+from minifilm.runtime.style_library import StyleLibrary
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "train_small.py"
 

@@ -10,16 +10,16 @@ into the floor, stretches its bones or wanders off fails. The minute-long rollou
 import numpy as np
 import pytest
 
-from minifilm.control import figure_eight, straight_walk
-from minifilm.data import build_dataset
+from minifilm.runtime.control import figure_eight, straight_walk
+from minifilm.dataset.build import build_dataset
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
-from minifilm.motion import synthetic
+from minifilm.synthetic import generator as synthetic
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.skeletons import builtin_skeleton
-from minifilm.runtime import Controller, RuntimeNetwork, start_from_dataset
-from minifilm.style_library import StyleLibrary
-from minifilm.train import TrainConfig, Trainer
+from minifilm.runtime.controller import Controller, RuntimeNetwork, start_from_dataset
+from minifilm.runtime.style_library import StyleLibrary
+from minifilm.train.trainer import TrainConfig, Trainer
 
 SPEED = 1.3          # m/s commanded; the synthetic forward walk moves at about 1.1 m/s
 

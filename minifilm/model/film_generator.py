@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from minifilm.model.config import ModelConfig
-from minifilm.model.dropout_masks import dropout_site, dropout_site_backward
+from minifilm.model.dropout import dropout_site, dropout_site_backward
 from minifilm.model.init import glorot_uniform
 from minifilm.nn import functional as F
 from minifilm.nn.params import Parameters

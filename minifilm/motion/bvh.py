@@ -30,8 +30,8 @@ from typing import Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-from .kinematics import axis_rotation, euler_to_matrix, matrix_to_euler
-from .motion import Motion
+from minifilm.motion.kinematics import axis_rotation, euler_to_matrix, matrix_to_euler
+from minifilm.motion.motion import Motion
 
 __all__ = ["BVHError", "read_bvh", "parse_bvh", "write_bvh", "format_bvh"]
 

@@ -366,7 +366,7 @@ def mirror(motion):
     ``Motion`` with the same joints and channels: world positions become ``(-x, y, z)`` of the
     partner joint's. Raises ValueError when the hierarchy is not symmetric.
     """
-    from .motion import Motion
+    from minifilm.motion.motion import Motion
 
     sym = mirror_pairs(motion.names)
     parents = motion.parents
@@ -398,7 +398,7 @@ def resample(motion, fps: float):
     whole number of frames per second is taken to be that number, as the original importer does
     (``round(1 / FrameTime)``, BVH l.300). That makes 60 -> 30 fps keep exactly every second frame.
     """
-    from .motion import Motion
+    from minifilm.motion.motion import Motion
 
     if not (np.isfinite(fps) and fps > 0):
         raise ValueError(f"resample: fps must be positive, got {fps}")

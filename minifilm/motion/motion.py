@@ -90,7 +90,7 @@ class Motion:
         Cached: treat the returned arrays as read-only and build a new Motion to change the motion.
         """
         if self._fk_cache is None:
-            from .kinematics import forward_kinematics
+            from minifilm.motion.kinematics import forward_kinematics
 
             self._fk_cache = forward_kinematics(self.rotations, self.translations, self.parents)
         return self._fk_cache

@@ -22,8 +22,8 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from .motion import Motion
-from .skeleton_fit import SkeletonFit, _cross, _unit, rotation_between
+from minifilm.motion.motion import Motion
+from minifilm.motion.skeleton_fit import SkeletonFit, _cross, _unit, rotation_between
 
 __all__ = ["axes_to_rotation", "rotation_between", "world_to_local", "retarget"]  # rotation_between: re-exported
 

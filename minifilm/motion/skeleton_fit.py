@@ -17,7 +17,7 @@ offsets:
 
 The result is forward kinematics of the skeleton: world positions and rotations of the exported
 joints (N, Je, ...) that a BVH on the same skeleton reproduces exactly. The runtime uses it every
-frame (:class:`minifilm.runtime.Controller`, ``skeleton=``) and the BVH writer uses it to get local
+frame (:class:`minifilm.runtime.controller.Controller`, ``skeleton=``) and the BVH writer uses it to get local
 rotations (:func:`minifilm.motion.retarget.retarget`).
 """
 from __future__ import annotations
@@ -26,7 +26,7 @@ from typing import Sequence, Tuple
 
 import numpy as np
 
-from .motion import Motion
+from minifilm.motion.motion import Motion
 
 __all__ = ["SkeletonFit", "rotation_between", "best_fit_rotation"]
 

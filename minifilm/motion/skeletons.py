@@ -29,7 +29,7 @@ from typing import Sequence, Tuple
 
 import numpy as np
 
-from .kinematics import look_rotation
+from minifilm.motion.kinematics import look_rotation
 
 
 @dataclass(frozen=True)

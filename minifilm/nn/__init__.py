@@ -6,12 +6,12 @@
     optim.py       Adam, in place over flat buffers, skipping frozen sets
     gradcheck.py   centred-difference gradient checks for any layer or network
 """
-from . import functional
-from .gradcheck import check_gradients, check_layer, numerical_gradient, rel_error
-from .layers import (ELU, FiLM, Conv1d, Dropout, ExpertLinear, Layer, LayerNorm, Linear,
+from minifilm.nn import functional
+from minifilm.nn.gradcheck import check_gradients, check_layer, numerical_gradient, rel_error
+from minifilm.nn.layers import (ELU, FiLM, Conv1d, Dropout, ExpertLinear, Layer, LayerNorm, Linear,
                      MaxPool1d, ReLU, Softmax)
-from .optim import Adam
-from .params import Parameters, init_constant, init_he_normal, init_uniform_fan
+from minifilm.nn.optim import Adam
+from minifilm.nn.params import Parameters, init_constant, init_he_normal, init_uniform_fan
 
 __all__ = [
     "functional", "Parameters", "init_uniform_fan", "init_he_normal", "init_constant",

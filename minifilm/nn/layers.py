@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import functional as F
-from .params import Parameters, init_uniform_fan
+from minifilm.nn import functional as F
+from minifilm.nn.params import Parameters, init_uniform_fan
 
 
 class Layer:

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from .params import Parameters
+from minifilm.nn.params import Parameters
 
 CHUNK = 32768   # numbers per chunk: 5 float32 arrays of it (w, g, m, v, scratch) take 640 KB
 

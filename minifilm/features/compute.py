@@ -1,6 +1,6 @@
 """Input frame x, output frame z and style clip y (paper Sec. 3.2; original-pipeline.md §5-§9).
 
-The column meaning lives in :class:`~minifilm.motion.layout.FeatureLayout`; this file does the
+The column meaning lives in :class:`~minifilm.features.layout.FeatureLayout`; this file does the
 arithmetic. The core functions work on plain arrays so they can be read (and tested) without BVH
 files:
 
@@ -27,7 +27,7 @@ from typing import Optional, Tuple
 
 import numpy as np
 
-from .layout import CURRENT_SAMPLE, TRAJECTORY_SECONDS, FeatureLayout
+from minifilm.features.layout import CURRENT_SAMPLE, TRAJECTORY_SECONDS, FeatureLayout
 
 __all__ = ["FeatureLayout", "FrameFeatures", "seconds_to_frames", "trajectory_offsets",
            "trajectory_sample_frames", "trajectory_features", "joint_features",
@@ -278,8 +278,8 @@ def motion_arrays(motion, skeleton, fps: Optional[float] = None):
     """World arrays of the exported joints of ``motion``: positions (F, J, 3), rotations
     (F, J, 3, 3), velocities (F, J, 3) (m/s at ``fps``, default the motion's), root_pos (F, 3),
     root_rot (F, 3, 3)."""
-    from .kinematics import velocities as _velocities
-    from .skeletons import root_transforms
+    from minifilm.motion.kinematics import velocities as _velocities
+    from minifilm.motion.skeletons import root_transforms
 
     fps = motion.fps if fps is None else float(fps)
     idx = skeleton.joint_indices(motion)

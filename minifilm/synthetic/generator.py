@@ -47,12 +47,12 @@ from typing import Iterable, List, Optional, Sequence, Union
 import numpy as np
 from scipy.ndimage import minimum_filter1d
 
-from .motion import Motion
-from .synthetic_body import (JOINT_INDEX, JOINT_NAMES, OFFSETS, REACH, STANDING_HIPS_HEIGHT, Foot, apply,
+from minifilm.motion.motion import Motion
+from minifilm.synthetic.body import (JOINT_INDEX, JOINT_NAMES, OFFSETS, REACH, STANDING_HIPS_HEIGHT, Foot, apply,
                              arms, lifted_foot, rot, skeleton_100style, soft_min, smoothstep, stepping_foot,
                              two_bone_ik, upper_body)
-from .synthetic_styles import DUTY_HOP, DUTY_RUN, DUTY_WALK, GAITS, STYLE_PARAMS, STYLES, StyleParams
-from .trajectories import GaitTimeline, RootPath, gait_timeline, root_path, smooth_noise
+from minifilm.synthetic.styles import DUTY_HOP, DUTY_RUN, DUTY_WALK, GAITS, STYLE_PARAMS, STYLES, StyleParams
+from minifilm.synthetic.trajectories import GaitTimeline, RootPath, gait_timeline, root_path, smooth_noise
 
 __all__ = ["SyntheticClip", "generate_style", "default_dataset", "write_dataset", "STYLES", "GAITS",
            "DEFAULT_GAITS", "skeleton_100style", "JOINT_NAMES"]
@@ -242,7 +242,7 @@ def write_dataset(directory: Union[str, Path], clips: Optional[Sequence[Syntheti
     With ``truth``, also ``<Style>_<Gait>.truth.npz`` holding true_phase, true_contacts,
     phase_active (plain arrays, loadable with allow_pickle=False). Returns the BVH paths.
     """
-    from .bvh import write_bvh
+    from minifilm.motion.bvh import write_bvh
 
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)

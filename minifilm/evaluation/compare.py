@@ -8,7 +8,7 @@ set and compare them (issue 8).
 One style is held out of training (--holdout). On held-out test frames of the seen styles:
   - test MSE and bone-length loss on the 324 motion outputs every variant predicts (Figure 10),
     overall and per style;
-  - style recognition of generated motion: a classifier (minifilm.style_classifier) trained on
+  - style recognition of generated motion: a classifier (minifilm.evaluation.style_classifier) trained on
     the dataset's training rows, applied to 10-second rollouts of every seen style (its accuracy
     on held-out real rows is the ceiling);
   - foot sliding and bone-length variation of those rollouts;
@@ -30,9 +30,9 @@ from pathlib import Path
 
 import numpy as np
 
-from minifilm.compare_tools import (VariantRuntime, film_codes, film_separation, fit_normalizer, motion_errors,
+from minifilm.evaluation.compare_tools import (VariantRuntime, film_codes, film_separation, fit_normalizer, motion_errors,
                                     style_subset)
-from minifilm.metrics import interpolation_smoothness, rollout_quality
+from minifilm.evaluation.metrics import interpolation_smoothness, rollout_quality
 
 
 SYNTH_HOLDOUT = "Drunk"
@@ -46,8 +46,8 @@ def log(msg=""):
 
 # ---------------------------------------------------------------------------- data
 def load_data(args):
-    from minifilm.data import build_dataset
-    from minifilm.motion import synthetic
+    from minifilm.dataset.build import build_dataset
+    from minifilm.synthetic import generator as synthetic
 
     cache = Path(args.work) / "cache"
     if args.data in (None, "synthetic"):
@@ -59,7 +59,7 @@ def load_data(args):
         name = "synthetic"
         extra = {}
     else:
-        from minifilm.manifest import bandai_files
+        from minifilm.dataset.manifest import bandai_files
         name = Path(args.data).name
         folder = Path(args.data)
         if any(folder.glob("dataset-*_*_*_*.bvh")):     # Bandai Namco naming: content_style_id
@@ -82,8 +82,8 @@ class Context:
     """The data every variant shares: seen / held-out styles, statistics, splits, classifier."""
 
     def __init__(self, ds, holdout, args):
-        from minifilm.style_classifier import train_style_classifier
-        from minifilm.variant_data import end_effector_indices
+        from minifilm.evaluation.style_classifier import train_style_classifier
+        from minifilm.baselines.variant_data import end_effector_indices
 
         self.ds, self.args, self.layout = ds, args, ds.layout
         self.holdout = holdout
@@ -123,9 +123,9 @@ def steps_per_epoch(style, batch_size):
 def train_variant(name, ctx, epochs, seed=None):
     """Train one variant (model initialisation and batch order from `seed`, default --seed) and
     measure its test errors."""
-    from minifilm.model.variants import build_variant
-    from minifilm.train import TrainConfig, Trainer
-    from minifilm.variant_data import variant_data
+    from minifilm.baselines.variants import build_variant
+    from minifilm.train.trainer import TrainConfig, Trainer
+    from minifilm.baselines.variant_data import variant_data
 
     a, L = ctx.args, ctx.layout
     seed = a.seed if seed is None else seed
@@ -155,14 +155,14 @@ def style_conditions(model, ctx):
 
 
 def controller_for(model, info, ctx):
-    from minifilm.runtime import Controller
+    from minifilm.runtime.controller import Controller
     return Controller(VariantRuntime(model, ctx.norm, ctx.layout, info), ctx.layout, fps=ctx.ds.fps)
 
 
 def run_rollouts(controller, cond, ids, ctx, seconds):
     """One character per row of `cond` along a figure-eight. ids=True: cond holds style ids or
     one-hot weights, handed to the network every frame; else (B, 4H) FiLM vectors."""
-    from minifilm.control import make_script
+    from minifilm.runtime.control import make_script
     n = int(round(seconds * ctx.ds.fps))
     scripts = [make_script("figure8", seconds) for _ in range(len(cond))]
     with np.errstate(all="ignore"):     # a diverging variant overflows; diverged() reports it
@@ -171,7 +171,7 @@ def run_rollouts(controller, cond, ids, ctx, seconds):
 
 def style_recognition(model, info, ctx):
     """Rollouts of every seen style: classifier accuracy per style, foot sliding, bone variation."""
-    from minifilm.style_classifier import classify_rollout
+    from minifilm.evaluation.style_classifier import classify_rollout
     a = ctx.args
     cond = style_conditions(model, ctx)
     ids = getattr(model, "takes_style_ids", False)
@@ -202,7 +202,7 @@ def diverged(rollout, limit=10.0):
 
 def interpolation(model, info, ctx, style_a, style_b, n=11):
     """Classifier probability of style B along a blend A -> B (FiLM vectors or one-hot weights)."""
-    from minifilm.style_classifier import classify_rollout
+    from minifilm.evaluation.style_classifier import classify_rollout
     a = ctx.args
     w = np.linspace(0.0, 1.0, n)
     ia, ib = ctx.seen.index(style_a), ctx.seen.index(style_b)
@@ -226,7 +226,7 @@ def interpolation(model, info, ctx, style_a, style_b, n=11):
 
 def finetune_separation(result, ctx):
     """Fine-tune Ψ alone on the held-out style; FiLM-code silhouette before and after."""
-    from minifilm.train import TrainConfig, finetune
+    from minifilm.train.trainer import TrainConfig, finetune
     a = ctx.args
     trainer = result["trainer"]
     path = Path(a.work) / "lpn_film_base.npz"
@@ -252,7 +252,7 @@ def finetune_separation(result, ctx):
 
 # ---------------------------------------------------------------------------- the run
 def run(args):
-    from minifilm.model.variants import VARIANTS
+    from minifilm.baselines.variants import VARIANTS
 
     t_start = time.perf_counter()
     Path(args.work).mkdir(parents=True, exist_ok=True)
@@ -303,7 +303,7 @@ def run(args):
             f"{sb['focus_silhouette']:.3f} -> {sa['focus_silhouette']:.3f} (all styles {sb['silhouette']:.3f} -> "
             f"{sa['silhouette']:.3f})")
     total = time.perf_counter() - t_start
-    from minifilm.compare_report import write_report
+    from minifilm.evaluation.compare_report import write_report
     path = write_report(Path(args.out), name, ctx, results, ft, dict(epochs=epochs, steps_per_epoch=spe,
                         total_seconds=total, interpolate=(pa, pb)))
     log(f"[report] {path} ({total:.0f} s in all)")

@@ -2,7 +2,7 @@
 
 Each frame, for every character of a batch:
 
-1. the user's target (a :mod:`minifilm.control` script) is blended into the future trajectory
+1. the user's target (a :mod:`minifilm.runtime.control` script) is blended into the future trajectory
    (``blend_future_trajectory``: near samples keep the prediction, far samples follow the user);
 2. the input frame x is built: 12 trajectory samples (past from the root history, future from
    step 1, at the *training* sample times of the layout) and the previous frame's joints, all
@@ -29,7 +29,7 @@ with it). Without a skeleton, with foot locking, the next input takes the locked
 the predicted forward/up axes; with a skeleton that is not fed back, the next input is the
 network's own (velocity-blended) pose, so neither the fit nor the locking changes the motion.
 
-Everything reads its columns from a :class:`~minifilm.motion.layout.FeatureLayout`.
+Everything reads its columns from a :class:`~minifilm.features.layout.FeatureLayout`.
 """
 from __future__ import annotations
 
@@ -38,10 +38,10 @@ from typing import Callable, List, Optional, Sequence, Union
 
 import numpy as np
 
-from minifilm.control import Script, blend_future_trajectory
+from minifilm.runtime.control import Script, blend_future_trajectory
 from minifilm.model.motion_net import split_film
-from minifilm.motion.features import trajectory_offsets
-from minifilm.motion.layout import CURRENT_SAMPLE, FeatureLayout
+from minifilm.features.compute import trajectory_offsets
+from minifilm.features.layout import CURRENT_SAMPLE, FeatureLayout
 from minifilm.motion.motion import Motion
 from minifilm.motion.retarget import axes_to_rotation, retarget
 from minifilm.motion.skeleton_fit import SkeletonFit
@@ -252,8 +252,8 @@ class Rollout:
         hips_min / hips_max (m, joint 0 height), speed (mean root speed, m/s), and when given,
         path_mean / path_max (m, root distance to the polyline ``path`` (N, 2)) and foot_sliding
         (m/s, toes = joint index per contact column)."""
-        from minifilm.control import distance_to_path
-        from minifilm.metrics import bone_length_cv
+        from minifilm.runtime.control import distance_to_path
+        from minifilm.evaluation.metrics import bone_length_cv
         from minifilm.motion.foot_ik import foot_sliding
 
         parents = np.asarray(parents)
@@ -298,7 +298,7 @@ def start_from_dataset(dataset, style: str, gait: str = "FW", split: str = "trai
 
     The data's mean pose and mean phases (the default start) belong to no style and to no phase
     of a gait cycle; a small network may not get from there into its style's cycle (it stands
-    still). ``dataset`` is a :class:`minifilm.data.Dataset` (raw, unnormalised rows).
+    still). ``dataset`` is a :class:`minifilm.dataset.build.Dataset` (raw, unnormalised rows).
     """
     sp = dataset.split(split)
     if style not in dataset.styles:
@@ -542,7 +542,7 @@ class Controller:
         """Run B = len(scripts) characters for ``n_frames`` frames.
 
         Args:
-            scripts: one :class:`~minifilm.control.Script` per character (or one for B = 1); each
+            scripts: one :class:`~minifilm.runtime.control.Script` per character (or one for B = 1); each
                 starts where its ``start()`` says.
             film: (4H,) or (B, 4H) for all frames, (n_frames, 4H) / (n_frames, B, 4H) per frame
                 (style transitions), or a callable frame -> film.
@@ -678,7 +678,7 @@ def calibrate_speed(controller: Controller, film: np.ndarray,
     speeds only (a walk and a run, nothing between), so the calibration asks for commands far
     outside its data; in ``benchmarks/trained_rollout.py`` that made the train_small model's
     bones stretch (CV up to 69 %) and its path error grow, so check before using it there."""
-    from minifilm.control import CommandScript
+    from minifilm.runtime.control import CommandScript
 
     n = int(round(seconds * controller.fps))
     k0 = int(round(settle * controller.fps))

@@ -2,7 +2,7 @@
 
     python -m minifilm.evaluate table2 [--markdown PATH] [--runs 5] [--frames 200] [--styles 95]
 
-Parameter counts come from the shapes alone (minifilm.model.variants.variant_parameter_counts)
+Parameter counts come from the shapes alone (minifilm.baselines.variants.variant_parameter_counts)
 in the paper's configuration: A.S.N. (animation synthesis network: Φ, plus Ω where there is
 one), S.M.N. (style modulation network: the one-hot rows, the adapters or Ψ) and P.S.R. (numbers
 needed per style at run time). Each is compared with the paper's number.
@@ -22,7 +22,7 @@ import time
 import numpy as np
 
 from minifilm.model.config import ModelConfig
-from minifilm.model.variants import VARIANTS, backbone_config, build_variant, variant_parameter_counts
+from minifilm.baselines.variants import VARIANTS, backbone_config, build_variant, variant_parameter_counts
 
 #: The paper's Table 2: A.S.N., S.M.N., P.S.R., run time (ms, mean, std).
 PAPER = {

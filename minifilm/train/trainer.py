@@ -5,13 +5,13 @@
     the shortest style's training frames (Sec. 4.3); Adam, lr 1e-4, batch 32, dropout 0.3
 
 Each sample is paired with a clip of its own style, drawn at random per sample (the original
-draws a clip per style). Data comes in as plain arrays (minifilm.traindata.TrainData), already
+draws a clip per style). Data comes in as plain arrays (minifilm.dataset.arrays.TrainData), already
 normalised; the bone-length loss needs the joint-position columns of z and the parent list,
 which the caller takes from the feature layout.
 
 Robustness: a NaN or inf in a loss or a gradient stops training with TrainingDiverged naming
 the step and the quantity, *before* the optimiser touches the weights; checkpoints are written
-atomically (minifilm.checkpoint), so the last good one stays intact. Resuming restores the
+atomically (minifilm.train.checkpoint), so the last good one stays intact. Resuming restores the
 model, the optimiser moments and the random generator, so a resumed run continues exactly as
 an uninterrupted one would.
 """
@@ -23,13 +23,13 @@ from dataclasses import asdict, dataclass, field, fields
 
 import numpy as np
 
-from minifilm.checkpoint import (CheckpointError, NETWORKS, load_checkpoint, load_model_arrays,
+from minifilm.train.checkpoint import (CheckpointError, NETWORKS, load_checkpoint, load_model_arrays,
                                  model_arrays, save_checkpoint, subset)
 from minifilm.model.config import ModelConfig
 from minifilm.model.losses import bone_length_loss, mse_loss
 from minifilm.model.style_model import StyleModel
 from minifilm.nn.optim import Adam
-from minifilm.traindata import NormStats, TrainData
+from minifilm.dataset.arrays import NormStats, TrainData
 
 
 class TrainingDiverged(RuntimeError):
@@ -159,7 +159,7 @@ class Trainer:
 
     def _style_kw(self, style_ids):
         """Style ids for models whose style modulation is indexed by style (the one-hot and
-        residual-adapter variants of minifilm.model.variants); nothing for FiLM models."""
+        residual-adapter variants of minifilm.baselines.variants); nothing for FiLM models."""
         return {"style": style_ids} if getattr(self.model, "takes_style_ids", False) else {}
 
     # -- one epoch ---------------------------------------------------------------------
@@ -282,8 +282,8 @@ class Trainer:
         except (KeyError, ValueError, TypeError) as e:
             raise CheckpointError(f"checkpoint {path}: bad configuration or statistics ({e})") from e
         variant = meta.get("variant")
-        if variant:       # a comparison model of Sec. 5 (minifilm.model.variants)
-            from minifilm.model.variants import build_variant
+        if variant:       # a comparison model of Sec. 5 (minifilm.baselines.variants)
+            from minifilm.baselines.variants import build_variant
             n_styles = variant.get("n_styles")
             model = build_variant(variant["name"], mcfg, np.random.default_rng(0),
                                   with_film_generator=meta.get("has_film_generator", True),

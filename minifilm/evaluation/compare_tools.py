@@ -6,8 +6,8 @@
   (trajectory + joints), so variants with different outputs are compared on the same numbers;
 - `film_codes` / `film_separation`: FiLM vectors of many clips per style, their silhouette and a
   2-D PCA embedding (Figure 11);
-- `VariantRuntime`: drives any comparison variant (minifilm.model.variants) with
-  minifilm.runtime.Controller, which was written for the LPN + FiLM network.
+- `VariantRuntime`: drives any comparison variant (minifilm.baselines.variants) with
+  minifilm.runtime.controller.Controller, which was written for the LPN + FiLM network.
 """
 from __future__ import annotations
 
@@ -15,10 +15,10 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from minifilm.data import Normalizer
-from minifilm.metrics import pca_2d, silhouette_samples
+from minifilm.dataset.build import Normalizer
+from minifilm.evaluation.metrics import pca_2d, silhouette_samples
 from minifilm.model.losses import bone_length_loss
-from minifilm.traindata import TrainData
+from minifilm.dataset.arrays import TrainData
 
 
 # ---------------------------------------------------------------------------- data
@@ -109,7 +109,7 @@ def film_separation(codes: np.ndarray, labels: np.ndarray, focus: Optional[int] 
 
 # ---------------------------------------------------------------------------- run time for every variant
 class VariantRuntime:
-    """A network for :class:`minifilm.runtime.Controller` made from any comparison variant.
+    """A network for :class:`minifilm.runtime.controller.Controller` made from any comparison variant.
 
     The Controller feeds raw x (B, x_dim) and its running local phases p (B, 8) and reads a raw
     output in the LPN's layout (z_dim, with next phases, phase updates and contacts). This class
@@ -139,7 +139,7 @@ class VariantRuntime:
             return (p_raw - self.stats.p_mean) / self.stats.p_std
         if self.backbone == "mann":
             return xn[:, self.info["gate_columns_of_x"]]
-        from minifilm.variant_data import phase_angle
+        from minifilm.baselines.variant_data import phase_angle
         pair = 2 * self.info["phase_slot"] + np.arange(2)
         return phase_angle(p_raw[:, pair])[:, None]
 

@@ -6,7 +6,7 @@ The code lives in one file per idea; this module gathers the public names:
     expert_net.py         the synthesis network without FiLM
     variants.py           VARIANTS, build_variant, parameter counts (Table 2)
 """
-from minifilm.model.phase_function import PhaseFunction, catmull_rom_weights  # noqa: F401
-from minifilm.model.style_modulation import CPResidualAdapter, OneHotShift, ResidualAdapter  # noqa: F401
-from minifilm.model.variants import (VARIANTS, LPNFilm, VariantModel, backbone_config,  # noqa: F401
+from minifilm.baselines.phase_function import PhaseFunction, catmull_rom_weights  # noqa: F401
+from minifilm.baselines.style_modulation import CPResidualAdapter, OneHotShift, ResidualAdapter  # noqa: F401
+from minifilm.baselines.variants import (VARIANTS, LPNFilm, VariantModel, backbone_config,  # noqa: F401
                                      build_variant, variant_parameter_counts, variant_shapes)

@@ -1,6 +1,6 @@
 """Which BVH files make up a dataset, and their style and gait labels.
 
-Two sources (used by :func:`minifilm.data.build_dataset`):
+Two sources (used by :func:`minifilm.dataset.build.build_dataset`):
 
 * a folder named like 100STYLE, ``<Style>_<Gait>.bvh`` with gait codes BR BW FR FW ID SR SW TR,
   TR1, TR2, ... (original-pipeline.md §11): :func:`scan_100style`;
@@ -71,7 +71,7 @@ def scan_100style(folder: Union[str, Path]) -> List[MotionFile]:
     if not out:
         raise ValueError(f"scan_100style: no file in {folder} is named <Style>_<Gait>.bvh with a gait "
                          f"in {STYLE100_GAITS + ('TR*',)}; for other datasets write a CSV manifest "
-                         f"(minifilm.manifest.read_manifest)")
+                         f"(minifilm.dataset.manifest.read_manifest)")
     return out
 
 

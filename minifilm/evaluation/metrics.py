@@ -46,7 +46,7 @@ def bone_length_variation(positions: np.ndarray, parents: Sequence[int]) -> dict
 
 def rollout_quality(rollout, parents: Sequence[int], toes: Sequence[int], warmup_seconds: float = 1.0,
                     contact_threshold: float = 0.5) -> dict:
-    """Foot sliding (m/s) and bone-length variation of a :class:`minifilm.runtime.Rollout`,
+    """Foot sliding (m/s) and bone-length variation of a :class:`minifilm.runtime.controller.Rollout`,
     averaged over its characters, after ``warmup_seconds`` (the start pose is the mean pose).
 
     toes: joint index of the toe for each contact column (the Rollout's order [right, left]).

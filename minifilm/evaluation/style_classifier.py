@@ -14,7 +14,7 @@ from typing import Optional
 
 import numpy as np
 
-from minifilm.motion.features import joint_features
+from minifilm.features.compute import joint_features
 from minifilm.motion.kinematics import look_rotation, velocities
 from minifilm.nn import functional as F
 from minifilm.nn.optim import Adam
@@ -41,7 +41,7 @@ def split_windows(split, layout, normalizer, window: int, stride: int):
 
     The joint block of x (``layout.x_joints``) of row i is frame i's clip feature, so runs of
     consecutive rows (same file, frame numbers increasing by one) are pieces of clips of any
-    length. split: a :class:`minifilm.data.Split`. Returns (windows (M, window, 12 J), style (M,)).
+    length. split: a :class:`minifilm.dataset.build.Split`. Returns (windows (M, window, 12 J), style (M,)).
     """
     if len(split) == 0:
         return np.empty((0, window, layout.clip_dim)), np.empty(0, dtype=np.int64)
@@ -58,7 +58,7 @@ def split_windows(split, layout, normalizer, window: int, stride: int):
 
 
 def rollout_blocks(rollout, warmup_seconds: float = 1.0) -> np.ndarray:
-    """Per-frame clip features (B, F', 12 J) of a :class:`minifilm.runtime.Rollout`, in raw units.
+    """Per-frame clip features (B, F', 12 J) of a :class:`minifilm.runtime.controller.Rollout`, in raw units.
 
     The root is the rollout's own root (floor position, facing -> LookRotation), as in the data;
     velocities are backward differences of the generated positions (as the dataset computes them).
@@ -183,7 +183,7 @@ class StyleClassifier:
 
 def train_style_classifier(ds, window_seconds: float = 0.75, stride_seconds: float = 0.25,
                            hidden: int = 64, epochs: int = 80, seed: int = 0):
-    """Fit a classifier on the training split of a :class:`minifilm.data.Dataset`; its accuracy on
+    """Fit a classifier on the training split of a :class:`minifilm.dataset.build.Dataset`; its accuracy on
     windows of the held-out rows (val + test, never seen in training) is the ceiling for rollouts.
 
     Returns (classifier, info) with info = {'window': frames, 'stride': frames, 'train_acc',

@@ -14,7 +14,7 @@ from typing import Dict, List, Tuple
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from .synthetic_styles import GAIT_PARAMS, GAITS, StyleParams
+from minifilm.synthetic.styles import GAIT_PARAMS, GAITS, StyleParams
 
 __all__ = ["smooth_noise", "gait_segments", "GaitTimeline", "gait_timeline", "RootPath", "root_path"]
 

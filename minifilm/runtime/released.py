@@ -28,7 +28,7 @@ import numpy as np
 
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
-from minifilm.traindata import NormStats
+from minifilm.dataset.arrays import NormStats
 
 FILM_PARTS = ("scale1", "shift1", "scale2", "shift2")   # γ1, β1, γ2, β2: the order of Eq. (2)
 _STYLE_FILE = re.compile(r"^Style_(\d{3})_scale1\.bin$")

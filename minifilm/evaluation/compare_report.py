@@ -140,11 +140,11 @@ def write_report(out: Path, name: str, ctx, results, ft, meta) -> Path:
       "joints) that every variant predicts (the LPN's phase outputs and the PFNN's phase update are left out so the "
       "numbers are comparable), normalised units, each style weighted equally. BLL = bone-length loss (Eq. 6-7), m.")
     w(f"- Rollouts: {a.rollout_seconds:g} s per seen style along a figure-eight (1.3 m/s commanded) with "
-      "`minifilm.runtime.Controller`; every variant is driven through `compare_tools.VariantRuntime` (PFNN: global "
+      "`minifilm.runtime.controller.Controller`; every variant is driven through `compare_tools.VariantRuntime` (PFNN: global "
       "phase advanced by its predicted update; MANN: end-effector velocities; one-hot / Resad: style ids; FiLM: the "
       "mean Ψ(clip) over the style's training clips). The first second (mean start pose) is dropped.")
     ci = ctx.clf_info
-    w(f"- Style classifier (`minifilm.style_classifier`): MLP (64 ReLU units) on the mean and std over "
+    w(f"- Style classifier (`minifilm.evaluation.style_classifier`): MLP (64 ReLU units) on the mean and std over "
       f"{ci['window']}-frame windows of the normalised clip features; trained on {ci['n_train']} windows of the "
       f"training rows (all {len(ds.styles)} styles); **ceiling = accuracy on {ci['n_heldout']} windows of held-out "
       f"real rows: {ci['heldout_acc']:.3f}** (training accuracy {ci['train_acc']:.3f}).\n")

@@ -20,9 +20,9 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from .contacts import foot_contacts
-from .phase_fit import SinusoidFit, fit_sinusoids, overflow_window, range_reduce
-from .phase_sources import butterworth, contact_source, pca_source, preprocess_source
+from minifilm.phases.contacts import foot_contacts
+from minifilm.phases.sinusoid_fit import SinusoidFit, fit_sinusoids, overflow_window, range_reduce
+from minifilm.phases.sources import butterworth, contact_source, pca_source, preprocess_source
 
 __all__ = ["LocalPhases", "SLOTS", "DEFAULT_SOURCES", "default_sources", "fit_sinusoids", "SinusoidFit",
            "phase_and_amplitude", "extract_local_phases", "phase_updates", "hips_local_positions"]

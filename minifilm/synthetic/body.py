@@ -12,8 +12,8 @@ from typing import List, Sequence, Tuple
 
 import numpy as np
 
-from .synthetic_styles import StyleParams
-from .trajectories import GaitTimeline, RootPath, smooth_noise
+from minifilm.synthetic.styles import StyleParams
+from minifilm.synthetic.trajectories import GaitTimeline, RootPath, smooth_noise
 
 __all__ = ["JOINT_NAMES", "JOINT_INDEX", "OFFSETS", "skeleton_100style", "STANDING_HIPS_HEIGHT", "REACH",
            "rot", "apply", "smoothstep", "soft_min", "Foot", "stepping_foot", "lifted_foot", "two_bone_ik",

@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from minifilm.model.variants import SPECS
-from minifilm.traindata import TrainData
+from minifilm.baselines.variants import SPECS
+from minifilm.dataset.arrays import TrainData
 
 #: p / z slot used for the PFNN's global phase (layout.PHASE_SLOTS: left hand, right hand, left foot, right foot)
 RIGHT_FOOT_SLOT = 3

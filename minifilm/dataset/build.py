@@ -24,8 +24,8 @@ Normalisation (§8.5): per-column mean and biased std of the training rows, in f
 ``min_std`` (zero up to rounding, e.g. trajectory sample 6, the hips' x and z) becomes 1. Clips are
 normalised with the x joint-block statistics (§9). Saved as .npz, no pickle.
 
-Style-balanced minibatches (Sec. 4.3) are the trainer's job (``minifilm.train.epoch_batches``);
-:meth:`Dataset.train_data` hands it each split as a normalised :class:`~minifilm.traindata.TrainData`,
+Style-balanced minibatches (Sec. 4.3) are the trainer's job (``minifilm.train.trainer.epoch_batches``);
+:meth:`Dataset.train_data` hands it each split as a normalised :class:`~minifilm.dataset.arrays.TrainData`,
 and the bone-length loss takes ``layout.joint_columns('z', 'position')`` and ``layout.parents``.
 """
 from __future__ import annotations
@@ -42,9 +42,9 @@ from typing import Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-from .manifest import MotionFile, read_manifest, scan_100style
-from .motion.layout import FeatureLayout
-from .traindata import NormStats, TrainData
+from minifilm.dataset.manifest import MotionFile, read_manifest, scan_100style
+from minifilm.features.layout import FeatureLayout
+from minifilm.dataset.arrays import NormStats, TrainData
 
 SPLITS = ("train", "val", "test")
 #: Bump when the meaning of the cached arrays changes without any source file changing.
@@ -182,7 +182,7 @@ def file_rng(seed: int, f: MotionFile) -> np.random.Generator:
 class Normalizer(NormStats):
     """Mean / std of x, p and z (float64) from the training rows (original-pipeline §8.5).
 
-    A :class:`minifilm.traindata.NormStats` (what the trainer and the runtime read) plus fitting,
+    A :class:`minifilm.dataset.arrays.NormStats` (what the trainer and the runtime read) plus fitting,
     clip normalisation and .npz files. Clips use the x joint-block statistics
     (``x_mean[layout.x_joints]``), as in §9.
     """
@@ -328,7 +328,7 @@ class Dataset:
     def reflected_fraction(self) -> Dict[str, float]:
         """{split: fraction of the x trajectory samples that are point reflections} (a segment
         shorter than the trajectory window is mostly reflections; see split_unit='files')."""
-        from .motion.features import trajectory_offsets, trajectory_sample_frames
+        from minifilm.features.compute import trajectory_offsets, trajectory_sample_frames
 
         offsets = trajectory_offsets(self.fps, self.layout.trajectory_seconds)
         counts = {s: [0, 0] for s in SPLITS}
@@ -430,19 +430,20 @@ def resolve_files(source: Union[str, Path, Sequence[MotionFile]]) -> List[Motion
     files = list(source)
     if not files or not all(isinstance(f, MotionFile) for f in files):
         raise TypeError("build_dataset: source must be a folder, a .csv manifest or a non-empty list "
-                        "of minifilm.manifest.MotionFile")
+                        "of minifilm.dataset.manifest.MotionFile")
     return files
 
 
 def _source_fingerprint() -> str:
-    """Hash of the code that computes the cached arrays: a code change invalidates old caches."""
+    """Hash of the code that computes the cached arrays: a code change invalidates old caches.
+
+    That code is every module of the packages that read, label and featurise motion."""
     h = hashlib.sha256()
-    here = Path(__file__).resolve().parent
-    motion = ("motion.py", "bvh.py", "kinematics.py", "skeletons.py", "contacts.py", "phases.py",
-              "phase_fit.py", "phase_sources.py", "layout.py", "features.py")
-    for p in [here / "data.py", here / "manifest.py"] + [here / "motion" / m for m in motion]:
-        h.update(p.name.encode())
-        h.update(p.read_bytes())
+    package = Path(__file__).resolve().parents[1]
+    for folder in ("motion", "phases", "features", "dataset"):
+        for p in sorted((package / folder).glob("*.py")):
+            h.update(f"{folder}/{p.name}".encode())
+            h.update(p.read_bytes())
     return h.hexdigest()
 
 
@@ -472,8 +473,8 @@ def _cached_key(path: Path) -> Optional[str]:
 
 
 def _load_motion(f: MotionFile, skeleton, fps: Optional[float]):
-    from .motion.bvh import read_bvh
-    from .motion.kinematics import resample
+    from minifilm.motion.bvh import read_bvh
+    from minifilm.motion.kinematics import resample
 
     motion = read_bvh(f.path, scale=skeleton.bvh_scale)
     if f.start is not None or f.end is not None:
@@ -489,8 +490,8 @@ def _load_motion(f: MotionFile, skeleton, fps: Optional[float]):
 
 def _labels(motion, skeleton, style: str):
     """Foot contacts (F, 2) [right, left] and phase vectors (F, 8) of one file (Sec. 4.1)."""
-    from .motion.contacts import foot_contacts
-    from .motion.phases import default_sources, extract_local_phases
+    from minifilm.phases.contacts import foot_contacts
+    from minifilm.phases.local_phases import default_sources, extract_local_phases
 
     positions, _ = motion.world()
     contacts = foot_contacts(positions[:, skeleton.contact_indices(motion)], motion.fps)
@@ -509,7 +510,7 @@ def mirror_labels(contacts: np.ndarray, phases: np.ndarray) -> Tuple[np.ndarray,
 
 def _featurise(motion, skeleton, contacts, phases, segments, fps, want_clips, settings, dtype):
     """Rows and clips of every segment of one (possibly mirrored) motion."""
-    from .motion.features import clip_features_from_arrays, frame_features_from_arrays, motion_arrays
+    from minifilm.features.compute import clip_features_from_arrays, frame_features_from_arrays, motion_arrays
 
     arrays = motion_arrays(motion, skeleton, fps)
     rows, clips = [], []
@@ -524,14 +525,14 @@ def _featurise(motion, skeleton, contacts, phases, segments, fps, want_clips, se
 
 
 def _pick_skeleton(settings: DatasetSettings, first: MotionFile):
-    from .motion import skeletons
+    from minifilm.motion import skeletons
 
     if settings.skeleton is not None:
         try:
             return skeletons.builtin_skeleton(settings.skeleton)
         except ValueError as e:
             raise ValueError(f"DatasetSettings.skeleton: {e}") from None
-    from .motion.bvh import read_bvh
+    from minifilm.motion.bvh import read_bvh
 
     return skeletons.detect_skeleton(read_bvh(first.path))
 
@@ -540,7 +541,7 @@ def build_dataset(source: Union[str, Path, Sequence[MotionFile]],
                   settings: Optional[DatasetSettings] = None, cache_dir: Union[str, Path, None] = None,
                   progress: bool = True, skeleton=None, dtype=np.float32, **overrides) -> Dataset:
     """Build (or load from cache) the dataset of a 100STYLE-named folder, a CSV manifest or a list
-    of :class:`~minifilm.manifest.MotionFile`.
+    of :class:`~minifilm.dataset.manifest.MotionFile`.
 
     Args:
         settings: a :class:`DatasetSettings`; keyword ``overrides`` replace single fields.
@@ -628,7 +629,7 @@ class _Builder:
         want_clips = primary or (st.clip_fallback and f.style not in self.has_primary_clips)
         variants = [(False, motion, contacts, phases)]
         if st.mirrors(f):
-            from .motion.kinematics import mirror
+            from minifilm.motion.kinematics import mirror
 
             variants.append((True, mirror(motion), *mirror_labels(contacts, phases)))
         sid = self.style_id[f.style]
