@@ -17,7 +17,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from minifilm.motion.bvh import read_bvh, write_bvh  # noqa: E402
+from minifilm.motion.bvh import read_bvh  # noqa: E402
+from minifilm.motion.bvh_write import write_bvh
 
 DATA = Path(os.environ.get("MINIFILM_SHARED_DATA", ROOT.parent / "shared" / "data"))
 

@@ -16,13 +16,18 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
+from minifilm.dataset.build import _featurise
+from minifilm.dataset.settings import DatasetSettings
+from minifilm.dataset.splits import split_segments
+from minifilm.features.compute import clip_features_from_arrays, frame_features, frame_features_from_arrays
+from minifilm.motion.bvh import read_bvh
+from minifilm.motion.editing import mirror
+from minifilm.motion.skeletons import BANDAI
+from minifilm.phases.label import label
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-import numpy as np  # noqa: E402
-
-from minifilm.features.compute import (  # noqa: E402
-    clip_features_from_arrays, frame_features, frame_features_from_arrays)
 
 DATA = Path(os.environ.get("MINIFILM_SHARED_DATA", ROOT.parent / "shared" / "data"))
 BANDAI_FILE = DATA / "bandai2" / "dataset-2_walk_elderly_002.bvh"
@@ -67,10 +72,6 @@ def main():
     rows.append(("clips from arrays", f"{F} frames, 4 s / 2 s", F, t))
 
     if BANDAI_FILE.is_file():
-        from minifilm.dataset.build import DatasetSettings, _featurise, _labels, mirror_labels, split_segments
-        from minifilm.motion.bvh import read_bvh
-        from minifilm.motion.kinematics import mirror
-        from minifilm.motion.skeletons import BANDAI
 
         m = read_bvh(BANDAI_FILE, scale=BANDAI.bvh_scale)
         n = m.n_frames
@@ -82,11 +83,10 @@ def main():
 
         def pipeline():
             motion = read_bvh(BANDAI_FILE, scale=BANDAI.bvh_scale)
-            c, p = _labels(motion, BANDAI, "elderly")
+            labels = label(motion, BANDAI, "elderly")
             segs = split_segments(motion.n_frames, np.random.default_rng(0))
-            _featurise(motion, BANDAI, c, p, segs, motion.fps, True, settings, np.float32)
-            _featurise(mirror(motion), BANDAI, *mirror_labels(c, p), segs, motion.fps, True,
-                       settings, np.float32)
+            for m, lab in ((motion, labels), (mirror(motion), labels.mirrored())):
+                _featurise(m, BANDAI, lab.contacts, lab.vectors, segs, motion.fps, True, settings, np.float32)
 
         t = median_s(pipeline, repeat)
         rows.append(("dataset pipeline", f"{BANDAI_FILE.name} + mirror", n, t))

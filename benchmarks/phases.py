@@ -34,7 +34,7 @@ from scipy.optimize import least_squares  # noqa: E402
 
 from minifilm.motion.bvh import read_bvh  # noqa: E402
 from minifilm.phases.contacts import foot_contacts  # noqa: E402
-from minifilm.motion.kinematics import resample  # noqa: E402
+from minifilm.motion.editing import resample  # noqa: E402
 from minifilm.phases.sinusoid_fit import fit_sinusoids, overflow_window, window_half_width  # noqa: E402
 from minifilm.phases.local_phases import SLOTS, extract_local_phases  # noqa: E402
 from minifilm.motion.skeletons import BANDAI  # noqa: E402

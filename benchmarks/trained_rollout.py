@@ -37,8 +37,9 @@ from minifilm.runtime.control import figure_eight                              #
 from minifilm.dataset.build import build_dataset                                # noqa: E402
 from minifilm.motion.bvh import read_bvh                               # noqa: E402
 from minifilm.motion.skeletons import builtin_skeleton                 # noqa: E402
-from minifilm.runtime.controller import (Controller, PerCharacterCalibration, RuntimeNetwork, calibrate_speed,  # noqa: E402
-                              start_from_dataset)
+from minifilm.runtime.calibration import PerCharacterCalibration, calibrate_speed  # noqa: E402
+from minifilm.runtime.controller import Controller, start_from_dataset           # noqa: E402
+from minifilm.runtime.network import RuntimeNetwork                              # noqa: E402
 from minifilm.runtime.style_library import StyleLibrary                        # noqa: E402
 from minifilm.train.trainer import Trainer                                     # noqa: E402
 

@@ -31,12 +31,13 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 
 from minifilm.evaluation.compare_report import draw_film_codes                                             # noqa: E402
-from minifilm.evaluation.compare_tools import film_codes, film_separation, fit_normalizer, style_subset  # noqa: E402
+from minifilm.evaluation.compare_tools import film_codes, film_separation, fit_stats, style_subset  # noqa: E402
 from minifilm.dataset.build import build_dataset                                                        # noqa: E402
 from minifilm.model.config import ModelConfig                                                  # noqa: E402
 from minifilm.model.style_model import StyleModel                                              # noqa: E402
 from minifilm.synthetic import generator as synthetic                                                          # noqa: E402
-from minifilm.train.trainer import TrainConfig, Trainer, finetune                                      # noqa: E402
+from minifilm.train.finetune import finetune                                      # noqa: E402
+from minifilm.train.trainer import TrainConfig, Trainer                                      # noqa: E402
 
 SEED = 0
 OUT = Path("runs/finetune_new_style")
@@ -90,7 +91,7 @@ def run(data=None, out=OUT, holdout=HOLDOUT, quick=False, seed=SEED, epochs=None
     if holdout not in ds.styles:
         raise SystemExit(f"--holdout {holdout!r} is not a style of the dataset ({', '.join(ds.styles)})")
     seen = [st for st in ds.styles if st != holdout]
-    norm = fit_normalizer(ds, seen)
+    norm = fit_stats(ds, seen)
     seen_train, seen_val, seen_test = (style_subset(ds, sp, seen, norm) for sp in ("train", "val", "test"))
     new_train, new_test = (style_subset(ds, sp, [holdout], norm) for sp in ("train", "test"))
 

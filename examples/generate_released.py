@@ -25,12 +25,15 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from minifilm.runtime.control import distance_to_path, make_script, SCRIPTS  # noqa: E402
-from minifilm.evaluation.metrics import bone_length_cv  # noqa: E402
-from minifilm.motion.bvh import read_bvh, write_bvh  # noqa: E402
-from minifilm.motion.foot_ik import FootLocker, foot_sliding  # noqa: E402
+from minifilm.motion.measures import bone_length_cv, foot_sliding  # noqa: E402
+from minifilm.motion.bvh import read_bvh  # noqa: E402
+from minifilm.motion.bvh_write import write_bvh
+from minifilm.motion.foot_ik import FootLocker  # noqa: E402
 from minifilm.features.layout import FeatureLayout  # noqa: E402
 from minifilm.motion.skeletons import STYLE100  # noqa: E402
-from minifilm.runtime.controller import Controller, RuntimeNetwork, calibrate_speed, root_joint_indices  # noqa: E402
+from minifilm.runtime.calibration import calibrate_speed  # noqa: E402
+from minifilm.runtime.controller import Controller, root_joint_indices  # noqa: E402
+from minifilm.runtime.network import RuntimeNetwork  # noqa: E402
 from minifilm.runtime.style_library import StyleLibrary  # noqa: E402
 
 SHARED = REPO.parent / "shared" / "data"

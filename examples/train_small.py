@@ -36,8 +36,10 @@ from minifilm.phases.contacts import foot_contacts                              
 from minifilm.phases.local_phases import default_sources, extract_local_phases        # noqa: E402
 from minifilm.motion.skeletons import STYLE100, builtin_skeleton                 # noqa: E402
 from minifilm.runtime.control import make_script                                        # noqa: E402
-from minifilm.motion.bvh import read_bvh, write_bvh                             # noqa: E402
-from minifilm.runtime.controller import Controller, RuntimeNetwork, root_joint_indices, start_from_dataset  # noqa: E402
+from minifilm.motion.bvh import read_bvh                             # noqa: E402
+from minifilm.motion.bvh_write import write_bvh
+from minifilm.runtime.controller import Controller, root_joint_indices, start_from_dataset  # noqa: E402
+from minifilm.runtime.network import RuntimeNetwork  # noqa: E402
 from minifilm.runtime.style_library import StyleLibrary                                 # noqa: E402
 from minifilm.train.trainer import TrainConfig, Trainer                                 # noqa: E402
 
@@ -124,7 +126,7 @@ def train(ds, out: Path, model_sizes: dict, epochs: int, seed: int):
                          clip_frames=train_data.clips.shape[1], clip_channels=layout.clip_dim,
                          **model_sizes)
     model = StyleModel(config, np.random.default_rng(seed))
-    trainer = Trainer(model, ds.normalizer,
+    trainer = Trainer(model, ds.stats,
                       TrainConfig(epochs=epochs, batch_size=BATCH_SIZE, lr=LEARNING_RATE, seed=seed,
                                   checkpoint_path=str(out / "model.npz")),
                       positions_idx=layout.joint_columns("z", "position"), parents=np.asarray(layout.parents),

@@ -148,7 +148,7 @@ world space with `minifilm/features/compute.py::decode_joints` and
 `minifilm/features/compute.py::decode_trajectory`.
 
 Normalisation: the network sees every column minus its training mean, divided by its training
-std (`minifilm/dataset/build.py::Normalizer`); the clip uses the statistics of x's joint block. The phase-update
+std (`minifilm/dataset/stats.py::NormStats`); the clip uses the statistics of x's joint block. The phase-update
 columns are a per-frame difference of the phase vectors (next minus current), which the runtime
 uses to advance the phases.
 """]

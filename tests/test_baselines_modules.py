@@ -4,11 +4,14 @@ function (Holden et al. 2017), the one-hot input (as extra input columns), the r
 import numpy as np
 import pytest
 
-from minifilm.model.config import ModelConfig
 from minifilm.baselines.phase_function import catmull_rom_weights
+from minifilm.baselines.runtime import variant_network
 from minifilm.baselines.style_modulation import CPResidualAdapter, OneHotShift, ResidualAdapter
 from minifilm.baselines.variants import VARIANTS, build_variant
+from minifilm.dataset.stats import NormStats
+from minifilm.model.config import ModelConfig
 from minifilm.nn import functional as F
+from minifilm.runtime.network import RuntimeNetwork
 
 
 # ---- phase function ----------------------------------------------------------------------
@@ -112,9 +115,9 @@ def test_style_ids_are_checked():
         pfnn.forward(x, p, None, style=np.array([0, 1]))
 
 
-# ---- batch-1 prediction equals the batched forward -------------------------------------------
+# ---- the one inference path equals the batched forward ---------------------------------------
 @pytest.mark.parametrize("name", VARIANTS)
-def test_predict_single_matches_forward(name):
+def test_runtime_network_matches_forward(name):
     rng = np.random.default_rng(5)
     cfg = ModelConfig.small(z_dim=40)
     model = build_variant(name, cfg, rng, n_styles=3)
@@ -125,14 +128,13 @@ def test_predict_single_matches_forward(name):
     p = (rng.random((1, 1)) if cb.phase_dim == 1 else rng.standard_normal((1, cb.phase_dim))).astype(np.float32)
     clip = rng.standard_normal((1, cfg.clip_frames, cfg.clip_channels)).astype(np.float32)
     z = model.forward(x, p, clip, style=np.array([2]))
-    style = 2 if model.takes_style_ids else model.film_parameters(clip)[0]
-    np.testing.assert_allclose(model.predict_single(x[0], p[0], style), z[0], atol=1e-5)
+    style = np.array([2]) if model.takes_style_ids else model.film_parameters(clip)[0]
+    net = variant_network(model, NormStats.identity(cb.x_dim, cb.z_dim, cb.phase_dim))
+    np.testing.assert_allclose(net.predict(x, p, style)[0], z[0], atol=1e-5)
 
 
 def test_lpn_film_variant_runs_in_the_runtime_network():
     """build_variant('LPN FiLM') is a StyleModel: the run-time network takes it as it is."""
-    from minifilm.runtime.controller import RuntimeNetwork
-    from minifilm.dataset.arrays import NormStats
     rng = np.random.default_rng(6)
     cfg = ModelConfig.small(z_dim=40)
     model = build_variant("LPN FiLM", cfg, rng, with_film_generator=False)
@@ -140,4 +142,4 @@ def test_lpn_film_variant_runs_in_the_runtime_network():
     x = rng.standard_normal((1, cfg.x_dim)).astype(np.float32)
     p = rng.standard_normal((1, 8)).astype(np.float32)
     film = rng.standard_normal(cfg.film_dim).astype(np.float32)
-    np.testing.assert_allclose(net.predict(x, p, film)[0], model.predict_single(x[0], p[0], film), atol=1e-4)
+    np.testing.assert_allclose(net.predict(x, p, film), model.forward_with_film(x, p, film), atol=1e-4)

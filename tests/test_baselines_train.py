@@ -3,10 +3,11 @@ import numpy as np
 import pytest
 
 from minifilm.model.config import ModelConfig
-from minifilm.baselines.variants import VARIANTS, build_variant
+from minifilm.baselines.variants import VARIANTS, build_variant, model_from_checkpoint
 from minifilm.features.layout import FeatureLayout
 from minifilm.train.trainer import TrainConfig, Trainer
-from minifilm.dataset.arrays import NormStats, TrainData
+from minifilm.dataset.arrays import TrainData
+from minifilm.dataset.stats import NormStats
 from minifilm.baselines.variant_data import variant_data
 
 J = 3
@@ -86,7 +87,7 @@ def test_variant_checkpoint_resumes_as_the_same_variant(tmp_path):
     path = tmp_path / "pfnn_resad.npz"
     trainer = Trainer(model, stats, TrainConfig(epochs=1, batch_size=16, checkpoint_path=str(path)))
     trainer.fit(vdata)
-    resumed = Trainer.resume(path)
+    resumed = Trainer.resume(path, build_model=model_from_checkpoint)
     assert resumed.model.name == "PFNN Resad" and resumed.model.n_styles == 3
     for a, b in zip(model.parameter_sets(), resumed.model.parameter_sets()):
         np.testing.assert_array_equal(a.data, b.data)

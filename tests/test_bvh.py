@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from minifilm.motion.bvh import BVHError, format_bvh, parse_bvh, read_bvh, write_bvh
+from minifilm.motion.bvh import BVHError, parse_bvh, read_bvh
+from minifilm.motion.bvh_write import format_bvh, write_bvh
 from minifilm.motion.motion import Motion
 from minifilm.motion.skeletons import detect_skeleton
 

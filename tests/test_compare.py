@@ -2,12 +2,12 @@
 import numpy as np
 import pytest
 
-from minifilm.evaluation.compare_tools import VariantRuntime
+from minifilm.baselines.runtime import VariantRuntime
 from minifilm.model.config import ModelConfig
 from minifilm.baselines.variants import build_variant
 from minifilm.features.layout import FeatureLayout
 from minifilm.motion.skeletons import STYLE100
-from minifilm.dataset.arrays import NormStats
+from minifilm.dataset.stats import NormStats
 
 LAYOUT = FeatureLayout.for_skeleton(STYLE100)
 

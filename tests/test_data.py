@@ -6,13 +6,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import minifilm.dataset.build as data_module
-from minifilm.dataset.build import (
-    SPLITS, Dataset, DatasetSettings, Normalizer, apply_gap, build_dataset,
-    file_rng, mirror_labels, split_files, split_segments)
+import minifilm.dataset.cache as cache_module
+from minifilm.dataset.build import build_dataset
+from minifilm.dataset.dataset import Dataset
+from minifilm.dataset.settings import DatasetSettings
+from minifilm.dataset.splits import SPLITS, apply_gap, file_rng, split_files, split_segments
 from minifilm.dataset.manifest import (
     MotionFile, bandai_files, read_manifest, scan_100style, write_bandai_manifest, write_manifest)
-from minifilm.dataset.arrays import NormStats, TrainData
+from minifilm.dataset.arrays import TrainData
+from minifilm.dataset.stats import NormStats
+from minifilm.phases.label import Labels
+from minifilm.phases.local_phases import LocalPhases
 
 
 # ----------------------------------------------------------------------------- splits
@@ -54,7 +58,7 @@ def test_normalizer_statistics_and_file(tmp_path):
     x = rng.normal(3.0, 2.0, size=(500, 6)).astype(np.float32)
     x[:, 2] = 7.25                                                 # constant column -> std 1
     p, z = rng.normal(size=(500, 8)), rng.normal(size=(500, 4))
-    n = Normalizer.fit(x, p, z)
+    n = NormStats.fit(x, p, z)
     x64 = x.astype(np.float64)
     mean = x64.sum(axis=0) / 500
     std = np.sqrt(((x64 - mean) ** 2).sum(axis=0) / 500)           # biased
@@ -65,19 +69,22 @@ def test_normalizer_statistics_and_file(tmp_path):
     path = n.save(tmp_path / "norm.npz")
     with np.load(path, allow_pickle=False) as d:
         assert sorted(d.files) == sorted(["x_mean", "x_std", "p_mean", "p_std", "z_mean", "z_std"])
-    m = Normalizer.load(path)
+    m = NormStats.load(path)
     for k in ("x_mean", "x_std", "p_mean", "p_std", "z_mean", "z_std"):
         np.testing.assert_array_equal(getattr(m, k), getattr(n, k))
     with pytest.raises(ValueError, match="no training rows"):
-        Normalizer.fit(x[:0], p[:0], z[:0])
+        NormStats.fit(x[:0], p[:0], z[:0])
 
 
-def test_mirror_labels_swap_left_and_right():
+def test_mirrored_labels_swap_left_and_right():
     contacts = np.array([[1.0, 0.0], [0.0, 0.5]])
-    phases = np.arange(16.0).reshape(2, 8)            # slots LH RH LF RF, (sin, cos) each
-    c, p = mirror_labels(contacts, phases)
-    np.testing.assert_array_equal(c, [[0, 1], [0.5, 0]])
-    np.testing.assert_array_equal(p[0], [2, 3, 0, 1, 6, 7, 4, 5])
+    phase = np.array([[0.1, 0.2, 0.3, 0.4], [0.5, 0.6, 0.7, 0.8]])   # slots LH RH LF RF
+    amplitude = np.array([[1.0, 2.0, 3.0, 4.0], [5.0, 6.0, 7.0, 8.0]])
+    labels = Labels(contacts, LocalPhases(phase, amplitude))
+    m = labels.mirrored()
+    np.testing.assert_array_equal(m.contacts, [[0, 1], [0.5, 0]])
+    v, mv = labels.vectors, m.vectors                 # (sin, cos) pairs per slot
+    np.testing.assert_array_equal(mv[:, [0, 1, 2, 3, 4, 5, 6, 7]], v[:, [2, 3, 0, 1, 6, 7, 4, 5]])
 
 
 # ----------------------------------------------------------------------------- manifests
@@ -138,7 +145,7 @@ def small(shared_data, tmp_path_factory):
     while the tests run cannot turn a cache hit into a rebuild.
     """
     mp = pytest.MonkeyPatch()
-    mp.setattr(data_module, "_source_fingerprint", lambda: "pinned")
+    mp.setattr(cache_module, "source_fingerprint", lambda: "pinned")
     cache = tmp_path_factory.mktemp("cache")
     files = [f for f in bandai_files(shared_data / "bandai2") if f.path.name in SUBSET]
     ds = build_dataset(files, cache_dir=cache, progress=False, mirror_styles=("active",), seed=7,
@@ -189,7 +196,7 @@ def test_rows_stay_inside_their_segments(small):
 
 def test_mirrored_rows_are_mirror_images(small):
     """Mirroring negates x of every local position / direction and swaps left and right joints."""
-    from minifilm.motion.kinematics import mirror_pairs
+    from minifilm.motion.editing import mirror_pairs
     from minifilm.motion.skeletons import BANDAI
 
     _, _, ds = small
@@ -212,14 +219,14 @@ def test_mirrored_rows_are_mirror_images(small):
 def test_normalisation_from_training_rows_only(small):
     _, _, ds = small
     x = ds.train.x.astype(np.float64)
-    np.testing.assert_allclose(ds.normalizer.x_mean, x.mean(axis=0), atol=1e-9)
+    np.testing.assert_allclose(ds.stats.x_mean, x.mean(axis=0), atol=1e-9)
     std = x.std(axis=0)
     std[std < 1e-6] = 1.0
-    np.testing.assert_allclose(ds.normalizer.x_std, std, rtol=1e-7, atol=1e-12)
+    np.testing.assert_allclose(ds.stats.x_std, std, rtol=1e-7, atol=1e-12)
     # the columns that are constant by construction get std 1: sample 6 and the hips' x, z
-    assert np.all(ds.normalizer.x_std[[24, 25, 26, 27, 48, 50]] == 1.0)
+    assert np.all(ds.stats.x_std[[24, 25, 26, 27, 48, 50]] == 1.0)
     everything = np.concatenate([ds.train.x, ds.val.x, ds.test.x]).astype(np.float64)
-    assert not np.allclose(ds.normalizer.x_mean, everything.mean(axis=0), atol=1e-9)
+    assert not np.allclose(ds.stats.x_mean, everything.mean(axis=0), atol=1e-9)
     td = ds.train_data("train")
     assert isinstance(td, TrainData) and td.style_names == ds.styles
     np.testing.assert_allclose(td.x.mean(axis=0), 0.0, atol=1e-3)
@@ -237,7 +244,7 @@ def test_cache_second_build_is_loaded(small, shared_data):
         for key in ("x", "p", "z", "style", "file", "frame", "clips", "clip_style"):
             np.testing.assert_array_equal(getattr(again.split(name), key), getattr(ds.split(name), key))
     assert again.layout == ds.layout and again.files == ds.files
-    np.testing.assert_array_equal(again.normalizer.z_std, ds.normalizer.z_std)
+    np.testing.assert_array_equal(again.stats.z_std, ds.stats.z_std)
     with np.load(ds.cache_path, allow_pickle=False) as d:      # no object arrays inside
         assert all(d[k].dtype != object for k in d.files)
     other = build_dataset(files, cache_dir=cache, progress=False, mirror_styles=("active",), seed=8,
@@ -271,7 +278,7 @@ def test_clip_fallback_uses_other_gaits(small):
 def test_stale_cache_is_rebuilt_in_place(shared_data, tmp_path, monkeypatch):
     import shutil
 
-    monkeypatch.setattr(data_module, "_source_fingerprint", lambda: "pinned")
+    monkeypatch.setattr(cache_module, "source_fingerprint", lambda: "pinned")
 
     src = shared_data / "bandai2" / "dataset-2_walk_normal_001.bvh"
     copy = tmp_path / "Normal_FW.bvh"
@@ -357,7 +364,7 @@ def test_resampling_and_errors_name_the_file(shared_data, tmp_path):
 
 
 def test_mean_std_in_chunks_matches_numpy():
-    from minifilm.dataset.build import _mean_std
+    from minifilm.dataset.stats import _mean_std
 
     a = np.random.default_rng(3).normal(5.0, 0.01, size=(1000, 4)).astype(np.float32)
     mean, std = _mean_std(a, chunk=64)

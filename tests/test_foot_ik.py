@@ -1,7 +1,8 @@
 """Two-bone leg IK and foot locking (minifilm.motion.foot_ik)."""
 import numpy as np
 
-from minifilm.motion.foot_ik import FootLocker, contact_weight, foot_sliding, two_bone_ik
+from minifilm.motion.foot_ik import FootLocker, contact_weight, two_bone_ik
+from minifilm.motion.measures import foot_sliding
 
 
 def leg(n=50, seed=0):

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from minifilm.motion import editing as E
 from minifilm.motion import kinematics as K
 from minifilm.motion.motion import Motion
 
@@ -193,18 +194,18 @@ def test_to_local_closed_form_and_inverses():
     ("leftEye", "rightEye"), ("Hips", "Hips"), ("LowerBack", "LowerBack"), ("Leg", "Leg"),
 ])
 def test_mirror_name(name, other):
-    assert K.mirror_name(name) == other
+    assert E.mirror_name(name) == other
 
 
 def _mirror_check(motion):
-    m = K.mirror(motion)
+    m = E.mirror(motion)
     P, W = motion.world()
     Pm, Wm = m.world()
-    sym = K.mirror_pairs(motion.names)
+    sym = E.mirror_pairs(motion.names)
     M = np.diag([-1.0, 1.0, 1.0])
     np.testing.assert_allclose(Pm, P[:, sym] * [-1, 1, 1], atol=1e-9)
     np.testing.assert_allclose(Wm, M @ W[:, sym] @ M, atol=1e-9)
-    back = K.mirror(m)
+    back = E.mirror(m)
     np.testing.assert_allclose(back.world()[0], P, atol=1e-9)
     return sym
 
@@ -228,7 +229,7 @@ def test_mirror_rejects_asymmetric_hierarchy():
     m = Motion(["Hips", "LeftLeg", "Spine", "RightLeg"], [-1, 0, 0, 2], np.zeros((4, 3)),
                [("Yrotation",)] * 4, np.tile(np.eye(3), (1, 4, 1, 1)), np.zeros((1, 4, 3)), 1 / 30)
     with pytest.raises(ValueError, match="symmetric"):
-        K.mirror(m)
+        E.mirror(m)
 
 
 # ------------------------------------------------------------------ resampling
@@ -253,7 +254,7 @@ def test_resample_halving_keeps_every_second_frame(shared_data):
     real = read_bvh(shared_data / "bvh" / "bandai1" / "dataset-1_walk_normal_001.bvh")
     # exact 1/30 s so that 15 fps frames fall exactly on old frames
     m = Motion(real.names, real.parents, real.offsets, real.channels, real.rotations, real.translations, 1 / 30)
-    half = K.resample(m, 15)
+    half = E.resample(m, 15)
     assert half.fps == pytest.approx(15)
     assert half.n_frames == (m.n_frames - 1) // 2 + 1
     np.testing.assert_allclose(half.rotations, m.rotations[::2], atol=1e-10)
@@ -262,9 +263,9 @@ def test_resample_halving_keeps_every_second_frame(shared_data):
 
 def test_resample_120_60_120_reconstructs_constant_speed_motion():
     m = _spinning_motion(120, 2.0)
-    down = K.resample(m, 60)
+    down = E.resample(m, 60)
     np.testing.assert_allclose(down.world()[0], m.world()[0][::2], atol=1e-10)
-    up = K.resample(down, 120)
+    up = E.resample(down, 120)
     assert up.n_frames == m.n_frames
     # slerp/lerp midpoints of a constant-velocity motion are exactly the dropped frames
     np.testing.assert_allclose(up.rotations, m.rotations, atol=1e-10)
@@ -273,7 +274,7 @@ def test_resample_120_60_120_reconstructs_constant_speed_motion():
 
 def test_resample_to_non_integer_ratio_interpolates_in_time():
     m = _spinning_motion(60, 1.0)
-    r = K.resample(m, 25)
+    r = E.resample(m, 25)
     t = np.arange(r.n_frames) / 25
     assert t[-1] <= 1.0 + 1e-9 and r.n_frames == 26
     np.testing.assert_allclose(r.translations[:, 0, 0], 1.5 * t, atol=1e-12)
@@ -287,14 +288,14 @@ def test_resample_60_to_30_with_rounded_frame_time(shared_data):
     from minifilm.motion.bvh import read_bvh
     real = read_bvh(shared_data / "100style" / "Neutral_FR_first3frames.bvh")
     assert real.frame_time == 0.016667
-    half = K.resample(real, 30)
+    half = E.resample(real, 30)
     assert half.n_frames == 2 and half.frame_time == pytest.approx(1 / 30)
     np.testing.assert_allclose(half.world()[0], real.world()[0][::2], atol=1e-12)
     # a long synthetic take, where a rounded frame time would otherwise drift by frames
     spin = _spinning_motion(60, 20.0)
     spin = Motion(spin.names, spin.parents, spin.offsets, spin.channels, spin.rotations, spin.translations,
                   0.016667)
-    half = K.resample(spin, 30)
+    half = E.resample(spin, 30)
     assert half.n_frames == (spin.n_frames - 1) // 2 + 1
     np.testing.assert_allclose(half.rotations, spin.rotations[::2], atol=1e-10)
     np.testing.assert_allclose(half.translations, spin.translations[::2], atol=1e-12)

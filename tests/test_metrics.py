@@ -4,7 +4,7 @@ import pytest
 
 from minifilm.evaluation.metrics import (bone_length_cv, bone_length_variation, interpolation_smoothness, pca_2d, rollout_quality,
                               silhouette_score)
-from minifilm.runtime.controller import Rollout
+from minifilm.runtime.rollout import Rollout
 
 
 def test_silhouette_matches_hand_computation():

@@ -4,7 +4,10 @@ import numpy as np
 import pytest
 
 from minifilm.model.config import ModelConfig
-from minifilm.model.style_model import StyleModel, blend_film
+from minifilm.model.style_model import StyleModel
+from minifilm.dataset.stats import NormStats
+from minifilm.runtime.network import RuntimeNetwork
+from minifilm.runtime.style_library import blend_film
 
 
 def elu(v):
@@ -82,16 +85,19 @@ def test_gating_weights_are_a_distribution(setup):
     assert (alpha > 0).all()
 
 
-def test_precomputed_film_and_batch_one_paths_agree(setup):
+def test_precomputed_film_and_the_runtime_path_agree(setup):
     model, x, p, clip, _ = setup
     z = model.forward(x, p, clip)
     film = model.film_parameters(clip)
     np.testing.assert_allclose(model.forward_with_film(x, p, film), z, rtol=1e-12)
+    stats = NormStats.identity(model.config.x_dim, model.config.z_dim, model.config.phase_dim)
+    net = RuntimeNetwork.from_model(model, stats, dtype=np.float64)      # the batch-1 path
     for b in range(x.shape[0]):
-        np.testing.assert_allclose(model.predict_single(x[b], p[b], film[b]), z[b], rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(net.predict(x[b:b + 1], p[b:b + 1], film[b])[0], z[b], rtol=1e-10, atol=1e-12)
     # runtime layer norm (biased, no eps) against the reference
     zr = reference_forward(model, x, p, clip, biased_ln=True)
-    np.testing.assert_allclose(model.predict_single(x[0], p[0], film[0], runtime_layer_norm=True), zr[0], rtol=1e-10)
+    released_style = RuntimeNetwork.from_model(model, stats, runtime_layer_norm=True, dtype=np.float64)
+    np.testing.assert_allclose(released_style.predict(x[:1], p[:1], film[0])[0], zr[0], rtol=1e-10)
 
 
 def test_film_blending(setup):

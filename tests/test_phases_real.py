@@ -9,7 +9,7 @@ import pytest
 
 from minifilm.motion.bvh import read_bvh
 from minifilm.phases.contacts import foot_contacts
-from minifilm.motion.kinematics import resample
+from minifilm.motion.editing import resample
 from minifilm.phases.local_phases import extract_local_phases, hips_local_positions
 from minifilm.motion.skeletons import BANDAI, CMU
 

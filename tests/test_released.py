@@ -9,7 +9,7 @@ import pytest
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
 from minifilm.runtime.released import ReleasedFormatError, load_released, write_released
-from minifilm.dataset.arrays import NormStats
+from minifilm.dataset.stats import NormStats
 
 
 def f32(d, name):

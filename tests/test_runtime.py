@@ -10,16 +10,19 @@ from minifilm.runtime.control import CommandScript
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
 from minifilm.features.layout import FeatureLayout
-from minifilm.runtime.controller import Controller, RuntimeNetwork, RuntimeStats, SpeedCalibration
+from minifilm.dataset.stats import NormStats
+from minifilm.runtime.calibration import SpeedCalibration
+from minifilm.runtime.controller import Controller
+from minifilm.runtime.network import RuntimeNetwork
 
 PARENTS = (-1, 0, 1, 0, 3)
 LAYOUT = FeatureLayout(5, PARENTS, ("Hips", "Spine", "Head", "Leg", "Foot"))
 
 
 def random_stats(layout, rng):
-    return RuntimeStats(rng.normal(size=layout.x_dim), rng.uniform(0.5, 2, layout.x_dim),
-                        rng.normal(size=8), rng.uniform(0.5, 2, 8),
-                        rng.normal(size=layout.z_dim), rng.uniform(0.5, 2, layout.z_dim))
+    return NormStats(x_mean=rng.normal(size=layout.x_dim), x_std=rng.uniform(0.5, 2, layout.x_dim),
+                     p_mean=rng.normal(size=8), p_std=rng.uniform(0.5, 2, 8),
+                     z_mean=rng.normal(size=layout.z_dim), z_std=rng.uniform(0.5, 2, layout.z_dim))
 
 
 def test_runtime_network_matches_style_model():
@@ -222,7 +225,7 @@ def test_skeleton_fit_in_the_loop(feed_back):
 
 
 def test_per_character_calibration():
-    from minifilm.runtime.controller import PerCharacterCalibration
+    from minifilm.runtime.calibration import PerCharacterCalibration
 
     slow = SpeedCalibration(commanded=[1.0, 2.0], achieved=[0.5, 1.0])
     fast = SpeedCalibration(commanded=[1.0, 2.0], achieved=[1.0, 2.0])

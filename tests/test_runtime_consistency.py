@@ -22,7 +22,8 @@ from minifilm.synthetic import generator as synthetic
 from minifilm.features.compute import frame_features_from_arrays, motion_arrays, trajectory_offsets
 from minifilm.features.layout import CURRENT_SAMPLE, FeatureLayout
 from minifilm.motion.skeletons import STYLE100
-from minifilm.runtime.controller import Controller, RuntimeStats
+from minifilm.dataset.stats import NormStats
+from minifilm.runtime.controller import Controller
 
 
 class _NoNetwork:
@@ -30,8 +31,7 @@ class _NoNetwork:
 
     def __init__(self, layout):
         self.x_dim, self.z_dim = layout.x_dim, layout.z_dim
-        self.stats = RuntimeStats(np.zeros(layout.x_dim), np.ones(layout.x_dim), np.zeros(8), np.ones(8),
-                                  np.zeros(layout.z_dim), np.ones(layout.z_dim))
+        self.stats = NormStats.identity(layout.x_dim, layout.z_dim)
 
 
 def _clip(fps, gait="TR", style="Drunk", seconds=4.0, seed=3):
@@ -57,17 +57,17 @@ def _true_state(ctl, arrays, phases, k, fps, layout):
     st = ctl.state
     facing = _xz(root_rot[:, :, 2])
     n = np.arange(ctl.history, 0, -1)                    # hist[:, -n] = root n frames ago
-    st["hist_pos"] = _xz(root_pos[k - n])[None].copy()
-    st["hist_dir"] = facing[k - n][None].copy()
+    st.history_pos = _xz(root_pos[k - n])[None].copy()
+    st.history_dir = facing[k - n][None].copy()
     fut = k + trajectory_offsets(fps, layout.trajectory_seconds)[CURRENT_SAMPLE:]
-    st["fut_pos"] = _xz(root_pos[fut])[None].copy()
-    st["fut_dir"] = facing[fut][None].copy()
-    st["root"], st["facing"] = _xz(root_pos[k])[None].copy(), facing[k][None].copy()
-    st["jpos"] = positions[k][None].copy()
-    st["jfwd"] = rotations[k][None, :, :, 2].copy()
-    st["jup"] = rotations[k][None, :, :, 1].copy()
-    st["jvel"] = vel[k][None].copy()
-    st["phase"] = phases[k][None].copy()
+    st.future_pos = _xz(root_pos[fut])[None].copy()
+    st.future_dir = facing[fut][None].copy()
+    st.root, st.facing = _xz(root_pos[k])[None].copy(), facing[k][None].copy()
+    st.joint_pos = positions[k][None].copy()
+    st.joint_fwd = rotations[k][None, :, :, 2].copy()
+    st.joint_up = rotations[k][None, :, :, 1].copy()
+    st.joint_vel = vel[k][None].copy()
+    st.phases = phases[k][None].copy()
 
 
 @pytest.mark.parametrize("fps", [60, 30, 15])
@@ -85,7 +85,7 @@ def test_build_input_reproduces_dataset_x(fps):
         bad = np.flatnonzero(np.abs(x - feats.x[i]) > 1e-9)
         assert bad.size == 0, (f"{fps} fps frame {k}: build_input differs from the dataset x in columns "
                                f"{[layout.describe('x')[c] for c in bad[:4]]}")
-        np.testing.assert_allclose(ctl.state["phase"][0], feats.p[i], atol=1e-12)
+        np.testing.assert_allclose(ctl.state.phases[0], feats.p[i], atol=1e-12)
 
 
 @pytest.mark.parametrize("fps", [60, 15])
@@ -102,15 +102,15 @@ def test_true_output_moves_state_to_next_frame(fps, velocity_blend):
         _true_state(ctl, arrays, phases, k, fps, layout)
         ctl._apply_output(feats.z[index[k]][None])
         st = ctl.state
-        np.testing.assert_allclose(st["root"][0], _xz(root_pos[k + 1]), atol=1e-9)
-        np.testing.assert_allclose(st["facing"][0], _xz(root_rot[k + 1][:, 2]) /
+        np.testing.assert_allclose(st.root[0], _xz(root_pos[k + 1]), atol=1e-9)
+        np.testing.assert_allclose(st.facing[0], _xz(root_rot[k + 1][:, 2]) /
                                    np.linalg.norm(_xz(root_rot[k + 1][:, 2])), atol=1e-9)
-        np.testing.assert_allclose(st["jpos"][0], positions[k + 1], atol=1e-9)
-        np.testing.assert_allclose(st["jfwd"][0], rotations[k + 1][:, :, 2], atol=1e-9)
-        np.testing.assert_allclose(st["jup"][0], rotations[k + 1][:, :, 1], atol=1e-9)
-        np.testing.assert_allclose(st["jvel"][0], vel[k + 1], atol=1e-9)
-        np.testing.assert_allclose(st["phase"][0], phases[k + 1], atol=1e-12)   # §10.2 step 7 rule
-        np.testing.assert_allclose(st["hist_pos"][0, -1], _xz(root_pos[k]), atol=1e-12)
+        np.testing.assert_allclose(st.joint_pos[0], positions[k + 1], atol=1e-9)
+        np.testing.assert_allclose(st.joint_fwd[0], rotations[k + 1][:, :, 2], atol=1e-9)
+        np.testing.assert_allclose(st.joint_up[0], rotations[k + 1][:, :, 1], atol=1e-9)
+        np.testing.assert_allclose(st.joint_vel[0], vel[k + 1], atol=1e-9)
+        np.testing.assert_allclose(st.phases[0], phases[k + 1], atol=1e-12)   # §10.2 step 7 rule
+        np.testing.assert_allclose(st.history_pos[0, -1], _xz(root_pos[k]), atol=1e-12)
         # ... and the next input is the dataset's x of frame k+1
         if k + 1 in index:
             x = ctl.build_input()[0]
@@ -127,8 +127,8 @@ def test_future_smoothing_keeps_root_and_joints_exact():
     k = int(feats.frames[len(feats) // 2])
     _true_state(ctl, arrays, phases, k, fps, layout)
     ctl._apply_output(feats.z[len(feats) // 2][None])
-    np.testing.assert_allclose(ctl.state["root"][0], _xz(root_pos[k + 1]), atol=1e-9)
-    np.testing.assert_allclose(ctl.state["jpos"][0], positions[k + 1], atol=1e-9)
+    np.testing.assert_allclose(ctl.state.root[0], _xz(root_pos[k + 1]), atol=1e-9)
+    np.testing.assert_allclose(ctl.state.joint_pos[0], positions[k + 1], atol=1e-9)
 
 
 def test_start_from_a_data_frame_reproduces_its_input():
@@ -142,7 +142,7 @@ def test_start_from_a_data_frame_reproduces_its_input():
     ctl.reset(np.array([[1.0, -2.0], [0.0, 0.0], [5.0, 3.0]]), np.array([[1.0, 0.0], [0.0, 1.0], [-0.6, -0.8]]),
               phases=feats.p[[60, 120, 180]], start_x=rows)
     np.testing.assert_allclose(ctl.build_input(), rows, atol=1e-9)
-    np.testing.assert_allclose(ctl.state["phase"], feats.p[[60, 120, 180]])
+    np.testing.assert_allclose(ctl.state.phases, feats.p[[60, 120, 180]])
     ctl.reset(np.zeros((2, 2)), np.array([[0.0, 1.0], [1.0, 0.0]]), start_x=rows[0])   # one row for all
     np.testing.assert_allclose(ctl.build_input(), rows[[0, 0]], atol=1e-9)
     with pytest.raises(ValueError, match="start_x"):

@@ -9,11 +9,14 @@ import numpy as np
 import pytest
 
 from minifilm.runtime.control import distance_to_path, figure_eight, straight_walk
-from minifilm.motion.bvh import read_bvh, write_bvh
-from minifilm.motion.foot_ik import FootLocker, foot_sliding
+from minifilm.motion.bvh import read_bvh
+from minifilm.motion.bvh_write import write_bvh
+from minifilm.motion.foot_ik import FootLocker
+from minifilm.motion.measures import foot_sliding
 from minifilm.features.layout import FeatureLayout
 from minifilm.motion.skeletons import STYLE100
-from minifilm.runtime.controller import Controller, RuntimeNetwork, root_joint_indices
+from minifilm.runtime.controller import Controller, root_joint_indices
+from minifilm.runtime.network import RuntimeNetwork
 from minifilm.runtime.style_library import StyleLibrary
 
 WALKING = ("Neutral", "Old", "Zombie")

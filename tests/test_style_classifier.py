@@ -7,7 +7,7 @@ from minifilm.synthetic import generator as synthetic
 from minifilm.features.compute import clip_features_from_arrays, motion_arrays
 from minifilm.motion.skeletons import STYLE100
 from minifilm.nn.gradcheck import check_gradients
-from minifilm.runtime.controller import Rollout
+from minifilm.runtime.rollout import Rollout
 from minifilm.evaluation.style_classifier import StyleClassifier, cut_windows, rollout_blocks, window_summary
 
 

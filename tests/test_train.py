@@ -8,9 +8,11 @@ import pytest
 from minifilm.train.checkpoint import CheckpointError, load_checkpoint
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
-from minifilm.train.trainer import (TrainConfig, Trainer, TrainingDiverged, draw_clips, epoch_batches,
-                            finetune, train)
-from minifilm.dataset.arrays import NormStats, TrainData
+from minifilm.train.batches import draw_clips, epoch_batches
+from minifilm.train.finetune import finetune
+from minifilm.train.trainer import TrainConfig, Trainer, TrainingDiverged, train
+from minifilm.dataset.arrays import TrainData
+from minifilm.dataset.stats import NormStats
 
 PARENTS = np.array([-1, 0, 1, 0])
 POS_IDX = 4 + np.arange(12).reshape(4, 3)      # z columns 4..15 hold 4 joint positions

@@ -17,7 +17,8 @@ from minifilm.model.style_model import StyleModel
 from minifilm.synthetic import generator as synthetic
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.skeletons import builtin_skeleton
-from minifilm.runtime.controller import Controller, RuntimeNetwork, start_from_dataset
+from minifilm.runtime.controller import Controller, start_from_dataset
+from minifilm.runtime.network import RuntimeNetwork
 from minifilm.runtime.style_library import StyleLibrary
 from minifilm.train.trainer import TrainConfig, Trainer
 
@@ -36,7 +37,7 @@ def trained(tmp_path_factory):
                          clip_channels=L.clip_dim, n_experts=4, hidden=64, gating_hidden=16, conv_filters=8,
                          conv_kernel=5, film_dense=16, dropout=0.1)
     model = StyleModel(config, np.random.default_rng(0))
-    trainer = Trainer(model, ds.normalizer, TrainConfig(epochs=20, batch_size=32, lr=1e-3, seed=0, progress=False),
+    trainer = Trainer(model, ds.stats, TrainConfig(epochs=20, batch_size=32, lr=1e-3, seed=0, progress=False),
                       positions_idx=L.joint_columns("z", "position"), parents=np.asarray(L.parents),
                       style_names=ds.styles)
     trainer.fit(train, val)

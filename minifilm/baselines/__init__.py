@@ -1,12 +1,10 @@
-"""The comparison models of Sec. 5 (PFNN, MANN, LPN × one-hot, residual adapters, FiLM).
+"""The comparison models of Sec. 5 (Table 2): PFNN, MANN and LPN backbones × one-hot, residual
+adapters and FiLM. Nothing in the core imports this package; it builds on minifilm.model.
 
-The code lives in one file per idea; this module gathers the public names:
     phase_function.py     the PFNN's cyclic Catmull-Rom phase function
     style_modulation.py   one-hot style input, residual adapters (full and CP-decomposed)
     expert_net.py         the synthesis network without FiLM
     variants.py           VARIANTS, build_variant, parameter counts (Table 2)
+    variant_data.py       each backbone's gate input and output columns, from the LPN's data
+    runtime.py            every variant through the one inference path and the controller
 """
-from minifilm.baselines.phase_function import PhaseFunction, catmull_rom_weights  # noqa: F401
-from minifilm.baselines.style_modulation import CPResidualAdapter, OneHotShift, ResidualAdapter  # noqa: F401
-from minifilm.baselines.variants import (VARIANTS, LPNFilm, VariantModel, backbone_config,  # noqa: F401
-                                     build_variant, variant_parameter_counts, variant_shapes)

@@ -16,8 +16,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from minifilm.model.blocks import expert_backward, expert_forward
 from minifilm.model.config import ModelConfig
-from minifilm.model.dropout import dropout_site, dropout_site_backward
+from minifilm.model.dropout import Dropout
 from minifilm.model.init import init_dense_stack
 from minifilm.model.motion_net import motion_shapes
 from minifilm.nn import functional as F
@@ -38,12 +39,13 @@ class ExpertNetwork:
 
     def forward(self, x, alpha, train=False, rng=None, masks=None, shift=None, adapter=None):
         """shift (B, H) is added before the first activation; adapter(h) -> h acts on h(1)."""
-        P, q, self.used_masks = self.params.params, self.config.dropout, {}
-        caches = []
+        P = self.params.params
+        drop = Dropout(self.config.dropout, train, rng, masks)
+        self.used_masks = drop.used
+        self._caches = []
         h = x
         for l in range(3):
-            h, c_drop = dropout_site(h, q, f"motion{l}", train, rng, masks, self.used_masks)
-            h, c_exp = F.expert_linear_forward(h, alpha, P[f"W{l}"], P[f"b{l}"])
+            h, c_exp = expert_forward(h, alpha, P[f"W{l}"], P[f"b{l}"], drop, f"motion{l}")
             c_act = None
             if l == 0 and shift is not None:
                 h = h + shift
@@ -51,8 +53,7 @@ class ExpertNetwork:
                 h, c_act = F.elu_forward(h)
             if l == 0 and adapter is not None:
                 h = adapter(h)
-            caches.append((c_drop, c_exp, c_act))
-        self._caches = caches
+            self._caches.append((c_exp, c_act))
         return h
 
     def backward(self, dz, adapter_backward=None):
@@ -62,30 +63,15 @@ class ExpertNetwork:
         G = self.params.grads
         dalpha, dshift, dh = 0.0, None, dz
         for l in reversed(range(3)):
-            c_drop, c_exp, c_act = self._caches[l]
+            c_exp, c_act = self._caches[l]
             if l == 0 and adapter_backward is not None:
                 dh = adapter_backward(dh)
             if l < 2:
                 dh = F.elu_backward(dh, c_act)
             if l == 0:
                 dshift = dh
-            dh, da, dW, db = F.expert_linear_backward(dh, c_exp)
+            dh, da, dW, db = expert_backward(dh, c_exp)
             G[f"W{l}"] += dW
             G[f"b{l}"] += db
             dalpha = dalpha + da
-            dh = dropout_site_backward(dh, c_drop)
         return dh, dalpha, dshift
-
-    def predict_single(self, x, alpha, shift=None, adapter=None):
-        """Batch 1, no dropout: x (x_dim,), α (K,) [, shift (H,), adapter] -> z (z_dim,)."""
-        P = self.params.params
-        h = x
-        for l in range(3):
-            h = F.expert_linear_single(h, alpha, P[f"W{l}"], P[f"b{l}"])
-            if l == 0 and shift is not None:
-                h = h + shift
-            if l < 2:
-                h = F.elu_forward(h)[0]
-            if l == 0 and adapter is not None:
-                h = adapter(h)
-        return h

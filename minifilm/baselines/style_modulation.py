@@ -93,9 +93,6 @@ class OneHotShift:
         np.add.at(self.params.grads["E"], (slice(None), style), dE)
         return np.einsum("bh,kbh->bk", dshift, rows)
 
-    def single(self, style, alpha):
-        """Batch-1 run time: alpha (K,) -> (H,)."""
-        return alpha @ self.params.params["E"][:, style, :]
 
 
 # ---- full residual adapter (LPN Resad) -------------------------------------------------------
@@ -130,9 +127,6 @@ class ResidualAdapter:
             dh[idx] += dout[idx] @ P["A"][s].T
         return dh
 
-    def single(self, h, style, phase_weights=None):
-        P = self.params.params
-        return h + h @ P["A"][style] + P["a"][style]
 
 
 # ---- CP-decomposed phase-dependent adapter (PFNN Resad) ------------------------------------
@@ -181,6 +175,3 @@ class CPResidualAdapter:
             dh[idx] += dt @ P["U"][s].T
         return dh
 
-    def single(self, h, style, phase_weights):
-        P = self.params.params
-        return h + ((h @ P["U"][style]) * (phase_weights @ P["C"][style])) @ P["V"][style] + P["a"][style]

@@ -127,7 +127,7 @@ class VariantModel:
     def __init__(self, name: str, config: ModelConfig, rng: np.random.Generator, n_styles: int = 95,
                  dtype=np.float32, rank: int = ADAPTER_RANK, with_film_generator: bool = True):
         """with_film_generator=False (FiLM variants): a run-time model without Ψ, driven by
-        precomputed FiLM vectors (forward_with_film, predict_single), as StyleModel's option."""
+        precomputed FiLM vectors (forward_with_film), as StyleModel's option."""
         self.name = name
         self.backbone, self.modulation = _spec(name)
         self.config = config
@@ -136,7 +136,7 @@ class VariantModel:
         self.n_styles = n_styles
         self.takes_style_ids = self.modulation != "film"
         self.gating = None if self.backbone == "pfnn" else GatingNetwork(cb, rng, dtype)
-        self._gate = PhaseFunction(PFNN_CONTROL_POINTS) if self.backbone == "pfnn" else self.gating
+        self.gate = PhaseFunction(PFNN_CONTROL_POINTS) if self.backbone == "pfnn" else self.gating
         if self.modulation == "film":
             self.motion = MotionNetwork(cb, rng, dtype)
             self.film = FilmGenerator(config, rng, dtype) if with_film_generator else None
@@ -183,7 +183,7 @@ class VariantModel:
             self._state = "clip"
             return z
         self._check_p(p)
-        alpha = self._gate.forward(p, train=train, rng=rng, masks=masks)
+        alpha = self.gate.forward(p, train=train, rng=rng, masks=masks)
         shift = adapter = None
         if self.modulation == "onehot":
             shift = self.film.forward(style, alpha)
@@ -224,7 +224,7 @@ class VariantModel:
         self._film_shape = film.shape
         if film.ndim == 1:
             film = np.broadcast_to(film, (x.shape[0], film.shape[0]))
-        alpha = self._gate.forward(p, train=train, rng=rng, masks=masks)
+        alpha = self.gate.forward(p, train=train, rng=rng, masks=masks)
         self._state = "film"
         return self.motion.forward(x, alpha, film, train=train, rng=rng, masks=masks)
 
@@ -244,18 +244,6 @@ class VariantModel:
         if self.film is None:
             raise RuntimeError(f"{self.name} was built without its FiLM generator Ψ; use forward_with_film")
 
-    # ---- run time ---------------------------------------------------------------------------
-    def predict_single(self, x, p, style):
-        """Batch-1 inference: x (x_dim,), p (p_dim,), style: int id (one-hot / Resad) or a
-        precomputed FiLM vector (4H,) -> z (z_dim,)."""
-        x, p = np.asarray(x), np.asarray(p)
-        alpha = self._gate.forward(p[None, :])[0]
-        if self.modulation == "film":
-            return self.motion.predict_single(x, alpha, np.asarray(style))
-        if self.modulation == "onehot":
-            return self.motion.predict_single(x, alpha, shift=self.film.single(int(style), alpha))
-        return self.motion.predict_single(x, alpha, adapter=lambda h: self.film.single(h, int(style), alpha))
-
 
 class LPNFilm(StyleModel):
     """The paper's model (StyleModel) with the variants' call signature (style ids are ignored)."""
@@ -272,9 +260,6 @@ class LPNFilm(StyleModel):
         return super().forward_with_film(x, p, film, train=train, rng=rng, masks=masks,
                                          ln_unbiased=ln_unbiased, ln_eps=ln_eps)
 
-    def predict_single(self, x, p, film, runtime_layer_norm=False):
-        return super().predict_single(x, p, film, runtime_layer_norm=runtime_layer_norm)
-
 
 def build_variant(name: str, config: ModelConfig, rng: np.random.Generator, n_styles: int = 95,
                   dtype=np.float32, with_film_generator: bool = True):
@@ -286,3 +271,15 @@ def build_variant(name: str, config: ModelConfig, rng: np.random.Generator, n_st
         return LPNFilm(config, rng, dtype, with_film_generator=with_film_generator)
     return VariantModel(name, config, rng, n_styles=n_styles, dtype=dtype,
                         with_film_generator=with_film_generator)
+
+
+def model_from_checkpoint(meta: dict):
+    """A freshly built variant for a checkpoint's metadata (the ``build_model`` argument of
+    :meth:`minifilm.train.trainer.Trainer.resume`); weights are loaded by the caller."""
+    variant = meta.get("variant")
+    if not variant:
+        raise ValueError("model_from_checkpoint: the checkpoint holds no comparison variant")
+    n_styles = variant.get("n_styles")
+    return build_variant(variant["name"], ModelConfig.from_dict(meta["model_config"]), np.random.default_rng(0),
+                         with_film_generator=meta.get("has_film_generator", True),
+                         **({} if n_styles is None else {"n_styles": int(n_styles)}))

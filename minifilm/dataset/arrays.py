@@ -1,71 +1,14 @@
-"""The plain-array data interface between dataset building (data.py) and training (train.py).
+"""TrainData: the plain arrays a training run reads (the interface between dataset/ and train/).
 
-Everything here is already normalised and aligned; the model package never sees BVH files or
-feature layouts. ``data.py`` produces these; tests build them from random arrays.
+Everything here is already normalised and aligned; the trainer never sees BVH files or feature
+layouts. :meth:`minifilm.dataset.dataset.Dataset.train_data` produces these; tests build them from
+random arrays.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
 import numpy as np
-
-
-@dataclass
-class NormStats:
-    """Per-feature normalisation statistics: v_hat = (v - mean) / std (original-pipeline §8.5).
-
-    x_mean, x_std (x_dim,)   network input x
-    z_mean, z_std (z_dim,)   network output z (the bone-length loss de-normalises with these)
-    p_mean, p_std (phase_dim,) local phases fed to the gating network (the released GT_X stats)
-    """
-
-    x_mean: np.ndarray
-    x_std: np.ndarray
-    z_mean: np.ndarray
-    z_std: np.ndarray
-    p_mean: np.ndarray
-    p_std: np.ndarray
-
-    def __post_init__(self):
-        for name in ("x", "z", "p"):
-            m = np.asarray(getattr(self, f"{name}_mean"), dtype=np.float64)
-            s = np.asarray(getattr(self, f"{name}_std"), dtype=np.float64)
-            if m.ndim != 1 or m.shape != s.shape:
-                raise ValueError(f"NormStats: {name}_mean {m.shape} and {name}_std {s.shape} must be equal 1-D")
-            if not (np.all(np.isfinite(s)) and np.all(s > 0)):
-                bad = np.nonzero(~(np.isfinite(s) & (s > 0)))[0][:5]
-                raise ValueError(f"NormStats: {name}_std must be finite and > 0 (bad indices {bad.tolist()})")
-            setattr(self, f"{name}_mean", m)
-            setattr(self, f"{name}_std", s)
-
-    def normalize_x(self, x):
-        return (x - self.x_mean) / self.x_std
-
-    def normalize_p(self, p):
-        return (p - self.p_mean) / self.p_std
-
-    def normalize_z(self, z):
-        return (z - self.z_mean) / self.z_std
-
-    def denormalize_z(self, z_hat):
-        return z_hat * self.z_std + self.z_mean
-
-    def to_arrays(self, prefix="stats.") -> dict:
-        return {prefix + k: getattr(self, k) for k in ("x_mean", "x_std", "z_mean", "z_std", "p_mean", "p_std")}
-
-    @classmethod
-    def from_arrays(cls, arrays, prefix="stats.") -> "NormStats":
-        keys = ("x_mean", "x_std", "z_mean", "z_std", "p_mean", "p_std")
-        missing = [prefix + k for k in keys if prefix + k not in arrays]
-        if missing:
-            raise KeyError(f"NormStats.from_arrays: missing {missing}")
-        return cls(**{k: np.asarray(arrays[prefix + k]) for k in keys})
-
-    @classmethod
-    def identity(cls, x_dim, z_dim, phase_dim=8) -> "NormStats":
-        """Mean 0, std 1 everywhere (data that is already normalised)."""
-        return cls(np.zeros(x_dim), np.ones(x_dim), np.zeros(z_dim), np.ones(z_dim),
-                   np.zeros(phase_dim), np.ones(phase_dim))
 
 
 @dataclass

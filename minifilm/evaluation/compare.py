@@ -30,8 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from minifilm.evaluation.compare_tools import (VariantRuntime, film_codes, film_separation, fit_normalizer, motion_errors,
-                                    style_subset)
+from minifilm.baselines.runtime import VariantRuntime
+from minifilm.evaluation.compare_tools import film_codes, film_separation, fit_stats, motion_errors, style_subset
 from minifilm.evaluation.metrics import interpolation_smoothness, rollout_quality
 
 
@@ -88,7 +88,7 @@ class Context:
         self.ds, self.args, self.layout = ds, args, ds.layout
         self.holdout = holdout
         self.seen = [s for s in ds.styles if s != holdout]
-        self.norm = fit_normalizer(ds, self.seen)
+        self.norm = fit_stats(ds, self.seen)
         self.data = {sp: style_subset(ds, sp, self.seen, self.norm) for sp in ("train", "test")}
         self.new_train = style_subset(ds, "train", [holdout], self.norm) if holdout else None
         self.all_train = style_subset(ds, "train", self.seen + ([holdout] if holdout else []), self.norm)
@@ -226,7 +226,8 @@ def interpolation(model, info, ctx, style_a, style_b, n=11):
 
 def finetune_separation(result, ctx):
     """Fine-tune Ψ alone on the held-out style; FiLM-code silhouette before and after."""
-    from minifilm.train.trainer import TrainConfig, finetune
+    from minifilm.train.finetune import finetune
+    from minifilm.train.trainer import TrainConfig
     a = ctx.args
     trainer = result["trainer"]
     path = Path(a.work) / "lpn_film_base.npz"

@@ -6,8 +6,6 @@
   (trajectory + joints), so variants with different outputs are compared on the same numbers;
 - `film_codes` / `film_separation`: FiLM vectors of many clips per style, their silhouette and a
   2-D PCA embedding (Figure 11);
-- `VariantRuntime`: drives any comparison variant (minifilm.baselines.variants) with
-  minifilm.runtime.controller.Controller, which was written for the LPN + FiLM network.
 """
 from __future__ import annotations
 
@@ -15,21 +13,21 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from minifilm.dataset.build import Normalizer
+from minifilm.dataset.stats import NormStats
 from minifilm.evaluation.metrics import pca_2d, silhouette_samples
 from minifilm.model.losses import bone_length_loss
 from minifilm.dataset.arrays import TrainData
 
 
 # ---------------------------------------------------------------------------- data
-def fit_normalizer(ds, styles: Sequence[str]) -> Normalizer:
+def fit_stats(ds, styles: Sequence[str]) -> NormStats:
     """Normalisation statistics from the training rows of `styles` only (a held-out style must not
     leak into them)."""
     ids = [ds.styles.index(s) for s in styles]
     rows = np.isin(ds.train.style, ids)
     if not np.any(rows):
-        raise ValueError(f"fit_normalizer: no training rows for styles {list(styles)}")
-    return Normalizer.fit(ds.train.x[rows], ds.train.p[rows], ds.train.z[rows])
+        raise ValueError(f"fit_stats: no training rows for styles {list(styles)}")
+    return NormStats.fit(ds.train.x[rows], ds.train.p[rows], ds.train.z[rows])
 
 
 def style_subset(ds, split: str, styles: Sequence[str], normalizer, dtype=np.float32) -> TrainData:
@@ -50,7 +48,7 @@ def style_subset(ds, split: str, styles: Sequence[str], normalizer, dtype=np.flo
     n = normalizer
     return TrainData(x=n.normalize_x(sp.x[rows]).astype(dtype), p=n.normalize_p(sp.p[rows]).astype(dtype),
                      z=n.normalize_z(sp.z[rows]).astype(dtype), style=remap[sp.style[rows]],
-                     clips=n.normalize_clip(cs.clips[crow], ds.layout).astype(dtype),
+                     clips=n.normalize_clip(cs.clips[crow], ds.layout.x_joints).astype(dtype),
                      clip_style=remap[cs.clip_style[crow]], style_names=list(styles))
 
 
@@ -105,82 +103,3 @@ def film_separation(codes: np.ndarray, labels: np.ndarray, focus: Optional[int] 
         out["focus_silhouette"] = float(full[labels == focus].mean())
         out["focus_silhouette_2d"] = float(flat[labels == focus].mean())
     return out
-
-
-# ---------------------------------------------------------------------------- run time for every variant
-class VariantRuntime:
-    """A network for :class:`minifilm.runtime.controller.Controller` made from any comparison variant.
-
-    The Controller feeds raw x (B, x_dim) and its running local phases p (B, 8) and reads a raw
-    output in the LPN's layout (z_dim, with next phases, phase updates and contacts). This class
-    translates both ways: normalises x, builds the variant's gate input (LPN: the local phases;
-    MANN: the end effectors' velocities from x; PFNN: the global phase, the angle of the running
-    right-foot phase pair), runs the model in evaluation mode and writes its output back into the
-    LPN layout. The PFNN's phase update advances that pair (so the Controller's phase average gives
-    exactly the new phase); the MANN has no phase, so the phase slots are held constant.
-
-    cond (the Controller's `film` argument, per frame):
-        FiLM variants: a FiLM vector (4H,) or (B, 4H);
-        one-hot / Resad: style ids (B,) int, or for one-hot soft weights (B, S) (an interpolated
-        one-hot vector; the one-hot term is linear in it, so this blends the style rows).
-    """
-
-    def __init__(self, model, stats, layout, info: Optional[dict] = None):
-        self.model, self.stats, self.layout = model, stats, layout
-        self.info = info or {"backbone": "lpn"}
-        self.backbone = self.info["backbone"]
-        self.modulation = getattr(model, "modulation", "film")
-        self.x_dim, self.z_dim = layout.x_dim, layout.z_dim
-        self.n_motion = layout.z_phases.start
-        self.dtype = getattr(model, "dtype", np.float32)
-
-    def _gate_input(self, xn, p_raw):
-        if self.backbone == "lpn":
-            return (p_raw - self.stats.p_mean) / self.stats.p_std
-        if self.backbone == "mann":
-            return xn[:, self.info["gate_columns_of_x"]]
-        from minifilm.baselines.variant_data import phase_angle
-        pair = 2 * self.info["phase_slot"] + np.arange(2)
-        return phase_angle(p_raw[:, pair])[:, None]
-
-    def _run(self, xn, pn, cond):
-        m = self.model
-        if self.modulation == "film":
-            return m.forward_with_film(xn, pn, np.asarray(cond, dtype=self.dtype))
-        cond = np.asarray(cond)
-        if cond.ndim == 2:                                # soft one-hot weights (B, S)
-            if self.modulation != "onehot":
-                raise ValueError(f"VariantRuntime: {m.name} takes style ids, not blend weights")
-            alpha = m._gate.forward(pn)
-            E = m.film.params.params["E"]                  # (K, S, H): the one-hot rows per expert
-            shift = np.einsum("bk,bs,ksh->bh", alpha, cond.astype(self.dtype), E)
-            return m.motion.forward(xn, alpha, shift=shift)
-        return m.forward(xn, pn, None, style=np.broadcast_to(cond.astype(np.int64), (len(xn),)))
-
-    def predict(self, x_raw, p_raw, cond):
-        st, L = self.stats, self.layout
-        x_raw = np.asarray(x_raw, dtype=np.float64)
-        p_raw = np.asarray(p_raw, dtype=np.float64)
-        xn = ((x_raw - st.x_mean) / st.x_std).astype(self.dtype)
-        pn = np.asarray(self._gate_input(xn, p_raw), dtype=self.dtype)
-        zn = np.asarray(self._run(xn, pn, cond), dtype=np.float64)
-        if self.backbone == "lpn":
-            return zn * st.z_std + st.z_mean
-        z = np.zeros((len(xn), L.z_dim))
-        m = self.n_motion
-        z[:, :m] = zn[:, :m] * st.z_std[:m] + st.z_mean[:m]
-        c0, c1 = self.info["contact_columns"]
-        zc = np.arange(L.z_contacts.start, L.z_contacts.stop)
-        z[:, zc] = zn[:, c0:c1] * st.z_std[zc] + st.z_mean[zc]
-        new_p = p_raw.copy()
-        if self.backbone == "pfnn":
-            pair = 2 * self.info["phase_slot"] + np.arange(2)
-            phase = pn[:, 0].astype(np.float64)
-            dphase = zn[:, self.info["phase_update_column"]] * self.info["phase_update_std"] \
-                + self.info["phase_update_mean"]
-            amp = np.maximum(np.linalg.norm(p_raw[:, pair], axis=1), 1e-3)
-            angle = 2 * np.pi * (phase + dphase)
-            new_p[:, pair] = amp[:, None] * np.stack([np.sin(angle), np.cos(angle)], axis=1)
-        z[:, L.z_phases] = new_p
-        z[:, L.z_phase_updates] = new_p - p_raw
-        return z

@@ -11,28 +11,10 @@ from typing import Sequence
 
 import numpy as np
 
-from minifilm.motion.foot_ik import foot_sliding
+from minifilm.motion.measures import bone_length_cv, foot_sliding
 
 
 # ---------------------------------------------------------------------------- rollouts
-def bone_length_cv(positions: np.ndarray, parents: Sequence[int]) -> np.ndarray:
-    """Coefficient of variation (std / mean over frames) of every bone's length, per joint.
-
-    positions (F, J, 3) world joint positions (any float dtype; computed in float64); parents (J,)
-    with -1 for roots. Returns (J,): entry j is the cv of the bone parent(j) -> j, 0 for roots,
-    so ``argmax`` names the worst bone's child joint.
-    """
-    P = np.asarray(positions, dtype=np.float64)
-    parents = np.asarray(parents)
-    if P.ndim != 3 or P.shape[1] != len(parents) or P.shape[2] != 3:
-        raise ValueError(f"bone_length_cv: positions {P.shape} must be (F, {len(parents)}, 3)")
-    child = np.nonzero(parents >= 0)[0]
-    lengths = np.linalg.norm(P[:, child] - P[:, parents[child]], axis=-1)        # (F, bones)
-    cv = np.zeros(len(parents))
-    cv[child] = lengths.std(axis=0) / np.maximum(lengths.mean(axis=0), 1e-9)
-    return cv
-
-
 def bone_length_variation(positions: np.ndarray, parents: Sequence[int]) -> dict:
     """:func:`bone_length_cv` summarised: {'mean': mean cv over bones, 'max': worst bone}.
 

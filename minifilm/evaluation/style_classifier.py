@@ -50,7 +50,7 @@ def split_windows(split, layout, normalizer, window: int, stride: int):
     stops = np.r_[starts[1:], len(split)]
     wins, styles = [], []
     for a, b in zip(starts, stops):
-        block = normalizer.normalize_clip(np.asarray(split.x[a:b, layout.x_joints], dtype=np.float64), layout)
+        block = normalizer.normalize_clip(np.asarray(split.x[a:b, layout.x_joints], dtype=np.float64), layout.x_joints)
         w = cut_windows(block, window, stride)
         wins.append(w)
         styles.append(np.full(len(w), int(split.style[a])))
@@ -191,8 +191,8 @@ def train_style_classifier(ds, window_seconds: float = 0.75, stride_seconds: flo
     """
     window = max(2, int(round(window_seconds * ds.fps)))
     stride = max(1, int(round(stride_seconds * ds.fps)))
-    Xw, y = split_windows(ds.train, ds.layout, ds.normalizer, window, stride)
-    held = [split_windows(ds.split(n), ds.layout, ds.normalizer, window, stride) for n in ("val", "test")]
+    Xw, y = split_windows(ds.train, ds.layout, ds.stats, window, stride)
+    held = [split_windows(ds.split(n), ds.layout, ds.stats, window, stride) for n in ("val", "test")]
     Hw = np.concatenate([h[0] for h in held])
     hy = np.concatenate([h[1] for h in held])
     Xs = window_summary(Xw)
@@ -213,5 +213,5 @@ def train_style_classifier(ds, window_seconds: float = 0.75, stride_seconds: flo
 def classify_rollout(clf: StyleClassifier, ds, rollout, warmup_seconds: float = 1.0, window: int = 45,
                      stride: int = 15) -> np.ndarray:
     """Class probabilities of every window of every character: (B, M, n_classes)."""
-    blocks = ds.normalizer.normalize_clip(rollout_blocks(rollout, warmup_seconds), ds.layout)
+    blocks = ds.stats.normalize_clip(rollout_blocks(rollout, warmup_seconds), ds.layout.x_joints)
     return np.stack([clf.predict_proba(window_summary(cut_windows(b, window, stride))) for b in blocks])

@@ -7,11 +7,11 @@ in the paper's configuration: A.S.N. (animation synthesis network: Φ, plus Ω w
 one), S.M.N. (style modulation network: the one-hot rows, the adapters or Ψ) and P.S.R. (numbers
 needed per style at run time). Each is compared with the paper's number.
 
-Run time: the time to compute the next frame at batch 1 (`predict_single`, float32, FiLM
-vectors precomputed as at run time, Sec. 4.4), averaged over `frames` frames; five such runs
-give mean ± std, as in the paper. Every variant runs the same code (blend the experts / control
-points as one matrix-vector product per layer), so the ratios compare architectures, not
-implementations. Absolute times depend on this machine and its load.
+Run time: the time to compute the next frame at batch 1 through the one inference path
+(minifilm.runtime.network.RuntimeNetwork via minifilm.baselines.runtime.variant_network, float32,
+FiLM vectors precomputed as at run time, Sec. 4.4), averaged over `frames` frames; five such runs
+give mean ± std, as in the paper. Every variant runs the same code (one (I, K·O) matrix product
+per expert layer), so the ratios compare architectures, not implementations. Absolute times depend on this machine and its load.
 """
 from __future__ import annotations
 
@@ -21,6 +21,8 @@ import time
 
 import numpy as np
 
+from minifilm.baselines.runtime import variant_network
+from minifilm.dataset.stats import NormStats
 from minifilm.model.config import ModelConfig
 from minifilm.baselines.variants import VARIANTS, backbone_config, build_variant, variant_parameter_counts
 
@@ -49,7 +51,7 @@ def parameter_rows(config: ModelConfig, n_styles: int) -> list:
 
 
 def _timing_inputs(name, config, frames, rng):
-    """A run-time model of variant `name` (no Ψ) and `frames` inputs for it."""
+    """The run-time network of variant `name` (no Ψ) and `frames` inputs for it."""
     model = build_variant(name, config, rng, with_film_generator=False)
     for ps in model.parameter_sets():                        # adapters start at zero: make them do work
         ps.data[:] = (0.02 * rng.standard_normal(ps.size)).astype(ps.data.dtype)
@@ -59,8 +61,9 @@ def _timing_inputs(name, config, frames, rng):
         p = (np.arange(frames) / 60.0 % 1.0)[:, None].astype(np.float32)   # a phase advancing at 1 Hz
     else:
         p = rng.standard_normal((frames, cb.phase_dim)).astype(np.float32)
-    style = rng.standard_normal(config.film_dim).astype(np.float32) if model.modulation == "film" else 7
-    return model, x, p, style
+    style = rng.standard_normal(config.film_dim).astype(np.float32) if model.modulation == "film" else np.array([7])
+    network = variant_network(model, NormStats.identity(cb.x_dim, cb.z_dim, cb.phase_dim))
+    return network, x, p, style
 
 
 def time_variants(names, config, frames=200, runs=5, seed=0) -> dict:
@@ -72,13 +75,13 @@ def time_variants(names, config, frames=200, runs=5, seed=0) -> dict:
     rng = np.random.default_rng(seed)
     setups = {name: _timing_inputs(name, config, frames, rng) for name in names}
     per_run = {name: [] for name in names}
-    for model, x, p, style in setups.values():
-        model.predict_single(x[0], p[0], style)              # warm up
+    for network, x, p, style in setups.values():
+        network.predict(x[:1], p[:1], style)                 # warm up
     for _ in range(runs):
-        for name, (model, x, p, style) in setups.items():
+        for name, (network, x, p, style) in setups.items():
             t0 = time.perf_counter()
             for f in range(frames):
-                model.predict_single(x[f], p[f], style)
+                network.predict(x[f:f + 1], p[f:f + 1], style)
             per_run[name].append(1e3 * (time.perf_counter() - t0) / frames)
     return {name: (float(np.mean(v)), float(np.std(v))) for name, v in per_run.items()}
 
@@ -137,7 +140,7 @@ def main(argv=None) -> int:
     rows = build_table(config, args.styles, timings)
     notes = [FILM_NOTE]
     if timings is not None:
-        notes.append(f"Run time: batch-1 `predict_single` in float32 with NumPy, mean ± std over {args.runs} "
+        notes.append(f"Run time: batch-1 `RuntimeNetwork.predict` in float32 with NumPy, mean ± std over {args.runs} "
                      f"runs of {args.frames} frames each, on this machine (2 shared cores); the paper's "
                      "numbers are from its own (C#/Unity) runtime. Runs are interleaved across the "
                      "variants; compare the ratios between rows (the machine's load moves the absolute "

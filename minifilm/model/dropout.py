@@ -1,38 +1,45 @@
-"""Dropout sites with named, reusable keep-masks.
+"""The dropout of one forward pass, with named sites and replayable keep-masks.
 
-Every network of the model applies dropout "before each layer" (Sec. 4.3, rate 0.3). A gradient
-check needs the *same* masks on every evaluation of the loss, so each dropout site has a name and
-a forward pass can be given the masks to use (``masks={name: bool array}``). The masks a pass
-actually used are kept in ``used`` so a caller can replay them. Masks are drawn from an explicit
-``np.random.Generator`` when not given.
+Every network of the model applies dropout "before each layer" in training (Sec. 4.3, rate 0.3).
+A gradient check needs the *same* masks on every evaluation of the loss, so each dropout site has
+a name ("gating0", "motion2", "film_dense", ...) and a forward pass can be given the masks to use
+(``masks={name: bool array}``); the masks a pass actually used are kept in ``used``, so a caller
+can replay them. Masks are drawn from an explicit ``np.random.Generator`` when not given.
 """
 from __future__ import annotations
+
+from typing import Dict, Optional
 
 import numpy as np
 
 from minifilm.nn.functional import dropout_backward, dropout_forward
 
 
-def dropout_site(x, p, name, train, rng, masks, used):
-    """Inverted dropout on x at site `name`. Returns (out, cache) for `dropout_site_backward`.
+class Dropout:
+    """Inverted dropout with rate ``p`` for one forward pass of a network.
 
-    x      (B, ...) activations
-    p      drop probability
-    masks  dict name -> boolean keep-mask of x's shape, or None (draw from rng)
-    used   dict that receives the mask this call used (only when dropout is active)
+    train=False or p == 0: every site is the identity (no mask is drawn). Otherwise each site
+    uses ``masks[name]`` when given, else draws a keep-mask from ``rng`` (keep with
+    probability 1 - p), and records it in ``used[name]``.
     """
-    if not train or p == 0.0:
-        return dropout_forward(x, p, train=False)
-    mask = None if masks is None else masks.get(name)
-    if mask is None:
-        if rng is None:
-            raise ValueError(f"dropout site '{name}': training needs an rng or a fixed mask")
-        mask = rng.random(x.shape) >= p
-    elif mask.shape != x.shape:
-        raise ValueError(f"dropout site '{name}': mask shape {mask.shape} != activation shape {x.shape}")
-    used[name] = mask
-    return dropout_forward(x, p, mask=mask, train=True)
 
+    def __init__(self, p: float, train: bool = False, rng: Optional[np.random.Generator] = None,
+                 masks: Optional[Dict[str, np.ndarray]] = None):
+        self.p, self.train, self.rng, self.masks = p, train, rng, masks
+        self.used: Dict[str, np.ndarray] = {}
 
-def dropout_site_backward(dout, cache):
-    return dropout_backward(dout, cache)
+    def forward(self, x: np.ndarray, site: str):
+        """x (B, ...) -> (out, cache) at the named site; see :func:`dropout_backward`."""
+        if not self.train or self.p == 0.0:
+            return dropout_forward(x, self.p, train=False)
+        mask = None if self.masks is None else self.masks.get(site)
+        if mask is None:
+            if self.rng is None:
+                raise ValueError(f"dropout site '{site}': training needs an rng or a fixed mask")
+            mask = self.rng.random(x.shape) >= self.p
+        elif mask.shape != x.shape:
+            raise ValueError(f"dropout site '{site}': mask shape {mask.shape} != activation shape {x.shape}")
+        self.used[site] = mask
+        return dropout_forward(x, self.p, mask=mask, train=True)
+
+    backward = staticmethod(dropout_backward)

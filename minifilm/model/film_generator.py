@@ -1,9 +1,9 @@
 """Ψ, the FiLM generator (Sec. 4.2, Eq. 2): a style clip -> {γ1, β1, γ2, β2}.
 
-    y (B, T, C) -> conv1d(F filters, kernel k, 'same') -> ReLU -> max-pool 2
-                -> conv1d(F, k)                       -> ReLU -> max-pool 2
-                -> flatten (B, T//4 * F) -> dense(film_dense) -> ReLU -> dropout
-                -> dense(4 * hidden) = [γ1, β1, γ2, β2]                   (Eq. 2)
+    y (B, T, C) -> conv1d(F filters, kernel k, 'same') -> ReLU -> max-pool 2     conv block
+                -> conv1d(F, k)                       -> ReLU -> max-pool 2     conv block
+                -> flatten (B, T//4 * F) -> dense(film_dense) -> ReLU         dense block
+                -> dropout -> dense(4 * hidden) = [γ1, β1, γ2, β2]           dense block (Eq. 2)
 
 Dropout sits after the hidden dense layer only, as in the original code (Conv1D_Dense); the
 convolutions have none. Flattening is time-major (frame, filter), like a TF reshape of (B, T, F).
@@ -22,10 +22,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from minifilm.model.blocks import conv_block_backward, conv_block_forward, dense_backward, dense_forward
 from minifilm.model.config import ModelConfig
-from minifilm.model.dropout import dropout_site, dropout_site_backward
+from minifilm.model.dropout import Dropout
 from minifilm.model.init import glorot_uniform
-from minifilm.nn import functional as F
 from minifilm.nn.params import Parameters
 
 
@@ -68,28 +68,22 @@ class FilmGenerator:
 
     def forward(self, clip, train=False, rng=None, masks=None):
         """clip (B, T, C) -> film (B, 4*hidden)."""
-        c, P, self.used_masks = self.config, self.params.params, {}
+        c, P, W = self.config, self.params.params, self._work
+        drop = Dropout(c.dropout, train, rng, masks)
+        self.used_masks = drop.used
         # Drop the previous pass's caches now, not when the new ones are complete, so that no
         # large array of the last step stays alive next to its successor.
         self._caches = None
         if clip.ndim != 3 or clip.shape[1:] != (c.clip_frames, c.clip_channels):
             raise ValueError(f"FilmGenerator: clip must be (B, {c.clip_frames}, {c.clip_channels}), "
                              f"got {clip.shape}")
-        W = self._work
-        h, c_conv0 = F.conv1d_forward(clip, P["conv0_W"], P["conv0_b"], work=W["conv0"])  # (B, T, F)
-        h, c_relu0 = F.relu_forward(h)
-        h, c_pool0 = F.max_pool1d_forward(h)                             # (B, T//2, F)
-        h, c_conv1 = F.conv1d_forward(h, P["conv1_W"], P["conv1_b"], work=W["conv1"])
-        h, c_relu1 = F.relu_forward(h)
-        h, c_pool1 = F.max_pool1d_forward(h)                             # (B, T//4, F)
+        h, c0 = conv_block_forward(clip, P["conv0_W"], P["conv0_b"], W["conv0"])   # (B, T//2, F)
+        h, c1 = conv_block_forward(h, P["conv1_W"], P["conv1_b"], W["conv1"])      # (B, T//4, F)
         pooled_shape = h.shape
-        h = h.reshape(h.shape[0], -1)                                    # (B, T//4 * F)
-        h, c_dense0 = F.linear_forward(h, P["dense0_W"], P["dense0_b"])  # (B, film_dense)
-        h, c_relu2 = F.relu_forward(h)
-        h, c_drop = dropout_site(h, c.dropout, "film_dense", train, rng, masks, self.used_masks)
-        film, c_dense1 = F.linear_forward(h, P["dense1_W"], P["dense1_b"])  # (B, 4H)
-        self._caches = (c_conv0, c_relu0, c_pool0, c_conv1, c_relu1, c_pool1, pooled_shape,
-                        c_dense0, c_relu2, c_drop, c_dense1)
+        h = h.reshape(h.shape[0], -1)                                             # (B, T//4 * F)
+        h, c2 = dense_forward(h, P["dense0_W"], P["dense0_b"], "relu")           # (B, film_dense)
+        film, c3 = dense_forward(h, P["dense1_W"], P["dense1_b"], None, drop, "film_dense")  # (B, 4H)
+        self._caches = (c0, c1, pooled_shape, c2, c3)
         return film
 
     def backward(self, dfilm, need_input_grad=True):
@@ -101,26 +95,18 @@ class FilmGenerator:
         """
         if self._caches is None:
             raise RuntimeError("FilmGenerator.backward called before forward")
-        (c_conv0, c_relu0, c_pool0, c_conv1, c_relu1, c_pool1, pooled_shape,
-         c_dense0, c_relu2, c_drop, c_dense1) = self._caches
-        G = self.params.grads
-        dh, dW, db = F.linear_backward(dfilm, c_dense1, work=self._work["dense1"])
+        c0, c1, pooled_shape, c2, c3 = self._caches
+        G, W = self.params.grads, self._work
+        dh, dW, db = dense_backward(dfilm, c3, work=W["dense1"])
         G["dense1_W"] += dW
         G["dense1_b"] += db
-        dh = dropout_site_backward(dh, c_drop)
-        dh = F.relu_backward(dh, c_relu2)
-        dh, dW, db = F.linear_backward(dh, c_dense0, work=self._work["dense0"])
+        dh, dW, db = dense_backward(dh, c2, work=W["dense0"])
         G["dense0_W"] += dW
         G["dense0_b"] += db
-        dh = dh.reshape(pooled_shape)
-        dh = F.max_pool1d_backward(dh, c_pool1)
-        dh = F.relu_backward(dh, c_relu1)
-        dh, dW, db = F.conv1d_backward(dh, c_conv1)
+        dh, dW, db = conv_block_backward(dh.reshape(pooled_shape), c1)
         G["conv1_W"] += dW
         G["conv1_b"] += db
-        dh = F.max_pool1d_backward(dh, c_pool0)
-        dh = F.relu_backward(dh, c_relu0)
-        dclip, dW, db = F.conv1d_backward(dh, c_conv0, need_dx=need_input_grad)
+        dclip, dW, db = conv_block_backward(dh, c0, need_dx=need_input_grad)
         G["conv0_W"] += dW
         G["conv0_b"] += db
         return dclip

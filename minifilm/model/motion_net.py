@@ -8,18 +8,20 @@ For layer i in {1, 2} (the hidden layers), with expert weights blended by α = �
 and the output layer z = Σ_k α_k (W_k h(2) + b_k) is linear. Dropout (rate config.dropout) is
 applied to the input of every layer during training. Layer norm has no affine parameters of its
 own (FiLM plays that role); training uses the unbiased σ with eps 1e-6 added to σ, the released
-runtime the biased σ without eps (original-pipeline §10.2) — both are options.
+runtime the biased σ without eps (original-pipeline §10.2) — both are options. Each hidden layer
+is one :func:`~minifilm.model.blocks.film_block_forward`.
 
-Expert weights are stored W{l} (K, in, out), b{l} (K, out).
+Expert weights are stored W{l} (K, in, out), b{l} (K, out). Inference at run time goes through
+:class:`minifilm.runtime.network.RuntimeNetwork`, which computes the same thing laid out for speed.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from minifilm.model.blocks import expert_backward, expert_forward, film_block_backward, film_block_forward
 from minifilm.model.config import ModelConfig
-from minifilm.model.dropout import dropout_site, dropout_site_backward
+from minifilm.model.dropout import Dropout
 from minifilm.model.init import init_dense_stack
-from minifilm.nn import functional as F
 from minifilm.nn.params import Parameters
 
 
@@ -46,81 +48,41 @@ class MotionNetwork:
     def __init__(self, config: ModelConfig, rng: np.random.Generator, dtype=np.float32):
         self.config = config
         self.sizes = [config.x_dim, config.hidden, config.hidden, config.z_dim]
-        shapes = motion_shapes(config)
-        self.params = Parameters(shapes, dtype=dtype)
+        self.params = Parameters(motion_shapes(config), dtype=dtype)
         init_dense_stack(self.params, self.sizes, rng, dtype)
         self.used_masks: dict = {}
         self._caches = None
 
-    def _ln_options(self, unbiased, eps):
-        return (self.config.ln_unbiased if unbiased is None else unbiased,
-                self.config.ln_eps if eps is None else eps)
-
     def forward(self, x, alpha, film, train=False, rng=None, masks=None, ln_unbiased=None, ln_eps=None):
         """x (B, x_dim), α (B, K), film (B, 4H) = [γ1, β1, γ2, β2] -> z (B, z_dim)."""
-        P, q, self.used_masks = self.params.params, self.config.dropout, {}
-        unbiased, eps = self._ln_options(ln_unbiased, ln_eps)
-        films = split_film(film, self.config.hidden)
-        caches = []
-        h = x
-        for l in range(3):
-            h, c_drop = dropout_site(h, q, f"motion{l}", train, rng, masks, self.used_masks)
-            h, c_exp = F.expert_linear_forward(h, alpha, P[f"W{l}"], P[f"b{l}"])     # F(i)  (B, H)
-            if l < 2:
-                gamma, beta = films[l]
-                h, c_ln = F.layer_norm_forward(h, unbiased=unbiased, eps=eps)   # (F − μ)/σ
-                h, c_film = F.film_forward(h, gamma, beta)                     # γ ∘ · + β
-                h, c_act = F.elu_forward(h)                                   # h(i)
-                caches.append((c_drop, c_exp, c_ln, c_film, c_act))
-            else:
-                caches.append((c_drop, c_exp))
-        self._caches = caches
-        return h
+        P, c = self.params.params, self.config
+        unbiased = c.ln_unbiased if ln_unbiased is None else ln_unbiased
+        eps = c.ln_eps if ln_eps is None else ln_eps
+        drop = Dropout(c.dropout, train, rng, masks)
+        self.used_masks = drop.used
+        (g1, b1), (g2, b2) = split_film(film, c.hidden)
+        h1, c1 = film_block_forward(x, alpha, P["W0"], P["b0"], g1, b1, drop, "motion0", unbiased, eps)
+        h2, c2 = film_block_forward(h1, alpha, P["W1"], P["b1"], g2, b2, drop, "motion1", unbiased, eps)
+        z, c3 = expert_forward(h2, alpha, P["W2"], P["b2"], drop, "motion2")
+        self._caches = (c1, c2, c3)
+        return z
 
     def backward(self, dz):
         """dz (B, z_dim) -> dx (B, x_dim), dα (B, K), dfilm (B, 4H); parameter grads are added."""
         if self._caches is None:
             raise RuntimeError("MotionNetwork.backward called before forward")
-        G, H = self.params.grads, self.config.hidden
-        dfilm = np.zeros(dz.shape[:1] + (4 * H,), dtype=dz.dtype)
-        dfilms = split_film(dfilm, H)
-        dalpha = 0.0
-        dh = dz
-        for l in reversed(range(3)):
-            if l < 2:
-                c_drop, c_exp, c_ln, c_film, c_act = self._caches[l]
-                dh = F.elu_backward(dh, c_act)
-                dh, dgamma, dbeta = F.film_backward(dh, c_film)
-                dfilms[l][0][...] = dgamma
-                dfilms[l][1][...] = dbeta
-                dh = F.layer_norm_backward(dh, c_ln)
-            else:
-                c_drop, c_exp = self._caches[l]
-            dh, da, dW, db = F.expert_linear_backward(dh, c_exp)
-            G[f"W{l}"] += dW
-            G[f"b{l}"] += db
-            dalpha = dalpha + da
-            dh = dropout_site_backward(dh, c_drop)
-        return dh, dalpha, dfilm
-
-    def predict_single(self, x, alpha, film, ln_unbiased=None, ln_eps=None):
-        """Batch-1 inference (Sec. 4.4, original-pipeline §10.2): Σ_k α_k (h W_k + b_k) per layer.
-
-        The original blends the expert weights with α first, then multiplies; the same sum is
-        computed here as one matrix-vector product over outer(α, h) (F.expert_linear_single),
-        which reads each expert weight once and writes no blended matrix (batch 1 is limited by
-        reading the 19.7 MB of expert weights).
-
-        x (x_dim,), α (K,), film (4H,) -> z (z_dim,). No dropout.
-        """
-        P = self.params.params
-        unbiased, eps = self._ln_options(ln_unbiased, ln_eps)
-        films = split_film(film, self.config.hidden)
-        h = x
-        for l in range(3):
-            h = F.expert_linear_single(h, alpha, P[f"W{l}"], P[f"b{l}"])   # (O,)
-            if l < 2:
-                gamma, beta = films[l]
-                h, _ = F.layer_norm_forward(h[None, :], unbiased=unbiased, eps=eps)
-                h = F.elu_forward(gamma * h[0] + beta)[0]
-        return h
+        G, (c1, c2, c3) = self.params.grads, self._caches
+        dfilm = np.zeros(dz.shape[:1] + (4 * self.config.hidden,), dtype=dz.dtype)
+        dfilms = split_film(dfilm, self.config.hidden)            # views: [(dγ1, dβ1), (dγ2, dβ2)]
+        dh2, da3, dW, db = expert_backward(dz, c3)
+        G["W2"] += dW
+        G["b2"] += db
+        dh1, da2, dW, db, dgamma, dbeta = film_block_backward(dh2, c2)
+        G["W1"] += dW
+        G["b1"] += db
+        dfilms[1][0][...], dfilms[1][1][...] = dgamma, dbeta
+        dx, da1, dW, db, dgamma, dbeta = film_block_backward(dh1, c1)
+        G["W0"] += dW
+        G["b0"] += db
+        dfilms[0][0][...], dfilms[0][1][...] = dgamma, dbeta
+        return dx, da3 + da2 + da1, dfilm

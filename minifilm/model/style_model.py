@@ -8,7 +8,8 @@ Backward runs the same steps in reverse: Φ gives dx, dα and dfilm; Ω turns d�
 dfilm into dy. Every parameter gradient is *added* into the networks' ``.params.grads``.
 
 At run time (Sec. 4.4) Ψ is not needed: FiLM vectors are precomputed per style (2048 numbers in
-the paper config) and can be blended across styles with weights summing to 1.
+the paper config, minifilm/runtime/style_library.py) and the network runs through
+minifilm/runtime/network.py.
 """
 from __future__ import annotations
 
@@ -31,20 +32,6 @@ def parameter_counts(config: ModelConfig) -> dict:
             "film": count(film_shapes(config)), "per_style": config.film_dim}
 
 
-def blend_film(films, weights) -> np.ndarray:
-    """Blend the FiLM vectors of several styles (Sec. 4.4): Σ_s w_s film_s.
-
-    films (S, 4H), weights (S,) non-negative-or-not but summing to 1 -> (4H,).
-    """
-    films = np.asarray(films)
-    weights = np.asarray(weights, dtype=films.dtype)
-    if films.ndim != 2 or weights.shape != (films.shape[0],):
-        raise ValueError(f"blend_film: need films (S, D) and weights (S,), got {films.shape} and {weights.shape}")
-    if not np.isclose(weights.sum(), 1.0, atol=1e-5):
-        raise ValueError(f"blend_film: weights must sum to 1, got {weights.sum():.6g}")
-    return weights @ films
-
-
 class StyleModel:
     """Ω + Φ + Ψ with explicit forward and backward passes.
 
@@ -65,8 +52,6 @@ class StyleModel:
         self.film = FilmGenerator(config, rng, dtype) if with_film_generator else None   # Ψ
         self._film_shape = None
         self._used_generator = False
-
-    blend_film = staticmethod(blend_film)   # Σ_s w_s film_s, weights summing to 1 (Sec. 4.4)
 
     # ---- parameters ----------------------------------------------------------------------
     def parameter_sets(self):
@@ -142,15 +127,3 @@ class StyleModel:
         dx, dp, dfilm = self.backward_with_film(dz)
         dclip = self.film.backward(dfilm, need_input_grad=need_input_grads)
         return {"x": dx, "p": dp, "clip": dclip}
-
-    # ---- run time ------------------------------------------------------------------------
-    def predict_single(self, x, p, film, runtime_layer_norm=False):
-        """Batch-1 inference: x (x_dim,), p (phase_dim,), film (4H,) -> z (z_dim,).
-
-        Blends the expert weights first (one matrix-vector product per layer). With
-        runtime_layer_norm=True the layer norm uses the released runtime's convention (biased σ,
-        no eps) instead of the training one.
-        """
-        alpha = self.gating.forward(np.asarray(p)[None, :])[0]
-        opts = dict(ln_unbiased=False, ln_eps=0.0) if runtime_layer_norm else {}
-        return self.motion.predict_single(np.asarray(x), alpha, np.asarray(film), **opts)

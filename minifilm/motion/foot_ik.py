@@ -15,7 +15,7 @@ from typing import Sequence, Tuple
 
 import numpy as np
 
-__all__ = ["two_bone_ik", "contact_weight", "FootLocker", "foot_sliding"]
+__all__ = ["two_bone_ik", "contact_weight", "FootLocker"]
 
 
 def _unit(v, eps=1e-9):
@@ -103,15 +103,3 @@ class FootLocker:
         P[:, toe] = new_ankle + (P[:, toe] - P[:, ankle])               # foot moves rigidly
         P[:, knee], P[:, ankle] = new_knee, new_ankle
         return P
-
-
-def foot_sliding(positions: np.ndarray, contacts: np.ndarray, toes: Sequence[int], fps: float,
-                 threshold: float = 0.5) -> float:
-    """Mean horizontal toe speed (m/s) over frames where the foot's predicted contact > threshold.
-
-    positions (F, J, 3), contacts (F, feet), toes: joint index per foot (same order as contacts).
-    """
-    toes = list(toes)
-    v = np.linalg.norm(np.diff(positions[:, toes][..., [0, 2]], axis=0), axis=-1) * fps  # (F-1, feet)
-    on = np.asarray(contacts)[1:] > threshold
-    return float(v[on].mean()) if np.any(on) else 0.0

@@ -10,6 +10,8 @@ from typing import List, Optional, Tuple
 
 import numpy as np
 
+from minifilm.motion.kinematics import forward_kinematics
+
 
 @dataclass
 class Motion:
@@ -90,8 +92,6 @@ class Motion:
         Cached: treat the returned arrays as read-only and build a new Motion to change the motion.
         """
         if self._fk_cache is None:
-            from minifilm.motion.kinematics import forward_kinematics
-
             self._fk_cache = forward_kinematics(self.rotations, self.translations, self.parents)
         return self._fk_cache
 

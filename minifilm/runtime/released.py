@@ -26,9 +26,11 @@ from pathlib import Path
 
 import numpy as np
 
+from minifilm.files import atomic_directory
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
-from minifilm.dataset.arrays import NormStats
+from minifilm.runtime.network import RuntimeNetwork
+from minifilm.dataset.stats import NormStats
 
 FILM_PARTS = ("scale1", "shift1", "scale2", "shift2")   # γ1, β1, γ2, β2: the order of Eq. (2)
 _STYLE_FILE = re.compile(r"^Style_(\d{3})_scale1\.bin$")
@@ -41,24 +43,24 @@ class ReleasedFormatError(ValueError):
 @dataclass
 class ReleasedNetwork:
     """model: StyleModel with Ω and Φ (no Ψ); stats: normalisation; styles: name -> (4H,) FiLM
-    vector, in file order (names from styles.txt, else the 3-digit id)."""
+    vector, in file order (names from styles.txt, else the 3-digit id).
+
+    ``network`` is the model on the one inference path with the demo's layer norm (biased σ,
+    no eps, original-pipeline §10.2): what the runtime controller drives.
+    """
 
     model: StyleModel
     stats: NormStats
     styles: dict
 
-    def predict(self, X, L, film, runtime_layer_norm=True):
-        """One frame through the released network (original-pipeline §10.2 steps 1-6).
+    def __post_init__(self):
+        self.network = RuntimeNetwork.from_model(self.model, self.stats, runtime_layer_norm=True,
+                                                 dtype=self.model.dtype)
 
-        X (x_dim,) raw input, L (phase_dim,) raw local phases, film (4H,) -> Y (z_dim,) raw output.
-        runtime_layer_norm=True uses the demo's biased σ without eps.
-        """
-        x_hat = self.stats.normalize_x(np.asarray(X, dtype=np.float64))
-        p_hat = self.stats.normalize_p(np.asarray(L, dtype=np.float64))
-        dtype = self.model.dtype
-        z = self.model.predict_single(x_hat.astype(dtype), p_hat.astype(dtype), np.asarray(film, dtype),
-                                      runtime_layer_norm=runtime_layer_norm)
-        return self.stats.denormalize_z(z)
+    def predict(self, X, L, film):
+        """One frame (original-pipeline §10.2 steps 1-6): X (x_dim,) raw input, L (phase_dim,)
+        raw local phases, film (4H,) -> Y (z_dim,) raw output."""
+        return self.network.predict(np.asarray(X)[None], np.asarray(L)[None], film)[0]
 
 
 def _n_floats(path: Path) -> int:
@@ -146,32 +148,34 @@ def write_released(model: StyleModel, stats: NormStats, styles: dict, directory)
     """Write Ω + Φ, the statistics and the styles in the released layout (inverse of load_released).
 
     styles: name -> (4H,) FiLM vector; style files are numbered 000, 001, ... in dict order, and
-    styles.txt lists every name that is not just its own 3-digit id.
+    styles.txt lists every name that is not just its own 3-digit id. The folder is written whole
+    and atomically (minifilm.files.atomic_directory): an existing folder of that name is replaced,
+    so no file of an earlier, larger set of styles survives, and a failure leaves it as it was.
     """
-    d = Path(directory)
-    d.mkdir(parents=True, exist_ok=True)
-    for name, arr in (("Xmean", stats.x_mean), ("Xstd", stats.x_std), ("Ymean", stats.z_mean),
-                      ("Ystd", stats.z_std), ("GT_Xmean", stats.p_mean), ("GT_Xstd", stats.p_std)):
-        _write(d, name, arr)
-    G = model.gating.params.params
-    for l in range(3):
-        _write(d, f"wc{l}_w", G[f"W{l}"].T)
-        _write(d, f"wc{l}_b", G[f"b{l}"])
-    M = model.motion.params.params
-    for l in range(3):
-        for e in range(M[f"W{l}"].shape[0]):
-            _write(d, f"cp{l}_a{e}", M[f"W{l}"][e].T)
-            _write(d, f"cp{l}_b{e}", M[f"b{l}"][e])
     H = model.config.hidden
-    lines = []
-    for i, (name, film) in enumerate(styles.items()):
-        sid = f"{i:03d}"
-        film = np.asarray(film)
-        if film.shape != (4 * H,):
-            raise ValueError(f"write_released: style {name!r} has shape {film.shape}, expected ({4 * H},)")
-        for k, part in enumerate(FILM_PARTS):
-            _write(d, f"Style_{sid}_{part}", film[k * H:(k + 1) * H])
-        if name != sid:
-            lines.append(f"{sid} {name}\n")
-    if lines:
-        (d / "styles.txt").write_text("".join(lines))
+    for name, film in styles.items():           # check everything before writing anything
+        if np.shape(film) != (4 * H,):
+            raise ValueError(f"write_released: style {name!r} has shape {np.shape(film)}, expected ({4 * H},)")
+    with atomic_directory(directory) as d:
+        for name, arr in (("Xmean", stats.x_mean), ("Xstd", stats.x_std), ("Ymean", stats.z_mean),
+                          ("Ystd", stats.z_std), ("GT_Xmean", stats.p_mean), ("GT_Xstd", stats.p_std)):
+            _write(d, name, arr)
+        G = model.gating.params.params
+        for l in range(3):
+            _write(d, f"wc{l}_w", G[f"W{l}"].T)
+            _write(d, f"wc{l}_b", G[f"b{l}"])
+        M = model.motion.params.params
+        for l in range(3):
+            for e in range(M[f"W{l}"].shape[0]):
+                _write(d, f"cp{l}_a{e}", M[f"W{l}"][e].T)
+                _write(d, f"cp{l}_b{e}", M[f"b{l}"][e])
+        lines = []
+        for i, (name, film) in enumerate(styles.items()):
+            sid = f"{i:03d}"
+            film = np.asarray(film)
+            for k, part in enumerate(FILM_PARTS):
+                _write(d, f"Style_{sid}_{part}", film[k * H:(k + 1) * H])
+            if name != sid:
+                lines.append(f"{sid} {name}\n")
+        if lines:
+            (d / "styles.txt").write_text("".join(lines))

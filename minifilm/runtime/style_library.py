@@ -15,12 +15,13 @@ Stored as ``.npz`` with two arrays, ``names`` (S,) unicode and ``films`` (S, D);
 from __future__ import annotations
 
 import os
-import tempfile
 from typing import Dict, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-__all__ = ["StyleLibrary", "UnknownStyleError", "smoothstep"]
+from minifilm.files import atomic_savez
+
+__all__ = ["StyleLibrary", "UnknownStyleError", "blend_film", "smoothstep"]
 
 
 class UnknownStyleError(KeyError, ValueError):
@@ -35,6 +36,21 @@ def smoothstep(u: np.ndarray) -> np.ndarray:
     """3u^2 - 2u^3 on [0, 1], clamped: 0 -> 0 and 1 -> 1 exactly, zero slope at both ends."""
     u = np.clip(np.asarray(u, dtype=np.float64), 0.0, 1.0)
     return u * u * (3.0 - 2.0 * u)
+
+
+def blend_film(films: np.ndarray, weights: Sequence[float]) -> np.ndarray:
+    """Blend the FiLM vectors of several styles (Sec. 4.4): Σ_s w_s film_s.
+
+    films (S, D), weights (S,) summing to 1 -> (D,) in the films' dtype. Weights (0, .., 1, .., 0)
+    return that style's vector exactly (the others are multiplied by 0).
+    """
+    films = np.asarray(films)
+    weights = np.asarray(weights, dtype=np.float64)
+    if films.ndim != 2 or weights.shape != (films.shape[0],):
+        raise ValueError(f"blend_film: need films (S, D) and weights (S,), got {films.shape} and {weights.shape}")
+    if not np.all(np.isfinite(weights)) or not np.isclose(weights.sum(), 1.0, atol=1e-6):
+        raise ValueError(f"blend_film: weights must be finite and sum to 1, got {weights.tolist()}")
+    return weights.astype(films.dtype) @ films
 
 
 class StyleLibrary:
@@ -98,17 +114,8 @@ class StyleLibrary:
     # ------------------------------------------------------------------ files
     def save(self, path: Union[str, os.PathLike]) -> None:
         """Write ``names`` and ``films`` to an .npz (atomically: temporary file, then rename)."""
-        path = os.fspath(path)
-        folder = os.path.dirname(os.path.abspath(path))
-        fd, tmp = tempfile.mkstemp(suffix=".npz", dir=folder)
-        os.close(fd)
-        try:
-            np.savez(tmp, names=np.array(self.names, dtype=str),
-                     films=np.stack([self._films[n] for n in self.names]) if self._films else np.zeros((0, 0)))
-            os.replace(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.remove(tmp)
+        films = np.stack([self._films[n] for n in self.names]) if self._films else np.zeros((0, 0))
+        atomic_savez(path, {"names": np.array(self.names, dtype=str), "films": films})
 
     @classmethod
     def load(cls, path: Union[str, os.PathLike]) -> "StyleLibrary":
@@ -123,17 +130,11 @@ class StyleLibrary:
 
     # ------------------------------------------------------------------ mixing
     def blend(self, weights: Mapping[str, float]) -> np.ndarray:
-        """Σ_s w_s film_s for weights summing to 1 (Sec. 4.4). A weight of exactly 1 returns that
-        style's vector exactly (the others are multiplied by 0)."""
+        """Σ_s w_s film_s for weights (name -> w) summing to 1 (Sec. 4.4); see :func:`blend_film`."""
         if not weights:
             raise ValueError("blend: no styles given")
-        total = sum(float(w) for w in weights.values())
-        if not np.isclose(total, 1.0, atol=1e-6):
-            raise ValueError(f"blend: weights must sum to 1, got {total:.6g} from {dict(weights)}")
-        out = np.zeros(self.dim, dtype=self.dtype)
-        for name, w in weights.items():
-            out += self.dtype.type(w) * self[name]
-        return out
+        films = np.stack([self[name] for name in weights])
+        return blend_film(films, [float(w) for w in weights.values()])
 
     def barycentric(self, styles: Sequence[str], coords: Sequence[float]) -> np.ndarray:
         """Three styles blended at barycentric coordinates (w1, w2, w3) >= 0, summing to 1."""

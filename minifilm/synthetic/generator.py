@@ -242,7 +242,7 @@ def write_dataset(directory: Union[str, Path], clips: Optional[Sequence[Syntheti
     With ``truth``, also ``<Style>_<Gait>.truth.npz`` holding true_phase, true_contacts,
     phase_active (plain arrays, loadable with allow_pickle=False). Returns the BVH paths.
     """
-    from minifilm.motion.bvh import write_bvh
+    from minifilm.motion.bvh_write import write_bvh
 
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)

@@ -18,12 +18,14 @@ good one stays intact.
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 import zipfile
 from pathlib import Path
 
 import numpy as np
+
+from minifilm.files import atomic_savez
+from minifilm.model.config import ModelConfig
+from minifilm.model.style_model import StyleModel
 
 FORMAT = "minifilm-checkpoint-1"
 NETWORKS = ("gating", "motion", "film")
@@ -35,24 +37,12 @@ class CheckpointError(ValueError):
 
 def save_checkpoint(path, meta: dict, arrays: dict) -> None:
     """Atomically write `arrays` (name -> ndarray) and `meta` (JSON-serialisable) to `path`."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     payload = {"meta.json": np.array(json.dumps({"format": FORMAT, **meta}))}
     for name, arr in arrays.items():
         if name == "meta.json":
             raise ValueError("save_checkpoint: 'meta.json' is a reserved array name")
         payload[name] = np.asarray(arr)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            np.savez(f, **payload)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    atomic_savez(path, payload)
 
 
 def load_checkpoint(path) -> tuple[dict, dict]:
@@ -104,3 +94,17 @@ def load_model_arrays(model, arrays: dict, path="checkpoint", networks=NETWORKS)
             sub.params.load_state_dict(state, strict=True)
         except (KeyError, ValueError) as e:
             raise CheckpointError(f"{path}: parameters of '{net}' do not fit the model: {e}") from e
+
+
+def build_style_model(meta: dict) -> StyleModel:
+    """The paper's StyleModel for a checkpoint's metadata (weights not loaded yet).
+
+    A checkpoint of a comparison variant other than the LPN + FiLM (Sec. 5) is refused with a
+    CheckpointError naming it: those are rebuilt by minifilm.baselines.variants.model_from_checkpoint.
+    """
+    variant = meta.get("variant") or {}
+    if variant.get("name") not in (None, "LPN FiLM"):
+        raise CheckpointError(f"checkpoint holds the comparison model {variant['name']!r}, not the paper's "
+                              "style model; load it with build_model=minifilm.baselines.variants.model_from_checkpoint")
+    config = ModelConfig.from_dict(meta["model_config"])
+    return StyleModel(config, np.random.default_rng(0), with_film_generator=meta.get("has_film_generator", True))

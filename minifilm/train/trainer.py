@@ -1,4 +1,4 @@
-"""Training of the style model (Sec. 4.3) and fine-tuning of Ψ for new styles (Sec. 5.3.2).
+"""Training of the style model (Sec. 4.3): the Trainer, its settings and its checkpoints.
 
     loss = L_mse + L_bll                                  Eq. (5)-(7)
     minibatches hold one style; styles visited in a fixed cycle; one epoch = one pass through
@@ -7,7 +7,8 @@
 Each sample is paired with a clip of its own style, drawn at random per sample (the original
 draws a clip per style). Data comes in as plain arrays (minifilm.dataset.arrays.TrainData), already
 normalised; the bone-length loss needs the joint-position columns of z and the parent list,
-which the caller takes from the feature layout.
+which the caller takes from the feature layout. The minibatches are built in batches.py; fine-tuning
+Ψ alone (Sec. 5.3.2) is finetune.py.
 
 Robustness: a NaN or inf in a loss or a gradient stops training with TrainingDiverged naming
 the step and the quantity, *before* the optimiser touches the weights; checkpoints are written
@@ -23,13 +24,14 @@ from dataclasses import asdict, dataclass, field, fields
 
 import numpy as np
 
-from minifilm.train.checkpoint import (CheckpointError, NETWORKS, load_checkpoint, load_model_arrays,
-                                 model_arrays, save_checkpoint, subset)
-from minifilm.model.config import ModelConfig
+from minifilm.dataset.arrays import TrainData
+from minifilm.dataset.stats import NormStats
 from minifilm.model.losses import bone_length_loss, mse_loss
 from minifilm.model.style_model import StyleModel
 from minifilm.nn.optim import Adam
-from minifilm.dataset.arrays import NormStats, TrainData
+from minifilm.train.batches import draw_clips, epoch_batches
+from minifilm.train.checkpoint import (NETWORKS, CheckpointError, build_style_model, load_checkpoint,
+                                       load_model_arrays, model_arrays, save_checkpoint, subset)
 
 
 class TrainingDiverged(RuntimeError):
@@ -82,34 +84,6 @@ class TrainConfig:
     def from_dict(cls, d):
         names = {f.name for f in fields(cls)}
         return cls(**{k: v for k, v in d.items() if k in names})
-
-
-# ---- style-balanced minibatches -----------------------------------------------------------
-def epoch_batches(style, batch_size, rng):
-    """The minibatches of one epoch, as (style id, frame indices) in training order.
-
-    Each style's frames are shuffled; one epoch takes n_min // batch_size batches from every
-    style (n_min = frames of the shortest style), cycling through the styles in a fixed
-    (ascending id) order, so every run of S consecutive batches holds all S styles once.
-    A shortest style with fewer frames than batch_size gives one smaller batch per style.
-    """
-    styles = np.unique(style)
-    perms = [rng.permutation(np.nonzero(style == s)[0]) for s in styles]
-    n_min = min(len(p) for p in perms)
-    size = min(batch_size, n_min)
-    n_batches = n_min // size
-    return [(int(s), perm[k * size:(k + 1) * size])
-            for k in range(n_batches) for s, perm in zip(styles, perms)]
-
-
-def draw_clips(data: TrainData, style_ids, rng):
-    """One clip index per sample, drawn uniformly among the clips of the sample's style."""
-    out = np.empty(len(style_ids), dtype=np.int64)
-    for s in np.unique(style_ids):
-        pool = np.nonzero(data.clip_style == s)[0]
-        where = np.nonzero(style_ids == s)[0]
-        out[where] = pool[rng.integers(0, len(pool), size=len(where))]
-    return out
 
 
 # ---- the trainer --------------------------------------------------------------------------
@@ -268,28 +242,24 @@ class Trainer:
         save_checkpoint(path, meta, arrays)
 
     @classmethod
-    def resume(cls, path, config: TrainConfig | None = None, restore_optimizer=True):
+    def resume(cls, path, config: TrainConfig | None = None, restore_optimizer=True, build_model=None):
         """Rebuild a Trainer from a checkpoint: model, stats, optimiser state, rng, history.
 
         config: replaces the stored TrainConfig (e.g. more epochs). restore_optimizer=False starts
-        a fresh optimiser and rng (used for fine-tuning, which is a new run).
+        a fresh optimiser and rng (used for fine-tuning, which is a new run). build_model: the
+        checkpoint's metadata -> a freshly built model to load the weights into; the default
+        builds the paper's StyleModel (minifilm.train.checkpoint.build_style_model), the
+        comparison passes its own builder for its variants.
         """
         meta, arrays = load_checkpoint(path)
         try:
-            mcfg = ModelConfig.from_dict(meta["model_config"])
             tcfg = config or TrainConfig.from_dict(meta["train_config"])
             stats = NormStats.from_arrays(arrays, "stats.")
+            model = (build_model or build_style_model)(meta)
         except (KeyError, ValueError, TypeError) as e:
+            if isinstance(e, CheckpointError):
+                raise
             raise CheckpointError(f"checkpoint {path}: bad configuration or statistics ({e})") from e
-        variant = meta.get("variant")
-        if variant:       # a comparison model of Sec. 5 (minifilm.baselines.variants)
-            from minifilm.baselines.variants import build_variant
-            n_styles = variant.get("n_styles")
-            model = build_variant(variant["name"], mcfg, np.random.default_rng(0),
-                                  with_film_generator=meta.get("has_film_generator", True),
-                                  **({} if n_styles is None else {"n_styles": int(n_styles)}))
-        else:
-            model = StyleModel(mcfg, np.random.default_rng(0), with_film_generator=meta.get("has_film_generator", True))
         load_model_arrays(model, arrays, path)
         pos = meta.get("positions_idx")
         par = meta.get("parents")
@@ -310,22 +280,5 @@ def train(model, train_data, val_data, stats, positions_idx=None, parents=None, 
           style_names=()):
     """Train `model` from scratch; returns the Trainer (history in .history)."""
     trainer = Trainer(model, stats, config or TrainConfig(), positions_idx, parents, list(style_names))
-    trainer.fit(train_data, val_data)
-    return trainer
-
-
-def finetune(checkpoint_path, train_data, val_data=None, config: TrainConfig | None = None,
-             style_names=()):
-    """Fine-tune Ψ for new styles (Sec. 5.3.2): Φ and Ω frozen at a trained checkpoint.
-
-    Starts a new run (fresh optimiser and rng from config.seed) with freeze = (gating, motion).
-    """
-    cfg = config or TrainConfig()
-    cfg = TrainConfig.from_dict({**cfg.to_dict(), "freeze": ["gating", "motion"]})
-    trainer = Trainer.resume(checkpoint_path, cfg, restore_optimizer=False)
-    if trainer.model.film is None:
-        raise CheckpointError(f"checkpoint {checkpoint_path}: has no FiLM generator to fine-tune")
-    if style_names:
-        trainer.style_names = list(style_names)
     trainer.fit(train_data, val_data)
     return trainer

@@ -1,0 +1,59 @@
+"""The labelling recipe of one motion file: foot contacts first, then the four local phases.
+
+This is the one place that says how a file is labelled (Sec. 4.1; original-pipeline.md §2-§4),
+so the dataset builder, the phase plot, the main job's phase check and the benchmarks all label
+the same way:
+
+    contacts = foot_contacts(toe-tip sensors)                  contacts.py  (Sec. 4.1.2)
+    phases   = extract_local_phases(motion, contacts, sources)  local_phases.py (Sec. 4.1, Eq. 1)
+
+with the phase sources of the style (a hopping style's lifted foot gets the contact-free PCA
+source, :func:`~minifilm.phases.local_phases.default_sources`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional, Sequence
+
+import numpy as np
+
+from minifilm.motion.motion import Motion
+from minifilm.phases.contacts import foot_contacts
+from minifilm.phases.local_phases import LocalPhases, default_sources, extract_local_phases
+
+
+@dataclass
+class Labels:
+    """The labels of one motion.
+
+    contacts (F, 2): 0/1 foot contacts, columns [right, left];
+    phases: the four local phases [left hand, right hand, left foot, right foot] (phase,
+        amplitude and the fitted sources for plotting).
+    """
+
+    contacts: np.ndarray
+    phases: LocalPhases
+
+    @property
+    def vectors(self) -> np.ndarray:
+        """(F, 8) the network's phase input p, Eq. (1)."""
+        return self.phases.vectors()
+
+    def mirrored(self) -> "Labels":
+        """The labels of the left-right mirrored motion (original-pipeline §1.3, §4.6): the two
+        contact columns swap, and so do the left and right phase slots."""
+        return Labels(self.contacts[:, ::-1].copy(), self.phases.mirrored())
+
+
+def label(motion: Motion, skeleton, style: Optional[str] = None,
+          sources: Optional[Sequence[str]] = None, **fit_options) -> Labels:
+    """Contacts and local phases of ``motion`` on ``skeleton``.
+
+    ``style`` picks the phase sources (see ``default_sources``) unless ``sources`` names them;
+    ``fit_options`` go to the sinusoid fit. Contacts use the skeleton's two toe-tip sensors with
+    the floor height estimated from the file.
+    """
+    positions, _ = motion.world()
+    contacts = foot_contacts(positions[:, skeleton.contact_indices(motion)], motion.fps)
+    sources = default_sources(style) if sources is None else tuple(sources)
+    return Labels(contacts, extract_local_phases(motion, skeleton, contacts, sources, **fit_options))

@@ -1,0 +1,68 @@
+"""Rollout: what :meth:`~minifilm.runtime.controller.Controller.run` returns, and the checks of one."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import List, Optional, Sequence
+
+import numpy as np
+
+from minifilm.motion.measures import bone_length_cv, foot_sliding
+from minifilm.motion.motion import Motion
+from minifilm.motion.retarget import retarget
+from minifilm.runtime.control import distance_to_path
+
+
+@dataclass
+class Rollout:
+    """The result of :meth:`Controller.run` for B characters and F frames.
+
+    positions (B, F, J, 3) world joint positions (after foot locking, if on), metres;
+    rotations (B, F, J, 3, 3) world joint rotations from the predicted forward/up axes;
+    contacts (B, F, 2) predicted foot contacts [right, left]; phases (B, F, 8);
+    root_positions (B, F, 2) and root_facing (B, F, 2) world (x, z) of the root on the floor;
+    targets (B, F, 2) the commanded velocities (m/s); fps;
+    network_positions (B, F, J, 3) float32: the joints exactly as the network predicted them,
+    before the velocity blend, the skeleton fit and foot locking.
+    """
+
+    positions: np.ndarray
+    rotations: np.ndarray
+    contacts: np.ndarray
+    phases: np.ndarray
+    root_positions: np.ndarray
+    root_facing: np.ndarray
+    targets: np.ndarray
+    fps: float
+    network_positions: Optional[np.ndarray] = None
+
+    def metrics(self, parents: Sequence[int], path: Optional[np.ndarray] = None,
+                toes: Optional[Sequence[int]] = None, warmup_seconds: float = 1.0) -> List[dict]:
+        """Per character: the checks of the issue, after ``warmup_seconds`` (the start pose is the
+        data's mean pose). Keys: bone_cv_max (coefficient of variation of the worst bone, output
+        positions), network_bone_cv_max (the same for the network's own positions),
+        hips_min / hips_max (m, joint 0 height), speed (mean root speed, m/s), and when given,
+        path_mean / path_max (m, root distance to the polyline ``path`` (N, 2)) and foot_sliding
+        (m/s, toes = joint index per contact column)."""
+        parents = np.asarray(parents)
+        k0 = min(int(round(warmup_seconds * self.fps)), self.positions.shape[1] - 2)
+        out = []
+        for b in range(self.positions.shape[0]):
+            P = self.positions[b, k0:]
+            m = dict(bone_cv_max=float(bone_length_cv(P, parents).max()),
+                     hips_min=float(P[:, 0, 1].min()), hips_max=float(P[:, 0, 1].max()),
+                     speed=float(np.linalg.norm(np.diff(self.root_positions[b, k0:], axis=0), axis=1).mean() * self.fps))
+            if self.network_positions is not None:
+                m["network_bone_cv_max"] = float(bone_length_cv(self.network_positions[b, k0:], parents).max())
+            if path is not None:
+                d = distance_to_path(self.root_positions[b, k0:], path)
+                m.update(path_mean=float(d.mean()), path_max=float(d.max()))
+            if toes is not None:
+                m["foot_sliding"] = foot_sliding(P, self.contacts[b, k0:], toes, self.fps)
+            out.append(m)
+        return out
+
+    def to_motion(self, skeleton: Motion, joint_indices: Sequence[int], character: int = 0,
+                  fit_positions: bool = True) -> Motion:
+        """Character ``character`` as a Motion on ``skeleton`` (see :func:`retarget`), for BVH export."""
+        return retarget(self.positions[character], self.rotations[character], skeleton, joint_indices,
+                        frame_time=1.0 / self.fps, fit_positions=fit_positions)

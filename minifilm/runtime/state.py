@@ -1,0 +1,50 @@
+"""CharacterState: everything the controller remembers between two frames, for B characters.
+
+All arrays are in the world frame (metres, y up; 2-D vectors are floor (x, z) pairs). The
+controller replaces arrays rather than writing into them, so a frame handed out by
+:meth:`~minifilm.runtime.controller.Controller.frame` stays valid until the next step.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class CharacterState:
+    """The state of B characters.
+
+    root, facing (B, 2)            the root on the floor and its unit facing direction
+    history_pos, history_dir (B, N, 2)  the root's last N frames; [:, -n] is n frames ago
+    future_pos, future_dir (B, S, 2)    the future trajectory samples; sample 0 is the root
+    joint_pos, joint_fwd, joint_up, joint_vel (B, J, 3)
+                                   the pose the next input frame is built from (positions, forward
+                                   and up axes of each joint's rotation, velocities in m/s)
+    phases (B, 8)                  the running local phases p (Eq. 1)
+    contacts (B, 2)                the predicted foot contacts [right, left]
+    network_pos (B, J, 3)          the joints exactly as the network last predicted them
+    out_pos, out_fwd, out_up (B, J, 3)  the pose shown to the user (after the skeleton fit and
+                                   foot locking, when on)
+    """
+
+    root: np.ndarray
+    facing: np.ndarray
+    history_pos: np.ndarray
+    history_dir: np.ndarray
+    future_pos: np.ndarray
+    future_dir: np.ndarray
+    joint_pos: np.ndarray
+    joint_fwd: np.ndarray
+    joint_up: np.ndarray
+    joint_vel: np.ndarray
+    phases: np.ndarray
+    contacts: np.ndarray
+    network_pos: np.ndarray
+    out_pos: np.ndarray
+    out_fwd: np.ndarray
+    out_up: np.ndarray
+
+    @property
+    def batch(self) -> int:
+        return len(self.root)

@@ -1,0 +1,38 @@
+"""Style-balanced minibatches (Sec. 4.3) and the style clip each sample is paired with.
+
+Every minibatch holds frames of a single style; the styles are visited in a fixed cycle, and one
+epoch is one pass through the shortest style's training frames, so every style gets the same
+number of updates however much data it has (the per-style normalisation 1/N_s of Eq. 5 and 7).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from minifilm.dataset.arrays import TrainData
+
+
+def epoch_batches(style, batch_size, rng):
+    """The minibatches of one epoch, as (style id, frame indices) in training order.
+
+    Each style's frames are shuffled; one epoch takes n_min // batch_size batches from every
+    style (n_min = frames of the shortest style), cycling through the styles in a fixed
+    (ascending id) order, so every run of S consecutive batches holds all S styles once.
+    A shortest style with fewer frames than batch_size gives one smaller batch per style.
+    """
+    styles = np.unique(style)
+    perms = [rng.permutation(np.nonzero(style == s)[0]) for s in styles]
+    n_min = min(len(p) for p in perms)
+    size = min(batch_size, n_min)
+    n_batches = n_min // size
+    return [(int(s), perm[k * size:(k + 1) * size])
+            for k in range(n_batches) for s, perm in zip(styles, perms)]
+
+
+def draw_clips(data: TrainData, style_ids, rng):
+    """One clip index per sample, drawn uniformly among the clips of the sample's style."""
+    out = np.empty(len(style_ids), dtype=np.int64)
+    for s in np.unique(style_ids):
+        pool = np.nonzero(data.clip_style == s)[0]
+        where = np.nonzero(style_ids == s)[0]
+        out[where] = pool[rng.integers(0, len(pool), size=len(where))]
+    return out
