@@ -15,7 +15,6 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
 from minifilm.motion.bvh import read_bvh  # noqa: E402
 from minifilm.motion.bvh_write import write_bvh

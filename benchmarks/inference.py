@@ -11,21 +11,21 @@ weights can stay in the cache as in a real-time loop); times are medians after w
 
     python benchmarks/inference.py [--repeat 200] [--threads N] [--profile]
 """
-import common  # noqa: F401  (sets the BLAS thread count before numpy is imported)
-
 import argparse  # noqa: E402
 
+import common  # noqa: F401  (sets the BLAS thread count before numpy is imported)
 import numpy as np  # noqa: E402
-
 from common import THREADS, compare_ms, header, random_batch, table  # noqa: E402
+from torch_reference import from_numpy, load_torch  # noqa: E402
+
 from minifilm.model.config import ModelConfig  # noqa: E402
 from minifilm.model.style_model import StyleModel  # noqa: E402
-from torch_reference import from_numpy, load_torch  # noqa: E402
 
 
 def profile_batch1(model, x, p, film, repeat):
     """Where a batch-1 frame's time goes: Ω, each expert product, the rest (median ms)."""
     from common import median_ms
+
     from minifilm.model.motion_net import split_film
     from minifilm.nn import functional as F
     P, H = model.motion.params.params, model.config.hidden

@@ -15,8 +15,6 @@ given, (b) the full model with Ψ on 240 x 300 clips.
 
     python benchmarks/memory.py [--batch 32] [--case a b]
 """
-import common  # noqa: F401  (sets the BLAS thread count before numpy is imported)
-
 import argparse  # noqa: E402
 import importlib.util  # noqa: E402
 import json  # noqa: E402
@@ -25,8 +23,8 @@ import subprocess  # noqa: E402
 import sys  # noqa: E402
 import tracemalloc  # noqa: E402
 
+import common  # noqa: F401  (sets the BLAS thread count before numpy is imported)
 import numpy as np  # noqa: E402
-
 from common import header, random_batch, table  # noqa: E402
 
 MB = 1024 * 1024

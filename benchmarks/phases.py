@@ -23,7 +23,6 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 # BLAS reads its thread count once, when numpy is first imported: set it before that.
 THREADS = int(sys.argv[sys.argv.index("--threads") + 1]) if "--threads" in sys.argv else os.cpu_count() or 1
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
@@ -33,11 +32,11 @@ import numpy as np  # noqa: E402
 from scipy.optimize import least_squares  # noqa: E402
 
 from minifilm.motion.bvh import read_bvh  # noqa: E402
-from minifilm.phases.contacts import foot_contacts  # noqa: E402
 from minifilm.motion.editing import resample  # noqa: E402
-from minifilm.phases.sinusoid_fit import fit_sinusoids, overflow_window, window_half_width  # noqa: E402
-from minifilm.phases.local_phases import SLOTS, extract_local_phases  # noqa: E402
 from minifilm.motion.skeletons import BANDAI  # noqa: E402
+from minifilm.phases.contacts import foot_contacts  # noqa: E402
+from minifilm.phases.local_phases import SLOTS, extract_local_phases  # noqa: E402
+from minifilm.phases.sinusoid_fit import fit_sinusoids, overflow_window, window_half_width  # noqa: E402
 
 DATA = Path(os.environ.get("MINIFILM_SHARED_DATA", ROOT.parent / "shared" / "data"))
 

@@ -26,14 +26,13 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
 
-from minifilm.runtime.control import figure_eight  # noqa: E402
-from minifilm.motion.measures import bone_length_cv  # noqa: E402
-from minifilm.motion.bvh import read_bvh  # noqa: E402
 from minifilm.features.layout import FeatureLayout  # noqa: E402
+from minifilm.motion.bvh import read_bvh  # noqa: E402
+from minifilm.motion.measures import bone_length_cv  # noqa: E402
 from minifilm.motion.skeletons import STYLE100  # noqa: E402
 from minifilm.runtime.calibration import PerCharacterCalibration, calibrate_speed  # noqa: E402
+from minifilm.runtime.control import figure_eight  # noqa: E402
 from minifilm.runtime.controller import Controller  # noqa: E402
 from minifilm.runtime.network import RuntimeNetwork  # noqa: E402
 

@@ -33,11 +33,10 @@ os.environ.setdefault("MKL_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
 
-from minifilm.runtime.control import CommandScript  # noqa: E402
 from minifilm.features.layout import FeatureLayout  # noqa: E402
 from minifilm.motion.skeletons import STYLE100  # noqa: E402
+from minifilm.runtime.control import CommandScript  # noqa: E402
 from minifilm.runtime.controller import Controller, RuntimeNetwork  # noqa: E402
 
 
@@ -72,8 +71,8 @@ def blend_first(net: RuntimeNetwork, model, x, p, film):
 def quality(rel, layout, styles, seconds, body):
     """Minute-long rollouts of several styles, without and with foot locking, every frame put on
     the skeleton ``body`` (a SkeletonFit): bone CV of the network's own prediction and of the output."""
-    from minifilm.runtime.control import figure_eight
     from minifilm.motion.foot_ik import FootLocker
+    from minifilm.runtime.control import figure_eight
     from minifilm.runtime.controller import calibrate_speed
 
     net = RuntimeNetwork.from_model(rel.model, rel.stats, runtime_layer_norm=True)

@@ -30,18 +30,16 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
 
-from minifilm.runtime.control import figure_eight                              # noqa: E402
-from minifilm.dataset.build import build_dataset                                # noqa: E402
-from minifilm.motion.bvh import read_bvh                               # noqa: E402
-from minifilm.motion.skeletons import builtin_skeleton                 # noqa: E402
+from minifilm.dataset.build import build_dataset  # noqa: E402
+from minifilm.motion.bvh import read_bvh  # noqa: E402
+from minifilm.motion.skeletons import builtin_skeleton  # noqa: E402
 from minifilm.runtime.calibration import PerCharacterCalibration, calibrate_speed  # noqa: E402
-from minifilm.runtime.controller import Controller, start_from_dataset           # noqa: E402
-from minifilm.runtime.network import RuntimeNetwork                              # noqa: E402
-from minifilm.runtime.style_library import StyleLibrary                        # noqa: E402
-from minifilm.train.trainer import Trainer                                     # noqa: E402
+from minifilm.runtime.control import figure_eight  # noqa: E402
+from minifilm.runtime.controller import Controller, start_from_dataset  # noqa: E402
+from minifilm.runtime.network import RuntimeNetwork  # noqa: E402
+from minifilm.runtime.style_library import StyleLibrary  # noqa: E402
+from minifilm.train.trainer import Trainer  # noqa: E402
 
 
 def rollout_metrics(checkpoint: Path, seconds: float = 60.0, speed: float = 1.3, start: str = "data",

@@ -22,22 +22,21 @@ Outputs in --out (default runs/finetune_new_style): base.npz, finetuned.npz, fil
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
-
-from minifilm.evaluation.compare_report import draw_film_codes                                             # noqa: E402
-from minifilm.evaluation.compare_tools import film_codes, film_separation, fit_stats, style_subset  # noqa: E402
-from minifilm.dataset.build import build_dataset                                                        # noqa: E402
-from minifilm.model.config import ModelConfig                                                  # noqa: E402
-from minifilm.model.style_model import StyleModel                                              # noqa: E402
-from minifilm.synthetic import generator as synthetic                                                          # noqa: E402
-from minifilm.train.finetune import finetune                                      # noqa: E402
-from minifilm.train.trainer import TrainConfig, Trainer                                      # noqa: E402
+from minifilm.cli import report_errors
+from minifilm.dataset.build import build_dataset
+from minifilm.evaluation.compare_report import draw_film_codes
+from minifilm.evaluation.compare_tools import film_codes, film_separation, fit_stats, style_subset
+from minifilm.model.config import ModelConfig
+from minifilm.model.style_model import StyleModel
+from minifilm.synthetic import generator as synthetic
+from minifilm.train.finetune import finetune
+from minifilm.train.trainer import TrainConfig, Trainer
+from minifilm.viewer.matplotlib_setup import pyplot, save_figure
 
 SEED = 0
 OUT = Path("runs/finetune_new_style")
@@ -50,8 +49,7 @@ EPOCHS = 4                         # training on the seen styles
 FINETUNE_EPOCHS = 6                # fine-tuning Ψ on the held-out style (an epoch is 1/S as long)
 BATCH_SIZE = 32
 LEARNING_RATE = 1e-3
-MODEL = dict(n_experts=4, hidden=128, gating_hidden=32, conv_filters=32, conv_kernel=9,
-             film_dense=128, dropout=0.3)
+MODEL = dict(dropout=0.3)            # overrides of ModelConfig.small, the main job's model
 QUICK = dict(SECONDS=6.0, GAITS=("FW", "FR"), EPOCHS=1, FINETUNE_EPOCHS=1, STYLES=synthetic.STYLES[:4],
              HOLDOUT=synthetic.STYLES[3], MODEL=dict(MODEL, hidden=16, conv_filters=4, film_dense=16,
                                                      n_experts=2, gating_hidden=8))
@@ -97,8 +95,8 @@ def run(data=None, out=OUT, holdout=HOLDOUT, quick=False, seed=SEED, epochs=None
 
     # 2. train on the seen styles
     layout = ds.layout
-    config = ModelConfig(x_dim=layout.x_dim, z_dim=layout.z_dim, phase_dim=layout.phase_dim,
-                         clip_frames=seen_train.clips.shape[1], clip_channels=layout.clip_dim, **s["MODEL"])
+    config = ModelConfig.small(layout.x_dim, layout.z_dim, seen_train.clips.shape[1], layout.clip_dim,
+                               phase_dim=layout.phase_dim, **s["MODEL"])
     model = StyleModel(config, np.random.default_rng(seed))
     tcfg = TrainConfig(epochs=s["EPOCHS"], batch_size=BATCH_SIZE, lr=LEARNING_RATE, seed=seed, progress=False)
     trainer = Trainer(model, norm, tcfg, positions_idx=layout.joint_columns("z", "position"),
@@ -149,18 +147,14 @@ def run(data=None, out=OUT, holdout=HOLDOUT, quick=False, seed=SEED, epochs=None
 def plot_codes(sep, labels, names, holdout, path):
     """Two PCA panels (before / after fine-tuning) of the FiLM codes, coloured by style."""
     try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        log("[plot] matplotlib is not installed: no PNG")
+        plt = pyplot()
+    except ImportError as e:
+        log(f"[plot] no PNG: {e}")
         return
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.5))
     draw_film_codes(axes, sep, labels, names, holdout)
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    log(f"[plot] {path}")
+    log(f"[plot] {save_figure(fig, path, dpi=90)}")
 
 
 def main(argv=None):
@@ -178,4 +172,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    report_errors(lambda: main() and 0)

@@ -8,15 +8,12 @@ Writes ``<Style>_<Gait>.bvh`` (the 100STYLE skeleton, 60 fps, centimetres) plus
 generating the set took and a line per clip.
 """
 import argparse
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
-
-from minifilm.synthetic.generator import DEFAULT_GAITS, STYLES, default_dataset, write_dataset  # noqa: E402
+from minifilm.synthetic.generator import DEFAULT_GAITS, STYLES, default_dataset, write_dataset
 
 # ---- settings -----------------------------------------------------------------------------------
 SEED = 0

@@ -16,8 +16,6 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-if str(ROOT) not in sys.path:          # run from a clone without installing
-    sys.path.insert(0, str(ROOT))
 
 from minifilm.features.layout import (CONTACT_ORDER, CURRENT_SAMPLE, JOINT_FIELDS,  # noqa: E402
                                     PHASE_SLOTS, FeatureLayout)

@@ -38,15 +38,15 @@ from dataclasses import replace
 
 import numpy as np
 
-from minifilm.model.config import ModelConfig
 from minifilm.baselines.expert_net import ExpertNetwork
+from minifilm.baselines.phase_function import PhaseFunction
+from minifilm.baselines.style_modulation import (CPResidualAdapter, OneHotShift, ResidualAdapter,
+                                                 adapter_shapes, cp_adapter_shapes, onehot_shapes)
+from minifilm.model.config import ModelConfig
 from minifilm.model.film_generator import FilmGenerator, film_shapes
 from minifilm.model.gating import GatingNetwork, gating_shapes
 from minifilm.model.motion_net import MotionNetwork, motion_shapes
-from minifilm.baselines.phase_function import PhaseFunction
 from minifilm.model.style_model import StyleModel
-from minifilm.baselines.style_modulation import (CPResidualAdapter, OneHotShift, ResidualAdapter,
-                                             adapter_shapes, cp_adapter_shapes, onehot_shapes)
 
 #: name -> (backbone, modulation), in Table 2's order.
 SPECS = {

@@ -1,9 +1,11 @@
 """Figure 10 and the style metrics of Sec. 5: train the seven variants with one budget on one data
 set and compare them (issue 8).
 
-    python -m minifilm.evaluate compare                        # synthetic data (generated here)
-    python -m minifilm.evaluate compare --data /path/to/bandai2 --split-files --holdout feminine
-    python -m minifilm.evaluate compare --variants "LPN FiLM,PFNN one-hot" --budget-steps 50
+    minifilm compare                        # synthetic data (generated here)
+    minifilm compare --data /path/to/bandai2 --split-files --holdout feminine
+    minifilm compare --variants "LPN FiLM,PFNN one-hot" --budget-steps 50
+
+The command's options are defined in minifilm/cli/compare.py; ``run(args)`` reads them.
 
 One style is held out of training (--holdout). On held-out test frames of the seen styles:
   - test MSE and bone-length loss on the 324 motion outputs every variant predicts (Figure 10),
@@ -22,22 +24,35 @@ machine with OPENBLAS_NUM_THREADS=1 (multithreaded BLAS thrashes when the cores 
 """
 from __future__ import annotations
 
-import argparse
 import math
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
 from minifilm.baselines.runtime import VariantRuntime
-from minifilm.evaluation.compare_tools import film_codes, film_separation, fit_stats, motion_errors, style_subset
+from minifilm.baselines.variant_data import end_effector_indices, variant_data
+from minifilm.baselines.variants import VARIANTS, build_variant
+from minifilm.dataset.build import build_dataset
+from minifilm.dataset.manifest import bandai_files
+from minifilm.evaluation.compare_report import write_report
+from minifilm.evaluation.compare_tools import (film_codes, film_separation, fit_stats, motion_errors,
+                                               style_subset)
 from minifilm.evaluation.metrics import interpolation_smoothness, rollout_quality
-
+from minifilm.evaluation.style_classifier import classify_rollout, train_style_classifier
+from minifilm.model.config import ModelConfig
+from minifilm.motion.skeletons import BUILTIN_SKELETONS
+from minifilm.runtime.control import make_script
+from minifilm.runtime.controller import Controller
+from minifilm.synthetic import generator as synthetic
+from minifilm.train.finetune import finetune
+from minifilm.train.trainer import TrainConfig, Trainer
 
 SYNTH_HOLDOUT = "Drunk"
-MODEL = dict(n_experts=4, hidden=128, gating_hidden=32, conv_filters=32, conv_kernel=9, film_dense=128,
-             dropout=0.3)
+#: the main job's model (ModelConfig.small) with the paper's dropout, for every variant alike
+MODEL = dict(dropout=0.3)
+#: a miniature of it (tests and smoke runs)
+TINY_MODEL = dict(MODEL, hidden=16, conv_filters=4, film_dense=16, n_experts=2, gating_hidden=8)
 
 
 def log(msg=""):
@@ -46,9 +61,6 @@ def log(msg=""):
 
 # ---------------------------------------------------------------------------- data
 def load_data(args):
-    from minifilm.dataset.build import build_dataset
-    from minifilm.synthetic import generator as synthetic
-
     cache = Path(args.work) / "cache"
     if args.data in (None, "synthetic"):
         folder = Path(args.work) / "synthetic"      # made once; delete it after changing --styles etc.
@@ -59,9 +71,10 @@ def load_data(args):
         name = "synthetic"
         extra = {}
     else:
-        from minifilm.dataset.manifest import bandai_files
         name = Path(args.data).name
         folder = Path(args.data)
+        if not folder.is_dir():
+            raise FileNotFoundError(f"--data {folder}: no such folder (give 'synthetic' or a folder of BVH files)")
         if any(folder.glob("dataset-*_*_*_*.bvh")):     # Bandai Namco naming: content_style_id
             folder = bandai_files(folder)
         extra = {"split_unit": "files"} if args.split_files else {}
@@ -71,7 +84,6 @@ def load_data(args):
 
 
 def skeleton_of(ds):
-    from minifilm.motion.skeletons import BUILTIN_SKELETONS
     for sk in BUILTIN_SKELETONS:
         if sk.name == ds.skeleton:
             return sk
@@ -82,9 +94,6 @@ class Context:
     """The data every variant shares: seen / held-out styles, statistics, splits, classifier."""
 
     def __init__(self, ds, holdout, args):
-        from minifilm.evaluation.style_classifier import train_style_classifier
-        from minifilm.baselines.variant_data import end_effector_indices
-
         self.ds, self.args, self.layout = ds, args, ds.layout
         self.holdout = holdout
         self.seen = [s for s in ds.styles if s != holdout]
@@ -107,10 +116,10 @@ class Context:
 
 # ---------------------------------------------------------------------------- one variant
 def model_config(ctx, sizes):
-    from minifilm.model.config import ModelConfig
+    """The main job's model for this data set, with ``sizes`` overriding its sizes."""
     L = ctx.layout
-    return ModelConfig(x_dim=L.x_dim, z_dim=L.z_dim, phase_dim=L.phase_dim,
-                       clip_frames=ctx.data["train"].clips.shape[1], clip_channels=L.clip_dim, **sizes)
+    return ModelConfig.small(L.x_dim, L.z_dim, ctx.data["train"].clips.shape[1], L.clip_dim,
+                             phase_dim=L.phase_dim, **sizes)
 
 
 def steps_per_epoch(style, batch_size):
@@ -123,10 +132,6 @@ def steps_per_epoch(style, batch_size):
 def train_variant(name, ctx, epochs, seed=None):
     """Train one variant (model initialisation and batch order from `seed`, default --seed) and
     measure its test errors."""
-    from minifilm.baselines.variants import build_variant
-    from minifilm.train.trainer import TrainConfig, Trainer
-    from minifilm.baselines.variant_data import variant_data
-
     a, L = ctx.args, ctx.layout
     seed = a.seed if seed is None else seed
     model = build_variant(name, model_config(ctx, a.model), np.random.default_rng(seed), n_styles=len(ctx.seen))
@@ -155,14 +160,12 @@ def style_conditions(model, ctx):
 
 
 def controller_for(model, info, ctx):
-    from minifilm.runtime.controller import Controller
     return Controller(VariantRuntime(model, ctx.norm, ctx.layout, info), ctx.layout, fps=ctx.ds.fps)
 
 
 def run_rollouts(controller, cond, ids, ctx, seconds):
     """One character per row of `cond` along a figure-eight. ids=True: cond holds style ids or
     one-hot weights, handed to the network every frame; else (B, 4H) FiLM vectors."""
-    from minifilm.runtime.control import make_script
     n = int(round(seconds * ctx.ds.fps))
     scripts = [make_script("figure8", seconds) for _ in range(len(cond))]
     with np.errstate(all="ignore"):     # a diverging variant overflows; diverged() reports it
@@ -171,7 +174,6 @@ def run_rollouts(controller, cond, ids, ctx, seconds):
 
 def style_recognition(model, info, ctx):
     """Rollouts of every seen style: classifier accuracy per style, foot sliding, bone variation."""
-    from minifilm.evaluation.style_classifier import classify_rollout
     a = ctx.args
     cond = style_conditions(model, ctx)
     ids = getattr(model, "takes_style_ids", False)
@@ -202,7 +204,6 @@ def diverged(rollout, limit=10.0):
 
 def interpolation(model, info, ctx, style_a, style_b, n=11):
     """Classifier probability of style B along a blend A -> B (FiLM vectors or one-hot weights)."""
-    from minifilm.evaluation.style_classifier import classify_rollout
     a = ctx.args
     w = np.linspace(0.0, 1.0, n)
     ia, ib = ctx.seen.index(style_a), ctx.seen.index(style_b)
@@ -226,8 +227,6 @@ def interpolation(model, info, ctx, style_a, style_b, n=11):
 
 def finetune_separation(result, ctx):
     """Fine-tune Ψ alone on the held-out style; FiLM-code silhouette before and after."""
-    from minifilm.train.finetune import finetune
-    from minifilm.train.trainer import TrainConfig
     a = ctx.args
     trainer = result["trainer"]
     path = Path(a.work) / "lpn_film_base.npz"
@@ -253,8 +252,6 @@ def finetune_separation(result, ctx):
 
 # ---------------------------------------------------------------------------- the run
 def run(args):
-    from minifilm.baselines.variants import VARIANTS
-
     t_start = time.perf_counter()
     Path(args.work).mkdir(parents=True, exist_ok=True)
     ds, name = load_data(args)
@@ -304,47 +301,7 @@ def run(args):
             f"{sb['focus_silhouette']:.3f} -> {sa['focus_silhouette']:.3f} (all styles {sb['silhouette']:.3f} -> "
             f"{sa['silhouette']:.3f})")
     total = time.perf_counter() - t_start
-    from minifilm.evaluation.compare_report import write_report
     path = write_report(Path(args.out), name, ctx, results, ft, dict(epochs=epochs, steps_per_epoch=spe,
                         total_seconds=total, interpolate=(pa, pb)))
     log(f"[report] {path} ({total:.0f} s in all)")
     return {"name": name, "results": results, "finetune": ft, "report": path, "ctx": ctx}
-
-
-def parse_args(argv):
-    p = argparse.ArgumentParser(prog="python -m minifilm.evaluate compare", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--data", default="synthetic", help="'synthetic' (default) or a folder of BVH files")
-    p.add_argument("--budget-steps", type=int, default=2500,
-                   help="training steps per variant, rounded up to whole epochs (default 2500)")
-    p.add_argument("--finetune-steps", type=int, default=300, help="Ψ fine-tuning steps (default 300)")
-    p.add_argument("--out", default="reports", help="folder of the markdown report and PNGs")
-    p.add_argument("--work", default="runs/compare", help="folder for generated data and caches")
-    p.add_argument("--variants", help="comma-separated subset of the seven variants (default: all)")
-    p.add_argument("--holdout", help=f"style held out for fine-tuning (synthetic default {SYNTH_HOLDOUT})")
-    p.add_argument("--interpolate", help="two seen styles A,B for the interpolation test (default: first two)")
-    p.add_argument("--fps", type=float, default=30.0, help="resample the data to this rate (default 30)")
-    p.add_argument("--clip-seconds", type=float, default=2.0)
-    p.add_argument("--seconds", type=float, default=10.0, help="synthetic seconds per style and gait")
-    p.add_argument("--styles", help="comma-separated synthetic styles (default: all)")
-    p.add_argument("--gaits", help="comma-separated synthetic gaits (default: all)")
-    p.add_argument("--split-files", action="store_true",
-                   help="whole files per split (for many short files, e.g. Bandai's ~5 s files)")
-    p.add_argument("--rollout-seconds", type=float, default=10.0)
-    p.add_argument("--batch-size", type=int, default=32)
-    p.add_argument("--lr", type=float, default=1e-3)
-    p.add_argument("--seed", type=int, default=0, help="data, split, classifier and first model seed")
-    p.add_argument("--extra-seeds", default="1",
-                   help="comma-separated further model seeds for the test errors (default '1'; '' for none)")
-    p.add_argument("--tiny", action="store_true", help="a tiny model (tests and smoke runs)")
-    a = p.parse_args(argv)
-    a.extra_seeds = [int(x) for x in a.extra_seeds.split(",") if x.strip()]
-    a.styles = a.styles.split(",") if a.styles else None
-    a.gaits = a.gaits.split(",") if a.gaits else None
-    a.model = dict(MODEL, hidden=16, conv_filters=4, film_dense=16, n_experts=2, gating_hidden=8) if a.tiny else MODEL
-    return a
-
-
-def main(argv=None):
-    run(parse_args(sys.argv[1:] if argv is None else argv))
-    return 0

@@ -13,10 +13,10 @@ from typing import Optional, Sequence
 
 import numpy as np
 
+from minifilm.dataset.arrays import TrainData
 from minifilm.dataset.stats import NormStats
 from minifilm.evaluation.metrics import pca_2d, silhouette_samples
 from minifilm.model.losses import bone_length_loss
-from minifilm.dataset.arrays import TrainData
 
 
 # ---------------------------------------------------------------------------- data

@@ -1,6 +1,6 @@
 """Table 2 of the paper (Sec. 5.2.1): storage and run time of the seven variants.
 
-    python -m minifilm.evaluate table2 [--markdown PATH] [--runs 5] [--frames 200] [--styles 95]
+    minifilm table2 [--no-timing] [--markdown PATH] [--runs 5] [--frames 200] [--styles 95]
 
 Parameter counts come from the shapes alone (minifilm.baselines.variants.variant_parameter_counts)
 in the paper's configuration: A.S.N. (animation synthesis network: Φ, plus Ω where there is
@@ -15,16 +15,18 @@ per expert layer), so the ratios compare architectures, not implementations. Abs
 """
 from __future__ import annotations
 
-import argparse
 import os
 import time
+from pathlib import Path
+from typing import Optional
 
 import numpy as np
 
 from minifilm.baselines.runtime import variant_network
-from minifilm.dataset.stats import NormStats
-from minifilm.model.config import ModelConfig
 from minifilm.baselines.variants import VARIANTS, backbone_config, build_variant, variant_parameter_counts
+from minifilm.dataset.stats import NormStats
+from minifilm.files import atomic_write_text, check_writable
+from minifilm.model.config import ModelConfig
 
 #: The paper's Table 2: A.S.N., S.M.N., P.S.R., run time (ms, mean, std).
 PAPER = {
@@ -124,34 +126,31 @@ def as_markdown(rows, header, notes) -> str:
     return "\n".join(out) + "\n\n" + "\n\n".join(notes) + "\n"
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m minifilm.evaluate table2", description=__doc__.split("\n")[0])
-    ap.add_argument("--markdown", help="also write the table as markdown to this path")
-    ap.add_argument("--runs", type=int, default=5, help="timing runs (mean ± std over runs); default 5")
-    ap.add_argument("--frames", type=int, default=200, help="frames per timing run; default 200")
-    ap.add_argument("--styles", type=int, default=95, help="training styles (the paper: 95)")
-    ap.add_argument("--no-timing", action="store_true", help="parameter counts only")
-    args = ap.parse_args(argv)
+def report(markdown: Optional[Path] = None, runs: int = 5, frames: int = 200, styles: int = 95,
+           timing: bool = True) -> int:
+    """Print Table 2 (and write it as markdown to ``markdown``): counts for ``styles`` training
+    styles and, with ``timing``, the batch-1 time per frame over ``runs`` runs of ``frames``."""
+    if markdown:
+        check_writable(markdown, "--markdown")
     config = ModelConfig.paper()
     timings = None
-    if not args.no_timing:
-        timings = time_variants(VARIANTS, config, frames=args.frames, runs=args.runs)
+    if timing:
+        timings = time_variants(VARIANTS, config, frames=frames, runs=runs)
     header = HEADER if timings is not None else HEADER[:-1]
-    rows = build_table(config, args.styles, timings)
+    rows = build_table(config, styles, timings)
     notes = [FILM_NOTE]
     if timings is not None:
-        notes.append(f"Run time: batch-1 `RuntimeNetwork.predict` in float32 with NumPy, mean ± std over {args.runs} "
-                     f"runs of {args.frames} frames each, on this machine (2 shared cores); the paper's "
+        notes.append(f"Run time: batch-1 `RuntimeNetwork.predict` in float32 with NumPy, mean ± std over {runs} "
+                     f"runs of {frames} frames each, on this machine (2 shared cores); the paper's "
                      "numbers are from its own (C#/Unity) runtime. Runs are interleaved across the "
                      "variants; compare the ratios between rows (the machine's load moves the absolute "
                      f"times). BLAS threads: OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')} "
-                     "(`python -m minifilm.evaluate table2` uses 1 unless told otherwise).")
+                     "(`minifilm table2` uses 1 unless told otherwise).")
     print(as_text(rows, header))
     print()
     for n in notes:
         print(n)
-    if args.markdown:
-        with open(args.markdown, "w", encoding="utf-8") as f:
-            f.write("## Table 2: storage and run time\n\n" + as_markdown(rows, header, notes))
-        print(f"\nwrote {args.markdown}")
+    if markdown:
+        atomic_write_text(markdown, "## Table 2: storage and run time\n\n" + as_markdown(rows, header, notes))
+        print(f"\nwrote {markdown}")
     return 0

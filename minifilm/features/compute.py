@@ -28,6 +28,8 @@ from typing import Optional, Tuple
 import numpy as np
 
 from minifilm.features.layout import CURRENT_SAMPLE, TRAJECTORY_SECONDS, FeatureLayout
+from minifilm.motion.kinematics import velocities as _velocities
+from minifilm.motion.skeletons import root_transforms
 
 __all__ = ["FeatureLayout", "FrameFeatures", "seconds_to_frames", "trajectory_offsets",
            "trajectory_sample_frames", "trajectory_features", "joint_features",
@@ -278,9 +280,6 @@ def motion_arrays(motion, skeleton, fps: Optional[float] = None):
     """World arrays of the exported joints of ``motion``: positions (F, J, 3), rotations
     (F, J, 3, 3), velocities (F, J, 3) (m/s at ``fps``, default the motion's), root_pos (F, 3),
     root_rot (F, 3, 3)."""
-    from minifilm.motion.kinematics import velocities as _velocities
-    from minifilm.motion.skeletons import root_transforms
-
     fps = motion.fps if fps is None else float(fps)
     idx = skeleton.joint_indices(motion)
     wp, wr = motion.world()

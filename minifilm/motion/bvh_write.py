@@ -16,6 +16,7 @@ from minifilm.files import atomic_write_text
 from minifilm.motion.kinematics import matrix_to_euler
 from minifilm.motion.motion import Motion
 
+
 def write_bvh(motion: Motion, path: Union[str, os.PathLike], scale: float = 0.01) -> None:
     """Write ``motion`` as BVH (lengths divided by ``scale``; radians -> degrees), atomically.
 

@@ -14,7 +14,6 @@ import numpy as np
 from minifilm.motion.kinematics import matrix_to_quat, quat_to_matrix, slerp
 from minifilm.motion.motion import Motion
 
-
 # ----------------------------------------------------------------------------------------------
 # Mirroring (original-pipeline.md §1.3)
 # ----------------------------------------------------------------------------------------------

@@ -1,10 +1,11 @@
 """Numerical gradient checks: trust every backward pass by comparing it with centred differences.
 
-Use in float64 only (in float32 the differences drown in rounding). Typical use on your own layer::
+Use in float64 only (in float32 the differences drown in rounding). Typical use on a forward /
+backward pair of your own::
 
     rng = np.random.default_rng(0)
-    errors = check_layer(my_layer, (x,), rng)       # {'input0': 3e-10, 'W': 1e-10, 'b': 2e-11}
-    assert max(errors.values()) < 1e-7
+    errors = check_pair(linear_forward, linear_backward, (x, W, b), rng, names=("x", "W", "b"))
+    assert max(errors.values()) < 1e-7            # {'x': 3e-11, 'W': 1e-11, 'b': 2e-12}
 
 or, for anything else (a whole network, a loss), build a scalar function and the analytic pairs::
 
@@ -17,7 +18,7 @@ loss can exceed 1e-7 from rounding alone (the two-point stencil's rounding error
 from __future__ import annotations
 
 import math
-from typing import Callable
+from typing import Callable, Optional, Sequence
 
 import numpy as np
 
@@ -95,31 +96,30 @@ def check_gradients(f: Callable[[], float], pairs: dict[str, tuple], h: float = 
     return errors
 
 
-def check_layer(layer, inputs: tuple, rng: np.random.Generator, h: float = 1e-6, order: int = 2,
-                **forward_kwargs) -> dict[str, float]:
-    """Check a layer's backward pass for every input and every parameter.
+def check_pair(forward: Callable, backward: Callable, inputs: Sequence[np.ndarray], rng: np.random.Generator,
+               names: Optional[Sequence[str]] = None, h: float = 1e-4, order: int = 4,
+               **forward_kwargs) -> dict[str, float]:
+    """Check a forward/backward pair (functional.py, the model's blocks) for every input.
 
-    ``layer`` follows layers.py: ``out = layer.forward(*inputs, **forward_kwargs)``,
-    ``layer.backward(dout)`` returns dL/d(input) (a tuple when there are several inputs) and
-    accumulates parameter gradients into ``layer.grads`` (dict of arrays, same keys as
-    ``layer.params``). The scalar checked is L = sum(out * r) for a fixed random r, so the whole
-    Jacobian is exercised; it is summed exactly (math.fsum), so outputs a perturbation does not
-    touch cancel exactly between f(x + h) and f(x - h). Inputs and parameters must be float64. Pass ``train=True,
-    mask=...`` to check dropout with a fixed mask.
-    Returns ``{'input0': err, ..., <param name>: err}``.
+    ``out, cache = forward(*inputs, **forward_kwargs)`` and ``backward(dout, cache)`` returning
+    dL/d(input) for the inputs in order (a tuple when there are several; ``None`` for an input
+    without a gradient, e.g. a kept-out first layer's data). The scalar checked is
+    L = sum(out * r) for a fixed random r, so the whole Jacobian is exercised; it is summed exactly
+    (math.fsum), so outputs a perturbation does not touch cancel exactly between f(x + h) and
+    f(x - h). Inputs must be float64; fix any randomness (dropout masks) in ``forward_kwargs``.
+    Returns ``{name: rel_error}`` for every input that has a gradient (names default to
+    ``input0``, ``input1``, ...).
     """
-    out = layer.forward(*inputs, **forward_kwargs)
-    r = rng.standard_normal(out.shape)
+    out, cache = forward(*inputs, **forward_kwargs)
+    r = rng.standard_normal(np.shape(out))
 
     def loss() -> float:
-        return math.fsum((layer.forward(*inputs, **forward_kwargs) * r).ravel().tolist())
+        return math.fsum((forward(*inputs, **forward_kwargs)[0] * r).ravel().tolist())
 
-    for g in layer.grads.values():
-        g[...] = 0
-    din = layer.backward(r)
-    din = din if isinstance(din, tuple) else (din,)
-    if len(din) != len(inputs):
-        raise ValueError(f"check_layer: backward returned {len(din)} gradients for {len(inputs)} inputs")
-    pairs = {f"input{i}": (x, dx) for i, (x, dx) in enumerate(zip(inputs, din))}
-    pairs.update({name: (p, layer.grads[name]) for name, p in layer.params.items()})
+    grads = backward(r, cache)
+    grads = grads if isinstance(grads, tuple) else (grads,)
+    if len(grads) < len(inputs):
+        raise ValueError(f"check_pair: backward returned {len(grads)} gradients for {len(inputs)} inputs")
+    names = list(names) if names is not None else [f"input{i}" for i in range(len(inputs))]
+    pairs = {name: (x, g) for name, x, g in zip(names, inputs, grads) if g is not None}
     return check_gradients(loss, pairs, h, order)

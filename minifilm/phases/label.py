@@ -13,13 +13,13 @@ source, :func:`~minifilm.phases.local_phases.default_sources`).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional, Sequence
+from typing import Optional, Sequence, Tuple
 
 import numpy as np
 
 from minifilm.motion.motion import Motion
 from minifilm.phases.contacts import foot_contacts
-from minifilm.phases.local_phases import LocalPhases, default_sources, extract_local_phases
+from minifilm.phases.local_phases import DEFAULT_SOURCES, LocalPhases, default_sources, extract_local_phases
 
 
 @dataclass
@@ -28,11 +28,13 @@ class Labels:
 
     contacts (F, 2): 0/1 foot contacts, columns [right, left];
     phases: the four local phases [left hand, right hand, left foot, right foot] (phase,
-        amplitude and the fitted sources for plotting).
+        amplitude and the fitted sources for plotting);
+    sources: the kind of source of each slot, 'pca' or 'contact'.
     """
 
     contacts: np.ndarray
     phases: LocalPhases
+    sources: Tuple[str, ...] = DEFAULT_SOURCES
 
     @property
     def vectors(self) -> np.ndarray:
@@ -42,7 +44,8 @@ class Labels:
     def mirrored(self) -> "Labels":
         """The labels of the left-right mirrored motion (original-pipeline §1.3, §4.6): the two
         contact columns swap, and so do the left and right phase slots."""
-        return Labels(self.contacts[:, ::-1].copy(), self.phases.mirrored())
+        return Labels(self.contacts[:, ::-1].copy(), self.phases.mirrored(),
+                      tuple(self.sources[i] for i in (1, 0, 3, 2)))
 
 
 def label(motion: Motion, skeleton, style: Optional[str] = None,
@@ -56,4 +59,4 @@ def label(motion: Motion, skeleton, style: Optional[str] = None,
     positions, _ = motion.world()
     contacts = foot_contacts(positions[:, skeleton.contact_indices(motion)], motion.fps)
     sources = default_sources(style) if sources is None else tuple(sources)
-    return Labels(contacts, extract_local_phases(motion, skeleton, contacts, sources, **fit_options))
+    return Labels(contacts, extract_local_phases(motion, skeleton, contacts, sources, **fit_options), sources)

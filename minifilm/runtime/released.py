@@ -26,11 +26,11 @@ from pathlib import Path
 
 import numpy as np
 
+from minifilm.dataset.stats import NormStats
 from minifilm.files import atomic_directory
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
 from minifilm.runtime.network import RuntimeNetwork
-from minifilm.dataset.stats import NormStats
 
 FILM_PARTS = ("scale1", "shift1", "scale2", "shift2")   # γ1, β1, γ2, β2: the order of Eq. (2)
 _STYLE_FILE = re.compile(r"^Style_(\d{3})_scale1\.bin$")

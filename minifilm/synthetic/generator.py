@@ -47,15 +47,16 @@ from typing import Iterable, List, Optional, Sequence, Union
 import numpy as np
 from scipy.ndimage import minimum_filter1d
 
+from minifilm.motion.bvh_write import write_bvh
 from minifilm.motion.motion import Motion
-from minifilm.synthetic.body import (JOINT_INDEX, JOINT_NAMES, OFFSETS, REACH, STANDING_HIPS_HEIGHT, Foot, apply,
-                             arms, lifted_foot, rot, skeleton_100style, soft_min, smoothstep, stepping_foot,
-                             two_bone_ik, upper_body)
+from minifilm.synthetic.body import (JOINT_INDEX, JOINT_NAMES, OFFSETS, REACH, STANDING_HIPS_HEIGHT, Foot,
+                                     apply, arms, lifted_foot, rot, skeleton_100style, smoothstep, soft_min,
+                                     stepping_foot, two_bone_ik, upper_body)
 from minifilm.synthetic.styles import DUTY_HOP, DUTY_RUN, DUTY_WALK, GAITS, STYLE_PARAMS, STYLES, StyleParams
 from minifilm.synthetic.trajectories import GaitTimeline, RootPath, gait_timeline, root_path, smooth_noise
 
 __all__ = ["SyntheticClip", "generate_style", "default_dataset", "write_dataset", "STYLES", "GAITS",
-           "DEFAULT_GAITS", "skeleton_100style", "JOINT_NAMES"]
+           "DEFAULT_GAITS", "skeleton_100style", "JOINT_NAMES", "rest_motion"]
 
 #: Gaits of the default data set (every style gets each of them).
 DEFAULT_GAITS = ("FW", "BW", "FR", "SW", "ID", "TR")
@@ -214,6 +215,16 @@ def _hips(sp: StyleParams, timeline: GaitTimeline, path: RootPath, theta: np.nda
 # Data sets
 # ----------------------------------------------------------------------------------------------
 
+def rest_motion() -> Motion:
+    """The 100STYLE skeleton standing at rest (one frame, metres): a skeleton to write the released
+    network's motion on when no BVH of the real one is at hand (its offsets are the real header's)."""
+    names, parents, offsets, channels = skeleton_100style()
+    rotations = np.broadcast_to(np.eye(3), (1, len(names), 3, 3)).copy()
+    translations = offsets[None].copy()
+    translations[0, 0] = (0.0, STANDING_HIPS_HEIGHT, 0.0)
+    return Motion(names, parents, offsets, channels, rotations, translations, 1.0 / 60.0, "100STYLE rest pose")
+
+
 def default_dataset(seed: int = 0, seconds: float = 6.0, styles: Optional[Iterable[str]] = None,
                     gaits: Optional[Iterable[str]] = None, fps: float = 60) -> List[SyntheticClip]:
     """Every style × gait (default: all ``STYLES`` × ``DEFAULT_GAITS``), ``seconds`` each.
@@ -242,8 +253,6 @@ def write_dataset(directory: Union[str, Path], clips: Optional[Sequence[Syntheti
     With ``truth``, also ``<Style>_<Gait>.truth.npz`` holding true_phase, true_contacts,
     phase_active (plain arrays, loadable with allow_pickle=False). Returns the BVH paths.
     """
-    from minifilm.motion.bvh_write import write_bvh
-
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     if clips is None:

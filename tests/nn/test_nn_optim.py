@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from minifilm.nn import Adam, Parameters
+from minifilm.nn.optim import Adam
+from minifilm.nn.params import Parameters
 
 
 def one_set(values, dtype=np.float64):

@@ -4,7 +4,7 @@ from pathlib import Path
 
 import numpy as np
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "finetune_new_style.py"
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "finetune_new_style.py"
 
 
 def test_quick_run(tmp_path):

@@ -1,10 +1,10 @@
 """Table 2 (Sec. 5.2.1): the parameter counts of the seven variants equal the paper's where the
 architecture determines them, the shape-only counts equal what the models allocate, and the
-`python -m minifilm.evaluate table2` command prints and writes the table."""
+`minifilm table2` command prints and writes the table."""
 import numpy as np
 import pytest
 
-from minifilm import evaluate
+from minifilm import cli
 from minifilm.evaluation import table2
 from minifilm.model.config import ModelConfig
 from minifilm.baselines.variants import VARIANTS, build_variant, variant_parameter_counts
@@ -41,7 +41,7 @@ def test_style_modulation_scales_with_the_number_of_styles():
 
 @pytest.mark.parametrize("name", VARIANTS)
 def test_shape_counts_equal_allocated_parameters(name):
-    cfg = ModelConfig.small(z_dim=40)
+    cfg = ModelConfig.tiny(z_dim=40)
     model = build_variant(name, cfg, np.random.default_rng(0), n_styles=7)
     counts = variant_parameter_counts(name, cfg, n_styles=7)
     style_net = model.film.params.size
@@ -59,7 +59,9 @@ def test_paper_size_backbones_allocate_the_table2_counts():
 
 def test_table2_command_prints_and_writes_markdown(tmp_path, capsys):
     path = tmp_path / "table2.md"
-    assert evaluate.main(["table2", "--no-timing", "--markdown", str(path)]) == 0
+    with pytest.raises(SystemExit) as stop:
+        cli.main(["table2", "--no-timing", "--markdown", str(path)])
+    assert stop.value.code == 0
     out = capsys.readouterr().out
     text = path.read_text(encoding="utf-8")
     for name in VARIANTS:
@@ -68,13 +70,15 @@ def test_table2_command_prints_and_writes_markdown(tmp_path, capsys):
     assert text.count("✓ ✓ ✓") == 4 and text.count("✓ ✗ ✓") == 3
 
 
-def test_unknown_subcommand_is_named(capsys):
-    assert evaluate.main(["tabel2"]) == 2
-    assert "tabel2" in capsys.readouterr().err
+def test_bad_counts_are_refused_before_any_work(capsys):
+    with pytest.raises(SystemExit) as stop:
+        cli.main(["table2", "--no-timing", "--styles", "-3"])
+    assert stop.value.code == 2
+    assert "--styles" in capsys.readouterr().err
 
 
 def test_timing_covers_every_variant():
-    cfg = ModelConfig.small(z_dim=40)
+    cfg = ModelConfig.tiny(z_dim=40)
     t = table2.time_variants(VARIANTS, cfg, frames=3, runs=2)
     assert set(t) == set(VARIANTS)
     assert all(mean > 0 and std >= 0 for mean, std in t.values())

@@ -61,7 +61,7 @@ def reference_forward(model, x, p, clip, biased_ln=False):
 @pytest.fixture
 def setup():
     rng = np.random.default_rng(5)
-    cfg = ModelConfig.small()
+    cfg = ModelConfig.tiny()
     model = StyleModel(cfg, rng, dtype=np.float64)
     for ps in model.parameter_sets():
         ps.data += 0.05 * rng.standard_normal(ps.size)
@@ -136,7 +136,7 @@ def test_bad_clip_shape_is_named(setup):
 
 def test_film_starts_near_identity():
     """Initial Ψ output bias puts γ at 1 and β at 0 (see film_generator.py)."""
-    cfg = ModelConfig.small()
+    cfg = ModelConfig.tiny()
     model = StyleModel(cfg, np.random.default_rng(0))
     film = model.film_parameters(np.zeros((1, cfg.clip_frames, cfg.clip_channels), np.float32))[0]
     H = cfg.hidden

@@ -8,7 +8,8 @@ scatter-adds for the convolution (not im2col), per-sample blended weights for th
 import numpy as np
 import pytest
 
-from minifilm.nn import Adam, Parameters
+from minifilm.nn.optim import Adam
+from minifilm.nn.params import Parameters
 from minifilm.nn import functional as F
 
 TOL = 1e-10

@@ -27,7 +27,7 @@ def random_stats(layout, rng):
 
 def test_runtime_network_matches_style_model():
     rng = np.random.default_rng(0)
-    cfg = ModelConfig.small(x_dim=LAYOUT.x_dim, z_dim=LAYOUT.z_dim)
+    cfg = ModelConfig.tiny(x_dim=LAYOUT.x_dim, z_dim=LAYOUT.z_dim)
     model = StyleModel(cfg, rng, dtype=np.float64)
     for ps in model.parameter_sets():  # non-zero biases so they are tested too
         ps.data[...] = rng.normal(scale=0.3, size=ps.data.shape)
@@ -123,7 +123,7 @@ def test_phase_rule_half_predicted_half_integrated():
 
 def test_batch_equals_single_characters():
     rng = np.random.default_rng(4)
-    cfg = ModelConfig.small(x_dim=LAYOUT.x_dim, z_dim=LAYOUT.z_dim)
+    cfg = ModelConfig.tiny(x_dim=LAYOUT.x_dim, z_dim=LAYOUT.z_dim)
     model = StyleModel(cfg, rng, dtype=np.float64)
     stats = random_stats(LAYOUT, rng)
     stats.x_std[:], stats.z_std[:] = 1.0, 0.01        # small outputs: a tame random network

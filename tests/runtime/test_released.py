@@ -96,7 +96,7 @@ def test_write_released_reproduces_the_files_byte_for_byte(released_dir, tmp_pat
 
 
 def small_folder(tmp_path):
-    cfg = ModelConfig.small()
+    cfg = ModelConfig.tiny()
     rng = np.random.default_rng(1)
     model = StyleModel(cfg, rng, with_film_generator=False)
     stats = NormStats(rng.standard_normal(cfg.x_dim), 1 + rng.random(cfg.x_dim), rng.standard_normal(cfg.z_dim),

@@ -20,7 +20,7 @@ def test_paper_counts_match_table_2_and_the_original_code():
 
 
 def test_built_networks_have_the_counted_sizes():
-    cfg = ModelConfig.small()
+    cfg = ModelConfig.tiny()
     model = StyleModel(cfg, np.random.default_rng(0))
     c = parameter_counts(cfg)
     assert [ps.size for ps in model.parameter_sets()] == [c["gating"], c["motion"], c["film"]]
@@ -28,12 +28,12 @@ def test_built_networks_have_the_counted_sizes():
 
 
 def test_config_round_trip_and_validation():
-    cfg = ModelConfig.small(hidden=12)
+    cfg = ModelConfig.tiny(hidden=12)
     assert ModelConfig.from_dict(cfg.to_dict()) == cfg
     import pytest
     with pytest.raises(ValueError, match="conv_kernel"):
-        ModelConfig.small(conv_kernel=4)
+        ModelConfig.tiny(conv_kernel=4)
     with pytest.raises(ValueError, match="unknown"):
         ModelConfig.from_dict({**cfg.to_dict(), "bogus": 1})
     with pytest.raises(ValueError, match="hidden"):
-        ModelConfig.small(hidden=0)
+        ModelConfig.tiny(hidden=0)

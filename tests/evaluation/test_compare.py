@@ -66,7 +66,8 @@ def test_pfnn_runtime_advances_the_global_phase():
 
 
 def test_tiny_compare_run(tmp_path):
-    from minifilm.evaluation.compare import parse_args, run
+    from minifilm.cli.compare import parse_args
+    from minifilm.evaluation.compare import run
     args = parse_args(["--tiny", "--variants", "LPN FiLM,LPN one-hot", "--budget-steps", "1",
                        "--finetune-steps", "1", "--seconds", "8", "--styles", "Neutral,LeftHop,Crouched",
                        "--gaits", "FW", "--holdout", "Crouched", "--rollout-seconds", "2",

@@ -16,7 +16,7 @@ from minifilm.dataset.stats import NormStats
 
 PARENTS = np.array([-1, 0, 1, 0])
 POS_IDX = 4 + np.arange(12).reshape(4, 3)      # z columns 4..15 hold 4 joint positions
-CFG = ModelConfig.small(x_dim=10, z_dim=18, clip_channels=4, dropout=0.1)
+CFG = ModelConfig.tiny(x_dim=10, z_dim=18, clip_channels=4, dropout=0.1)
 
 
 def make_data(seed, styles=(0, 1, 2), frames=(64, 80, 72), n_clips=4):

@@ -104,13 +104,13 @@ def test_cp_adapter_equals_the_full_phase_dependent_matrix():
 
 
 def test_style_ids_are_checked():
-    model = build_variant("LPN one-hot", ModelConfig.small(z_dim=40), np.random.default_rng(0), n_styles=3)
+    model = build_variant("LPN one-hot", ModelConfig.tiny(z_dim=40), np.random.default_rng(0), n_styles=3)
     x, p = np.zeros((2, 24), np.float32), np.zeros((2, 8), np.float32)
     with pytest.raises(ValueError, match="style"):
         model.forward(x, p, None)
     with pytest.raises(ValueError, match="0..2"):
         model.forward(x, p, None, style=np.array([0, 3]))
-    pfnn = build_variant("PFNN one-hot", ModelConfig.small(z_dim=40), np.random.default_rng(0), n_styles=3)
+    pfnn = build_variant("PFNN one-hot", ModelConfig.tiny(z_dim=40), np.random.default_rng(0), n_styles=3)
     with pytest.raises(ValueError, match="global phase"):
         pfnn.forward(x, p, None, style=np.array([0, 1]))
 
@@ -119,7 +119,7 @@ def test_style_ids_are_checked():
 @pytest.mark.parametrize("name", VARIANTS)
 def test_runtime_network_matches_forward(name):
     rng = np.random.default_rng(5)
-    cfg = ModelConfig.small(z_dim=40)
+    cfg = ModelConfig.tiny(z_dim=40)
     model = build_variant(name, cfg, rng, n_styles=3)
     for ps in model.parameter_sets():
         ps.data += 0.1 * rng.standard_normal(ps.size).astype(ps.data.dtype)
@@ -136,7 +136,7 @@ def test_runtime_network_matches_forward(name):
 def test_lpn_film_variant_runs_in_the_runtime_network():
     """build_variant('LPN FiLM') is a StyleModel: the run-time network takes it as it is."""
     rng = np.random.default_rng(6)
-    cfg = ModelConfig.small(z_dim=40)
+    cfg = ModelConfig.tiny(z_dim=40)
     model = build_variant("LPN FiLM", cfg, rng, with_film_generator=False)
     net = RuntimeNetwork.from_model(model, NormStats.identity(cfg.x_dim, cfg.z_dim))
     x = rng.standard_normal((1, cfg.x_dim)).astype(np.float32)

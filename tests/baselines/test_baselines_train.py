@@ -12,7 +12,7 @@ from minifilm.baselines.variant_data import variant_data
 
 J = 3
 LAYOUT = FeatureLayout.generic(J)               # x 84, z 78 (motion 60, phases 8, updates 8, contacts 2)
-CFG = ModelConfig.small(x_dim=LAYOUT.x_dim, z_dim=LAYOUT.z_dim, clip_channels=LAYOUT.clip_dim, dropout=0.1)
+CFG = ModelConfig.tiny(x_dim=LAYOUT.x_dim, z_dim=LAYOUT.z_dim, clip_channels=LAYOUT.clip_dim, dropout=0.1)
 
 
 def make_data(seed, n_per_style=48, styles=(0, 1, 2)):

@@ -1,0 +1,4 @@
+"""``python -m minifilm``: the same as the ``minifilm`` command."""
+from minifilm.cli import main
+
+main()

@@ -1,0 +1,93 @@
+"""The ``minifilm`` command: one entry point, one subcommand per thing a user does.
+
+    minifilm train        the main job: data -> phases -> dataset -> training -> generated motion
+    minifilm phases       draw a BVH file's foot contacts and local phases (the paper's Figure 4)
+    minifilm dataset      build (and cache) the training data of a folder of BVH files
+    minifilm generate     generate motion with the released network or a trained run
+    minifilm finetune     teach a trained run a new style from a short clip (Ψ only, Sec. 5.3.2)
+    minifilm table2       Table 2: parameter counts and run time of the seven comparison models
+    minifilm compare      Figure 10 and the style metrics: train and compare the seven models
+
+Each subcommand is a module of this package with ``HELP`` (one line), ``add_arguments(parser)``
+and ``run(args)``. Bad input (a missing file, a malformed BVH, a corrupt checkpoint, an argument
+out of range) is reported as one line, ``error: ...``, with exit code 2; anything else is a bug
+and keeps its traceback.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+from typing import Callable, Optional
+
+#: name -> (module, one-line help, environment defaults set before the module is imported)
+COMMANDS = {
+    "train": ("minifilm.cli.train", "the main job: synthetic or your data -> trained model -> generated motion", {}),
+    "phases": ("minifilm.cli.phases", "draw a BVH file's contacts and local phases (Figure 4)", {}),
+    "dataset": ("minifilm.cli.dataset", "build and cache the training data of BVH files", {}),
+    "generate": ("minifilm.cli.generate", "generate motion with the released network or a trained run", {}),
+    "finetune": ("minifilm.cli.finetune", "teach a trained run a new style from a short clip (Ψ only)", {}),
+    # batch-1 timing on one BLAS thread, like a game loop: a matrix-vector product gains nothing
+    # from threads, and on a busy machine threaded BLAS made it ~20x slower here
+    "table2": ("minifilm.cli.table2", "Table 2: parameter counts and run time of the seven models",
+               {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}),
+    "compare": ("minifilm.cli.compare", "Figure 10 and style metrics: train and compare the seven models", {}),
+}
+
+#: What a user can get wrong: these errors describe the input and are printed as one line.
+INPUT_ERRORS = (FileNotFoundError, NotADirectoryError, IsADirectoryError, PermissionError, ValueError)
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with a one-line error: the bad argument and how to see the options, not the
+    whole usage block."""
+
+    def error(self, message):
+        self.exit(2, f"error: {self.prog}: {message} (see {self.prog} --help)\n")
+
+
+def report_errors(main: Callable[[], Optional[int]]) -> None:
+    """Call ``main()`` and exit with its code, or print ``error: <message>`` and exit 2 when it
+    raises an input error (FileNotFoundError, a ValueError such as BVHError, CheckpointError, ...)."""
+    try:
+        code = main()
+    except INPUT_ERRORS as e:
+        print(f"error: {e}", file=sys.stderr)
+        sys.exit(2)
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        sys.exit(130)
+    sys.exit(code if isinstance(code, int) else 0)
+
+
+def usage() -> str:
+    width = max(len(n) for n in COMMANDS)
+    lines = ["usage: minifilm COMMAND [options]   (minifilm COMMAND --help for its options)", "",
+             "minifilm: local motion phases + FiLM style modelling (Mason, Starke, Komura 2022) in NumPy.", "",
+             "commands:"]
+    lines += [f"  {name:<{width}}  {text}" for name, (_, text, _) in COMMANDS.items()]
+    return "\n".join(lines)
+
+
+def main(argv=None) -> None:
+    """The console entry point (``minifilm`` and ``python -m minifilm``)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] in ("-h", "--help"):
+        print(usage())
+        sys.exit(0 if argv else 2)
+    name = argv[0]
+    if name not in COMMANDS:
+        print(f"minifilm: unknown command {name!r}\n\n{usage()}", file=sys.stderr)
+        sys.exit(2)
+    module_name, text, env = COMMANDS[name]
+    for key, value in env.items():     # before numpy is imported (OpenBLAS reads them once)
+        os.environ.setdefault(key, value)
+    # Imported only when chosen: a command may need an optional extra (matplotlib, the demo's
+    # server) that the others do without, and `minifilm --help` stays instant.
+    module = importlib.import_module(module_name)
+    parser = Parser(prog=f"minifilm {name}", description=module.__doc__,
+                    formatter_class=argparse.RawDescriptionHelpFormatter)
+    module.add_arguments(parser)
+    args = parser.parse_args(argv[1:])
+    report_errors(lambda: module.run(args))

@@ -1,0 +1,43 @@
+"""Argument types for the command line: each checks its value when the arguments are parsed, so a
+bad value is one clear line before any work starts (argparse prints it and exits 2)."""
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+
+def _number(text: str, kind=float):
+    try:
+        value = kind(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a {'whole ' if kind is int else ''}number") from None
+    if kind is float and not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a finite number")
+    return value
+
+
+def in_range(low=None, high=None, kind=float, low_open=False):
+    """A number in [low, high] (``low_open``: low excluded)."""
+    def check(text: str):
+        v = _number(text, kind)
+        if low is not None and (v < low or (low_open and v == low)):
+            raise argparse.ArgumentTypeError(f"{v} must be {'>' if low_open else '>='} {low}")
+        if high is not None and v > high:
+            raise argparse.ArgumentTypeError(f"{v} must be <= {high}")
+        return v
+    return check
+
+
+def seconds_at_least(low: float):
+    return in_range(low, 24 * 3600.0)
+
+
+def positive(kind=float, high=None):
+    return in_range(0, high, kind, low_open=True)
+
+
+def png_path(text: str) -> Path:
+    """An output picture path; '.png' is added when it has no suffix (matplotlib would add it)."""
+    p = Path(text)
+    return p if p.suffix else p.with_suffix(".png")

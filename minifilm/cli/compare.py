@@ -1,0 +1,66 @@
+"""Figure 10 and the style metrics of Sec. 5: train the seven comparison models with one budget on
+one data set and compare them (test errors, style recognition of generated motion, foot sliding,
+bone-length variation, interpolation smoothness, FiLM-code separation after fine-tuning Ψ).
+
+    minifilm compare                                   # synthetic data (generated here)
+    minifilm compare --data DIR --split-files --holdout NAME
+    minifilm compare --tiny --budget-steps 5           # a smoke run in seconds
+
+Writes a markdown report with plots (--out, default reports/); see minifilm/evaluation/compare.py.
+"""
+from __future__ import annotations
+
+import argparse
+
+from minifilm.cli.args import in_range, positive
+from minifilm.evaluation.compare import MODEL, SYNTH_HOLDOUT, TINY_MODEL
+from minifilm.evaluation.compare import run as run_compare
+
+HELP = "Figure 10 and style metrics: train and compare the seven models"
+
+
+def add_arguments(p) -> None:
+    p.add_argument("--data", default="synthetic", help="'synthetic' (default) or a folder of BVH files")
+    p.add_argument("--budget-steps", type=in_range(1, 10**7, int), default=2500,
+                   help="training steps per variant, rounded up to whole epochs (default 2500)")
+    p.add_argument("--finetune-steps", type=in_range(0, 10**7, int), default=300, help="Ψ fine-tuning steps (default 300)")
+    p.add_argument("--out", default="reports", help="folder of the markdown report and PNGs")
+    p.add_argument("--work", default="runs/compare", help="folder for generated data and caches")
+    p.add_argument("--variants", help="comma-separated subset of the seven variants (default: all)")
+    p.add_argument("--holdout", help=f"style held out for fine-tuning (synthetic default {SYNTH_HOLDOUT})")
+    p.add_argument("--interpolate", help="two seen styles A,B for the interpolation test (default: first two)")
+    p.add_argument("--fps", type=in_range(1.0, 1000.0), default=30.0, help="resample the data to this rate (default 30)")
+    p.add_argument("--clip-seconds", type=positive(float, 60.0), default=2.0)
+    p.add_argument("--seconds", type=positive(float, 3600.0), default=10.0, help="synthetic seconds per style and gait")
+    p.add_argument("--styles", help="comma-separated synthetic styles (default: all)")
+    p.add_argument("--gaits", help="comma-separated synthetic gaits (default: all)")
+    p.add_argument("--split-files", action="store_true",
+                   help="whole files per split (for many short files, e.g. Bandai's ~5 s files)")
+    p.add_argument("--rollout-seconds", type=positive(float, 3600.0), default=10.0)
+    p.add_argument("--batch-size", type=in_range(1, 65536, int), default=32)
+    p.add_argument("--lr", type=positive(float, 10.0), default=1e-3)
+    p.add_argument("--seed", type=in_range(0, 2**32 - 1, int), default=0, help="data, split, classifier and first model seed")
+    p.add_argument("--extra-seeds", default="1",
+                   help="comma-separated further model seeds for the test errors (default '1'; '' for none)")
+    p.add_argument("--tiny", action="store_true", help="a tiny model (tests and smoke runs)")
+
+
+def finish(a):
+    """Turn the comma-separated options into lists and pick the model sizes."""
+    a.extra_seeds = [int(x) for x in a.extra_seeds.split(",") if x.strip()]
+    a.styles = a.styles.split(",") if a.styles else None
+    a.gaits = a.gaits.split(",") if a.gaits else None
+    a.model = TINY_MODEL if a.tiny else MODEL
+    return a
+
+
+def parse_args(argv):
+    """The options of ``minifilm compare`` as ``run`` reads them (for tests and scripts)."""
+    parser = argparse.ArgumentParser(prog="minifilm compare")
+    add_arguments(parser)
+    return finish(parser.parse_args(argv))
+
+
+def run(args) -> int:
+    run_compare(finish(args))
+    return 0

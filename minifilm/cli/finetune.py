@@ -1,0 +1,41 @@
+"""Teach a trained run a new style from a short clip: fine-tune Ψ alone (Sec. 5.3.2, Figure 11).
+
+    minifilm finetune --run runs/train_small --name Proud proud_walk.bvh [more.bvh ...]
+
+The clips (10-30 s of walking or running in the new style, on the run's skeleton; another frame
+rate is resampled) are labelled (contacts, local phases), featurised, and Ψ is fine-tuned on them
+with Ω and Φ frozen. NAME joins the run's style library: ``minifilm generate --run RUN --style
+NAME`` then uses it like any other style, and blends work. Existing styles keep their stored FiLM
+vectors exactly; the fine-tuned checkpoint is saved as RUN/model-NAME.npz, never over model.npz.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from minifilm.cli.args import in_range, positive
+from minifilm.pipeline.new_style import teach_style
+
+HELP = "teach a trained run a new style from a short clip (Ψ only)"
+
+
+def add_arguments(ap) -> None:
+    ap.add_argument("files", nargs="+", type=Path, help="BVH file(s) of the new style")
+    ap.add_argument("--run", type=Path, required=True, help="a run folder written by minifilm train")
+    ap.add_argument("--name", required=True, help="the new style's name")
+    ap.add_argument("--replace", action="store_true", help="replace a style of the same name")
+    ap.add_argument("--steps", type=in_range(1, 100_000, int), default=400, help="fine-tuning steps (default 400)")
+    ap.add_argument("--lr", type=positive(float, 1.0), default=5e-4, help="learning rate (default 5e-4)")
+    ap.add_argument("--seed", type=in_range(0, 2**32 - 1, int), default=0)
+
+
+def run(args) -> int:
+    r = teach_style(args.run, args.name, args.files, steps=args.steps, lr=args.lr, seed=args.seed,
+                    replace=args.replace)
+    print(f"[finetune] {r.name}: Ψ fine-tuned for {r.steps} steps on {r.frames} frames ({r.clips} style clips) "
+          f"in {r.seconds:.1f} s")
+    print(f"    loss on the clip (MSE + BLL): {r.loss_before:.4f} with Ψ as trained -> {r.loss_after:.4f}")
+    if r.nearest:
+        print(f"    nearest trained style in FiLM space: {r.nearest}")
+    print(f"    added to {args.run / 'styles.npz'}; fine-tuned checkpoint {r.checkpoint}")
+    print(f"    try: minifilm generate --run {args.run} --style {r.name!r} --out {r.name}.bvh")
+    return 0

@@ -1,0 +1,171 @@
+"""Generate stylised locomotion with the authors' released network or a model trained here (Sec. 4.4).
+
+    minifilm generate --params ../shared/data/released-lpn --style Zombie --script figure8 --seconds 30 --out zombie.bvh
+    minifilm generate --run runs/train_small --style Drunk --seconds 20 --out drunk.bvh
+    minifilm generate --params DIR --style Neutral --style2 Old --blend 0.5 --out blend.bvh
+    minifilm generate --params DIR --style Neutral --style2 Old --style3 Zombie --weights 0.2 0.3 0.5
+    minifilm generate --params DIR --style Neutral --switch-to Zombie --switch-at 10 --out switch.bvh
+    minifilm generate --params DIR --list-styles
+
+Scripts: straight, figure8, walk_run_stop, strafe (minifilm/runtime/control.py). Every frame is put
+on the source skeleton (rigid bones aimed at the predicted joints, the demo's arm IK for the whole
+body) and the BVH is written on that skeleton in its own channel order. For the released network
+the fitted pose is fed back to the network, as the demo feeds back its post-IK pose, and the speed
+is calibrated per style; for a trained run the fit is an output post-process and the run's own
+start frames and settings are used (both measured choices, see --fit and --no-calibrate).
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from minifilm.cli.args import in_range, png_path, positive
+from minifilm.features.layout import FeatureLayout
+from minifilm.files import check_writable
+from minifilm.motion.bvh import read_bvh
+from minifilm.motion.bvh_write import write_bvh
+from minifilm.motion.foot_ik import FootLocker
+from minifilm.motion.measures import bone_length_cv, foot_sliding
+from minifilm.motion.skeletons import STYLE100
+from minifilm.pipeline.run_folder import RunFolder
+from minifilm.runtime.calibration import calibrate_speed
+from minifilm.runtime.control import SCRIPTS, distance_to_path, make_script
+from minifilm.runtime.controller import Controller, root_joint_indices
+from minifilm.runtime.released import load_released
+from minifilm.runtime.style_library import StyleLibrary
+from minifilm.synthetic.generator import rest_motion
+from minifilm.viewer.strip import draw_strip
+
+HELP = "generate motion with the released network or a trained run"
+
+
+def add_arguments(ap) -> None:
+    src = ap.add_mutually_exclusive_group(required=True)
+    src.add_argument("--params", type=Path, help="the released network's parameter folder")
+    src.add_argument("--run", type=Path, help="a run folder written by minifilm train")
+    ap.add_argument("--style", help="style name (see --list-styles); default: the first style")
+    ap.add_argument("--style2", help="second style, blended with --blend w: (1-w) style + w style2")
+    ap.add_argument("--blend", type=in_range(0.0, 1.0), default=0.5, help="weight of --style2, in [0, 1]")
+    ap.add_argument("--style3", help="third style: barycentric blend with --weights w1 w2 w3")
+    ap.add_argument("--weights", type=in_range(0.0, 1.0), nargs=3, help="three weights >= 0 summing to 1")
+    ap.add_argument("--switch-to", help="switch to this style at --switch-at seconds (smooth, 1 s)")
+    ap.add_argument("--switch-at", type=in_range(0.0, 24 * 3600.0), default=10.0)
+    ap.add_argument("--script", default="figure8", choices=sorted(SCRIPTS))
+    ap.add_argument("--speed", type=in_range(0.0, 10.0), default=1.3, help="walking speed, m/s (0-10)")
+    ap.add_argument("--seconds", type=positive(float, 3600.0), default=30.0, help="length, seconds")
+    ap.add_argument("--out", type=Path, default=Path("motion.bvh"), help="BVH file to write")
+    ap.add_argument("--skeleton-bvh", type=Path,
+                    help="BVH whose hierarchy, offsets and channel order the output uses (default: the "
+                         "run's skeleton, or the 100STYLE skeleton for the released network)")
+    ap.add_argument("--foot-lock", action="store_true", help="pin feet in predicted contact (leg IK)")
+    ap.add_argument("--fit", choices=("feedback", "output", "none"),
+                    help="put each frame on the skeleton and feed that pose back (released default), fit the "
+                         "output only (trained-run default), or no fit")
+    ap.add_argument("--no-calibrate", action="store_true", help="command the raw speed (no calibration)")
+    ap.add_argument("--png", type=png_path, help="also draw the motion into this PNG")
+    ap.add_argument("--png-from", type=in_range(0.0, 24 * 3600.0), default=1.0, help="first drawn frame, seconds")
+    ap.add_argument("--png-every", type=in_range(1, 100_000, int), default=10, help="frames between drawn figures")
+    ap.add_argument("--list-styles", action="store_true", help="print the style names and stop")
+
+
+class Source:
+    """What drives the character: network, layout, styles, skeleton, settings and start frames."""
+
+    def __init__(self, args):
+        self.starts = {}
+        if args.params is not None:
+            rel = load_released(args.params)
+            self.network, self.library = rel.network, StyleLibrary(rel.styles)
+            self.layout, self.fps, self.bvh_scale = FeatureLayout.for_skeleton(STYLE100), 60.0, STYLE100.bvh_scale
+            self.skeleton = rest_motion()
+            self.fit, self.calibrate, self.options = args.fit or "feedback", not args.no_calibrate, {}
+        else:
+            run = RunFolder.load(args.run)
+            self.network, self.library = run.network(), run.styles()
+            self.layout, self.fps, self.bvh_scale = run.layout, run.fps, run.bvh_scale
+            self.skeleton = run.template()
+            self.starts = run.starts()
+            # a small model trained here does not survive commands far outside its data's speeds
+            # (calibrate_speed asks for them), and stops stepping more often when fed the fitted pose
+            self.fit, self.calibrate = args.fit or "output", False
+            self.options = {"position_bias": run.position_bias}
+        if args.skeleton_bvh is not None:
+            self.skeleton = read_bvh(args.skeleton_bvh, scale=self.bvh_scale)
+
+
+def style_condition(args, lib: StyleLibrary, n: int, fps: float):
+    """(film for the whole run or per frame, the film of the start style, a label)."""
+    style = args.style or lib.names[0]
+    if args.style3:
+        if not args.weights or not args.style2:
+            raise ValueError("--style3 needs --style2 and --weights w1 w2 w3")
+        film = lib.barycentric([style, args.style2, args.style3], args.weights)
+        label = f"{style}/{args.style2}/{args.style3} at {args.weights}"
+    elif args.style2:
+        film = lib.blend({style: 1 - args.blend, args.style2: args.blend})
+        label = f"{style} + {args.blend:g} {args.style2}"
+    else:
+        film, label = lib[style], style
+    films = film
+    if args.switch_to:
+        films = lib.schedule([(0.0, {style: 1.0}), (args.switch_at, args.switch_to)], n, fps)
+        label += f" -> {args.switch_to} at {args.switch_at:g} s"
+    return films, film, label
+
+
+def run(args) -> int:
+    out = check_writable(args.out, "--out")
+    if args.png:
+        check_writable(args.png, "--png")
+    src = Source(args)
+    lib = src.library
+    if args.list_styles:
+        print(" ".join(lib.names))
+        return 0
+    n = int(round(args.seconds * src.fps))
+    films, film, label = style_condition(args, lib, n, src.fps)
+    joints = root_joint_indices(src.layout, src.skeleton)
+    locker = FootLocker.from_names(src.layout.joint_names) if args.foot_lock else None
+    body = None if src.fit == "none" else Controller.skeleton_for(src.layout, src.skeleton)
+    ctrl = Controller(src.network, src.layout, fps=src.fps, foot_locker=locker, skeleton=body,
+                      feed_back_fit=src.fit == "feedback", **src.options)
+    start_x, phases = src.starts.get(args.style or lib.names[0], (None, None))
+
+    cal = None
+    if src.calibrate:
+        t0 = time.perf_counter()
+        cal = calibrate_speed(Controller(src.network, src.layout, fps=src.fps, **src.options), film,
+                              phases=phases, start_x=start_x)
+        achieved = "; ".join(f"{d:g} deg: {row[1:].round(2).tolist()}" for d, row in zip(cal.directions, cal.achieved))
+        print(f"speed calibration ({time.perf_counter() - t0:.1f} s): commands {cal.commanded[1:].round(1).tolist()} m/s "
+              f"-> achieved m/s by direction from the facing ({achieved})")
+    speed = min(args.speed, 1.0) if args.script == "strafe" else args.speed
+    script = make_script(args.script, args.seconds, speed=speed)
+    t0 = time.perf_counter()
+    r = ctrl.run(script, n, films, calibration=cal, phases=phases, start_x=start_x)
+    dt = time.perf_counter() - t0
+    if not np.all(np.isfinite(r.positions)):
+        raise ValueError(f"the network's output became non-finite during the rollout ({label}); nothing written")
+
+    write_bvh(r.to_motion(src.skeleton, joints), out, scale=src.bvh_scale)
+    names = list(src.layout.joint_names)
+    parents = src.layout.parents
+    k0 = min(int(round(src.fps)), n - 2)
+    d = distance_to_path(r.root_positions[0], script.path)
+    hips = r.positions[0, :, 0, 1]
+    mean_speed = np.linalg.norm(np.diff(r.root_positions[0], axis=0), axis=1).mean() * src.fps
+    toes = [names.index(t) for t in ("RightToe", "LeftToe") if t in names]
+    sliding = (f", foot sliding {foot_sliding(r.positions[0, k0:], r.contacts[0, k0:], toes, src.fps):.3f} m/s"
+               if len(toes) == 2 else "")
+    print(f"{label}: {n} frames in {dt:.1f} s ({dt / n * 1e3:.2f} ms/frame) -> {out}")
+    print(f"  path distance mean {d.mean():.2f} m (max {d.max():.2f}), mean speed {mean_speed:.2f} m/s, "
+          f"hips {hips.min():.2f}-{hips.max():.2f} m, bone CV max "
+          f"{bone_length_cv(r.network_positions[0, k0:], parents).max():.1%} as predicted "
+          f"({bone_length_cv(r.positions[0, k0:], parents).max():.1%} output){sliding}")
+    if args.png:
+        path = draw_strip(r, parents, names, script.path, args.png, every=args.png_every, title=label,
+                          start=int(round(args.png_from * src.fps)))
+        print(f"  drawing -> {path}")
+    return 0

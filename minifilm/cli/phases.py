@@ -1,0 +1,59 @@
+"""Draw a BVH file's foot contacts and local phases like the paper's Figure 4 (Sec. 4.1).
+
+    minifilm phases FILE.bvh [--out phases.png] [--skeleton NAME] [--style NAME]
+                             [--start SECONDS] [--stop SECONDS]
+
+``--skeleton`` is one of the built-ins (100style, bandai, cmu, cmu-mb); by default it is detected
+from the joint names. ``--style LeftHop`` / ``RightHop`` switches the lifted foot to the
+contact-free source.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from minifilm.cli.args import png_path, seconds_at_least
+from minifilm.files import check_writable
+from minifilm.motion.bvh import read_bvh
+from minifilm.motion.skeletons import builtin_skeleton, detect_skeleton
+from minifilm.phases.label import label
+from minifilm.phases.local_phases import LocalPhases
+from minifilm.viewer.phase_plot import plot_phases
+
+HELP = "draw a BVH file's contacts and local phases (Figure 4)"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("bvh", type=Path, help="the BVH file")
+    parser.add_argument("--out", type=png_path, default=Path("phases.png"), help="PNG to write (default phases.png)")
+    parser.add_argument("--skeleton", default=None, help="built-in skeleton name (default: detected)")
+    parser.add_argument("--style", default=None, help="style name, e.g. LeftHop (chooses the sources)")
+    parser.add_argument("--start", type=seconds_at_least(0.0), default=0.0, help="first second to draw")
+    parser.add_argument("--stop", type=seconds_at_least(0.0), default=None, help="last second to draw")
+
+
+def load(path, skeleton_name=None):
+    """Read ``path`` in metres with its skeleton (named, or detected from the joint names)."""
+    if skeleton_name:
+        skeleton = builtin_skeleton(skeleton_name)
+    else:
+        skeleton = detect_skeleton(read_bvh(path, scale=1.0))
+    return read_bvh(path, scale=skeleton.bvh_scale), skeleton
+
+
+def run(args) -> int:
+    out = check_writable(args.out, "--out")
+    motion, skeleton = load(args.bvh, args.skeleton)
+    labels = label(motion, skeleton, args.style)
+    t = np.arange(motion.n_frames) / motion.fps
+    keep = (t >= args.start) & (t <= (args.stop if args.stop is not None else t[-1]))
+    if not np.any(keep):
+        raise ValueError(f"no frames between {args.start} s and {args.stop} s ({args.bvh} lasts {t[-1]:.2f} s)")
+    ph = labels.phases
+    view = LocalPhases(*(None if a is None else a[keep] for a in
+                         (ph.phase, ph.amplitude, ph.source, ph.fit, ph.frequency)))
+    title = f"{Path(args.bvh).name}: {motion.n_frames} frames at {motion.fps:.0f} fps, skeleton {skeleton.name}"
+    plot_phases(t[keep], view, labels.contacts[keep], labels.sources, out, title)
+    print(f"wrote {out}")
+    return 0

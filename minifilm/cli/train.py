@@ -1,0 +1,47 @@
+"""The main job: data -> local phases -> dataset -> training -> test table -> generated motion.
+
+    minifilm train                      # synthetic data (8 styles x 6 gaits), default settings
+    minifilm train --data DIR           # your own folder of <Style>_<Gait>.bvh files, or a CSV manifest
+    minifilm train --quick              # a smaller, faster run of the same steps
+
+The same job as ``python examples/train_small.py``; the steps are in minifilm/pipeline/train_small.py.
+Writes a run folder (--out, default runs/train_small) that ``minifilm generate --run`` reads.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+from minifilm.cli.args import in_range, positive
+from minifilm.pipeline.train_small import Settings, run as run_job
+
+HELP = "the main job: synthetic or your data -> trained model -> generated motion"
+
+
+def add_arguments(parser) -> None:
+    d = Settings()
+    parser.add_argument("--data", type=Path, help="folder of <Style>_<Gait>.bvh files, or a CSV manifest "
+                        "(file,style,gait[,start,end]) for other datasets (default: synthetic data)")
+    parser.add_argument("--out", type=Path, default=d.out, help=f"output (run) folder (default {d.out})")
+    parser.add_argument("--epochs", type=in_range(1, 100_000, int), help=f"training epochs (default {d.epochs})")
+    parser.add_argument("--seed", type=in_range(0, 2**32 - 1, int), default=d.seed)
+    parser.add_argument("--quick", action="store_true", help="a smaller, faster run of every step")
+    parser.add_argument("--styles", help="comma-separated synthetic styles (default: all)")
+    parser.add_argument("--gaits", help=f"comma-separated synthetic gaits (default: {','.join(d.gaits)})")
+    parser.add_argument("--seconds", type=positive(float, 3600.0), help="synthetic seconds per style and gait")
+    parser.add_argument("--generate-seconds", type=positive(float, 3600.0), help="seconds of motion generated per style")
+
+
+def settings(args) -> Settings:
+    s = Settings(seed=args.seed, out=args.out)
+    if args.quick:
+        s = s.quick()
+    changes = {"epochs": args.epochs, "seconds_per_clip": args.seconds, "generate_seconds": args.generate_seconds,
+               "styles": args.styles and tuple(args.styles.split(",")),
+               "gaits": args.gaits and tuple(args.gaits.split(","))}
+    return replace(s, **{k: v for k, v in changes.items() if v is not None})
+
+
+def run(args) -> int:
+    run_job(settings(args), args.data)
+    return 0

@@ -1,0 +1,140 @@
+"""Teach a trained run a new style from a short clip: fine-tune Ψ alone (Sec. 5.3.2, Figure 11).
+
+    clip(s) on the run's skeleton -> labels (contacts, local phases) -> x, p, z rows and style clips
+    -> fine-tune Ψ with Ω and Φ frozen -> FiLM vector of the new style -> the run's style library
+
+The run folder gains the new style in styles.npz (every existing style keeps its stored vector
+exactly, so its motion is bit-identical), a start frame in starts.npz, and the fine-tuned
+checkpoint as ``model-<NAME>.npz`` beside the original, which is never overwritten. Everything is
+checked before anything is written.
+"""
+from __future__ import annotations
+
+import math
+import re
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, List, Sequence
+
+import numpy as np
+
+from minifilm.dataset.arrays import TrainData
+from minifilm.features.compute import clip_features, frame_features
+from minifilm.motion.bvh import read_bvh
+from minifilm.motion.editing import resample
+from minifilm.motion.motion import Motion
+from minifilm.motion.skeletons import builtin_skeleton
+from minifilm.phases.label import label
+from minifilm.pipeline.run_folder import RunFolder
+from minifilm.train.finetune import finetune
+from minifilm.train.trainer import TrainConfig, Trainer
+
+NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9 _.+-]{0,63}$")
+
+
+@dataclass
+class NewStyleResult:
+    name: str
+    seconds: float            # fine-tuning time
+    steps: int
+    frames: int               # training rows
+    clips: int                # style clips
+    loss_before: float        # MSE + BLL on the clip's rows with Ψ as trained
+    loss_after: float         # ... with the fine-tuned Ψ
+    nearest: str              # the trained style whose FiLM vector is closest to the new one
+    checkpoint: Path
+
+
+def check_name(name: str, run: RunFolder, replace: bool) -> None:
+    if not NAME.match(name or ""):
+        raise ValueError(f"--name {name!r}: use 1-64 letters, digits, spaces or _ . + - (starting with a "
+                         "letter or digit)")
+    if name in run.styles() and not replace:
+        raise ValueError(f"--name {name!r}: the run already has a style of that name (--replace to overwrite it)")
+
+
+def read_clip(path, run: RunFolder, log: Callable[[str], None]) -> Motion:
+    """One file on the run's skeleton, at the run's frame rate (resampled, and said so)."""
+    motion = read_bvh(path, scale=run.bvh_scale)
+    missing = [n for n in run.layout.joint_names if n not in motion.names]
+    if missing:
+        raise ValueError(f"{path}: not on the run's skeleton: {len(missing)} of its {run.layout.n_joints} joints "
+                         f"are missing ({', '.join(missing)})")
+    if abs(motion.fps - run.fps) > 1e-3 * run.fps:
+        log(f"    {Path(path).name}: {motion.fps:g} fps resampled to the run's {run.fps:g} fps")
+        motion = resample(motion, run.fps)
+    return motion
+
+
+def count_steps(contacts: np.ndarray) -> int:
+    """Foot strikes (a contact starting) over both feet: contacts (F, 2) 0/1."""
+    c = np.asarray(contacts) > 0.5
+    return int(np.sum(c[1:] & ~c[:-1]))
+
+
+def clip_training_data(motions: Sequence[Motion], files, run: RunFolder, stats, clip_frames: int, name: str):
+    """TrainData (one style, id 0) of the clips, normalised with the run's statistics, and the raw
+    start frame (x, p) from the middle of the first file."""
+    skeleton = builtin_skeleton(run.skeleton_name)
+    clip_seconds = clip_frames / run.fps
+    xs, ps, zs, ys = [], [], [], []
+    for motion, path in zip(motions, files):
+        labels = label(motion, skeleton, name)
+        if count_steps(labels.contacts) < 2:
+            raise ValueError(f"{path}: fewer than two foot steps in {motion.n_frames / run.fps:.1f} s "
+                             "(a style is learnt from locomotion: walk or run in it for a few steps)")
+        rows = frame_features(motion, skeleton, labels.vectors, labels.contacts, fps=run.fps)
+        xs.append(rows.x)
+        ps.append(rows.p)
+        zs.append(rows.z)
+        ys.append(clip_features(motion, skeleton, clip_seconds, clip_seconds / 2, fps=run.fps))
+    clips = np.concatenate(ys)
+    if len(clips) == 0:
+        longest = max(m.n_frames for m in motions) / run.fps
+        raise ValueError(f"the clip{'s are' if len(files) > 1 else ' is'} too short for one style clip: the "
+                         f"model reads {clip_seconds:.2f} s windows, the longest file lasts {longest:.2f} s")
+    x, p, z = np.concatenate(xs), np.concatenate(ps), np.concatenate(zs)
+    start = (np.asarray(xs[0][len(xs[0]) // 2], np.float64), np.asarray(ps[0][len(ps[0]) // 2], np.float64))
+    f32 = np.float32
+    data = TrainData(x=stats.normalize_x(x).astype(f32), p=stats.normalize_p(p).astype(f32),
+                     z=stats.normalize_z(z).astype(f32), style=np.zeros(len(x), np.int64),
+                     clips=stats.normalize_clip(clips, run.layout.x_joints).astype(f32),
+                     clip_style=np.zeros(len(clips), np.int64), style_names=[name])
+    return data, start
+
+
+def teach_style(run_path, name: str, files: Sequence, steps: int = 400, lr: float = 5e-4, seed: int = 0,
+                replace: bool = False, log: Callable[[str], None] = print) -> NewStyleResult:
+    """Fine-tune the run's Ψ on ``files`` and add ``name`` to its style library (see the module
+    docstring). Raises ValueError naming the file or setting that is wrong; the run folder is then
+    untouched."""
+    run = RunFolder.load(run_path)
+    check_name(name, run, replace)
+    files = [Path(f) for f in files]
+    if not files:
+        raise ValueError("no clip given: name one or more BVH files of the new style")
+    library = run.styles()
+    model, stats = run.model_and_stats()
+    motions: List[Motion] = [read_clip(f, run, log) for f in files]
+    data, start = clip_training_data(motions, files, run, stats, model.config.clip_frames, name)
+
+    batch = min(32, len(data))
+    epochs = max(1, math.ceil(steps / (len(data) // batch)))
+    config = TrainConfig(epochs=epochs, batch_size=batch, lr=lr, seed=seed, progress=False)
+    before = Trainer.resume(run.checkpoint, config, restore_optimizer=False).evaluate(data)["loss"]
+    t0 = time.perf_counter()
+    tuned = finetune(run.checkpoint, data, config=config, style_names=[name])
+    seconds = time.perf_counter() - t0
+    after = tuned.evaluate(data)["loss"]
+
+    library.add_from_clips(name, tuned.model, data.clips)   # existing styles: stored vectors untouched
+    others = [n for n in library.names if n != name]
+    nearest = min(others, key=lambda n: float(np.linalg.norm(library[n] - library[name]))) if others else ""
+    checkpoint = run.path / f"model-{name}.npz"
+    tuned.save(checkpoint)
+    library.save(run.path / "styles.npz")
+    starts = run.starts()
+    starts[name] = start
+    run.save_starts(starts)
+    return NewStyleResult(name, seconds, tuned.step, len(data), len(data.clips), before, after, nearest, checkpoint)

@@ -1,0 +1,149 @@
+"""A run folder: everything a trained model needs to generate motion, in one self-contained folder.
+
+``minifilm train`` writes one and ``minifilm generate --run``, ``minifilm finetune --run`` and the
+demo read it, from any working directory:
+
+    run.json       what the folder holds: layout, frame rate, skeleton, runtime settings
+    model.npz      the checkpoint: Ω, Φ, Ψ, optimiser state, normalisation statistics (.npz + JSON)
+    styles.npz     the style library: one FiLM vector per style (Sec. 4.4)
+    starts.npz     per style, a raw input frame x and its phases p from the style's own data, where
+                   a generated motion starts (mid-stride rather than the data's mean pose)
+    skeleton.bvh   one frame of the source skeleton: the BVH files are written on it
+
+Nothing here is pickled; every array file loads with ``allow_pickle=False``.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Dict, Optional, Sequence, Tuple
+
+import numpy as np
+
+from minifilm.dataset.stats import NormStats
+from minifilm.features.layout import FeatureLayout
+from minifilm.files import atomic_savez, atomic_write_text
+from minifilm.motion.bvh import read_bvh
+from minifilm.motion.bvh_write import write_bvh
+from minifilm.motion.motion import Motion
+from minifilm.runtime.controller import Controller
+from minifilm.runtime.network import RuntimeNetwork
+from minifilm.runtime.style_library import StyleLibrary
+from minifilm.train.checkpoint import CheckpointError, build_style_model, load_checkpoint, load_model_arrays
+
+FORMAT = "minifilm-run-1"
+MANIFEST = "run.json"
+
+
+class RunFolderError(ValueError):
+    """A folder is not a minifilm run folder, or one of its files is missing or broken."""
+
+
+@dataclass
+class RunFolder:
+    """A run folder on disk (see the module docstring); arrays are read on demand."""
+
+    path: Path
+    layout: FeatureLayout
+    fps: float
+    skeleton_name: str
+    bvh_scale: float
+    position_bias: float
+
+    # ---- writing ----------------------------------------------------------------------------
+    @classmethod
+    def write_manifest(cls, path, layout: FeatureLayout, fps: float, skeleton_name: str, bvh_scale: float,
+                       template: Motion, position_bias: float) -> "RunFolder":
+        """Write run.json and skeleton.bvh (one frame of ``template``) into ``path``."""
+        path = Path(path)
+        write_bvh(template.slice(0, 1), path / "skeleton.bvh", scale=bvh_scale)
+        manifest = {"format": FORMAT, "layout": layout.to_dict(), "fps": float(fps),
+                    "skeleton": skeleton_name, "bvh_scale": float(bvh_scale),
+                    "position_bias": float(position_bias)}
+        atomic_write_text(path / MANIFEST, json.dumps(manifest, indent=1) + "\n")
+        return cls(path, layout, float(fps), skeleton_name, float(bvh_scale), float(position_bias))
+
+    def save_starts(self, starts: Dict[str, Tuple[np.ndarray, np.ndarray]]) -> Path:
+        """Per style, the raw input frame x (x_dim,) and phases p (8,) a rollout starts from."""
+        names = list(starts)
+        x = np.stack([np.asarray(starts[n][0], np.float64) for n in names]) if names else np.zeros((0, self.layout.x_dim))
+        p = np.stack([np.asarray(starts[n][1], np.float64) for n in names]) if names else np.zeros((0, 8))
+        return atomic_savez(self.path / "starts.npz", {"names": np.array(names, dtype=str), "x": x, "p": p})
+
+    # ---- reading ----------------------------------------------------------------------------
+    @classmethod
+    def load(cls, path) -> "RunFolder":
+        """Open a run folder; RunFolderError naming the folder and what is wrong otherwise."""
+        path = Path(path)
+        if not path.is_dir():
+            raise RunFolderError(f"run folder {path}: no such folder")
+        manifest = path / MANIFEST
+        if not manifest.is_file():
+            raise RunFolderError(f"run folder {path}: no {MANIFEST} (not a folder written by minifilm train)")
+        try:
+            meta = json.loads(manifest.read_text(encoding="utf-8"))
+            if meta.get("format") != FORMAT:
+                raise ValueError(f"format {meta.get('format')!r}, expected {FORMAT!r}")
+            return cls(path, FeatureLayout.from_dict(meta["layout"]), float(meta["fps"]), str(meta["skeleton"]),
+                       float(meta["bvh_scale"]), float(meta.get("position_bias", 0.75)))
+        except (ValueError, KeyError, TypeError, AttributeError) as e:
+            raise RunFolderError(f"run folder {path}: {MANIFEST} is not valid ({e})") from None
+
+    def _file(self, name: str) -> Path:
+        p = self.path / name
+        if not p.is_file():
+            raise RunFolderError(f"run folder {self.path}: missing {name}")
+        return p
+
+    @property
+    def checkpoint(self) -> Path:
+        return self._file("model.npz")
+
+    def model_and_stats(self):
+        """(StyleModel with its trained weights, NormStats) from model.npz."""
+        meta, arrays = load_checkpoint(self.checkpoint)
+        try:
+            model = build_style_model(meta)
+            stats = NormStats.from_arrays(arrays, "stats.")
+        except (KeyError, ValueError, TypeError) as e:
+            if isinstance(e, CheckpointError):
+                raise
+            raise CheckpointError(f"checkpoint {self.checkpoint}: bad configuration or statistics ({e})") from e
+        load_model_arrays(model, arrays, self.checkpoint)
+        return model, stats
+
+    def styles(self) -> StyleLibrary:
+        return StyleLibrary.load(self._file("styles.npz"))
+
+    def starts(self) -> Dict[str, Tuple[np.ndarray, np.ndarray]]:
+        """style -> (x (x_dim,), p (8,)); empty when the folder has no starts.npz."""
+        path = self.path / "starts.npz"
+        if not path.is_file():
+            return {}
+        with np.load(path, allow_pickle=False) as d:
+            return {str(n): (d["x"][i], d["p"][i]) for i, n in enumerate(d["names"])}
+
+    def template(self) -> Motion:
+        """The source skeleton (one frame), in metres."""
+        return read_bvh(self._file("skeleton.bvh"), scale=self.bvh_scale)
+
+    def network(self) -> RuntimeNetwork:
+        model, stats = self.model_and_stats()
+        return RuntimeNetwork.from_model(model, stats)
+
+    def controller(self, network: Optional[RuntimeNetwork] = None, fit: bool = True, **options) -> Controller:
+        """A Controller for this run: its layout and frame rate, the run's position bias, and (with
+        ``fit``) every frame put on the source skeleton. ``options`` go to the Controller."""
+        options.setdefault("position_bias", self.position_bias)
+        if fit:
+            options.setdefault("skeleton", Controller.skeleton_for(self.layout, self.template()))
+        return Controller(network or self.network(), self.layout, fps=self.fps, **options)
+
+    def start_states(self, names: Sequence[str]):
+        """(x (B, x_dim), p (B, 8)) start frames for the styles ``names``, or (None, None) when any
+        style has none (then rollouts start from the data's mean pose)."""
+        starts = self.starts()
+        if not names or any(n not in starts for n in names):
+            return None, None
+        return np.stack([starts[n][0] for n in names]), np.stack([starts[n][1] for n in names])

@@ -1,0 +1,87 @@
+"""The `minifilm` command: its subcommands, one-line errors for bad input (exit 2), tracebacks for
+bugs, and the examples that go through the same error reporting."""
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from minifilm import cli
+from minifilm.motion.bvh import BVHError
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+
+
+def minifilm(*args, cwd=None, timeout=300):
+    """Run ``python -m minifilm ARGS`` (the console command's module) and return the result."""
+    return subprocess.run([sys.executable, "-m", "minifilm", *map(str, args)], capture_output=True, text=True,
+                          cwd=cwd, timeout=timeout)
+
+
+def test_help_lists_every_command_with_one_line():
+    proc = minifilm("--help")
+    assert proc.returncode == 0
+    for name, (_, text, _) in cli.COMMANDS.items():
+        assert f"  {name}" in proc.stdout and text in proc.stdout
+    assert set(cli.COMMANDS) >= {"train", "phases", "dataset", "generate", "finetune", "table2", "compare"}
+
+
+def test_unknown_command_is_named():
+    proc = minifilm("tabel2")
+    assert proc.returncode == 2 and "tabel2" in proc.stderr
+
+
+@pytest.mark.parametrize("name", list(cli.COMMANDS))
+def test_every_command_has_help(name):
+    proc = minifilm(name, "--help")
+    assert proc.returncode == 0, proc.stderr
+    assert f"minifilm {name}" in proc.stdout
+
+
+def test_input_errors_become_one_line_and_exit_code_2(capsys):
+    def main():
+        raise BVHError("walk.bvh", 7, "expected 'OFFSET'")
+    with pytest.raises(SystemExit) as stop:
+        cli.report_errors(main)
+    assert stop.value.code == 2
+    assert capsys.readouterr().err == "error: walk.bvh, line 7: expected 'OFFSET'\n"
+
+
+def test_bugs_keep_their_traceback():
+    def main():
+        raise IndexError("a bug, not bad input")
+    with pytest.raises(IndexError):
+        cli.report_errors(main)
+
+
+def test_return_code_passes_through():
+    with pytest.raises(SystemExit) as stop:
+        cli.report_errors(lambda: 3)
+    assert stop.value.code == 3
+
+
+@pytest.mark.parametrize("argv", [["phases", "{bad}"], ["dataset", "{missing}"],
+                                  ["generate", "--params", "{missing}", "--seconds", "1"],
+                                  ["generate", "--run", "{missing}", "--seconds", "1"],
+                                  ["finetune", "--run", "{missing}", "--name", "X", "{bad}"],
+                                  ["generate", "--params", "{missing}", "--seconds", "nan"],
+                                  ["generate", "--params", "{missing}", "--blend", "1000"],
+                                  ["phases", "{bad}", "--start", "-1"]])
+def test_commands_report_bad_input_in_one_line(tmp_path, argv):
+    bad = tmp_path / "bad.bvh"
+    bad.write_text("HIERARCHY\nROOT Hips\n{\n")
+    proc = minifilm(*[a.format(bad=bad, missing=tmp_path / "missing") for a in argv], cwd=tmp_path)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.startswith("error: ") and proc.stderr.count("\n") == 1, proc.stderr
+
+
+@pytest.mark.parametrize("argv", [["plot_phases.py", "{bad}"], ["build_dataset.py", "{missing}"],
+                                  ["generate_released.py", "--params", "{missing}", "--seconds", "1"]])
+def test_example_scripts_report_bad_input_in_one_line(tmp_path, argv):
+    bad = tmp_path / "bad.bvh"
+    bad.write_text("HIERARCHY\nROOT Hips\n{\n")
+    args = [a.format(bad=bad, missing=tmp_path / "missing") for a in argv]
+    proc = subprocess.run([sys.executable, str(EXAMPLES / args[0])] + args[1:], capture_output=True,
+                          text=True, cwd=tmp_path, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.startswith("error: ") and "Traceback" not in proc.stderr
