@@ -19,14 +19,15 @@ def main():
     ap.add_argument("source", help="a folder of BVH files or a CSV manifest")
     ap.add_argument("--cache", default=".cache/datasets", help="cache folder")
     ap.add_argument("--split-files", action="store_true", help="whole files per split (many short files)")
+    ap.add_argument("--clip-seconds", type=float, default=4.0, help="style clip length (the paper: 4 s)")
     args = ap.parse_args()
 
     source = Path(args.source)
     if source.is_dir() and any(source.glob("dataset-*_*_*_*.bvh")):     # Bandai Namco naming
         source = write_bandai_manifest(source, Path(args.cache) / f"{source.name}-manifest.csv")
     # read, label (contacts, local phases), featurise (x, p, z, clips), split, normalise, cache
-    ds = build_dataset(source, cache_dir=args.cache, mirror_styles=("*",),
-                       split_unit="files" if args.split_files else "segments")
+    ds = build_dataset(source, cache_dir=args.cache, mirror_styles=("*",), clip_seconds=args.clip_seconds,
+                       clip_stride_seconds=args.clip_seconds / 2, split_unit="files" if args.split_files else "segments")
     print(ds.summary())
     train = ds.train_data("train")           # normalised arrays, as the trainer takes them
     print(f"training arrays: x {train.x.shape}, p {train.p.shape}, z {train.z.shape}, clips {train.clips.shape}")

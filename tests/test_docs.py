@@ -58,7 +58,7 @@ def shell_commands(path: Path):
             if cmd and not cmd.startswith("#"):
                 out.append((line + 1 + i, cmd))
     text = FENCE.sub(lambda m: "\n" * m.group(0).count("\n"), path.read_text(encoding="utf-8"))
-    for m in re.finditer(r"`((?:python|pip) [^`]+)`", text):
+    for m in re.finditer(r"`((?:python|pip|minifilm) [^`]+)`", text):
         out.append((text.count("\n", 0, m.start()) + 1, m.group(1)))
     return out
 
@@ -131,14 +131,32 @@ def script_options(path: Path) -> frozenset:
 
 
 def dispatched_options(source: Path) -> frozenset:
-    """Options of the minifilm modules a command module dispatches to by name (string literals
-    such as "minifilm.evaluation.table2" in minifilm/evaluate.py)."""
+    """Options of the `minifilm` subcommands a script hands its arguments to
+    (``main(["train"] + sys.argv[1:])`` in examples/train_small.py)."""
     out = set()
-    for name in re.findall(r"[\"'](minifilm(?:\.\w+)+)[\"']", source.read_text(encoding="utf-8")):
-        path = REPO_ROOT / (name.replace(".", "/") + ".py")
-        if path.is_file():
-            out |= script_options(path)
+    for name in re.findall(r"main\(\[[\"'](\w+)[\"']\]", source.read_text(encoding="utf-8")):
+        out |= command_options(name) or set()
     return frozenset(out)
+
+
+def command_options(name: str):
+    """The options of ``minifilm NAME`` (every '--option' literal of its module), None if no such
+    subcommand."""
+    from minifilm.cli import COMMANDS
+    if name not in COMMANDS:
+        return None
+    return script_options(REPO_ROOT / (COMMANDS[name][0].replace(".", "/") + ".py"))
+
+
+def check_minifilm_command(words) -> str | None:
+    """None if `minifilm SUBCOMMAND ...` names a subcommand and only options it defines."""
+    if len(words) < 2 or words[1] in ("-h", "--help"):
+        return None
+    known = command_options(words[1])
+    if known is None:
+        return f"minifilm has no subcommand {words[1]!r}"
+    bad = [a.split("=")[0] for a in words[2:] if a.startswith("--") and a.split("=")[0] not in known | {"--help"}]
+    return f"minifilm {words[1]} has no option(s) {bad}" if bad else None
 
 
 def setup_extras() -> set:
@@ -185,8 +203,8 @@ def check_command(cmd: str) -> list:
             return [f"cannot parse: {e}"]
         if not words:
             continue
-        if words[0] == "python":
-            msg = check_python_command(words)
+        if words[0] in ("python", "minifilm"):
+            msg = check_python_command(words) if words[0] == "python" else check_minifilm_command(words)
             if msg:
                 problems.append(msg)
         elif words[0] == "pip" and "-e" in words:
@@ -214,7 +232,9 @@ def test_the_command_checker_can_fail():
     assert check_command("python examples/no_such_script.py")
     assert check_command('pip install -e ".[nonexistent]"')
     assert check_command("python -m minifilm.no_such_module --help")
-    assert check_command("python -m minifilm.evaluate table2 --no-such-option")
+    assert check_command("minifilm table2 --no-such-option")
+    assert check_command("minifilm tabel2")
+    assert check_command("minifilm table2 --no-timing") == []
 
 
 # ---------------------------------------------------------------------------- 4. code references
@@ -285,28 +305,34 @@ def test_relative_links_and_images_exist():
 
 # ---------------------------------------------------------------------------- 5. README examples
 def test_readme_example_commands_run_in_miniature(tmp_path):
-    """The example scripts the README tells a newcomer to run, on tiny inputs (one process each,
-    in parallel): make_synthetic -> plot_phases, build_dataset; generate_released if the released
-    network is there. train_small.py is run by tests/test_train_small.py, pytest by CI."""
+    """The commands and example scripts the README tells a newcomer to run, on tiny inputs (one
+    process each, in parallel): make_synthetic -> minifilm phases / dataset and the phase and
+    dataset walk-throughs; minifilm generate and generate_released.py if the released network is
+    there. The main job is run by tests/pipeline/test_train_small.py, pytest by CI."""
     import subprocess
     import sys
 
     env = dict(os.environ, MPLBACKEND="Agg")
     py = [sys.executable]
+    mf = py + ["-m", "minifilm"]
     syn = tmp_path / "syn"
     subprocess.run(py + ["examples/make_synthetic.py", str(syn), "--seconds", "3", "--styles",
                          "Limp", "--gaits", "FW"], cwd=REPO_ROOT, env=env, check=True,
                    capture_output=True, timeout=120)
-    jobs = {"build_dataset": py + ["examples/build_dataset.py", str(syn), "--no-cache",
-                                   "--clip-seconds", "1"]}
+    jobs = {"minifilm dataset": mf + ["dataset", str(syn), "--no-cache", "--clip-seconds", "1"],
+            "build_dataset.py": py + ["examples/build_dataset.py", str(syn), "--cache", str(tmp_path / "cache"),
+                                      "--clip-seconds", "1"]}
     if importlib.util.find_spec("matplotlib") is not None:      # the [viz] / [dev] extra
-        jobs["plot_phases"] = py + ["examples/plot_phases.py", str(syn / "Limp_FW.bvh"), "--out",
-                                    str(tmp_path / "phases.png")]
+        jobs["minifilm phases"] = mf + ["phases", str(syn / "Limp_FW.bvh"), "--out", str(tmp_path / "phases.png")]
+        jobs["plot_phases.py"] = py + ["examples/plot_phases.py", str(syn / "Limp_FW.bvh"), "--out",
+                                       str(tmp_path / "phases2.png")]
     if (SHARED_DATA / "released-lpn").is_dir():
-        jobs["generate_released"] = py + [
-            "examples/generate_released.py", "--params", str(SHARED_DATA / "released-lpn"),
-            "--style", "Zombie", "--script", "figure8", "--seconds", "0.5", "--no-calibrate",
-            "--out", str(tmp_path / "zombie.bvh")]
+        jobs["minifilm generate"] = mf + [
+            "generate", "--params", str(SHARED_DATA / "released-lpn"), "--style", "Zombie", "--script", "figure8",
+            "--seconds", "0.5", "--no-calibrate", "--out", str(tmp_path / "zombie.bvh")]
+        jobs["generate_released.py"] = py + [
+            "examples/generate_released.py", "--params", str(SHARED_DATA / "released-lpn"), "--style", "Old",
+            "--seconds", "0.5", "--out", str(tmp_path / "old.bvh")]
     procs = {k: subprocess.Popen(cmd, cwd=REPO_ROOT, env=env, stdout=subprocess.PIPE,
                                  stderr=subprocess.PIPE, text=True) for k, cmd in jobs.items()}
     failed = []
@@ -315,8 +341,9 @@ def test_readme_example_commands_run_in_miniature(tmp_path):
         if p.returncode != 0:
             failed.append(f"{name} exited {p.returncode}:\n{err[-2000:]}")
     assert not failed, "\n".join(failed)
-    if "plot_phases" in jobs:
-        assert (tmp_path / "phases.png").stat().st_size > 0
-    if "generate_released" in jobs:
+    if "minifilm phases" in jobs:
+        assert (tmp_path / "phases.png").stat().st_size > 0 and (tmp_path / "phases2.png").stat().st_size > 0
+    if "minifilm generate" in jobs:
         from minifilm.motion.bvh import read_bvh
         assert read_bvh(tmp_path / "zombie.bvh").n_frames == 30
+        assert read_bvh(tmp_path / "old.bvh").n_frames == 30

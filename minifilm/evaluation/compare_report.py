@@ -5,6 +5,8 @@ from pathlib import Path
 
 import numpy as np
 
+from minifilm.viewer.matplotlib_setup import pyplot, save_figure
+
 PHASE_STYLES = ("Swimming", "PendulumHands", "LeftHop")
 
 
@@ -27,9 +29,7 @@ def seed_summary(r) -> dict:
 def _plots(out: Path, name: str, ctx, results, ft) -> dict:
     """Draw the PNGs; returns {key: file name} (empty without matplotlib)."""
     try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        plt = pyplot()
     except ImportError:
         return {}
     files = {}
@@ -46,8 +46,7 @@ def _plots(out: Path, name: str, ctx, results, ft) -> dict:
         ax.set_title(f"test {key.upper()} (seen styles; mean, sd over {summ[names[0]]['n']} seeds)", fontsize=9)
     fig.tight_layout()
     files["errors"] = f"compare_{name}_errors.png"
-    fig.savefig(out / files["errors"], dpi=80)
-    plt.close(fig)
+    save_figure(fig, out / files["errors"], dpi=80)
     # Figure 8: style score along the blend weight
     interp = [v for v in names if "interp" in results[v] and not results[v]["interp"].get("diverged")]
     if interp:
@@ -61,8 +60,7 @@ def _plots(out: Path, name: str, ctx, results, ft) -> dict:
         ax.legend(fontsize=7)
         fig.tight_layout()
         files["interp"] = f"compare_{name}_interpolation.png"
-        fig.savefig(out / files["interp"], dpi=80)
-        plt.close(fig)
+        save_figure(fig, out / files["interp"], dpi=80)
     # Figure 11: FiLM codes before / after fine-tuning
     if ft is not None:
         styles = ctx.seen + [ctx.holdout]
@@ -70,8 +68,7 @@ def _plots(out: Path, name: str, ctx, results, ft) -> dict:
         draw_film_codes(axes, ft["separation"], ft["labels"], styles, ctx.holdout)
         fig.tight_layout()
         files["film"] = f"compare_{name}_film_codes.png"
-        fig.savefig(out / files["film"], dpi=80)
-        plt.close(fig)
+        save_figure(fig, out / files["film"], dpi=80)
     return files
 
 
@@ -162,7 +159,7 @@ def write_report(out: Path, name: str, ctx, results, ft, meta) -> Path:
           f"{r['final_train_loss']:.4f} | {r['seconds']:.0f} s |")
     if "errors" in files:
         w(f"\n![test errors]({files['errors']})\n")
-    w(f"Test MSE per seen style (mean over the seeds):\n")
+    w("Test MSE per seen style (mean over the seeds):\n")
     w("| variant | " + " | ".join(ctx.seen) + " |")
     w("|---|" + "---:|" * len(ctx.seen))
     for v, r in results.items():
@@ -216,7 +213,7 @@ def write_report(out: Path, name: str, ctx, results, ft, meta) -> Path:
           f"{ft['seconds']:.0f} s; Ω and Φ frozen). FiLM codes Ψ(clip) of every training clip of all styles; "
           "silhouette (Euclidean, full 4H-dimensional codes and in the 2-D PCA plane).\n")
         w("| | silhouette (all styles) | silhouette 2-D | silhouette of the held-out style's codes | "
-          f"held-out test MSE | held-out test BLL |")
+          "held-out test MSE | held-out test BLL |")
         w("|---|---:|---:|---:|---:|---:|")
         w(f"| before | {sb['silhouette']:.3f} | {sb['silhouette_2d']:.3f} | {sb['focus_silhouette']:.3f} | "
           f"{ft['before_new']['mse']:.4f} | {ft['before_new']['bll']:.4f} |")

@@ -14,7 +14,7 @@ def pyplot():
     except ImportError:
         raise ImportError("drawing needs matplotlib: pip install 'minifilm[viz]'") from None
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt   # after choosing the backend, which must come first
     return plt
 
 

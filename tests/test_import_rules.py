@@ -1,0 +1,124 @@
+"""The package's shape, kept by reading every module's imports (ast): imports go one way, down the
+data flow, and sit at the top of their file unless a comment says why not.
+
+    nn, motion           the bottom: the kit and the motion data know nothing of each other
+    phases, features, synthetic, dataset     -> motion (and each other, downwards)
+    model                -> nn
+    train                -> model, dataset
+    runtime, viewer      -> model, features, motion, dataset
+    baselines, evaluation   the comparison of Sec. 5: nothing in the core imports them
+    pipeline, cli        whole jobs and the command: they may import everything (cli imports pipeline)
+"""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+from conftest import REPO_ROOT
+
+PACKAGE = REPO_ROOT / "minifilm"
+
+#: what each part of the package may import from minifilm (besides itself), and why
+ALLOWED = {
+    "files": set(),
+    "nn": set(),
+    "motion": {"files"},
+    "phases": {"motion", "files"},
+    "features": {"motion", "files"},
+    "synthetic": {"motion", "files"},
+    "dataset": {"motion", "phases", "features", "files"},
+    "model": {"nn"},
+    "train": {"model", "nn", "dataset", "files"},
+    "runtime": {"model", "nn", "features", "motion", "dataset", "files"},
+    "viewer": {"motion", "phases", "features", "runtime", "dataset", "files"},
+    "baselines": {"model", "nn", "dataset", "features", "runtime", "files"},
+    "evaluation": {"baselines", "model", "nn", "dataset", "features", "motion", "phases", "synthetic", "train",
+                   "runtime", "viewer", "files"},
+    "pipeline": {"evaluation", "baselines", "model", "nn", "dataset", "features", "motion", "phases", "synthetic",
+                 "train", "runtime", "viewer", "files"},
+    "cli": {"pipeline", "evaluation", "baselines", "model", "nn", "dataset", "features", "motion", "phases",
+            "synthetic", "train", "runtime", "viewer", "files"},
+    "__main__": {"cli"},
+}
+CORE = {"files", "nn", "motion", "phases", "features", "synthetic", "dataset", "model", "train", "runtime", "viewer"}
+COMPARISON = {"baselines", "evaluation"}
+
+
+def part_of(module_path: Path) -> str:
+    """'nn' for minifilm/nn/functional.py, 'files' for minifilm/files.py."""
+    rel = module_path.relative_to(PACKAGE)
+    return rel.parts[0] if len(rel.parts) > 1 else rel.stem
+
+
+def minifilm_imports(tree: ast.AST):
+    """(line, imported part, node) for every import of a minifilm module."""
+    for node in ast.walk(tree):
+        names = []
+        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
+        elif isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        for name in names[:1] if isinstance(node, ast.ImportFrom) else names:
+            parts = name.split(".")
+            if parts[0] == "minifilm" and len(parts) > 1:
+                yield node.lineno, parts[1], node
+
+
+MODULES = sorted(p for p in PACKAGE.rglob("*.py"))
+
+
+def test_every_part_has_a_rule():
+    parts = {part_of(p) for p in MODULES if p.name != "__init__.py" or p.parent != PACKAGE}
+    assert parts - {"__init__"} <= set(ALLOWED), f"parts without an import rule: {parts - set(ALLOWED)}"
+
+
+@pytest.mark.parametrize("path", MODULES, ids=lambda p: str(p.relative_to(REPO_ROOT)))
+def test_imports_go_one_way(path):
+    if path == PACKAGE / "__init__.py":
+        return
+    part = part_of(path)
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    problems = []
+    for line, target, _ in minifilm_imports(tree):
+        if target == part:
+            continue
+        if part in CORE and target in COMPARISON:
+            problems.append(f"line {line}: the core ({part}) imports the comparison ({target}); the comparison "
+                            "builds on the core, never the other way (hand the core a builder instead)")
+        elif target not in ALLOWED[part]:
+            problems.append(f"line {line}: {part} imports {target}, but {part} may import only "
+                            f"{sorted(ALLOWED[part]) or 'nothing of minifilm'} (the data flow goes one way)")
+    assert not problems, f"{path.relative_to(REPO_ROOT)}:\n" + "\n".join(problems)
+
+
+@pytest.mark.parametrize("path", MODULES, ids=lambda p: str(p.relative_to(REPO_ROOT)))
+def test_imports_are_at_the_top_unless_a_comment_says_why(path):
+    lines = path.read_text(encoding="utf-8").split("\n")
+    tree = ast.parse("\n".join(lines))
+    top = {id(n) for n in tree.body}
+    problems = []
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Import, ast.ImportFrom)) and id(node) not in top:
+            here, above = lines[node.lineno - 1], lines[node.lineno - 2] if node.lineno > 1 else ""
+            if "#" not in here and not above.strip().startswith("#"):
+                problems.append(f"line {node.lineno}: `{here.strip()}` inside a function or block, with no "
+                                "comment saying why it is not at the top")
+    assert not problems, f"{path.relative_to(REPO_ROOT)}:\n" + "\n".join(problems)
+
+
+def test_the_rules_can_fail(tmp_path):
+    """The checks above see a wrong-way import and an unexplained inner import."""
+    src = "from minifilm.baselines.variants import build_variant\n\ndef f():\n    import numpy\n"
+    tree = ast.parse(src)
+    found = [(line, target) for line, target, _ in minifilm_imports(tree)]
+    assert found == [(1, "baselines")] and "baselines" not in ALLOWED["runtime"]
+    inner = [n for n in ast.walk(tree) if isinstance(n, ast.Import) and n not in tree.body]
+    assert inner and "#" not in src.split("\n")[inner[0].lineno - 1]
+
+
+def test_no_module_is_much_longer_than_400_lines():
+    long = {str(p.relative_to(REPO_ROOT)): n for p in MODULES
+            if (n := len(p.read_text(encoding="utf-8").split("\n"))) > 420}
+    assert not long, f"modules over about 400 lines (split them by idea): {long}"
