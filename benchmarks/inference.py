@@ -4,7 +4,7 @@
     batch 64  many characters at once; frames per second
 
 The style is a precomputed FiLM vector (4 x 512 numbers), as at run time; Ψ is not run. NumPy
-batch 1 uses ``StyleModel.predict_single`` (the run-time path), larger batches
+batch 1 uses ``RuntimeNetwork.predict`` (the one run-time path), larger batches
 ``forward_with_film``; PyTorch runs the same model (copied weights) under ``torch.inference_mode()``.
 NumPy and PyTorch calls are interleaved (at batch 1 in blocks of 50 calls, so that each side's
 weights can stay in the cache as in a real-time loop); times are medians after warm-up.
@@ -18,35 +18,33 @@ import numpy as np  # noqa: E402
 from common import THREADS, compare_ms, header, random_batch, table  # noqa: E402
 from torch_reference import from_numpy, load_torch  # noqa: E402
 
+from minifilm.dataset.stats import NormStats  # noqa: E402
 from minifilm.model.config import ModelConfig  # noqa: E402
 from minifilm.model.style_model import StyleModel  # noqa: E402
+from minifilm.runtime.network import RuntimeNetwork  # noqa: E402
 
 
-def profile_batch1(model, x, p, film, repeat):
+def profile_batch1(net, x, p, film, repeat):
     """Where a batch-1 frame's time goes: Ω, each expert product, the rest (median ms)."""
     from common import median_ms
 
-    from minifilm.model.motion_net import split_film
-    from minifilm.nn import functional as F
-    P, H = model.motion.params.params, model.config.hidden
-    alpha = model.gating.forward(p[None, :])[0]
-    films = split_film(film, H)
-    ins = [x]
-    for l in range(2):                                   # the real inputs of layers 1 and 2
-        h = F.expert_linear_single(ins[-1], alpha, P[f"W{l}"], P[f"b{l}"])
-        h = F.layer_norm_forward(h[None, :])[0][0]
-        ins.append(F.elu_forward(films[l][0] * h + films[l][1])[0])
-    rows = [{"part": "Ω gating (3 small layers)", "ms": median_ms(lambda: model.gating.forward(p[None, :]), repeat, 20)}]
+    x, p = x[None, :], p[None, :]
+    xn = (x - net._x_mean) * net._x_inv
+    alpha = net.gate(xn, p)
+    ins = [xn]
+    for Wc, b, O in net.layers[:2]:                      # the real inputs of layers 1 and 2
+        f = np.matmul(alpha[:, None, :], (ins[-1] @ Wc).reshape(1, net.n_experts, O))[:, 0] + alpha @ b
+        ins.append(net.hidden(len(ins) - 1, f, alpha, film))
+    rows = [{"part": "Ω gating (3 small layers)", "ms": median_ms(lambda: net.gate(xn, p), repeat, 20)}]
     total_bytes = 0
-    for l in range(3):
-        W, b = P[f"W{l}"], P[f"b{l}"]
-        nbytes = W.nbytes + b.nbytes
+    for l, (Wc, b, O) in enumerate(net.layers):
+        nbytes = Wc.nbytes + b.nbytes
         total_bytes += nbytes
-        t = median_ms(lambda: F.expert_linear_single(ins[l], alpha, W, b), repeat, 20)
-        rows.append({"part": f"Φ expert product {l} {W.shape}", "ms": t,
+        t = median_ms(lambda: ins[l] @ Wc, repeat, 20)
+        rows.append({"part": f"Φ expert product {l} {Wc.shape}", "ms": t,
                      "weights MB": nbytes / 1e6, "GB/s": nbytes / t / 1e6})
-    whole = median_ms(lambda: model.predict_single(x, p, film), repeat, 20)
-    rows.append({"part": "whole predict_single", "ms": whole, "weights MB": total_bytes / 1e6,
+    whole = median_ms(lambda: net.predict(x, p, film), repeat, 20)
+    rows.append({"part": "whole RuntimeNetwork.predict", "ms": whole, "weights MB": total_bytes / 1e6,
                  "GB/s": total_bytes / whole / 1e6})
     print("\nbatch-1 profile (NumPy): the expert products must read all K expert matrices every frame")
     table(rows, ["part", "ms", "weights MB", "GB/s"])
@@ -68,14 +66,15 @@ def main():
     config = ModelConfig.paper()
     rng = np.random.default_rng(0)
     model = StyleModel(config, rng, with_film_generator=False)
+    net = RuntimeNetwork.from_model(model, NormStats.identity(config.x_dim, config.z_dim, config.phase_dim))
     tmodel = from_numpy(torch, model).eval() if torch is not None else None
     rows, checks = [], []
     for batch in args.batch:
         x, p, film, _, _ = random_batch(config, batch, rng, with_clip=False)
         style = film[0]                                  # one style for every character
         if batch == 1:
-            np_fn = lambda: model.predict_single(x[0], p[0], style)          # noqa: E731
-            z_np = np_fn()[None, :]
+            np_fn = lambda: net.predict(x, p, style)                        # noqa: E731
+            z_np = np_fn()
         else:
             np_fn = lambda: model.forward_with_film(x, p, style)            # noqa: E731
             z_np = np_fn()
@@ -105,7 +104,7 @@ def main():
                  "torch/numpy"])
     if args.profile:
         x, p, film, _, _ = random_batch(config, 1, rng, with_clip=False)
-        profile_batch1(model, x[0], p[0], film[0], args.repeat)
+        profile_batch1(net, x[0], p[0], film[0], args.repeat)
     print(f"# load average at the end: {common.load_average()}")
 
 

@@ -7,7 +7,7 @@ resampled to 60 fps like 100STYLE. Its four preprocessed source functions are fi
   * tiled to ``--seconds`` (default 120 s, the length of a typical 100STYLE clip),
 
 with ``fit_sinusoids`` (the deterministic, vectorised fit), and also timed end to end with
-``extract_local_phases`` (sources, preprocessing, fit, amplitude, smoothing; per end effector).
+``label`` (contacts, then sources, preprocessing, fit, amplitude, smoothing; per end effector).
 
 The naive baseline fits every frame on its own with ``scipy.optimize.least_squares`` (bounded
 trust-region reflective, the same model, window and bounds, started from the original's seed,
@@ -34,8 +34,8 @@ from scipy.optimize import least_squares  # noqa: E402
 from minifilm.motion.bvh import read_bvh  # noqa: E402
 from minifilm.motion.editing import resample  # noqa: E402
 from minifilm.motion.skeletons import BANDAI  # noqa: E402
-from minifilm.phases.contacts import foot_contacts  # noqa: E402
-from minifilm.phases.local_phases import SLOTS, extract_local_phases  # noqa: E402
+from minifilm.phases.label import label  # noqa: E402
+from minifilm.phases.local_phases import SLOTS  # noqa: E402
 from minifilm.phases.sinusoid_fit import fit_sinusoids, overflow_window, window_half_width  # noqa: E402
 
 DATA = Path(os.environ.get("MINIFILM_SHARED_DATA", ROOT.parent / "shared" / "data"))
@@ -88,10 +88,8 @@ def main():
                                                  key=lambda p: p.stat().st_size)
     motion = resample(read_bvh(path, scale=BANDAI.bvh_scale), 60.0)
     fps = motion.fps
-    positions, _ = motion.world()
-    contacts = foot_contacts(positions[:, BANDAI.contact_indices(motion)], fps)
-    phases = extract_local_phases(motion, BANDAI, contacts)
-    sources = phases.source                                   # (F, 4) preprocessed
+    labels = label(motion, BANDAI)                            # contacts, then local phases
+    sources = labels.phases.source                            # (F, 4) preprocessed
     F = motion.n_frames
     reps = int(np.ceil(args.seconds * fps / F))
     tiled = np.tile(sources, (reps, 1))
@@ -103,8 +101,8 @@ def main():
     rows.append(("fit_sinusoids, file as is", F, F * 4 / t_file))
     t_tiled = best_seconds(lambda: [fit_sinusoids(tiled[:, s], fps) for s in range(4)], repeat=2)
     rows.append((f"fit_sinusoids, tiled to {tiled.shape[0] / fps:.0f} s", tiled.shape[0], tiled.shape[0] * 4 / t_tiled))
-    t_all = best_seconds(lambda: extract_local_phases(motion, BANDAI, contacts))
-    rows.append(("extract_local_phases (all steps), file", F, F * 4 / t_all))
+    t_all = best_seconds(lambda: label(motion, BANDAI))
+    rows.append(("label: contacts + local phases (all steps), file", F, F * 4 / t_all))
 
     frames = np.linspace(0, F - 1, min(args.naive_frames, F)).astype(int)
     t0 = time.perf_counter()

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
 import time
 from pathlib import Path
 
@@ -27,6 +26,7 @@ import numpy as np  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 
+from minifilm.cli import report_errors  # noqa: E402
 from minifilm.features.layout import FeatureLayout  # noqa: E402
 from minifilm.motion.bvh import read_bvh  # noqa: E402
 from minifilm.motion.measures import bone_length_cv  # noqa: E402
@@ -34,7 +34,7 @@ from minifilm.motion.skeletons import STYLE100  # noqa: E402
 from minifilm.runtime.calibration import PerCharacterCalibration, calibrate_speed  # noqa: E402
 from minifilm.runtime.control import figure_eight  # noqa: E402
 from minifilm.runtime.controller import Controller  # noqa: E402
-from minifilm.runtime.network import RuntimeNetwork  # noqa: E402
+from minifilm.runtime.released import load_released  # noqa: E402
 
 SHARED = REPO.parent / "shared" / "data"
 
@@ -51,9 +51,6 @@ def main(argv=None):
     ap.add_argument("--no-calibrate", action="store_true", help="command the raw speed")
     ap.add_argument("--position-bias", type=float, default=0.75, help="Controller position_bias")
     args = ap.parse_args(argv)
-
-    from minifilm.runtime.released import load_released
-
     rel = load_released(args.params)
     names = args.styles or list(rel.styles)
     unknown = [n for n in names if n not in rel.styles]
@@ -61,7 +58,7 @@ def main(argv=None):
         raise ValueError(f"unknown styles {unknown}; the released network has {list(rel.styles)}")
     layout = FeatureLayout.for_skeleton(STYLE100)
     parents = np.asarray(STYLE100.parents)
-    net = RuntimeNetwork.from_model(rel.model, rel.stats, runtime_layer_norm=True)
+    net = rel.network
     body = None if args.fit == "none" else Controller.skeleton_for(layout, read_bvh(args.skeleton_bvh))
     ctrl = Controller(net, layout, skeleton=body, feed_back_fit=args.fit == "feedback", position_bias=args.position_bias)
     films = np.stack([rel.styles[n] for n in names])
@@ -101,6 +98,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    from minifilm.cli import run
-
-    run(main)
+    report_errors(main)

@@ -6,7 +6,7 @@
 Prints a table:
   * the network alone at batch 1 with a precomputed FiLM vector, three ways: experts side by side
     (one (I, K*O) product per layer, what RuntimeNetwork does), blend the weights first
-    (Σ α_k W_k, then one product), and StyleModel.predict_single (the model's own batch-1 path);
+    (Σ α_k W_k, then one product);
   * one whole controller frame at batch 1 (input features + network + read-back + trajectory blend);
   * many characters updated together in one batch: frames per second and character-frames per second;
   * the same with every frame put on the 100STYLE skeleton (Controller ``skeleton=``, the default of
@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
 import time
 from pathlib import Path
 
@@ -35,9 +34,14 @@ import numpy as np  # noqa: E402
 REPO = Path(__file__).resolve().parents[1]
 
 from minifilm.features.layout import FeatureLayout  # noqa: E402
+from minifilm.motion.bvh import read_bvh  # noqa: E402
+from minifilm.runtime.released import load_released  # noqa: E402
 from minifilm.motion.skeletons import STYLE100  # noqa: E402
-from minifilm.runtime.control import CommandScript  # noqa: E402
-from minifilm.runtime.controller import Controller, RuntimeNetwork  # noqa: E402
+from minifilm.motion.foot_ik import FootLocker  # noqa: E402
+from minifilm.runtime.calibration import calibrate_speed  # noqa: E402
+from minifilm.runtime.control import CommandScript, figure_eight  # noqa: E402
+from minifilm.runtime.controller import Controller  # noqa: E402
+from minifilm.runtime.network import RuntimeNetwork  # noqa: E402
 
 
 def timeit(fn, repeat=5, number=100):
@@ -54,10 +58,10 @@ def timeit(fn, repeat=5, number=100):
 
 def blend_first(net: RuntimeNetwork, model, x, p, film):
     """Batch 1 with the expert weights blended first: W = Σ_k α_k W_k (DESIGN.md's batch-1 advice)."""
-    alpha = net.gate(p[None])[0]
-    m = model.motion.params.params
     h = (x - net._x_mean) * net._x_inv
-    H = net.hidden
+    alpha = net.gate(h[None], p[None])[0]
+    m = model.motion.params.params
+    H = net.hidden.hidden
     for l in range(3):
         W = np.tensordot(alpha, m[f"W{l}"], axes=1)
         h = h @ W + alpha @ m[f"b{l}"]
@@ -71,11 +75,7 @@ def blend_first(net: RuntimeNetwork, model, x, p, film):
 def quality(rel, layout, styles, seconds, body):
     """Minute-long rollouts of several styles, without and with foot locking, every frame put on
     the skeleton ``body`` (a SkeletonFit): bone CV of the network's own prediction and of the output."""
-    from minifilm.motion.foot_ik import FootLocker
-    from minifilm.runtime.control import figure_eight
-    from minifilm.runtime.controller import calibrate_speed
-
-    net = RuntimeNetwork.from_model(rel.model, rel.stats, runtime_layer_norm=True)
+    net = rel.network
     n = int(round(seconds * 60))
     toes = [layout.joint_names.index("RightToe"), layout.joint_names.index("LeftToe")]
     print(f"{seconds:g} s per style along a figure-eight at 1.3 m/s (speed calibrated per style)")
@@ -107,15 +107,12 @@ def main():
                     help="skeleton every frame is put on (Controller skeleton=)")
     args = ap.parse_args()
 
-    from minifilm.motion.bvh import read_bvh
-    from minifilm.runtime.released import load_released
-
     rel = load_released(args.params)
     body = Controller.skeleton_for(FeatureLayout.for_skeleton(STYLE100), read_bvh(args.skeleton_bvh))
     if args.quality:
         quality(rel, FeatureLayout.for_skeleton(STYLE100), args.styles, args.seconds, body)
         return
-    net = RuntimeNetwork.from_model(rel.model, rel.stats, runtime_layer_norm=True)
+    net = rel.network
     layout = FeatureLayout.for_skeleton(STYLE100)
     film = rel.styles["Neutral"] if "Neutral" in rel.styles else next(iter(rel.styles.values()))
     rng = np.random.default_rng(0)
@@ -127,9 +124,6 @@ def main():
     rows.append(("network, batch 1, experts side by side (RuntimeNetwork)", t * 1e3, 1 / t))
     t = timeit(lambda: blend_first(net, rel.model, x, p, film), number=20)
     rows.append(("network, batch 1, blend expert weights first", t * 1e3, 1 / t))
-    xn, pn = rel.stats.normalize_x(x).astype(np.float32), rel.stats.normalize_p(p).astype(np.float32)
-    t = timeit(lambda: rel.model.predict_single(xn, pn, film, runtime_layer_norm=True), number=20)
-    rows.append(("network, batch 1, StyleModel.predict_single", t * 1e3, 1 / t))
 
     walk = lambda: CommandScript([(0, 2.0, 0, 0), (1000, 2.0, 360, 0)])  # noqa: E731  (walk in a big circle)
     ctrl = Controller(net, layout)

@@ -1,11 +1,11 @@
 """Minute-long rollouts of a minifilm-trained model, one character per style (issue 7's checks).
 
-    python benchmarks/trained_rollout.py --checkpoint runs/train_small
-    python benchmarks/trained_rollout.py --checkpoint DIR --start mean --fit none --position-bias 0.75 --png out.png
+    python benchmarks/trained_rollout.py --run runs/train_small
+    python benchmarks/trained_rollout.py --run DIR --start mean --fit none --position-bias 0.75 --png out.png
 
-DIR is what ``examples/train_small.py --out DIR`` writes: model.npz (checkpoint with the
-normalisation statistics), styles.npz (FiLM vector per style) and data/ (the BVH files the model
-was trained on; the data set is rebuilt from them, from DIR/cache when it is there). Every style
+DIR is a run folder, what ``minifilm train --out DIR`` (= ``examples/train_small.py``) writes:
+model.npz (checkpoint with the normalisation statistics), styles.npz (FiLM vector per style),
+starts.npz (a start frame per style) and skeleton.bvh; it works from any working directory. Every style
 walks a figure-eight at --speed m/s for --seconds (default 60 s = 3,600 frames at 60 fps), all
 styles in one batch, with the runtime settings of train_small (every frame put on the data's
 skeleton, ``--fit``; user trajectory weight ``--position-bias 2``). Printed per style (after the
@@ -23,7 +23,6 @@ has stopped and the character slides along in a frozen pose.
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
@@ -31,44 +30,31 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 
-from minifilm.dataset.build import build_dataset  # noqa: E402
-from minifilm.motion.bvh import read_bvh  # noqa: E402
-from minifilm.motion.skeletons import builtin_skeleton  # noqa: E402
 from minifilm.runtime.calibration import PerCharacterCalibration, calibrate_speed  # noqa: E402
+from minifilm.pipeline.run_folder import RunFolder  # noqa: E402
 from minifilm.runtime.control import figure_eight  # noqa: E402
-from minifilm.runtime.controller import Controller, start_from_dataset  # noqa: E402
-from minifilm.runtime.network import RuntimeNetwork  # noqa: E402
-from minifilm.runtime.style_library import StyleLibrary  # noqa: E402
-from minifilm.train.trainer import Trainer  # noqa: E402
 
 
-def rollout_metrics(checkpoint: Path, seconds: float = 60.0, speed: float = 1.3, start: str = "data",
+def rollout_metrics(run: Path, seconds: float = 60.0, speed: float = 1.3, start: str = "data",
                     calibrate: bool = False, styles=None, png=None, controller_options=None, fit: str = "output"):
-    """Run every style for ``seconds`` along a figure-eight; returns (style names, metrics list).
-    ``fit``: "output" puts every frame on the training data's skeleton (Controller ``skeleton=``),
-    as train_small does; "feedback" also feeds that pose back to the network; "none" does not fit."""
-    checkpoint = Path(checkpoint)
-    trainer = Trainer.resume(checkpoint / "model.npz")
-    cache = checkpoint / "cache"
-    ds = build_dataset(checkpoint / "data", cache_dir=cache if cache.exists() else None, progress=False,
-                       clip_seconds=trainer.model.config.clip_frames / 60.0,
-                       clip_stride_seconds=trainer.model.config.clip_frames / 120.0, seed=0)
-    library = StyleLibrary.load(checkpoint / "styles.npz")
+    """Run every style of the run folder ``run`` for ``seconds`` along a figure-eight; returns
+    (style names, metrics list, seconds taken, rollout). ``fit``: "output" puts every frame on the
+    training data's skeleton (Controller ``skeleton=``), as train_small does; "feedback" also feeds
+    that pose back to the network; "none" does not fit."""
+    folder = RunFolder.load(run)
+    library = folder.styles()
     names = list(styles or library.names)
     films = np.stack([library[n] for n in names])
-    net = RuntimeNetwork.from_model(trainer.model, trainer.stats)
-    layout, fps = ds.layout, ds.fps
+    layout, fps = folder.layout, folder.fps
     x0 = p0 = None
     if start == "data":
-        x0, p0 = (np.stack(a) for a in zip(*(start_from_dataset(ds, n) for n in names)))
+        x0, p0 = folder.start_states(names)
     options = dict(controller_options or {})
     if fit not in ("feedback", "output", "none"):
         raise ValueError(f"fit must be feedback, output or none, got {fit!r}")
     if fit != "none":
         options["feed_back_fit"] = fit == "feedback"
-        skeleton = builtin_skeleton(ds.skeleton)
-        options["skeleton"] = Controller.skeleton_for(layout, read_bvh(ds.files[0]["path"], scale=skeleton.bvh_scale))
-    ctl = Controller(net, layout, fps=fps, **options)
+    ctl = folder.controller(fit=fit != "none", **options)
     cals = []
     if calibrate:
         for b in range(len(names)):
@@ -119,7 +105,8 @@ def _render(r, parents, path, names, out):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--checkpoint", required=True, type=Path, help="train_small output folder")
+    ap.add_argument("--run", "--checkpoint", dest="run", required=True, type=Path,
+                    help="a run folder (what minifilm train / examples/train_small.py writes)")
     ap.add_argument("--seconds", type=float, default=60.0)
     ap.add_argument("--speed", type=float, default=1.3, help="commanded speed along the path, m/s")
     ap.add_argument("--start", choices=("data", "mean"), default="data")
@@ -137,11 +124,11 @@ def main():
                     help="put every frame on the data's skeleton (default, as train_small), also feed that "
                          "pose back to the network, or no fit")
     a = ap.parse_args()
-    names, ms, elapsed, r = rollout_metrics(a.checkpoint, a.seconds, a.speed, a.start, a.calibrate, a.styles, a.png,
+    names, ms, elapsed, r = rollout_metrics(a.run, a.seconds, a.speed, a.start, a.calibrate, a.styles, a.png,
                                             dict(velocity_blend=a.velocity_blend, future_smoothing=a.future_smoothing,
                                                  position_bias=a.position_bias),
                                             fit=a.fit)
-    print(f"{a.checkpoint}: {a.seconds:g} s figure-eight at {a.speed} m/s, start={a.start}, "
+    print(f"{a.run}: {a.seconds:g} s figure-eight at {a.speed} m/s, start={a.start}, "
           f"calibrated={a.calibrate}, velocity_blend={a.velocity_blend}, future_smoothing={a.future_smoothing}, "
           f"position_bias={a.position_bias}, "
           f"skeleton fit={a.fit}, {len(names)} styles in one batch ({elapsed:.1f} s)")

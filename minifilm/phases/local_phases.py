@@ -20,7 +20,6 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from minifilm.phases.contacts import foot_contacts
 from minifilm.phases.sinusoid_fit import SinusoidFit, fit_sinusoids, overflow_window, range_reduce
 from minifilm.phases.sources import butterworth, contact_source, pca_source, preprocess_source
 
@@ -130,8 +129,8 @@ def extract_local_phases(motion, skeleton, contacts=None, sources: Optional[Sequ
     Args:
         motion: a Motion (one file: one style and gait, since the PCA is per file).
         skeleton: its Skeleton (phase_bones, contact_bones, hips, facing_axis).
-        contacts: (F, 2) 0/1 in the order [right, left]; None computes them with ``foot_contacts``
-            from ``skeleton.contact_bones`` (automatic floor height).
+        contacts: (F, 2) 0/1 in the order [right, left] (``foot_contacts``); needed when a slot
+            uses the 'contact' source. :func:`minifilm.phases.label.label` computes both.
         sources: 4 strings 'pca' | 'contact' for [left hand, right hand, left foot, right foot];
             default ('pca', 'pca', 'contact', 'contact'); see ``default_sources(style)``.
         **fit_options: passed to ``fit_sinusoids`` (window_seconds, n_frequencies, sweeps, ...).
@@ -146,8 +145,8 @@ def extract_local_phases(motion, skeleton, contacts=None, sources: Optional[Sequ
     if n < 2:
         raise ValueError(f"extract_local_phases({motion.source}): needs at least 2 frames, got {n}")
     if contacts is None and "contact" in sources:
-        positions, _ = motion.world()
-        contacts = foot_contacts(positions[:, skeleton.contact_indices(motion)], fps)
+        raise ValueError(f"extract_local_phases({motion.source}): the 'contact' sources need the foot "
+                         "contacts (label() in minifilm/phases/label.py computes both)")
     if contacts is not None:
         contacts = np.asarray(contacts, dtype=np.float64)
         if contacts.shape != (n, 2):
