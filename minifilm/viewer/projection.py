@@ -96,8 +96,13 @@ def follow_cameras(root_xz: np.ndarray, fps: float, size: float, heading: float,
     from scipy.ndimage import gaussian_filter1d
 
     xz = np.asarray(root_xz, dtype=np.float64)
-    if len(xz) > 1:
-        xz = gaussian_filter1d(xz, sigma=max(0.25 * fps, 1e-3), axis=0, mode="nearest")
+    if len(xz) > 2:
+        sigma = max(0.25 * fps, 1e-3)
+        # Point-symmetric padding keeps a steady walk exact at both ends (padding by repeating
+        # the end point would make the camera lag behind the walker near the first/last frame).
+        n = min(len(xz) - 1, int(np.ceil(4 * sigma)))
+        padded = np.concatenate([2 * xz[0] - xz[n:0:-1], xz, 2 * xz[-1] - xz[-2:-n - 2:-1]])
+        xz = gaussian_filter1d(padded, sigma=sigma, axis=0, mode="nearest")[n:n + len(xz)]
     azimuth = heading + np.radians(60.0)
     return [Camera(target=(float(x), 0.45 * size, float(z)), azimuth=float(azimuth),
                    elevation=float(elevation), distance=3.4 * size) for x, z in xz]

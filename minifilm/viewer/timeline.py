@@ -2,7 +2,9 @@
 
 Tracks may have different frame rates (30 fps Bandai next to 120 fps Xia) and lengths. The
 animation has its own clock: output frame k is shown at time ``k / fps``, and each track shows
-its frame ``floor(t * track.fps)``, held on its last frame once it has ended.
+its frame nearest to t, ``floor(t * track.fps + 0.5)``, held on its last frame once it has ended.
+(Nearest, not the frame started last: BVH frame times are rounded, "0.0083333" is 120.0048 fps,
+and a floor would drop a frame whenever the rounded rates disagree by a hair.)
 """
 from __future__ import annotations
 
@@ -76,8 +78,7 @@ def schedule(tracks: Sequence[Track], fps: Optional[float] = None, seconds: Opti
         raise ValueError(f"seconds must be positive, got {seconds}")
     n = max(1, math.ceil(seconds * fps - 1e-3))
     t = np.arange(n) / fps
-    # The 1e-6 keeps exact multiples (frame k*every of a 30 fps clip) from rounding down a frame.
-    frames = np.stack([np.minimum(np.floor(t * tr.fps + 1e-6).astype(np.int64), tr.n_frames - 1)
+    frames = np.stack([np.minimum(np.floor(t * tr.fps + 0.5).astype(np.int64), tr.n_frames - 1)
                        for tr in tracks], axis=1)
     return Schedule(fps=float(fps), frames=frames)
 

@@ -46,8 +46,8 @@ function jointPosition(c, f, j, out) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Timeline: the player clock runs at the highest frame rate; each character shows
-// floor(t * fps) of its own frames, held on its last frame (as the GIF writer does).
+// Timeline: the player clock runs at the highest frame rate; each character shows its frame
+// nearest to the clock, floor(t * fps + 0.5), held on its last frame (as timeline.py does).
 // ---------------------------------------------------------------------------------------------
 
 const FPS = Math.max(...CHARS.map(c => c.fps));
@@ -56,7 +56,7 @@ const DURATION = N_FRAMES / FPS;
 const clock = { t: 0, playing: true, speed: 1 };
 
 const globalFrame = () => Math.min(Math.floor(clock.t * FPS + 1e-6), N_FRAMES - 1);
-const charFrame = c => Math.min(Math.floor(globalFrame() / FPS * c.fps + 1e-6), c.nFrames - 1);
+const charFrame = c => Math.min(Math.floor(globalFrame() / FPS * c.fps + 0.5), c.nFrames - 1);
 
 // ---------------------------------------------------------------------------------------------
 // Scene
