@@ -9,7 +9,7 @@ flicker between frames and Pillow can store each frame as the small rectangle th
 from __future__ import annotations
 
 import os
-from typing import Optional, Sequence, Tuple, Union
+from typing import Optional, Tuple, Union
 
 import numpy as np
 

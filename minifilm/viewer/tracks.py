@@ -201,9 +201,10 @@ def track_from_motion(motion: Motion, name: Optional[str] = None,
                         dropped zero-length joint maps to the joint it coincides with.
         trail:          optional (F, 3) floor path; default: the followed root on the floor.
 
-    A link whose length changes over the clip is a translation, not a bone (Bandai's static
-    ``joint_Root`` above the walking ``Hips``): it is not drawn, and a joint left with no bone at all
-    is dropped, so no line stretches from the origin to the walking character.
+    A link from a hierarchy root to a child with a changing local translation is that child's
+    translation, not a bone (Bandai's ``joint_Root`` on the floor, static or moving, above the
+    walking ``Hips``): it is not drawn, and a joint left with no bone at all is dropped, so no
+    line stretches from the floor to the character.
     """
     source = getattr(motion, "source", "<memory>")
     if name is None:
@@ -220,7 +221,7 @@ def track_from_motion(motion: Motion, name: Optional[str] = None,
         keep = sorted({_index(motion, j, "joints") for j in joints})
         merged_into = {}
     link_parent = _kept_parents(parents, keep)
-    kept_parent = _cut_stretchy(P, keep, link_parent)
+    kept_parent = _cut_root_translations(motion, keep, link_parent)
     if joints is None:
         keep, kept_parent = _drop_isolated(keep, kept_parent)
     position_in_track = {j: i for i, j in enumerate(keep)}
@@ -310,18 +311,27 @@ def _kept_parents(parents: np.ndarray, keep: List[int]) -> List[int]:
     return out
 
 
-def _cut_stretchy(P: np.ndarray, keep: List[int], link_parent: List[int]) -> List[int]:
-    """``link_parent`` with links that change length (translations, not bones) set to -1.
+def _cut_root_translations(motion: Motion, keep: List[int], link_parent: List[int]) -> List[int]:
+    """``link_parent`` with the links that are translations, not bones, set to -1.
 
-    ``P``: (F, J, 3) positions of all joints; ``keep`` and ``link_parent`` are aligned lists of
-    kept joints and their kept parents (motion indices). A bone's length changes by float noise
-    only; a link counts as a translation when its length varies by more than 5 % of the body size.
+    A link from a hierarchy root (a joint without parent) to a child whose local translation
+    changes over the clip is the child's translation: Bandai's ``joint_Root`` (static at the
+    origin, or moving on the floor) above the walking ``Hips``. Links anywhere else are always
+    drawn, even if their length changes, so a non-rigid generated skeleton shows as one.
+    ``keep`` and ``link_parent`` are aligned lists of kept joints and their kept parents.
     """
-    size = max(float(np.ptp(P[0], axis=0).max()), 1e-6)
+    T = np.asarray(motion.translations, dtype=np.float64)  # (F, J, 3) local translations
+    parents = motion.parents
+    scale = max(float(np.ptp(T[0], axis=0).max()), 1e-6)
     out = []
     for j, p in zip(keep, link_parent):
-        if p >= 0 and np.ptp(_link_lengths(P, j, p)) > 0.05 * size:
-            p = -1
+        if p >= 0 and parents[p] < 0:
+            chain, k = [], j  # j and its dropped ancestors below p
+            while k != p:
+                chain.append(k)
+                k = int(parents[k])
+            if np.ptp(T[:, chain], axis=0).max() > 1e-6 * scale:
+                p = -1
         out.append(p)
     return out
 

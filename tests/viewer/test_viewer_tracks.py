@@ -44,6 +44,26 @@ def test_bandai_drops_zero_sites_and_the_static_root(bandai_walk):
             assert motion.parents[idx[j]] == idx[p]
 
 
+def test_a_moving_floor_root_is_not_drawn_either(shared_data):
+    # Bandai 1 walk-back: the translation is on joint_Root, which moves on the floor under Hips.
+    path = shared_data / "bvh" / "bandai1" / "dataset-1_walk-back_normal_001.bvh"
+    if not path.is_file():
+        pytest.skip(f"real BVH not found: {path}")
+    motion = read_bvh(path)
+    assert np.ptp(motion.world()[0][:, 0], axis=0).max() > 1.0  # joint_Root walks
+    track = track_from_bvh(path)
+    assert "joint_Root" not in track.joint_names and track.joint_names[0] == "Hips"
+    assert (track.parents < 0).sum() == 1
+
+
+def test_non_rigid_bones_stay_drawn(walker):
+    # A generated skeleton whose shin stretches must show it, not lose the bone.
+    leg = walker.names.index("LeftLeg")
+    walker.translations[:, leg, 1] *= np.linspace(1.0, 1.3, walker.n_frames)
+    track = track_from_motion(walker)
+    assert list(track.parents) == list(walker.parents)
+
+
 def test_explicit_joints_reattach_to_the_nearest_kept_ancestor(walker):
     track = track_from_motion(walker, joints=["Hips", "LeftUpLeg", "LeftFoot", 3])
     assert track.joint_names == ["Hips", "HeadSite", "LeftUpLeg", "LeftFoot"]

@@ -63,7 +63,16 @@ const charFrame = c => Math.min(Math.floor(globalFrame() / FPS * c.fps + 0.5), c
 // ---------------------------------------------------------------------------------------------
 
 const view = document.getElementById('view');
-const renderer = new THREE.WebGLRenderer({ antialias: true });
+let renderer;
+try {
+  renderer = new THREE.WebGLRenderer({ antialias: true });
+} catch (e) {
+  // Say so on the page rather than leaving it blank (old browser, or WebGL switched off).
+  const box = document.getElementById('message');
+  box.hidden = false;
+  box.textContent = 'This player needs WebGL, which this browser does not provide: ' + e.message;
+  throw e;
+}
 renderer.setPixelRatio(window.devicePixelRatio || 1);
 renderer.setSize(view.clientWidth, view.clientHeight);
 view.appendChild(renderer.domElement);
@@ -380,5 +389,6 @@ resize();
 refresh();
 orbit.target.copy(followPoint(follow) || new THREE.Vector3(0, 0.5 * SIZE, 0));
 draw(0);
+window.minifilmPlayer.readyMs = performance.now();  // ms from the start of navigation to ready
 window.minifilmPlayer.ready = true;
 requestAnimationFrame(tick);
