@@ -85,7 +85,7 @@ def follow_cameras(root_xz: np.ndarray, fps: float, size: float, heading: float,
     Args:
         root_xz: (N, 2) horizontal root position (world x, z) at each drawn frame, metres.
         fps:     drawn frames per second (sets the smoothing window in frames).
-        size:    body size, metres: the camera stands ``3.4 * size`` away and aims ``0.45 * size``
+        size:    body size, metres: the camera stands ``3.4 * size`` away and aims ``0.52 * size``
                  above the floor, which frames a standing person with room for a step.
         heading: radians about +y of the character's overall direction of travel; the camera looks
                  from 60 degrees to its side (a three-quarter view shows both the stride and the
@@ -104,7 +104,7 @@ def follow_cameras(root_xz: np.ndarray, fps: float, size: float, heading: float,
         padded = np.concatenate([2 * xz[0] - xz[n:0:-1], xz, 2 * xz[-1] - xz[-2:-n - 2:-1]])
         xz = gaussian_filter1d(padded, sigma=sigma, axis=0, mode="nearest")[n:n + len(xz)]
     azimuth = heading + np.radians(60.0)
-    return [Camera(target=(float(x), 0.45 * size, float(z)), azimuth=float(azimuth),
+    return [Camera(target=(float(x), 0.52 * size, float(z)), azimuth=float(azimuth),
                    elevation=float(elevation), distance=3.4 * size) for x, z in xz]
 
 
