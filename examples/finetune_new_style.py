@@ -36,7 +36,7 @@ from minifilm.model.style_model import StyleModel
 from minifilm.synthetic import generator as synthetic
 from minifilm.train.finetune import finetune
 from minifilm.train.trainer import TrainConfig, Trainer
-from minifilm.viewer.matplotlib_setup import pyplot, save_figure
+from minifilm.viewer.deps import pyplot, save_figure
 
 SEED = 0
 OUT = Path("runs/finetune_new_style")

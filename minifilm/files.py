@@ -9,6 +9,7 @@ network's folder, pictures) goes through here:
 * :func:`atomic_directory` does the same for a whole folder: the caller fills a temporary sibling
   folder, which then replaces the target (an old folder of that name is moved aside first and
   removed after the swap, so nothing of it survives in the new one);
+* :func:`atomic_path` is the same for writers that want a file name (Pillow, matplotlib);
 * :func:`check_writable` says, before any long computation, whether a path can be written.
 
 Files get the permissions a plain ``open(path, "w")`` would give (0666 less the umask): the
@@ -30,6 +31,11 @@ import numpy as np
 PathLike = Union[str, os.PathLike]
 
 
+class OutputPathError(OSError):
+    """An output path cannot be written (a missing or read-only folder, a folder given as a file
+    name); the message names the path and says why."""
+
+
 def _umask() -> int:
     """The process's umask (reading it means setting it, so set it straight back)."""
     mask = os.umask(0)
@@ -38,21 +44,50 @@ def _umask() -> int:
 
 
 def check_writable(path: PathLike, what: str = "output") -> Path:
-    """Raise a clear error unless a file can be written at ``path``: its folder exists (or can be
-    made inside an existing, writable folder), and ``path`` is not itself a folder. Call it before
-    the work that produces the file, so a typo costs nothing."""
+    """Raise OutputPathError unless a file can be written at ``path``: its folder exists (or can
+    be made inside an existing, writable folder), and ``path`` is not itself a folder. Call it
+    before the work that produces the file, so a typo costs nothing."""
     path = Path(path)
     if path.is_dir():
-        raise IsADirectoryError(f"{what} {path}: is a folder, expected a file name")
+        raise OutputPathError(f"{what} {path}: is a folder, expected a file name")
     folder = path.parent if str(path.parent) else Path(".")
     existing = folder
     while not existing.exists():
         existing = existing.parent
     if not existing.is_dir():
-        raise NotADirectoryError(f"{what} {path}: {existing} is a file, not a folder")
+        raise OutputPathError(f"{what} {path}: {existing} is a file, not a folder")
     if not os.access(existing, os.W_OK | os.X_OK):
-        raise PermissionError(f"{what} {path}: folder {existing} is not writable")
+        raise OutputPathError(f"{what} {path}: folder {existing} is not writable")
     return path
+
+
+@contextlib.contextmanager
+def atomic_path(path: PathLike, what: str = "output") -> Iterator[str]:
+    """``with atomic_path(out, "GIF") as tmp:`` write the file named ``tmp``; on success it
+    replaces ``out``. For writers that want a file name rather than a file object (Pillow,
+    matplotlib's movie writers). The temporary file is created at once beside ``out``, so a path
+    that cannot be written raises OutputPathError before the body's work; on any failure the
+    temporary file is removed and ``out`` is left as it was."""
+    target = Path(path)
+    if target.is_dir():
+        raise OutputPathError(f"cannot write {what} to {target}: it is a folder, give a file name")
+    folder = target.parent
+    if not folder.is_dir():
+        reason = "does not exist" if not folder.exists() else "is not a folder"
+        raise OutputPathError(f"cannot write {what} to {target}: folder {folder} {reason}")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=folder)
+    except OSError as e:
+        raise OutputPathError(f"cannot write {what} to {target}: {e.strerror or e}") from None
+    os.close(fd)
+    try:
+        yield tmp
+        os.chmod(tmp, 0o666 & ~_umask())
+        os.replace(tmp, target)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.remove(tmp)
+        raise
 
 
 def atomic_write(path: PathLike, write: Callable[[BinaryIO], None]) -> Path:

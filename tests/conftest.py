@@ -4,13 +4,11 @@ Real data (BVH files, the authors' released network) lives in ``../shared/data``
 project root, never inside the repository. Tests that need it skip with a clear reason when it
 is absent. ``MINIFILM_SHARED_DATA`` points elsewhere if your copy lives somewhere else.
 """
-import os
 from pathlib import Path
 
 import pytest
 
-REPO_ROOT = Path(__file__).resolve().parents[1]
-SHARED_DATA = Path(os.environ.get("MINIFILM_SHARED_DATA", REPO_ROOT.parent / "shared" / "data"))
+from repo_paths import REPO_ROOT, SHARED_DATA  # noqa: F401  (re-exported for the fixtures below)
 
 
 @pytest.fixture(scope="session")

@@ -21,6 +21,8 @@ import os
 import sys
 from typing import Callable, Optional
 
+from minifilm.files import OutputPathError
+
 #: name -> (module, one-line help, environment defaults set before the module is imported)
 COMMANDS = {
     "train": ("minifilm.cli.train", "the main job: synthetic or your data -> trained model -> generated motion", {}),
@@ -36,7 +38,8 @@ COMMANDS = {
 }
 
 #: What a user can get wrong: these errors describe the input and are printed as one line.
-INPUT_ERRORS = (FileNotFoundError, NotADirectoryError, IsADirectoryError, PermissionError, ValueError)
+INPUT_ERRORS = (FileNotFoundError, NotADirectoryError, IsADirectoryError, PermissionError, OutputPathError,
+                ValueError)
 
 
 class Parser(argparse.ArgumentParser):

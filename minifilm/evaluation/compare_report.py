@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from minifilm.viewer.matplotlib_setup import pyplot, save_figure
+from minifilm.viewer.deps import pyplot, save_figure
 
 PHASE_STYLES = ("Swimming", "PendulumHands", "LeftHop")
 

@@ -41,7 +41,7 @@ from minifilm.runtime.network import RuntimeNetwork
 from minifilm.runtime.style_library import StyleLibrary
 from minifilm.synthetic import generator as synthetic
 from minifilm.train.trainer import TrainConfig, Trainer
-from minifilm.viewer.matplotlib_setup import pyplot, save_figure
+from minifilm.viewer.deps import pyplot, save_figure
 
 
 @dataclass

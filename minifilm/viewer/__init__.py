@@ -1,5 +1,23 @@
-"""Pictures of motion: the paper's Figure 4 phase plot, side-view strips, animations.
+"""See the motion: animated GIF / MP4, a self-contained three.js HTML player, and still pictures.
 
-Everything here needs matplotlib (the ``viz`` extra), imported inside the drawing functions, so the
-core never depends on it.
+    from minifilm.viewer import track_from_bvh, write_gif, write_html
+    tracks = [track_from_bvh(p) for p in ["walk.bvh", "run.bvh"]]
+    write_gif(tracks, "styles.gif")      # matplotlib + Pillow, no ffmpeg
+    write_html(tracks, "index.html")     # one file, opens offline from disk
+
+Files: ``tracks`` (what is drawn), ``timeline`` (which frame when), ``projection`` (the 2-D camera
+of the GIF), ``render2d`` (matplotlib panels), ``gif`` / ``mp4`` (animated files), ``encode`` and
+``html`` (the browser player, with ``assets/`` and the vendored three.js in ``vendor/``),
+``phase_plot`` (the paper's Figure 4), ``strip`` (side-view stick figures of a rollout), ``deps``
+(the optional imports: matplotlib, Pillow). Importing this package loads none of them.
 """
+from minifilm.files import OutputPathError
+from minifilm.viewer.gif import write_gif
+from minifilm.viewer.html import write_html
+from minifilm.viewer.mp4 import write_mp4
+from minifilm.viewer.projection import Camera, project
+from minifilm.viewer.render2d import Rendering
+from minifilm.viewer.tracks import Track, as_tracks, track_from_bvh, track_from_motion
+
+__all__ = ["Track", "track_from_motion", "track_from_bvh", "as_tracks", "write_gif", "write_mp4",
+           "write_html", "Camera", "project", "Rendering", "OutputPathError"]

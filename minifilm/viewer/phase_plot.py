@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from minifilm.phases.local_phases import SLOTS
-from minifilm.viewer.matplotlib_setup import pyplot, save_figure
+from minifilm.viewer.deps import pyplot, save_figure
 
 
 def plot_phases(t, phases, contacts, sources, out, title=""):

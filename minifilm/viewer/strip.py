@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from minifilm.viewer.matplotlib_setup import pyplot, save_figure
+from minifilm.viewer.deps import pyplot, save_figure
 
 
 def draw_strip(rollout, parents, joint_names, path, out, every=10, max_figures=14, title="", start=60):
