@@ -5,6 +5,7 @@
     minifilm dataset      build (and cache) the training data of a folder of BVH files
     minifilm generate     generate motion with the released network or a trained run
     minifilm finetune     teach a trained run a new style from a short clip (Ψ only, Sec. 5.3.2)
+    minifilm view         show BVH files: an animated GIF and an offline 3-D HTML player
     minifilm table2       Table 2: parameter counts and run time of the seven comparison models
     minifilm compare      Figure 10 and the style metrics: train and compare the seven models
 
@@ -30,6 +31,7 @@ COMMANDS = {
     "dataset": ("minifilm.cli.dataset", "build and cache the training data of BVH files", {}),
     "generate": ("minifilm.cli.generate", "generate motion with the released network or a trained run", {}),
     "finetune": ("minifilm.cli.finetune", "teach a trained run a new style from a short clip (Ψ only)", {}),
+    "view": ("minifilm.cli.view", "show BVH files as an animated GIF and an offline 3-D HTML player", {}),
     # batch-1 timing on one BLAS thread, like a game loop: a matrix-vector product gains nothing
     # from threads, and on a busy machine threaded BLAS made it ~20x slower here
     "table2": ("minifilm.cli.table2", "Table 2: parameter counts and run time of the seven models",

@@ -5,6 +5,7 @@
     minifilm generate --params DIR --style Neutral --style2 Old --blend 0.5 --out blend.bvh
     minifilm generate --params DIR --style Neutral --style2 Old --style3 Zombie --weights 0.2 0.3 0.5
     minifilm generate --params DIR --style Neutral --switch-to Zombie --switch-at 10 --out switch.bvh
+    minifilm generate --params DIR --style Old --seconds 10 --gif old.gif --html old.html
     minifilm generate --params DIR --list-styles
 
 Scripts: straight, figure8, walk_run_stop, strafe (minifilm/runtime/control.py). Every frame is put
@@ -36,6 +37,9 @@ from minifilm.runtime.controller import Controller, root_joint_indices
 from minifilm.runtime.released import load_released
 from minifilm.runtime.style_library import StyleLibrary
 from minifilm.synthetic.generator import rest_motion
+from minifilm.viewer.builders import tracks_from_rollout
+from minifilm.viewer.gif import write_gif
+from minifilm.viewer.html import write_html
 from minifilm.viewer.strip import draw_strip
 
 HELP = "generate motion with the released network or a trained run"
@@ -64,6 +68,8 @@ def add_arguments(ap) -> None:
                     help="put each frame on the skeleton and feed that pose back (released default), fit the "
                          "output only (trained-run default), or no fit")
     ap.add_argument("--no-calibrate", action="store_true", help="command the raw speed (no calibration)")
+    ap.add_argument("--gif", type=Path, help="also write the motion as an animated GIF")
+    ap.add_argument("--html", type=Path, help="also write the motion into an offline 3-D HTML player")
     ap.add_argument("--png", type=png_path, help="also draw the motion into this PNG")
     ap.add_argument("--png-from", type=in_range(0.0, 24 * 3600.0), default=1.0, help="first drawn frame, seconds")
     ap.add_argument("--png-every", type=in_range(1, 100_000, int), default=10, help="frames between drawn figures")
@@ -117,8 +123,9 @@ def style_condition(args, lib: StyleLibrary, n: int, fps: float):
 
 def run(args) -> int:
     out = check_writable(args.out, "--out")
-    if args.png:
-        check_writable(args.png, "--png")
+    for flag in ("png", "gif", "html"):
+        if getattr(args, flag):
+            check_writable(getattr(args, flag), f"--{flag}")
     src = Source(args)
     lib = src.library
     if args.list_styles:
@@ -164,6 +171,14 @@ def run(args) -> int:
           f"hips {hips.min():.2f}-{hips.max():.2f} m, bone CV max "
           f"{bone_length_cv(r.network_positions[0, k0:], parents).max():.1%} as predicted "
           f"({bone_length_cv(r.positions[0, k0:], parents).max():.1%} output){sliding}")
+    if args.gif or args.html:
+        toes = toes if len(toes) == 2 else None
+        track = tracks_from_rollout(r, parents, [label], names, toes)
+        if args.html:
+            print(f"  3-D player -> {write_html(track, args.html, title=label)}")
+        if args.gif:
+            write_gif(track, args.gif)
+            print(f"  animation -> {args.gif}")
     if args.png:
         path = draw_strip(r, parents, names, script.path, args.png, every=args.png_every, title=label,
                           start=int(round(args.png_from * src.fps)))

@@ -1,7 +1,7 @@
 """Draw a BVH file's foot contacts and local phases like the paper's Figure 4 (Sec. 4.1).
 
     minifilm phases FILE.bvh [--out phases.png] [--skeleton NAME] [--style NAME]
-                             [--start SECONDS] [--stop SECONDS]
+                             [--start SECONDS] [--stop SECONDS] [--animation walk.gif]
 
 ``--skeleton`` is one of the built-ins (100style, bandai, cmu, cmu-mb); by default it is detected
 from the joint names. ``--style LeftHop`` / ``RightHop`` switches the lifted foot to the
@@ -19,7 +19,9 @@ from minifilm.motion.bvh import read_bvh
 from minifilm.motion.skeletons import builtin_skeleton, detect_skeleton
 from minifilm.phases.label import label
 from minifilm.phases.local_phases import LocalPhases
+from minifilm.viewer.gif import write_gif
 from minifilm.viewer.phase_plot import plot_phases
+from minifilm.viewer.tracks import track_from_motion
 
 HELP = "draw a BVH file's contacts and local phases (Figure 4)"
 
@@ -31,6 +33,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--style", default=None, help="style name, e.g. LeftHop (chooses the sources)")
     parser.add_argument("--start", type=seconds_at_least(0.0), default=0.0, help="first second to draw")
     parser.add_argument("--stop", type=seconds_at_least(0.0), default=None, help="last second to draw")
+    parser.add_argument("--animation", type=Path, help="also write the motion of the same seconds as an animated GIF "
+                        "(contacts highlighted), to watch beside the plot")
 
 
 def load(path, skeleton_name=None):
@@ -44,6 +48,8 @@ def load(path, skeleton_name=None):
 
 def run(args) -> int:
     out = check_writable(args.out, "--out")
+    if args.animation:
+        check_writable(args.animation, "--animation")
     motion, skeleton = load(args.bvh, args.skeleton)
     labels = label(motion, skeleton, args.style)
     t = np.arange(motion.n_frames) / motion.fps
@@ -56,4 +62,12 @@ def run(args) -> int:
     title = f"{Path(args.bvh).name}: {motion.n_frames} frames at {motion.fps:.0f} fps, skeleton {skeleton.name}"
     plot_phases(t[keep], view, labels.contacts[keep], labels.sources, out, title)
     print(f"wrote {out}")
+    if args.animation:
+        frames = np.flatnonzero(keep)
+        clip = motion.slice(int(frames[0]), int(frames[-1]) + 1)
+        sensors = skeleton.contact_indices(motion)
+        track = track_from_motion(clip, name=Path(args.bvh).stem, contacts=labels.contacts[keep],
+                                  contact_joints=list(sensors))
+        write_gif(track, args.animation)
+        print(f"wrote {args.animation}")
     return 0

@@ -16,7 +16,8 @@ Steps (each prints what it did):
 
 Everything is written to the run folder --out (default runs/train_small; see run_folder.py):
 data/, model.npz (checkpoint with the normalisation statistics), styles.npz (FiLM vector per
-style), starts.npz, skeleton.bvh, run.json, loss_curve.png, generated/*.bvh.
+style), starts.npz, skeleton.bvh, run.json, loss_curve.png, generated/*.bvh, and the pictures of the
+result: generated/styles.gif (every style side by side) and generated/index.html (a 3-D player).
 """
 from __future__ import annotations
 
@@ -41,7 +42,10 @@ from minifilm.runtime.network import RuntimeNetwork
 from minifilm.runtime.style_library import StyleLibrary
 from minifilm.synthetic import generator as synthetic
 from minifilm.train.trainer import TrainConfig, Trainer
+from minifilm.viewer.builders import tracks_from_rollout
 from minifilm.viewer.deps import pyplot, save_figure
+from minifilm.viewer.gif import write_gif
+from minifilm.viewer.html import write_html
 
 
 @dataclass
@@ -212,6 +216,7 @@ def generate_per_style(trainer: Trainer, ds, run: RunFolder, library: StyleLibra
     out.mkdir(exist_ok=True)
     starts = run.starts()
     log(f"[generate] {seconds:g} s per style along a figure-eight:")
+    rollouts = {}
     for name in ds.styles:
         script = make_script("figure8", seconds)
         start_x, phases = starts[name]
@@ -221,6 +226,23 @@ def generate_per_style(trainer: Trainer, ds, run: RunFolder, library: StyleLibra
         hips = rollout.positions[0, :, 0, 1]
         speed = np.linalg.norm(np.diff(rollout.root_positions[0], axis=0), axis=1).mean() * ds.fps
         log(f"    {name:<14} hips {hips.mean():.2f} m  speed {speed:.2f} m/s   -> {path}")
+        rollouts[name] = rollout
+    return rollouts
+
+
+def show_styles(rollouts: dict, layout, out: Path, gif_seconds: float = 6.0) -> None:
+    """See the result: every style's generated motion side by side in an animated GIF (the first
+    ``gif_seconds``) and in the offline HTML player (all of it)."""
+    names = list(rollouts)
+    toes = [layout.joint_names.index(t) for t in ("RightToe", "LeftToe")] if "RightToe" in layout.joint_names else None
+    tracks = [tracks_from_rollout(rollouts[n], layout.parents, [n], layout.joint_names, toes)[0] for n in names]
+    html = write_html(tracks, out / "index.html", title="minifilm: generated styles")
+    log(f"[view] every style in a 3-D player (opens offline in a browser): {html}")
+    try:
+        write_gif(tracks, out / "styles.gif", seconds=gif_seconds, size=(200, 250))
+        log(f"[view] every style side by side, first {gif_seconds:g} s: {out / 'styles.gif'}")
+    except ImportError as e:
+        log(f"[view] no GIF: {e}")
 
 
 def run(s: Settings, data: Optional[Path] = None) -> dict:
@@ -252,6 +274,7 @@ def run(s: Settings, data: Optional[Path] = None) -> dict:
     library = style_library(trainer, ds)
     library.save(out / "styles.npz")
     folder.save_starts({name: start_from_dataset(ds, name) for name in ds.styles})
-    generate_per_style(trainer, ds, folder, library, template, s.generate_seconds)
+    rollouts = generate_per_style(trainer, ds, folder, library, template, s.generate_seconds)
+    show_styles(rollouts, ds.layout, out / "generated", min(6.0, s.generate_seconds))
     log(f"[done] {time.perf_counter() - t_start:.0f} s in all; outputs in {out}")
     return result

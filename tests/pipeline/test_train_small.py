@@ -48,6 +48,12 @@ def test_train_small_miniature_end_to_end(mini_run, capsys):
         assert motion.n_joints == 28
         positions, _ = motion.world()
         assert np.all(np.isfinite(positions))
+    # and the result is visible: every style side by side in a GIF and in the HTML player
+    from PIL import Image
+    with Image.open(out / "generated" / "styles.gif") as im:
+        assert im.n_frames == 15 and im.size == (400, 250)       # 0.5 s at 30 fps, two 200 x 250 panels
+    html = (out / "generated" / "index.html").read_text(encoding="utf-8")
+    assert "Neutral" in html and "LeftHop" in html and "minifilmPlayer" in html
 
 
 def test_the_run_folder_works_from_another_directory(mini_run, tmp_path, monkeypatch):

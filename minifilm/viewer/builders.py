@@ -1,0 +1,59 @@
+"""Tracks from the rest of minifilm: a runtime rollout, or a BVH file with its foot contacts.
+
+``tracks.py`` knows only joint positions and a hierarchy; these builders add what the viewer can
+show beyond them: the names of generated characters, and foot contacts (highlighted toes) from
+the network's predicted contacts or, for a BVH file on a built-in skeleton, from the labelling.
+"""
+from __future__ import annotations
+
+import os
+from typing import List, Optional, Sequence, Union
+
+from minifilm.motion.bvh import read_bvh
+from minifilm.motion.skeletons import detect_skeleton
+from minifilm.phases.contacts import foot_contacts
+from minifilm.runtime.rollout import Rollout
+from minifilm.viewer.tracks import Track, track_from_motion
+
+__all__ = ["tracks_from_rollout", "track_with_contacts"]
+
+
+def tracks_from_rollout(rollout: Rollout, parents: Sequence[int], names: Optional[Sequence[str]] = None,
+                        joint_names: Optional[Sequence[str]] = None,
+                        toes: Optional[Sequence[int]] = None) -> List[Track]:
+    """One Track per character of ``rollout`` (output positions, after any skeleton fit).
+
+    parents (J,): the layout's parents (``layout.parents``); names: one label per character;
+    toes: the joint indices of the predicted contact columns [right, left] (their marks light up
+    while the network predicts contact); joint_names: for labels.
+    """
+    B = rollout.positions.shape[0]
+    names = list(names) if names is not None else [f"character {b}" for b in range(B)]
+    if len(names) != B:
+        raise ValueError(f"tracks_from_rollout: {len(names)} names for {B} characters")
+    out = []
+    for b in range(B):
+        root = rollout.root_positions[b]                                   # (F, 2) on the floor
+        trail = root[:, [0, 0, 1]] * [1.0, 0.0, 1.0]
+        out.append(Track(name=names[b], positions=rollout.positions[b], parents=parents, fps=rollout.fps,
+                         contacts=None if toes is None else rollout.contacts[b].clip(0.0, 1.0),
+                         contact_joints=None if toes is None else list(toes), trail=trail, root=0,
+                         joint_names=None if joint_names is None else list(joint_names)))
+    return out
+
+
+def track_with_contacts(path: Union[str, os.PathLike], name: Optional[str] = None) -> Track:
+    """A BVH file as a Track, in metres, with its foot contacts marked when its skeleton is one of
+    the built-ins (detected from the joint names; otherwise no contacts, scale 0.01)."""
+    try:
+        skeleton = detect_skeleton(read_bvh(path, scale=1.0))
+    except ValueError:
+        skeleton = None
+    if skeleton is None:
+        return track_from_motion(read_bvh(path, scale=0.01), name=name)
+    motion = read_bvh(path, scale=skeleton.bvh_scale)
+    sensors = skeleton.contact_indices(motion)
+    positions, _ = motion.world()
+    contacts = foot_contacts(positions[:, sensors], motion.fps) if motion.n_frames >= 2 else None
+    return track_from_motion(motion, name=name, contacts=contacts,
+                             contact_joints=None if contacts is None else list(sensors))
