@@ -47,6 +47,7 @@ from minifilm.model.film_generator import FilmGenerator, film_shapes
 from minifilm.model.gating import GatingNetwork, gating_shapes
 from minifilm.model.motion_net import MotionNetwork, motion_shapes
 from minifilm.model.style_model import StyleModel
+from minifilm.nn import functional as F
 
 #: name -> (backbone, modulation), in Table 2's order.
 SPECS = {
@@ -149,6 +150,7 @@ class VariantModel:
             else:
                 self.film = ResidualAdapter(n_styles, cb.hidden, rng, dtype)
         self._state = None
+        self._gather = None
 
     # ---- parameters ----------------------------------------------------------------------
     def parameter_sets(self):
@@ -171,14 +173,18 @@ class VariantModel:
             raise ValueError(f"{self.name}: p must be (B, {want}) ({GATE_INPUT[self.backbone]}), got {p.shape}")
 
     # ---- forward / backward ---------------------------------------------------------------
-    def forward(self, x, p, clip=None, train=False, rng=None, style=None, masks=None):
+    def forward(self, x, p, clip=None, train=False, rng=None, style=None, masks=None, clip_index=None):
         """-> z (B, z_dim of the backbone). style: (B,) ids; for one-hot also (B, S) weights of
-        a blended one-hot vector (interpolating styles, Fig. 8)."""
+        a blended one-hot vector (interpolating styles, Fig. 8). clip_index: shared clips, as in
+        StyleModel.forward."""
         if self.modulation == "film":
             self._require_film_generator()
             if clip is None:
                 raise ValueError(f"{self.name}: FiLM needs a style clip")
             film = self.film.forward(clip, train=train, rng=rng, masks=masks)
+            self._gather = None
+            if clip_index is not None:
+                film, self._gather = F.gather_forward(film, clip_index)
             z = self.forward_with_film(x, p, film, train=train, rng=rng, masks=masks)
             self._state = "clip"
             return z
@@ -204,6 +210,8 @@ class VariantModel:
             if self._state != "clip":
                 raise RuntimeError(f"{self.name}: use backward_with_film after forward_with_film")
             dx, dp, dfilm = self.backward_with_film(dz)
+            if self._gather is not None:
+                dfilm = F.gather_backward(dfilm, self._gather)
             return {"x": dx, "p": dp, "clip": self.film.backward(dfilm, need_input_grad=need_input_grads)}
         adapter_backward = self.film.backward if self.modulation == "resad" else None
         dx, dalpha, dshift = self.motion.backward(dz, adapter_backward=adapter_backward)
@@ -252,8 +260,8 @@ class LPNFilm(StyleModel):
     takes_style_ids = False
     backbone, modulation = "lpn", "film"
 
-    def forward(self, x, p, clip, train=False, rng=None, masks=None, style=None):
-        return super().forward(x, p, clip, train=train, rng=rng, masks=masks)
+    def forward(self, x, p, clip, train=False, rng=None, masks=None, style=None, clip_index=None):
+        return super().forward(x, p, clip, train=train, rng=rng, masks=masks, clip_index=clip_index)
 
     def forward_with_film(self, x, p, film, train=False, rng=None, masks=None, ln_unbiased=None,
                           ln_eps=None, style=None):

@@ -19,6 +19,7 @@ from minifilm.model.config import ModelConfig
 from minifilm.model.film_generator import FilmGenerator, film_shapes
 from minifilm.model.gating import GatingNetwork, gating_shapes
 from minifilm.model.motion_net import MotionNetwork, motion_shapes
+from minifilm.nn import functional as F
 
 
 def parameter_counts(config: ModelConfig) -> dict:
@@ -52,6 +53,7 @@ class StyleModel:
         self.film = FilmGenerator(config, rng, dtype) if with_film_generator else None   # Ψ
         self._film_shape = None
         self._used_generator = False
+        self._gather = None
 
     # ---- parameters ----------------------------------------------------------------------
     def parameter_sets(self):
@@ -80,10 +82,18 @@ class StyleModel:
         self._require_film_generator()
         return self.film.forward(clip, train=train, rng=rng, masks=masks)
 
-    def forward(self, x, p, clip, train=False, rng=None, masks=None):
-        """Eq. (4): z = Φ(x; Ω(p), Ψ(y)). x (B, x_dim), p (B, 8), clip (B, T, C) -> z (B, z_dim)."""
+    def forward(self, x, p, clip, train=False, rng=None, masks=None, clip_index=None):
+        """Eq. (4): z = Φ(x; Ω(p), Ψ(y)). x (B, x_dim), p (B, 8), clip (B, T, C) -> z (B, z_dim).
+
+        clip_index (B,) ints: shared clips. ``clip`` is then (M, T, C), M <= B, sample b is
+        conditioned on clip[clip_index[b]], and Ψ runs on the M clips only (minibatches hold one
+        style, so a few clips of it can serve the whole batch: TrainConfig.clips_per_batch).
+        """
         self._require_film_generator()
-        film = self.film.forward(clip, train=train, rng=rng, masks=masks)
+        film = self.film.forward(clip, train=train, rng=rng, masks=masks)     # (M, 4H)
+        self._gather = None
+        if clip_index is not None:
+            film, self._gather = F.gather_forward(film, clip_index)           # (B, 4H)
         z = self.forward_with_film(x, p, film, train=train, rng=rng, masks=masks)
         self._used_generator = True
         return z
@@ -125,5 +135,7 @@ class StyleModel:
             raise RuntimeError("StyleModel.backward needs a preceding forward(x, p, clip); "
                                "use backward_with_film after forward_with_film")
         dx, dp, dfilm = self.backward_with_film(dz)
+        if self._gather is not None:                  # a shared clip gets its samples' gradients
+            dfilm = F.gather_backward(dfilm, self._gather)
         dclip = self.film.backward(dfilm, need_input_grad=need_input_grads)
         return {"x": dx, "p": dp, "clip": dclip}

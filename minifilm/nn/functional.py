@@ -381,3 +381,24 @@ def max_pool1d_backward(dout: np.ndarray, cache):
     np.multiply(dout, first, out=dx[:, 0: 2 * T2: 2])
     np.multiply(dout, ~first, out=dx[:, 1: 2 * T2: 2])
     return dx
+
+
+# --------------------------------------------------------------------------------------------
+# Gather rows (a style clip shared by several samples: Ψ runs once per clip)
+# --------------------------------------------------------------------------------------------
+def gather_forward(x: np.ndarray, index: np.ndarray):
+    """Rows of x by index: ``y[b] = x[index[b]]``. x: (C, ...), index: (B,) ints in [0, C) -> (B, ...)."""
+    index = np.asarray(index)
+    _require(index.ndim == 1 and np.issubdtype(index.dtype, np.integer),
+             f"gather_forward: index must be 1-D integers, got {index.dtype} {index.shape}")
+    _require(index.size == 0 or (index.min() >= 0 and index.max() < x.shape[0]),
+             f"gather_forward: index must lie in [0, {x.shape[0]}), got {index.min()}..{index.max()}")
+    return x[index], (index, x.shape)
+
+
+def gather_backward(dout: np.ndarray, cache):
+    """dx for :func:`gather_forward`: each row of x receives the sum of the rows gathered from it."""
+    index, shape = cache
+    dx = np.zeros(shape, dtype=dout.dtype)
+    np.add.at(dx, index, dout)
+    return dx

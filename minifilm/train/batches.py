@@ -36,3 +36,18 @@ def draw_clips(data: TrainData, style_ids, rng):
         where = np.nonzero(style_ids == s)[0]
         out[where] = pool[rng.integers(0, len(pool), size=len(where))]
     return out
+
+
+def draw_shared_clips(data: TrainData, style: int, n_clips: int, batch: int, rng):
+    """Clips shared by a minibatch of one style (TrainConfig.clips_per_batch): ``n_clips`` clips
+    drawn uniformly among the style's clips (at most one per sample), and for each of the
+    ``batch`` samples which of them it uses, spread evenly in a random order.
+
+    Returns (clip indices (M,), assignment (batch,) ints in [0, M)), M = min(n_clips, batch).
+    A deviation from the paper and the original, which pair every sample with its own clip: Ψ
+    then runs on M clips instead of ``batch``, the most expensive part of a training step."""
+    pool = np.flatnonzero(data.clip_style == style)
+    m = max(1, min(int(n_clips), int(batch)))
+    chosen = pool[rng.integers(0, len(pool), size=m)]
+    assign = rng.permutation(np.arange(batch) % m)
+    return chosen, assign

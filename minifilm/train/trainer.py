@@ -29,7 +29,7 @@ from minifilm.dataset.stats import NormStats
 from minifilm.model.losses import bone_length_loss, mse_loss
 from minifilm.model.style_model import StyleModel
 from minifilm.nn.optim import Adam
-from minifilm.train.batches import draw_clips, epoch_batches
+from minifilm.train.batches import draw_clips, draw_shared_clips, epoch_batches
 from minifilm.train.checkpoint import (NETWORKS, CheckpointError, build_style_model, load_checkpoint,
                                        load_model_arrays, model_arrays, save_checkpoint, subset)
 
@@ -48,6 +48,10 @@ class TrainConfig:
                         own slightly wrong predictions. For train_small's model, one seed each,
                         0.1-0.2 kept more styles stepping but stretched more bones in 60 s
                         rollouts (benchmarks/trained_rollout.py): not a clear win, so off by default
+    clips_per_batch     None: every sample gets its own style clip, drawn at random (the paper and
+                        the original). n: each minibatch (one style) draws n clips of its style and
+                        every sample uses one of them, so Ψ runs on n clips instead of batch_size
+                        (a deviation for speed; see batches.draw_shared_clips)
     checkpoint_path     where to write a checkpoint after every `checkpoint_every` epochs (None: never)
     progress            a one-line progress display on stderr (None: only when stderr is a terminal)
     """
@@ -59,6 +63,7 @@ class TrainConfig:
     bll_weight: float = 1.0
     input_noise: float = 0.0
     freeze: tuple = ()
+    clips_per_batch: int | None = None
     checkpoint_path: str | None = None
     checkpoint_every: int = 1
     progress: bool | None = None
@@ -71,6 +76,8 @@ class TrainConfig:
             raise ValueError(f"TrainConfig.freeze: unknown network(s) {bad}; choose from {NETWORKS}")
         if self.input_noise < 0:
             raise ValueError(f"TrainConfig.input_noise must be >= 0, got {self.input_noise}")
+        if self.clips_per_batch is not None and self.clips_per_batch < 1:
+            raise ValueError(f"TrainConfig.clips_per_batch must be None or >= 1, got {self.clips_per_batch}")
         if self.batch_size < 1 or self.epochs < 0 or self.lr <= 0:
             raise ValueError(f"TrainConfig: need batch_size >= 1, epochs >= 0, lr > 0 (got "
                              f"{self.batch_size}, {self.epochs}, {self.lr})")
@@ -131,6 +138,10 @@ class Trainer:
                 raise TrainingDiverged(f"step {self.step} ({where}): {name} is not finite "
                                        f"({'nan' if np.any(np.isnan(value)) else 'inf'}); weights not updated")
 
+    def _shares_clips(self) -> bool:
+        """Clip sharing is on and the model conditions on clips (not on style ids)."""
+        return self.config.clips_per_batch is not None and not getattr(self.model, "takes_style_ids", False)
+
     def _style_kw(self, style_ids):
         """Style ids for models whose style modulation is indexed by style (the one-hot and
         residual-adapter variants of minifilm.baselines.variants); nothing for FiLM models."""
@@ -145,14 +156,19 @@ class Trainer:
         t0 = time.time()
         show = self.config.progress if self.config.progress is not None else sys.stderr.isatty()
         for i, (s, idx) in enumerate(batches):
-            clip_idx = draw_clips(data, data.style[idx], self.rng)
+            kw = self._style_kw(data.style[idx])
+            if self._shares_clips():
+                clip_idx, kw["clip_index"] = draw_shared_clips(data, s, self.config.clips_per_batch, len(idx),
+                                                               self.rng)
+            else:
+                clip_idx = draw_clips(data, data.style[idx], self.rng)
             x, p, z = data.x[idx].astype(dtype), data.p[idx].astype(dtype), data.z[idx].astype(dtype)
             clips = data.clips[clip_idx].astype(dtype)
             if self.config.input_noise > 0:
                 x = x + (self.config.input_noise * self.rng.standard_normal(x.shape)).astype(dtype)
                 p = p + (self.config.input_noise * self.rng.standard_normal(p.shape)).astype(dtype)
             self.model.zero_grad()
-            pred = self.model.forward(x, p, clips, train=True, rng=self.rng, **self._style_kw(data.style[idx]))
+            pred = self.model.forward(x, p, clips, train=True, rng=self.rng, **kw)
             mse, bll, dpred = self.losses(pred, z)
             where = f"epoch {self.epoch + 1}, batch {i + 1}, style {self._name(s)}"
             self._check_finite(where, [("MSE loss", mse), ("bone-length loss", bll)])
@@ -181,20 +197,34 @@ class Trainer:
         """
         rng = np.random.default_rng([self.config.seed, 1])
         dtype = self.model.dtype
+        films = self._clip_films(data)
         sums = {}
         for s in np.unique(data.style):
             frames = np.nonzero(data.style == s)[0]
             for a in range(0, len(frames), self.config.eval_batch):
                 idx = frames[a:a + self.config.eval_batch]
-                clips = data.clips[draw_clips(data, data.style[idx], rng)].astype(dtype)
-                pred = self.model.forward(data.x[idx].astype(dtype), data.p[idx].astype(dtype), clips,
-                                          **self._style_kw(data.style[idx]))
+                clip_idx = draw_clips(data, data.style[idx], rng)
+                x, p = data.x[idx].astype(dtype), data.p[idx].astype(dtype)
+                if films is not None:       # Ψ is deterministic here: each clip's FiLM vector once
+                    pred = self.model.forward_with_film(x, p, films[clip_idx])
+                else:
+                    pred = self.model.forward(x, p, data.clips[clip_idx].astype(dtype),
+                                              **self._style_kw(data.style[idx]))
                 mse, bll, _ = self.losses(pred, data.z[idx].astype(dtype))
                 acc = sums.setdefault(int(s), [0.0, 0.0, 0])
                 acc[0] += mse * len(idx)
                 acc[1] += bll * len(idx)
                 acc[2] += len(idx)
         return self._summarise(sums)
+
+    def _clip_films(self, data: TrainData, chunk: int = 64):
+        """Ψ(clip) (M, 4H) of every clip of ``data`` without dropout, for models conditioned on
+        clips; None for the one-hot and adapter variants (they read style ids)."""
+        if getattr(self.model, "takes_style_ids", False) or getattr(self.model, "film", None) is None:
+            return None
+        dtype = self.model.dtype
+        return np.concatenate([self.model.film_parameters(data.clips[a:a + chunk].astype(dtype))
+                               for a in range(0, len(data.clips), chunk)])
 
     def _summarise(self, sums):
         per_style = {self._name(s): {"mse": m / n, "bll": b / n} for s, (m, b, n) in sorted(sums.items())}

@@ -82,3 +82,40 @@ def test_forward_with_film_gradients_shared_style_vector():
     assert dfilm.shape == film.shape
     errors = check_gradients(loss, {"x": (x, dx), "p": (p, dp), "film": (film, dfilm)}, h=1e-5)
     assert max(errors.values()) < 1e-6, errors
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_shared_clips_are_the_per_sample_form_with_clips_repeated(seed):
+    """Clips shared by the batch (TrainConfig.clips_per_batch): Ψ runs on M = 2 clips and each
+    sample uses one of them (clip_index). That is exactly the per-sample form (checked numerically
+    above) with the clips repeated, the dropout masks of Ψ repeated alike, and the gradient of a
+    shared clip / of Ψ's parameters the sum over the samples using it (the gather's backward,
+    checked numerically in tests/nn/test_gradcheck.py). Both sides analytic, equal to rounding."""
+    model, x, p, _, z, mean, std, rng = make_problem(10 + seed, B=4)
+    cfg = model.config
+    clips = rng.standard_normal((2, cfg.clip_frames, cfg.clip_channels))
+    index = np.array([1, 0, 1, 1])
+    model.forward(x, p, clips, train=True, rng=rng, clip_index=index)
+    masks = model.used_masks
+    assert masks["film_dense"].shape[0] == 2            # Ψ ran on the two clips only
+
+    def grads(shared):
+        model.zero_grad()
+        if shared:
+            pred = model.forward(x, p, clips, train=True, masks=masks, clip_index=index)
+        else:
+            pred = model.forward(x, p, clips[index], train=True,
+                                 masks={**masks, "film_dense": masks["film_dense"][index]})
+        d = mse_loss(pred, z)[1] + bone_length_loss(pred, z, POS_IDX, PARENTS, mean, std)[1]
+        out = model.backward(d)
+        return pred, out, [ps.grad.copy() for ps in model.parameter_sets()]
+
+    pred_s, in_s, par_s = grads(True)
+    pred_r, in_r, par_r = grads(False)
+    np.testing.assert_allclose(pred_s, pred_r, rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(in_s["x"], in_r["x"], rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(in_s["p"], in_r["p"], rtol=1e-12, atol=1e-14)
+    summed = np.stack([in_r["clip"][index == m].sum(axis=0) for m in range(2)])
+    np.testing.assert_allclose(in_s["clip"], summed, rtol=1e-12, atol=1e-14)
+    for gs, gr in zip(par_s, par_r):
+        np.testing.assert_allclose(gs, gr, rtol=1e-11, atol=1e-14)

@@ -139,6 +139,14 @@ def test_max_pool1d(T):
     run_check(F.max_pool1d_forward, F.max_pool1d_backward, (x,), ("x",))
 
 
+def test_gather_rows():
+    """y[b] = x[index[b]] with a row used twice and a row not used (shared style clips)."""
+    rng = np.random.default_rng(15)
+    x = rng.standard_normal((3, 4, 2))
+    index = np.array([2, 0, 2, 2, 0])
+    run_check(F.gather_forward, F.gather_backward, (x,), ("x",), index=index)
+
+
 # ------------------------------------------------------------------------------ the model's blocks
 def fixed_dropout(shape, rng, site="s", p=0.2):
     """A Dropout of a training pass whose one site has a fixed mask (so every evaluation agrees)."""

@@ -8,7 +8,7 @@ import pytest
 from minifilm.train.checkpoint import CheckpointError, load_checkpoint
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
-from minifilm.train.batches import draw_clips, epoch_batches
+from minifilm.train.batches import draw_clips, draw_shared_clips, epoch_batches
 from minifilm.train.finetune import finetune
 from minifilm.train.trainer import TrainConfig, Trainer, TrainingDiverged, train
 from minifilm.dataset.arrays import TrainData
@@ -230,3 +230,42 @@ def test_input_noise_perturbs_only_the_training_inputs(monkeypatch):
 def test_negative_input_noise_is_refused():
     with pytest.raises(ValueError, match="input_noise"):
         TrainConfig(input_noise=-0.1)
+
+
+def test_shared_clips_are_of_the_batch_style_and_spread_evenly():
+    data = make_data(2)
+    rng = np.random.default_rng(0)
+    clips, assign = draw_shared_clips(data, 1, 4, 16, rng)
+    assert clips.shape == (4,) and (data.clip_style[clips] == 1).all()
+    assert sorted(np.bincount(assign, minlength=4).tolist()) == [4, 4, 4, 4]    # 16 samples over 4 clips
+    clips, assign = draw_shared_clips(data, 0, 32, 5, rng)                      # never more clips than samples
+    assert clips.shape == (5,) and sorted(assign.tolist()) == [0, 1, 2, 3, 4]
+
+
+def test_training_with_shared_clips_runs_psi_on_fewer_clips(monkeypatch):
+    """clips_per_batch: Ψ sees that many clips per step, training still learns, and the trainer's
+    evaluation (Ψ once per clip) gives the same numbers as per-sample clips would."""
+    data, val = make_data(0), make_data(1)
+    trainer = new_trainer(epochs=3, clips_per_batch=2)
+    seen = []
+    original = trainer.model.film.forward
+    monkeypatch.setattr(trainer.model.film, "forward", lambda clip, **kw: seen.append(len(clip)) or original(clip, **kw))
+    first = trainer.evaluate(val)["loss"]
+    seen.clear()
+    trainer.fit(data)
+    assert set(seen) == {2}                            # every training step: two clips through Ψ
+    assert trainer.history[-1]["train"]["loss"] < trainer.history[0]["train"]["loss"]
+    assert trainer.evaluate(val)["loss"] < first
+    # evaluation: Ψ once per clip equals Ψ per sample
+    rng = np.random.default_rng([trainer.config.seed, 1])
+    s0 = val.style == 0
+    idx = np.flatnonzero(s0)
+    clip_idx = draw_clips(val, val.style[idx], rng)
+    per_sample = trainer.model.forward(val.x[idx], val.p[idx], val.clips[clip_idx])
+    once = trainer.model.forward_with_film(val.x[idx], val.p[idx], trainer._clip_films(val)[clip_idx])
+    np.testing.assert_allclose(once, per_sample, rtol=1e-5, atol=1e-6)
+
+
+def test_clips_per_batch_below_one_is_refused():
+    with pytest.raises(ValueError, match="clips_per_batch"):
+        TrainConfig(clips_per_batch=0)
