@@ -11,8 +11,9 @@ Steps (each prints what it did):
  3. dataset:  read the BVH files, detect contacts, extract local phases, build x / p / z / clips,
               split 80/10/10 per file, normalise (Sec. 3.2);
  4. training: a small LPN + FiLM model (Eq. 1-7) with style-balanced minibatches (Sec. 4.3);
- 5. results:  test error per style against the predict-the-mean baseline, a loss-curve PNG and one
-              generated BVH per style made by the autoregressive runtime (Sec. 4.4).
+ 5. results:  test error per style against the predict-the-mean baseline, a loss-curve PNG, one
+              generated BVH per style made by the autoregressive runtime (Sec. 4.4), how well a
+              style classifier recognises each style in it, and pictures of it (GIF, HTML player).
 
 Everything is written to the run folder --out (default runs/train_small; see run_folder.py):
 data/, model.npz (checkpoint with the normalisation statistics), styles.npz (FiLM vector per
@@ -29,6 +30,7 @@ from typing import Optional, Tuple
 import numpy as np
 
 from minifilm.dataset.build import build_dataset
+from minifilm.evaluation.style_classifier import classify_rollout, train_style_classifier
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
 from minifilm.motion.bvh import read_bvh
@@ -230,6 +232,26 @@ def generate_per_style(trainer: Trainer, ds, run: RunFolder, library: StyleLibra
     return rollouts
 
 
+def style_recognition(ds, rollouts: dict, seed: int = 0) -> dict:
+    """How well the generated motion carries each style: the fraction of 0.75 s windows of each
+    style's generated motion (after its first second) that a style classifier trained on the
+    run's own data recognises as that style (minifilm/evaluation/style_classifier.py). Its
+    accuracy on the data's held-out rows is the ceiling."""
+    t0 = time.perf_counter()
+    classifier, info = train_style_classifier(ds, seed=seed)
+    per_style = {}
+    for name, rollout in rollouts.items():
+        probs = classify_rollout(classifier, ds, rollout, window=info["window"], stride=info["stride"])[0]
+        per_style[name] = float(np.mean(probs.argmax(axis=1) == ds.styles.index(name))) if len(probs) else float("nan")
+    mean = float(np.nanmean(list(per_style.values())))
+    log(f"[style] recognition of each style's generated motion by a classifier trained on the data "
+        f"(held-out real windows: {info['heldout_acc']:.2f}; {time.perf_counter() - t0:.1f} s):")
+    for name, acc in per_style.items():
+        log(f"    {name:<14} {acc:.2f}")
+    log(f"    mean style recognition {mean:.2f}")
+    return {"per_style": per_style, "mean": mean, "heldout": info["heldout_acc"]}
+
+
 def show_styles(rollouts: dict, layout, out: Path, gif_seconds: float = 6.0) -> None:
     """See the result: every style's generated motion side by side in an animated GIF (the first
     ``gif_seconds``) and in the offline HTML player (all of it)."""
@@ -246,7 +268,8 @@ def show_styles(rollouts: dict, layout, out: Path, gif_seconds: float = 6.0) -> 
 
 
 def run(s: Settings, data: Optional[Path] = None) -> dict:
-    """The whole main job; returns the test result (MSE per style)."""
+    """The whole main job; returns the test result (MSE per style) with the style recognition
+    of the generated motion under 'recognition'."""
     out = Path(s.out)
     out.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
@@ -275,6 +298,7 @@ def run(s: Settings, data: Optional[Path] = None) -> dict:
     library.save(out / "styles.npz")
     folder.save_starts({name: start_from_dataset(ds, name) for name in ds.styles})
     rollouts = generate_per_style(trainer, ds, folder, library, template, s.generate_seconds)
+    result["recognition"] = style_recognition(ds, rollouts, s.seed)
     show_styles(rollouts, ds.layout, out / "generated", min(6.0, s.generate_seconds))
     log(f"[done] {time.perf_counter() - t_start:.0f} s in all; outputs in {out}")
     return result
