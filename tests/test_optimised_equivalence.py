@@ -2,7 +2,7 @@
 reference formulations written here, in float64, on random inputs, to 1e-10 (issue 9).
 
 The references are deliberately the slow, obvious forms: a loop over the kernel taps with
-scatter-adds for the convolution (not im2col), per-sample blended weights for the experts (not the
+scatter-adds for the convolution (not im2col, not the FFT), per-sample blended weights for the experts (not the
 (B, K*I) product), explicit per-row Jacobians for layer norm and softmax, pair-by-pair max pooling.
 """
 import numpy as np
@@ -122,10 +122,18 @@ def elu_slope(x):
 
 
 # ============================================================================ layers
-@pytest.mark.parametrize("B,T,C,Fo,k", [(3, 11, 4, 5, 5), (2, 3, 3, 2, 5), (1, 8, 6, 3, 1), (4, 16, 7, 9, 3)])
-def test_conv1d_equals_tap_loop(rng, B, T, C, Fo, k):
+CONV_CASES = [(3, 11, 4, 5, 5), (2, 3, 3, 2, 5), (1, 8, 6, 3, 1), (4, 16, 7, 9, 3),
+              (2, 1, 3, 2, 7),      # a single frame, kernel longer than the clip
+              (2, 30, 5, 4, 25),    # the paper's kernel width; fft length 45 (odd)
+              (3, 20, 6, 5, 9)]     # fft length 24 (even: a Nyquist frequency)
+
+
+@pytest.mark.parametrize("method", ["im2col", "fft"])
+@pytest.mark.parametrize("B,T,C,Fo,k", CONV_CASES)
+def test_conv1d_equals_tap_loop(rng, method, B, T, C, Fo, k):
     x, W, b = rng.standard_normal((B, T, C)), rng.standard_normal((k, C, Fo)), rng.standard_normal(Fo)
-    y, cache = F.conv1d_forward(x, W, b)
+    y, cache = F.conv1d_forward(x, W, b, method=method)
+    assert cache[0] == method
     assert_close(y, conv_ref(x, W, b))
     dout = rng.standard_normal(y.shape)
     dx, dW, db = F.conv1d_backward(dout, cache)
@@ -140,23 +148,38 @@ def test_conv1d_equals_tap_loop(rng, B, T, C, Fo, k):
     assert_close(db2, rb)
 
 
-def test_workspaces_reuse_buffers_without_changing_results(rng):
-    """A layer's workspace (reused im2col and gradient buffers): successive calls with new data,
-    and a change of batch size, give exactly what calls without a workspace give."""
+def test_conv1d_method_choice():
+    """'auto' takes fft where it is much cheaper (the paper's Ψ and train_small's at batch 32)
+    and im2col for single clips and tiny layers; an unknown method is an error."""
+    choose = F._conv1d_method
+    assert choose(32, 240, 300, 256, 25) == "fft" and choose(32, 120, 256, 256, 25) == "fft"
+    assert choose(32, 120, 300, 32, 9) == "fft"
+    assert choose(1, 120, 300, 32, 9) == "im2col" and choose(1, 240, 300, 256, 25) == "im2col"
+    assert choose(32, 16, 12, 8, 5) == "im2col"
+    with pytest.raises(ValueError, match="method"):
+        F.conv1d_forward(np.zeros((1, 4, 2)), np.zeros((3, 2, 2)), np.zeros(2), method="winograd")
+
+
+@pytest.mark.parametrize("method", ["im2col", "fft"])
+def test_workspaces_reuse_buffers_without_changing_results(rng, method):
+    """A layer's workspace (reused im2col / spectrum and gradient buffers): successive calls with
+    new data, and a change of batch size or clip length, give exactly what calls without a
+    workspace give."""
     k, C, Fo = 5, 3, 4
     W, b = rng.standard_normal((k, C, Fo)), rng.standard_normal(Fo)
     work = {}
-    for B, T in [(2, 9), (2, 9), (3, 9), (2, 9)]:
+    for B, T in [(2, 9), (2, 9), (3, 9), (2, 12), (2, 9)]:
         x = rng.standard_normal((B, T, C))
-        y, cache = F.conv1d_forward(x, W, b, work=work)
+        y, cache = F.conv1d_forward(x, W, b, work=work, method=method)
         dout = rng.standard_normal(y.shape)
         got = F.conv1d_backward(dout, cache)
         assert_close(y, conv_ref(x, W, b))
         for g, r in zip(got, conv_ref_backward(dout, x, W)):
             assert_close(g, r)
-    cols = work["cols"]
-    F.conv1d_forward(rng.standard_normal((2, 9, C)), W, b, work=work)
-    assert work["cols"] is cols                           # same shape: the buffer was reused
+    name = "cols" if method == "im2col" else "fft.H3"
+    buf = work[name]
+    F.conv1d_forward(rng.standard_normal((2, 9, C)), W, b, work=work, method=method)
+    assert work[name] is buf                              # same shape: the buffer was reused
     Wl, bl = rng.standard_normal((6, 4)), rng.standard_normal(4)
     lwork = {}
     for _ in range(2):
@@ -166,11 +189,34 @@ def test_workspaces_reuse_buffers_without_changing_results(rng):
         assert_close(F.linear_backward(dout, cache, work=lwork)[1], x.T @ dout)
 
 
-def test_conv1d_float32_agrees_with_float64_reference(rng):
+@pytest.mark.parametrize("method", ["im2col", "fft"])
+def test_conv1d_float32_agrees_with_float64_reference(rng, method):
     x, W, b = rng.standard_normal((2, 20, 6)), rng.standard_normal((5, 6, 4)), rng.standard_normal(4)
-    y, _ = F.conv1d_forward(x.astype(np.float32), W.astype(np.float32), b.astype(np.float32))
+    y, _ = F.conv1d_forward(x.astype(np.float32), W.astype(np.float32), b.astype(np.float32),
+                            method=method)
     assert y.dtype == np.float32
     assert_close(y, conv_ref(x, W, b), tol=1e-5)
+
+
+def test_conv1d_fft_float32_rounding_is_that_of_im2col(rng):
+    """At train_small's sizes (clip 120 x 300, 32 filters of width 9; 4 clips) in float32, the
+    FFT path's error against the float64 reference is float32 rounding, of the same size as the
+    im2col product's: both about 1e-7 to 1e-6 of the largest value."""
+    B, T, C, Fo, k = 4, 120, 300, 32, 9
+    x = rng.standard_normal((B, T, C))
+    W = rng.standard_normal((k, C, Fo)) / np.sqrt(k * C)
+    b = rng.standard_normal(Fo)
+    dout = rng.standard_normal((B, T, Fo))
+    ref = (conv_ref(x, W, b),) + conv_ref_backward(dout, x, W)
+    f32 = lambda a: a.astype(np.float32)   # noqa: E731
+    errors = {}
+    for method in ("im2col", "fft"):
+        y, cache = F.conv1d_forward(f32(x), f32(W), f32(b), method=method)
+        got = (y,) + F.conv1d_backward(f32(dout), cache)
+        assert all(g.dtype == np.float32 for g in got)
+        errors[method] = [float(np.max(np.abs(g - r)) / np.max(np.abs(r))) for g, r in zip(got, ref)]
+    for e_fft, e_im2col in zip(errors["fft"], errors["im2col"]):
+        assert e_fft < 2e-6 and e_fft < 5 * max(e_im2col, 1e-7), errors
 
 
 @pytest.mark.parametrize("T", [8, 9])
@@ -338,7 +384,16 @@ def small_model(rng):
     return model, x, p, clip
 
 
-def test_style_model_forward_equals_reference(rng):
+@pytest.fixture(params=["auto", "fft"])
+def conv_method(request, monkeypatch):
+    """Run a test with Ψ's convolutions as chosen ('auto': im2col at these tiny sizes) or forced
+    onto the FFT path."""
+    if request.param == "fft":
+        monkeypatch.setattr(F, "_conv1d_method", lambda *sizes: "fft")
+    return request.param
+
+
+def test_style_model_forward_equals_reference(rng, conv_method):
     model, x, p, clip = small_model(rng)
     z = model.forward(x, p, clip)
     z_ref, film_ref, alpha_ref, _ = model_ref_forward(model, x, p, clip)
@@ -347,7 +402,7 @@ def test_style_model_forward_equals_reference(rng):
     assert_close(model.gating.forward(p), alpha_ref)
 
 
-def test_style_model_backward_equals_reference(rng):
+def test_style_model_backward_equals_reference(rng, conv_method):
     model, x, p, clip = small_model(rng)
     z = model.forward(x, p, clip)
     dz = rng.standard_normal(z.shape)
@@ -366,7 +421,7 @@ def test_style_model_backward_equals_reference(rng):
     assert checked == sum(len(n.params.names()) for n in nets.values())   # every parameter
 
 
-def test_skipping_the_clip_gradient_changes_no_parameter_gradient(rng):
+def test_skipping_the_clip_gradient_changes_no_parameter_gradient(rng, conv_method):
     """Training calls backward(dz, need_input_grads=False): same parameter gradients, dclip None."""
     model, x, p, clip = small_model(rng)
     dz = rng.standard_normal(model.forward(x, p, clip).shape)
