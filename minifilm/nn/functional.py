@@ -554,7 +554,8 @@ def max_pool1d_backward(dout: np.ndarray, cache):
     """dx for :func:`max_pool1d_forward`: each gradient goes to the frame that won its pair."""
     (B, T, C), first = cache
     T2 = T // 2
-    dx = np.zeros((B, T, C), dtype=dout.dtype)
+    dx = np.empty((B, T, C), dtype=dout.dtype)
+    dx[:, 2 * T2:] = 0                                           # the dropped odd frame, if any
     # Multiplying by the boolean masks is ~10x faster than np.copyto(..., where=) or np.where
     # here; the only difference is that a non-finite dout (a diverged run) also reaches the losing
     # frame, as inf * 0 = nan, where those would give 0.
