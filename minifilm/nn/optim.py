@@ -20,9 +20,11 @@ from .params import Parameters
 # one pass over the whole buffer per operation is 5-10% slower at 707 k.
 #
 # What else was tried: scipy.linalg.blas's in-place sscal / saxpy (9 calls a chunk instead of 12)
-# are ~20% faster with one BLAS thread but 1.5-6x slower with OpenBLAS's default two threads on
-# this shared machine (it splits each level-1 call between threads), so plain numpy stays. About
-# a third of the time is np.sqrt: numpy ships float32 sqrt only in its baseline SSE build
+# are ~20% faster with one BLAS thread, but with OpenBLAS's default two threads on this shared
+# machine their medians were up to 5x (707 k) and 15x (44 M) slower: OpenBLAS splits each
+# level-1 call between its threads, and a thread waiting for a busy core stalls the step. numpy's
+# ufuncs run on the calling thread only, so plain numpy stays. About a third of the time is
+# np.sqrt: numpy ships float32 sqrt only in its baseline SSE build
 # (numpy.lib.introspect.opt_func_info), at ~0.5 ns a number against ~0.1 for a division.
 CHUNK = 65536
 
