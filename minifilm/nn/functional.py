@@ -415,7 +415,7 @@ def _conv1d_method(B: int, T: int, C: int, F: int, k: int) -> str:
     rates measured on a 2-core AMD EPYC (benchmarks/kernels.py): im2col's one big product runs
     ~1.8x faster per flop than fft's small per-frequency products and FFTs, and fft pays ~60 us of
     fixed cost (about 5 Mflop). So "fft" wins from batch ~8 for train_small's Ψ (k = 9) and
-    from batch ~4 for the paper's (k = 25); at batch 1 im2col is 4-7x faster.
+    from batch ~4 for the paper's (k = 25); at batch 1 im2col is 3-7x faster.
     """
     nf = _fft_len(T + k // 2) // 2 + 1
     direct = 4.0 * B * T * k * C * F
