@@ -154,7 +154,6 @@ def adam_rows(rng, repeat_small=100, repeat_paper=8):
             print(f"  ... Adam {name}, BLAS: hot {row['hot ms']}, cold {row['cold ms']}", flush=True)
         finally:
             optim.CHUNK = saved
-        del sets
     return rows
 
 
