@@ -13,6 +13,11 @@ so that both see the same background load.
     python benchmarks/train_step.py                      # batches 32 and 256, both cases
     python benchmarks/train_step.py --batch 32 --case a  # one cell
     python benchmarks/train_step.py --threads 1          # another thread count
+    python benchmarks/train_step.py --config small --batch 32 --case b   # train_small's model
+
+``--config small`` is the model of examples/train_small.py (K = 4, hidden 128, Ψ with 32 filters
+of width 9 and a dense layer of 128, clips 120 x 300, x 348, z 342: 707,420 parameters), one clip
+per sample as in the paper.
 """
 import common  # noqa: F401  (sets the BLAS thread count before numpy is imported)
 
@@ -22,6 +27,11 @@ import numpy as np  # noqa: E402
 
 from common import THREADS, compare_ms, header, random_batch, table  # noqa: E402
 from minifilm.model.config import ModelConfig  # noqa: E402
+
+# examples/train_small.py's model on its synthetic data (x 348, z 342, clips of 2 s at 60 fps)
+SMALL = dict(x_dim=348, z_dim=342, phase_dim=8, n_experts=4, hidden=128, gating_hidden=32,
+             clip_frames=120, clip_channels=300, conv_filters=32, conv_kernel=9, film_dense=128,
+             dropout=0.2)
 from minifilm.model.losses import mse_loss  # noqa: E402
 from minifilm.model.style_model import StyleModel  # noqa: E402
 from minifilm.nn.optim import Adam  # noqa: E402
@@ -103,12 +113,14 @@ def main():
     ap.add_argument("--threads", type=int, default=THREADS, help="BLAS / torch threads")
     ap.add_argument("--coretype", default=common.CORETYPE, help="OpenBLAS kernels (see common.py)")
     ap.add_argument("--no-torch", action="store_true", help="time NumPy only")
+    ap.add_argument("--config", choices=["paper", "small"], default="paper",
+                    help="the paper's model (default) or train_small's")
     args = ap.parse_args()
 
     torch = None if args.no_torch else load_torch(THREADS)
-    header("training step (forward + backward + Adam), paper config, float32, median ms"
+    header(f"training step (forward + backward + Adam), {args.config} config, float32, median ms"
            + ("" if torch else "  [PyTorch not installed: NumPy only]"))
-    config = ModelConfig.paper()
+    config = ModelConfig.paper() if args.config == "paper" else ModelConfig(**SMALL)
     rows, checks = [], []
     for case in args.case:
         with_clip = case == "b"
@@ -123,7 +135,8 @@ def main():
             tmodel.train()
             topt = torch.optim.Adam(tmodel.parameters(), lr=1e-4)
         for batch in args.batch:
-            repeat = args.repeat or (20 if case == "a" else (5 if batch <= 64 else 3))
+            small = args.config == "small"
+            repeat = args.repeat or (20 if case == "a" or small else (5 if batch <= 64 else 3))
             warmup = 2 if case == "a" else 1
             x, p, film, clip, target = random_batch(config, batch, rng, with_clip)
             fns = {"numpy": numpy_step(model, opt, x, p, film, clip, target, rng)}
@@ -131,7 +144,8 @@ def main():
                 fns["torch"] = torch_step(torch, tmodel, topt, x, p, film, clip, target)
             t = compare_ms(fns, repeat, warmup)            # interleaved: same load for both
             t_np = t["numpy"]
-            row = {"case": f"({case}) " + ("Φ+Ω, FiLM given" if case == "a" else "Φ+Ω+Ψ, 240x300 clip"),
+            clip_size = f"{config.clip_frames}x{config.clip_channels}"
+            row = {"case": f"({case}) " + ("Φ+Ω, FiLM given" if case == "a" else f"Φ+Ω+Ψ, {clip_size} clip"),
                    "batch": batch, "numpy ms": t_np}
             if torch is not None:
                 row.update({"torch ms": t["torch"], "numpy/torch": t_np / t["torch"]})

@@ -15,7 +15,7 @@ network's folder, pictures) goes through here:
 Files get the permissions a plain ``open(path, "w")`` would give (0666 less the umask): the
 temporary files of ``tempfile`` are created 0600, which would make outputs private by accident.
 
-This module imports nothing from minifilm, so every layer may use it.
+This module imports nothing of minifilm but its errors, so every layer may use it.
 """
 from __future__ import annotations
 
@@ -28,12 +28,9 @@ from typing import BinaryIO, Callable, Iterator, Union
 
 import numpy as np
 
+from minifilm.errors import OutputPathError
+
 PathLike = Union[str, os.PathLike]
-
-
-class OutputPathError(OSError):
-    """An output path cannot be written (a missing or read-only folder, a folder given as a file
-    name); the message names the path and says why."""
 
 
 def _umask() -> int:

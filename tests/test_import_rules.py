@@ -22,27 +22,28 @@ PACKAGE = REPO_ROOT / "minifilm"
 
 #: what each part of the package may import from minifilm (besides itself), and why
 ALLOWED = {
-    "files": set(),
+    "errors": set(),
+    "files": {"errors"},
     "nn": set(),
-    "motion": {"files"},
-    "phases": {"motion", "files"},
-    "features": {"motion", "files"},
-    "synthetic": {"motion", "files"},
-    "dataset": {"motion", "phases", "features", "files"},
+    "motion": {"errors", "files"},
+    "phases": {"errors", "motion", "files"},
+    "features": {"errors", "motion", "files"},
+    "synthetic": {"errors", "motion", "files"},
+    "dataset": {"errors", "motion", "phases", "features", "files"},
     "model": {"nn"},
-    "train": {"model", "nn", "dataset", "files"},
-    "runtime": {"model", "nn", "features", "motion", "dataset", "files"},
-    "viewer": {"motion", "phases", "features", "runtime", "dataset", "files"},
-    "baselines": {"model", "nn", "dataset", "features", "runtime", "files"},
-    "evaluation": {"baselines", "model", "nn", "dataset", "features", "motion", "phases", "synthetic", "train",
+    "train": {"errors", "model", "nn", "dataset", "files"},
+    "runtime": {"errors", "model", "nn", "features", "motion", "dataset", "files"},
+    "viewer": {"errors", "motion", "phases", "features", "runtime", "dataset", "files"},
+    "baselines": {"errors", "model", "nn", "dataset", "features", "runtime", "files"},
+    "evaluation": {"errors", "baselines", "model", "nn", "dataset", "features", "motion", "phases", "synthetic", "train",
                    "runtime", "viewer", "files"},
-    "pipeline": {"evaluation", "baselines", "model", "nn", "dataset", "features", "motion", "phases", "synthetic",
+    "pipeline": {"errors", "evaluation", "baselines", "model", "nn", "dataset", "features", "motion", "phases", "synthetic",
                  "train", "runtime", "viewer", "files"},
-    "cli": {"pipeline", "evaluation", "baselines", "model", "nn", "dataset", "features", "motion", "phases",
+    "cli": {"errors", "pipeline", "evaluation", "baselines", "model", "nn", "dataset", "features", "motion", "phases",
             "synthetic", "train", "runtime", "viewer", "files"},
     "__main__": {"cli"},
 }
-CORE = {"files", "nn", "motion", "phases", "features", "synthetic", "dataset", "model", "train", "runtime", "viewer"}
+CORE = {"errors", "files", "nn", "motion", "phases", "features", "synthetic", "dataset", "model", "train", "runtime", "viewer"}
 COMPARISON = {"baselines", "evaluation"}
 
 

@@ -22,7 +22,7 @@ import os
 import sys
 from typing import Callable, Optional
 
-from minifilm.files import OutputPathError
+from minifilm.errors import OutputPathError   # (imports nothing: numpy stays unloaded until a command runs)
 
 #: name -> (module, one-line help, environment defaults set before the module is imported)
 COMMANDS = {

@@ -12,50 +12,17 @@ upcast to float64), so training can run in float32 and gradient checks in float6
 
 Conventions: batch first; weights are stored ``(in, out)``, experts ``(K, in, out)`` and 1-D conv
 kernels ``(k, in_channels, filters)``; sequences are channels-last ``(B, T, C)``.
+
+The convolution and max pooling of Ψ live in conv.py and are re-exported here, so every pair is
+``F.<name>`` for ``from minifilm.nn import functional as F``.
 """
 from __future__ import annotations
 
 import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
 
-
-def _require(ok: bool, message: str) -> None:
-    """Raise a ValueError with ``message`` unless ``ok`` (shape checks that name the culprit)."""
-    if not ok:
-        raise ValueError(message)
-
-
-def _sum_to_shape(grad: np.ndarray, shape: tuple) -> np.ndarray:
-    """Sum ``grad`` over the axes that numpy broadcasting added or stretched to reach ``shape``."""
-    while grad.ndim > len(shape):
-        grad = grad.sum(axis=0)
-    for axis, n in enumerate(shape):
-        if n == 1 and grad.shape[axis] != 1:
-            grad = grad.sum(axis=axis, keepdims=True)
-    return grad
-
-
-def _scratch(work: dict | None, name: str, shape: tuple, dtype, zeros: bool = False) -> np.ndarray:
-    """A scratch array kept in ``work`` between calls (a new one when ``work`` is None).
-
-    Why: on this kind of machine a fresh array of more than 32 MB is mapped from the operating
-    system on every call and the first write to each page costs a page fault (about 1.3 ms per MB
-    here, a third of a paper-size training step). A layer that keeps a ``work`` dict and passes
-    it to every call reuses its big buffers instead. A workspace belongs to ONE layer: arrays
-    taken from it (and the caches and gradients that point into them) are overwritten by that
-    layer's next call. ``zeros=True``: a new array starts zeroed (callers that write only part of
-    it rely on the rest staying zero across reuses).
-    """
-    shape = tuple(shape)
-    dtype = np.dtype(dtype)
-    if work is not None:
-        a = work.get(name)
-        if a is not None and a.shape == shape and a.dtype == dtype:
-            return a
-    a = np.zeros(shape, dtype) if zeros else np.empty(shape, dtype)
-    if work is not None:
-        work[name] = a
-    return a
+from minifilm.nn.conv import (conv1d_backward, conv1d_forward, max_pool1d_backward,  # noqa: F401 (re-exported)
+                              max_pool1d_forward)
+from minifilm.nn.scratch import require, scratch, sum_to_shape
 
 
 # --------------------------------------------------------------------------------------------
@@ -67,10 +34,10 @@ def linear_forward(x: np.ndarray, W: np.ndarray, b: np.ndarray):
     x: (B, I) (any leading axes are allowed: (..., I)); W: (I, O); b: (O,).
     Returns y: (..., O) and a cache for :func:`linear_backward`.
     """
-    _require(W.ndim == 2 and x.shape[-1] == W.shape[0],
-             f"linear_forward: x has {x.shape[-1]} features (shape {x.shape}) but W is {W.shape}, "
-             "expected (in, out) with in matching x's last axis")
-    _require(b.shape == (W.shape[1],), f"linear_forward: b is {b.shape}, expected ({W.shape[1]},)")
+    require(W.ndim == 2 and x.shape[-1] == W.shape[0],
+            f"linear_forward: x has {x.shape[-1]} features (shape {x.shape}) but W is {W.shape}, "
+            "expected (in, out) with in matching x's last axis")
+    require(b.shape == (W.shape[1],), f"linear_forward: b is {b.shape}, expected ({W.shape[1]},)")
     return x @ W + b, (x, W)
 
 
@@ -83,7 +50,7 @@ def linear_backward(dout: np.ndarray, cache, work: dict | None = None):
     x, W = cache
     x2 = x.reshape(-1, W.shape[0])       # (N, I) with N = product of the leading axes
     d2 = dout.reshape(-1, W.shape[1])    # (N, O)
-    dW = np.matmul(x2.T, d2, out=_scratch(work, "dW", W.shape, np.result_type(x2, d2)))
+    dW = np.matmul(x2.T, d2, out=scratch(work, "dW", W.shape, np.result_type(x2, d2)))
     return dout @ W.T, dW, d2.sum(axis=0)
 
 
@@ -143,8 +110,8 @@ def layer_norm_forward(x: np.ndarray, unbiased: bool = True, eps: float = 1e-6):
     x: (..., H) -> y: (..., H).
     """
     H = x.shape[-1]
-    _require(H >= 2 or not unbiased,
-             f"layer_norm_forward: the unbiased std needs at least 2 features, x is {x.shape}")
+    require(H >= 2 or not unbiased,
+            f"layer_norm_forward: the unbiased std needs at least 2 features, x is {x.shape}")
     mu = x.mean(axis=-1, keepdims=True)
     xc = x - mu
     sigma = np.sqrt(np.sum(xc * xc, axis=-1, keepdims=True) / (H - 1 if unbiased else H))
@@ -177,16 +144,16 @@ def film_forward(h: np.ndarray, gamma: np.ndarray, beta: np.ndarray):
     h, gamma, beta: (B, H), one gamma and beta per sample (the FiLM generator's output, Eq. 2).
     gamma and beta may also be (H,) to modulate the whole batch with one style.
     """
-    _require(np.broadcast_shapes(h.shape, gamma.shape, beta.shape) == h.shape,
-             f"film_forward: gamma {gamma.shape} and beta {beta.shape} must match h {h.shape} "
-             "(or broadcast to it)")
+    require(np.broadcast_shapes(h.shape, gamma.shape, beta.shape) == h.shape,
+            f"film_forward: gamma {gamma.shape} and beta {beta.shape} must match h {h.shape} "
+            "(or broadcast to it)")
     return gamma * h + beta, (h, gamma, beta.shape)
 
 
 def film_backward(dout: np.ndarray, cache):
     """Gradients of :func:`film_forward`: dh, dgamma, dbeta (each with its input's shape)."""
     h, gamma, beta_shape = cache
-    return (dout * gamma, _sum_to_shape(dout * h, gamma.shape), _sum_to_shape(dout, beta_shape))
+    return (dout * gamma, sum_to_shape(dout * h, gamma.shape), sum_to_shape(dout, beta_shape))
 
 
 # --------------------------------------------------------------------------------------------
@@ -200,7 +167,7 @@ def dropout_forward(x: np.ndarray, p: float, rng: np.random.Generator | None = N
     ``rng``. When ``train`` is False or ``p == 0`` this is the identity (no rng needed), so the
     expected activation is the same in training and at run time.
     """
-    _require(0.0 <= p < 1.0, f"dropout_forward: p must be in [0, 1), got {p}")
+    require(0.0 <= p < 1.0, f"dropout_forward: p must be in [0, 1), got {p}")
     if not train or p == 0.0:
         return x, None
     if mask is None:
@@ -208,9 +175,9 @@ def dropout_forward(x: np.ndarray, p: float, rng: np.random.Generator | None = N
             raise ValueError("dropout_forward: training with p > 0 needs an rng "
                              "(np.random.Generator) or an explicit mask")
         mask = rng.random(x.shape) >= p
-    _require(mask.shape == x.shape and mask.dtype == np.bool_,
-             f"dropout_forward: mask must be a boolean array of shape {x.shape}, "
-             f"got {mask.dtype} {mask.shape}")
+    require(mask.shape == x.shape and mask.dtype == np.bool_,
+            f"dropout_forward: mask must be a boolean array of shape {x.shape}, "
+            f"got {mask.dtype} {mask.shape}")
     scale = x.dtype.type(1.0 / (1.0 - p))   # keep x's dtype
     return x * mask * scale, (mask, scale)
 
@@ -226,29 +193,6 @@ def dropout_backward(dout: np.ndarray, cache):
 # --------------------------------------------------------------------------------------------
 # Mixture of experts (Sec. 4.1: Phi's weights are blended per sample by the gating output alpha)
 # --------------------------------------------------------------------------------------------
-def blend_experts(alpha: np.ndarray, W: np.ndarray, b: np.ndarray):
-    """Blend K expert layers with one set of weights: ``sum_k alpha_k W_k``, ``sum_k alpha_k b_k``.
-
-    alpha: (K,); W: (K, I, O); b: (K, O) -> W_blend (I, O), b_blend (O,). This is how the original
-    runtime evaluates a single frame (original-pipeline §10.2 step 3).
-    """
-    K, I, O = W.shape
-    _require(alpha.shape == (K,), f"blend_experts: alpha is {alpha.shape}, expected ({K},)")
-    return (alpha @ W.reshape(K, I * O)).reshape(I, O), alpha @ b
-
-
-def expert_linear_single(x: np.ndarray, alpha: np.ndarray, W: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """One sample, no cache (run-time inference, Sec. 4.4): ``sum_k alpha_k (x W_k + b_k)``.
-
-    x: (I,); alpha: (K,); W: (K, I, O); b: (K, O) -> (O,). The fast form of
-    :func:`expert_linear_forward` for a single sample: one matrix-vector product over the K*I
-    numbers of outer(alpha, x). At batch 1 the cost is reading the K expert matrices (19.7 MB
-    for the paper's Φ), so nothing else is allocated or copied.
-    """
-    K, I, O = W.shape
-    return np.multiply.outer(alpha, x).reshape(K * I) @ W.reshape(K * I, O) + alpha @ b
-
-
 def expert_linear_forward(x: np.ndarray, alpha: np.ndarray, W: np.ndarray, b: np.ndarray):
     """Per-sample blend of K expert linear layers: ``y_b = x_b (sum_k a_bk W_k) + sum_k a_bk b_k``.
 
@@ -256,17 +200,16 @@ def expert_linear_forward(x: np.ndarray, alpha: np.ndarray, W: np.ndarray, b: np
 
     Fast form (never builds the (B, I, O) per-sample weights): since
     ``y_b = sum_k sum_i a_bk x_bi W_kio``, put Z_b = outer(a_b, x_b) flattened to K*I numbers and
-    ``y = Z @ W.reshape(K*I, O) + alpha @ b``: one matrix product. This holds at batch 1 too,
-    where it reads every expert weight once; blending the weights first (the original's run-time
-    path, :func:`blend_experts`) reads them once as well but also writes and re-reads the (I, O)
-    blend, about 10% slower in this memory-bound case.
+    ``y = Z @ W.reshape(K*I, O) + alpha @ b``: one matrix product. At run time
+    (minifilm/runtime/network.py) the experts are laid side by side instead, (I, K*O), which is
+    the same sum with one product per layer and no outer product.
     """
     K, I, O = W.shape
-    _require(x.ndim == 2 and x.shape[1] == I,
-             f"expert_linear_forward: x is {x.shape}, expected (B, {I}) to match W {W.shape}")
-    _require(alpha.shape == (x.shape[0], K),
-             f"expert_linear_forward: alpha is {alpha.shape}, expected ({x.shape[0]}, {K})")
-    _require(b.shape == (K, O), f"expert_linear_forward: b is {b.shape}, expected ({K}, {O})")
+    require(x.ndim == 2 and x.shape[1] == I,
+            f"expert_linear_forward: x is {x.shape}, expected (B, {I}) to match W {W.shape}")
+    require(alpha.shape == (x.shape[0], K),
+            f"expert_linear_forward: alpha is {alpha.shape}, expected ({x.shape[0]}, {K})")
+    require(b.shape == (K, O), f"expert_linear_forward: b is {b.shape}, expected ({K}, {O})")
     Z = (alpha[:, :, None] * x[:, None, :]).reshape(-1, K * I)   # (B, K*I)
     y = Z @ W.reshape(K * I, O) + alpha @ b                      # (B, O)
     return y, (x, alpha, W, b, Z)
@@ -289,110 +232,15 @@ def expert_linear_backward(dout: np.ndarray, cache):
 
 
 # --------------------------------------------------------------------------------------------
-# 1-D convolution over time and max pooling (the FiLM generator Psi, Eq. 2)
-# --------------------------------------------------------------------------------------------
-def _im2col(x: np.ndarray, k: int, work: dict | None = None, name: str = "cols") -> np.ndarray:
-    """(B, T, C) -> cols (B*T, k*C): row (b, t) holds frames t - k//2 .. t + k//2, zero-padded.
-
-    In the zero-padded, channels-last sample xp (T + k - 1, C), the window of frame t is the k*C
-    CONSECUTIVE numbers starting at xp[t, 0]. So the windows are a strided view of the flat
-    padded samples (sliding windows of length k*C taken every C numbers), and the one copy that
-    makes cols contiguous for the matrix product is a row-by-row memcpy. Row layout is tap-major,
-    (j, c), matching W (k, C, F). Both buffers come from ``work`` when given (see _scratch).
-    """
-    B, T, C = x.shape
-    pad = k // 2
-    # only the middle is written, so the zero padding of a reused buffer stays zero
-    xp = _scratch(work, name + ".padded", (B, T + k - 1, C), x.dtype, zeros=True)
-    xp[:, pad: pad + T] = x
-    windows = sliding_window_view(xp.reshape(B, -1), k * C, axis=1)[:, ::C]   # (B, T, k*C) view
-    cols = _scratch(work, name, (B * T, k * C), x.dtype)
-    cols.reshape(B, T, k * C)[...] = windows                                  # the one copy
-    return cols
-
-
-def conv1d_forward(x: np.ndarray, W: np.ndarray, b: np.ndarray, work: dict | None = None):
-    """1-D convolution over time, stride 1, 'same' zero padding (cross-correlation, as in TF).
-
-    ``y[b, t, f] = sum_j sum_c x[b, t + j - k//2, c] W[j, c, f] + b[f]`` with x zero outside [0, T).
-    x: (B, T, C) channels-last; W: (k, C, F) with k odd; b: (F,) -> y: (B, T, F).
-    One matrix product on the im2col matrix (see :func:`_im2col`), kept for the backward pass.
-    ``work``: the layer's workspace (see :func:`_scratch`); the im2col matrix (230 MB for the
-    paper's first layer at batch 32) is then reused from call to call.
-    """
-    k, C, F = W.shape
-    _require(k % 2 == 1, f"conv1d_forward: kernel size must be odd for 'same' padding, W is {W.shape}")
-    _require(x.ndim == 3 and x.shape[2] == C,
-             f"conv1d_forward: x is {x.shape}, expected (B, T, {C}) to match W {W.shape}")
-    _require(b.shape == (F,), f"conv1d_forward: b is {b.shape}, expected ({F},)")
-    B, T, _ = x.shape
-    cols = _im2col(np.asarray(x, dtype=np.result_type(x, W)), k, work)   # (B*T, k*C)
-    y = cols @ W.reshape(k * C, F)                               # (B*T, F)
-    y += b                                                       # in place: no second buffer
-    return y.reshape(B, T, F), (cols, x.shape, W, work)
-
-
-def conv1d_backward(dout: np.ndarray, cache, need_dx: bool = True):
-    """Gradients of :func:`conv1d_forward`: dx (B, T, C), dW (k, C, F), db (F,).
-
-    dW = cols^T dout (one matrix product on the forward's im2col matrix) and db = sum(dout).
-    dx is itself a 'same' convolution, of dout with the kernel flipped in time and transposed to
-    (k, F, C): dx[t] = sum_j dout[t - j + k//2] W[j]^T, again one product on an im2col matrix.
-    With ``need_dx=False`` dx is skipped (None is returned in its place): a network's first
-    layer never needs the gradient of its input data, and for the paper's Ψ that product costs as
-    much as the layer's whole forward pass. With a workspace (given to the forward pass) dW and
-    the im2col matrix of dout live in it: add dW to your gradients before the layer's next call.
-    """
-    cols, (B, T, C), W, work = cache
-    k, _, F = W.shape
-    d2 = dout.reshape(B * T, F)
-    dW = np.matmul(cols.T, d2, out=_scratch(work, "dW", (k * C, F), np.result_type(cols, d2)))
-    db = d2.sum(axis=0)
-    dx = None
-    if need_dx:
-        W_flip = W[::-1].transpose(0, 2, 1).reshape(k * F, C)    # (k*F, C)
-        dx = (_im2col(dout, k, work, "dout_cols") @ W_flip).reshape(B, T, C)
-    return dx, dW.reshape(k, C, F), db
-
-
-def max_pool1d_forward(x: np.ndarray):
-    """Max pooling over time with size 2 and stride 2: (B, T, C) -> (B, T // 2, C).
-
-    With odd T the last frame has no partner and is dropped (as with TF's 'valid' padding).
-    Ties pick the first frame of the pair. The pairs are the even and odd frames (two strided
-    views), so the forward pass is one ``np.maximum`` and the cache one boolean array.
-    """
-    _require(x.ndim == 3 and x.shape[1] >= 2,
-             f"max_pool1d_forward: x is {x.shape}, expected (B, T, C) with T >= 2")
-    T2 = x.shape[1] // 2
-    even, odd = x[:, 0: 2 * T2: 2], x[:, 1: 2 * T2: 2]          # (B, T2, C) views
-    first = even >= odd                                          # where the first frame wins
-    return np.maximum(even, odd), (x.shape, first)
-
-
-def max_pool1d_backward(dout: np.ndarray, cache):
-    """dx for :func:`max_pool1d_forward`: each gradient goes to the frame that won its pair."""
-    (B, T, C), first = cache
-    T2 = T // 2
-    dx = np.zeros((B, T, C), dtype=dout.dtype)
-    # Multiplying by the boolean masks is ~10x faster than np.copyto(..., where=) or np.where
-    # here; the only difference is that a non-finite dout (a diverged run) also reaches the losing
-    # frame, as inf * 0 = nan, where those would give 0.
-    np.multiply(dout, first, out=dx[:, 0: 2 * T2: 2])
-    np.multiply(dout, ~first, out=dx[:, 1: 2 * T2: 2])
-    return dx
-
-
-# --------------------------------------------------------------------------------------------
 # Gather rows (a style clip shared by several samples: Ψ runs once per clip)
 # --------------------------------------------------------------------------------------------
 def gather_forward(x: np.ndarray, index: np.ndarray):
     """Rows of x by index: ``y[b] = x[index[b]]``. x: (C, ...), index: (B,) ints in [0, C) -> (B, ...)."""
     index = np.asarray(index)
-    _require(index.ndim == 1 and np.issubdtype(index.dtype, np.integer),
-             f"gather_forward: index must be 1-D integers, got {index.dtype} {index.shape}")
-    _require(index.size == 0 or (index.min() >= 0 and index.max() < x.shape[0]),
-             f"gather_forward: index must lie in [0, {x.shape[0]}), got {index.min()}..{index.max()}")
+    require(index.ndim == 1 and np.issubdtype(index.dtype, np.integer),
+            f"gather_forward: index must be 1-D integers, got {index.dtype} {index.shape}")
+    require(index.size == 0 or (index.min() >= 0 and index.max() < x.shape[0]),
+            f"gather_forward: index must lie in [0, {x.shape[0]}), got {index.min()}..{index.max()}")
     return x[index], (index, x.shape)
 
 

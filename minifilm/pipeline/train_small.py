@@ -243,7 +243,8 @@ def style_recognition(ds, rollouts: dict, seed: int = 0) -> dict:
     for name, rollout in rollouts.items():
         probs = classify_rollout(classifier, ds, rollout, window=info["window"], stride=info["stride"])[0]
         per_style[name] = float(np.mean(probs.argmax(axis=1) == ds.styles.index(name))) if len(probs) else float("nan")
-    mean = float(np.nanmean(list(per_style.values())))
+    scored = [v for v in per_style.values() if np.isfinite(v)]       # a style too short for one window has none
+    mean = float(np.mean(scored)) if scored else float("nan")
     log(f"[style] recognition of each style's generated motion by a classifier trained on the data "
         f"(held-out real windows: {info['heldout_acc']:.2f}; {time.perf_counter() - t0:.1f} s):")
     for name, acc in per_style.items():

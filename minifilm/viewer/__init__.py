@@ -11,7 +11,7 @@ of the GIF), ``render2d`` (matplotlib panels), ``gif`` / ``mp4`` (animated files
 ``phase_plot`` (the paper's Figure 4), ``strip`` (side-view stick figures of a rollout), ``deps``
 (the optional imports: matplotlib, Pillow). Importing this package loads none of them.
 """
-from minifilm.files import OutputPathError
+from minifilm.errors import OutputPathError
 from minifilm.viewer.gif import write_gif
 from minifilm.viewer.html import write_html
 from minifilm.viewer.mp4 import write_mp4
