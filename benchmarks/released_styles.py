@@ -1,6 +1,7 @@
-"""Every style of the authors' released network for a minute, all in one batch (issue 7's checks).
+"""Every style of the authors' released network, all in one batch (issue 7's checks).
 
-    python benchmarks/released_styles.py                      # 100 styles, 60 s, skeleton fit, calibrated
+    python benchmarks/released_styles.py                      # 100 styles, 15 s, skeleton fit, calibrated
+    python benchmarks/released_styles.py --minute             # the same for a minute (about 8 minutes)
     python benchmarks/released_styles.py --fit none --no-calibrate --seconds 180
     python benchmarks/released_styles.py --styles Neutral Morris Lunge
 
@@ -44,13 +45,16 @@ def main(argv=None):
     ap.add_argument("--params", default=str(SHARED / "released-lpn"))
     ap.add_argument("--skeleton-bvh", default=str(SHARED / "100style" / "Neutral_FR_first3frames.bvh"))
     ap.add_argument("--styles", nargs="+", help="default: all")
-    ap.add_argument("--seconds", type=float, default=60.0)
+    ap.add_argument("--seconds", type=float, default=15.0, help="seconds per style (default 15; see --minute)")
+    ap.add_argument("--minute", action="store_true", help="the full minute per style (about 8 minutes here)")
     ap.add_argument("--speed", type=float, default=1.3)
     ap.add_argument("--fit", choices=("feedback", "output", "none"), default="feedback",
                     help="skeleton fit fed back to the network (default, as generate_released.py), output only, or none")
     ap.add_argument("--no-calibrate", action="store_true", help="command the raw speed")
     ap.add_argument("--position-bias", type=float, default=0.75, help="Controller position_bias")
     args = ap.parse_args(argv)
+    if args.minute:
+        args.seconds = 60.0
     rel = load_released(args.params)
     names = args.styles or list(rel.styles)
     unknown = [n for n in names if n not in rel.styles]

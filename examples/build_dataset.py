@@ -11,7 +11,6 @@ from pathlib import Path
 
 from minifilm.cli import report_errors
 from minifilm.dataset.build import build_dataset
-from minifilm.dataset.manifest import write_bandai_manifest
 
 
 def main():
@@ -22,9 +21,7 @@ def main():
     ap.add_argument("--clip-seconds", type=float, default=4.0, help="style clip length (the paper: 4 s)")
     args = ap.parse_args()
 
-    source = Path(args.source)
-    if source.is_dir() and any(source.glob("dataset-*_*_*_*.bvh")):     # Bandai Namco naming
-        source = write_bandai_manifest(source, Path(args.cache) / f"{source.name}-manifest.csv")
+    source = Path(args.source)      # 100STYLE or Bandai Namco file names are understood as they are
     # read, label (contacts, local phases), featurise (x, p, z, clips), split, normalise, cache
     ds = build_dataset(source, cache_dir=args.cache, mirror_styles=("*",), clip_seconds=args.clip_seconds,
                        clip_stride_seconds=args.clip_seconds / 2, split_unit="files" if args.split_files else "segments")

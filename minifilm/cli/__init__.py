@@ -25,17 +25,22 @@ from typing import Callable, Optional
 from minifilm.errors import OutputPathError   # (imports nothing: numpy stays unloaded until a command runs)
 
 #: name -> (module, one-line help, environment defaults set before the module is imported)
+#: Training runs on one BLAS thread unless told otherwise: its matrices are small, a second thread
+#: gained 10-25 % on an idle 2-core machine, and on a shared one made steps 3-25x slower
+#: (benchmarks/README.md, issue 15).
+ONE_BLAS_THREAD = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 COMMANDS = {
-    "train": ("minifilm.cli.train", "the main job: synthetic or your data -> trained model -> generated motion", {}),
+    "train": ("minifilm.cli.train", "the main job: synthetic or your data -> trained model -> generated motion",
+              ONE_BLAS_THREAD),
     "phases": ("minifilm.cli.phases", "draw a BVH file's contacts and local phases (Figure 4)", {}),
     "dataset": ("minifilm.cli.dataset", "build and cache the training data of BVH files", {}),
     "generate": ("minifilm.cli.generate", "generate motion with the released network or a trained run", {}),
-    "finetune": ("minifilm.cli.finetune", "teach a trained run a new style from a short clip (Ψ only)", {}),
+    "finetune": ("minifilm.cli.finetune", "teach a trained run a new style from a short clip (Ψ only)",
+                 ONE_BLAS_THREAD),
     "view": ("minifilm.cli.view", "show BVH files as an animated GIF and an offline 3-D HTML player", {}),
     # batch-1 timing on one BLAS thread, like a game loop: a matrix-vector product gains nothing
     # from threads, and on a busy machine threaded BLAS made it ~20x slower here
-    "table2": ("minifilm.cli.table2", "Table 2: parameter counts and run time of the seven models",
-               {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}),
+    "table2": ("minifilm.cli.table2", "Table 2: parameter counts and run time of the seven models", ONE_BLAS_THREAD),
     "compare": ("minifilm.cli.compare", "Figure 10 and style metrics: train and compare the seven models", {}),
 }
 

@@ -1,10 +1,9 @@
 """Build the training data of a folder of BVH files and report frames and clips per style and split.
 
-    minifilm dataset DIR                  # <Style>_<Gait>.bvh files (100STYLE naming) or a Bandai folder
+    minifilm dataset DIR                  # <Style>_<Gait>.bvh files (100STYLE naming) or a Bandai Namco folder
     minifilm dataset manifest.csv         # file,style,gait[,start,end][,mirror] for files named otherwise
 
-A Bandai Namco folder (``dataset-N_{content}_{style}_{id}.bvh``) gets a manifest written next to
-the cache. The arrays are cached as .npz under --cache (default ``.cache/datasets``), keyed by the
+A Bandai Namco folder (``dataset-N_{content}_{style}_{id}.bvh``) is read by its file names. The arrays are cached as .npz under --cache (default ``.cache/datasets``), keyed by the
 files' paths, sizes and modification times, the settings and the code, so a second run is fast.
 """
 from __future__ import annotations
@@ -14,7 +13,6 @@ from pathlib import Path
 
 from minifilm.cli.args import in_range, positive
 from minifilm.dataset.build import build_dataset
-from minifilm.dataset.manifest import write_bandai_manifest
 
 HELP = "build and cache the training data of BVH files"
 
@@ -34,9 +32,6 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     source = args.source
-    if source.is_dir() and any(source.glob("dataset-*_*_*_*.bvh")):
-        source = write_bandai_manifest(source, args.cache / f"{source.name}-manifest.csv")
-        print(f"wrote Bandai manifest {source}")
     mirror = tuple(s for s in args.mirror.split(",") if s)
     t0 = time.perf_counter()
     ds = build_dataset(source, cache_dir=None if args.no_cache else args.cache,

@@ -1,7 +1,7 @@
 """The main job: data -> local phases -> dataset -> training -> test table -> generated motion.
 
     minifilm train                      # synthetic data (8 styles x 6 gaits), default settings
-    minifilm train --data DIR           # your own folder of <Style>_<Gait>.bvh files, or a CSV manifest
+    minifilm train --data DIR           # your own BVH files: 100STYLE or Bandai Namco naming, or a CSV manifest
     minifilm train --quick              # a smaller, faster run of the same steps
 
 The same job as ``python examples/train_small.py``; the steps are in minifilm/pipeline/train_small.py.
@@ -30,10 +30,20 @@ def add_arguments(parser) -> None:
     parser.add_argument("--gaits", help=f"comma-separated synthetic gaits (default: {','.join(d.gaits)})")
     parser.add_argument("--seconds", type=positive(float, 3600.0), help="synthetic seconds per style and gait")
     parser.add_argument("--generate-seconds", type=positive(float, 3600.0), help="seconds of motion generated per style")
+    parser.add_argument("--split", choices=("auto", "files", "segments"), default="auto",
+                        help="with --data: whole files to train/val/test, or 80/10/10 segments of every file "
+                             "(auto: whole files when the median file is under 20 s)")
+    parser.add_argument("--split-files", dest="split", action="store_const", const="files",
+                        help="with --data: the same as --split files")
+    parser.add_argument("--mirror", action="store_true", help="with --data: also train on every file's mirror")
+    parser.add_argument("--clips-per-batch", type=in_range(1, 4096, int), default=d.clips_per_batch,
+                        help="style clips per minibatch, shared by its samples (default "
+                             f"{d.clips_per_batch}; 32 = one clip per sample, as the paper)")
 
 
 def settings(args) -> Settings:
-    s = Settings(seed=args.seed, out=args.out)
+    clips = None if args.clips_per_batch is None or args.clips_per_batch >= Settings().batch_size else args.clips_per_batch
+    s = Settings(seed=args.seed, out=args.out, split=args.split, mirror=args.mirror, clips_per_batch=clips)
     if args.quick:
         s = s.quick()
     changes = {"epochs": args.epochs, "seconds_per_clip": args.seconds, "generate_seconds": args.generate_seconds,

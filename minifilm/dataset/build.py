@@ -26,7 +26,7 @@ import numpy as np
 
 from minifilm.dataset.cache import cached_key, dataset_cache_key
 from minifilm.dataset.dataset import Dataset, Split
-from minifilm.dataset.manifest import MotionFile, read_manifest, scan_100style
+from minifilm.dataset.manifest import MotionFile, read_manifest, scan_folder
 from minifilm.dataset.progress import Progress
 from minifilm.dataset.settings import DatasetSettings
 from minifilm.dataset.splits import SPLITS, apply_gap, file_rng, split_files, split_segments
@@ -40,12 +40,12 @@ from minifilm.phases.label import label
 
 
 def resolve_files(source: Union[str, Path, Sequence[MotionFile]]) -> List[MotionFile]:
-    """A folder (100STYLE naming), a .csv manifest, or a list of MotionFile."""
+    """A folder (100STYLE or Bandai Namco naming), a .csv manifest, or a list of MotionFile."""
     if isinstance(source, (str, Path)):
         p = Path(source)
         if p.suffix.lower() == ".csv":
             return read_manifest(p)
-        return scan_100style(p)
+        return scan_folder(p)
     files = list(source)
     if not files or not all(isinstance(f, MotionFile) for f in files):
         raise TypeError("build_dataset: source must be a folder, a .csv manifest or a non-empty list "

@@ -215,3 +215,15 @@ def bandai_files(folder: Union[str, Path]) -> List[MotionFile]:
 def write_bandai_manifest(folder: Union[str, Path], csv_path: Union[str, Path]) -> Path:
     """Write a CSV manifest for a Bandai Namco dataset folder (see :func:`bandai_files`)."""
     return write_manifest(bandai_files(folder), csv_path)
+
+
+def scan_folder(folder: Union[str, Path]) -> List[MotionFile]:
+    """The files of a motion folder, named either way minifilm knows: a Bandai Namco folder
+    (``dataset-N_{content}_{style}_{id}.bvh``) or 100STYLE naming (``<Style>_<Gait>.bvh``, in the
+    folder or its sub-folders). For any other naming, write a CSV manifest (:func:`read_manifest`)."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise FileNotFoundError(f"{folder}: no such folder")
+    if any(_BANDAI_NAME.match(p.name) for p in folder.glob("*.bvh")):
+        return bandai_files(folder)
+    return scan_100style(folder)

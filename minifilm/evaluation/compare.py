@@ -34,7 +34,6 @@ from minifilm.baselines.runtime import VariantRuntime
 from minifilm.baselines.variant_data import end_effector_indices, variant_data
 from minifilm.baselines.variants import VARIANTS, build_variant
 from minifilm.dataset.build import build_dataset
-from minifilm.dataset.manifest import bandai_files
 from minifilm.evaluation.compare_report import write_report
 from minifilm.evaluation.compare_tools import (film_codes, film_separation, fit_stats, motion_errors,
                                                style_subset)
@@ -75,8 +74,6 @@ def load_data(args):
         folder = Path(args.data)
         if not folder.is_dir():
             raise FileNotFoundError(f"--data {folder}: no such folder (give 'synthetic' or a folder of BVH files)")
-        if any(folder.glob("dataset-*_*_*_*.bvh")):     # Bandai Namco naming: content_style_id
-            folder = bandai_files(folder)
         extra = {"split_unit": "files"} if args.split_files else {}
     ds = build_dataset(folder, cache_dir=cache, progress=False, clip_seconds=args.clip_seconds,
                        clip_stride_seconds=args.clip_seconds / 2, seed=args.seed, fps=args.fps, **extra)

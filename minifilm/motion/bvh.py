@@ -32,7 +32,7 @@ import numpy as np
 from minifilm.motion.kinematics import axis_rotation, euler_to_matrix
 from minifilm.motion.motion import Motion
 
-__all__ = ["BVHError", "read_bvh", "parse_bvh"]
+__all__ = ["BVHError", "read_bvh", "parse_bvh", "bvh_duration"]
 
 CHANNEL_NAMES = {f"{axis}{kind}".lower(): f"{axis}{kind}"
                  for axis in "XYZ" for kind in ("position", "rotation")}
@@ -59,6 +59,26 @@ def read_bvh(path: Union[str, os.PathLike], scale: float = 0.01) -> Motion:
     """
     raw = Path(path).read_bytes()
     return parse_bvh(raw.decode("utf-8", errors="replace"), source=str(path), scale=scale)
+
+
+def bvh_duration(path: Union[str, os.PathLike]) -> float:
+    """Seconds of motion in a BVH file (frames x frame time), read from its MOTION header alone,
+    without parsing the frames. BVHError when the header is missing or malformed."""
+    lines: List[str] = []
+    motion_line, after = None, 0
+    with open(path, "r", encoding="utf-8", errors="replace") as f:
+        for line in f:                        # stop two non-empty lines after MOTION
+            lines.append(line.rstrip("\r\n"))
+            if motion_line is None and lines[-1].strip().upper() == "MOTION":
+                motion_line = len(lines) - 1
+            elif motion_line is not None and lines[-1].strip():
+                after += 1
+                if after == 2:
+                    break
+    if motion_line is None:
+        raise BVHError(str(path), None, "no MOTION section")
+    n_frames, frame_time, _ = _parse_motion_header(lines, motion_line, str(path))
+    return n_frames * frame_time
 
 
 def parse_bvh(text: str, source: str = "<string>", scale: float = 0.01) -> Motion:

@@ -29,11 +29,11 @@ from typing import Optional, Tuple
 
 import numpy as np
 
-from minifilm.dataset.build import build_dataset
+from minifilm.dataset.build import build_dataset, resolve_files
 from minifilm.evaluation.style_classifier import classify_rollout, train_style_classifier
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
-from minifilm.motion.bvh import read_bvh
+from minifilm.motion.bvh import bvh_duration, read_bvh
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.motion.skeletons import STYLE100, builtin_skeleton
 from minifilm.phases.label import label
@@ -69,12 +69,19 @@ class Settings:
     # 3e-4 and 5e-4 keep them alive (benchmarks/trained_rollout.py; the paper uses 1e-4 for its 40x
     # larger network)
     learning_rate: float = 5e-4
+    lr_schedule: str = "constant"        # or "cosine" (TrainConfig.lr_schedule)
+    clips_per_batch: Optional[int] = 4   # None: one style clip per sample, as the paper (benchmarks/clip_sharing.py)
     model: dict = field(default_factory=dict)   # overrides of ModelConfig.small
     generate_seconds: float = 10.0       # length of each generated BVH
     # weight of the user's trajectory in the near future samples (the demo's 0.75 suits the
     # released network; a small model's own trajectory drifts more: with 2 the mean distance to a
     # figure-eight over 60 s fell from 0.31-3.9 m to 0.20-0.85 m across five trained models)
     position_bias: float = 2.0
+    # your own data (--data): "files" sends whole files to train / val / test (per style), "segments"
+    # cuts every file 80/10/10; "auto" picks files when the median file is under 20 s (a 10 %
+    # window of a short file is shorter than the 2 s trajectory window of the features)
+    split: str = "auto"
+    mirror: bool = False                 # also train on the left/right mirror of every file
 
     def quick(self) -> "Settings":
         """A much smaller run of every step (seconds instead of minutes)."""
@@ -135,6 +142,7 @@ def train(ds, out: Path, s: Settings) -> Trainer:
     model = StyleModel(config, np.random.default_rng(s.seed))
     trainer = Trainer(model, ds.stats,
                       TrainConfig(epochs=s.epochs, batch_size=s.batch_size, lr=s.learning_rate, seed=s.seed,
+                                  lr_schedule=s.lr_schedule, clips_per_batch=s.clips_per_batch,
                                   checkpoint_path=str(out / "model.npz")),
                       positions_idx=layout.joint_columns("z", "position"), parents=np.asarray(layout.parents),
                       style_names=ds.styles)
@@ -268,20 +276,34 @@ def show_styles(rollouts: dict, layout, out: Path, gif_seconds: float = 6.0) -> 
         log(f"[view] no GIF: {e}")
 
 
+def data_settings(data: Path, s: Settings) -> dict:
+    """Dataset settings for the user's own data: the split unit and mirroring (see Settings)."""
+    split = s.split
+    if split == "auto":
+        files = resolve_files(data)
+        median = float(np.median([bvh_duration(f.path) for f in files]))
+        split = "files" if median < 20.0 else "segments"
+        log(f"[dataset] median file {median:.1f} s: {'whole files' if split == 'files' else 'segments of every file'} "
+            f"go to train / val / test (--split to choose)")
+    return {"split_unit": split, "mirror_styles": ("*",) if s.mirror else ()}
+
+
 def run(s: Settings, data: Optional[Path] = None) -> dict:
     """The whole main job; returns the test result (MSE per style) with the style recognition
     of the generated motion under 'recognition'."""
     out = Path(s.out)
     out.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
+    own_data = data is not None
     if data is None:
         data = out / "data"
         clips = make_synthetic(data, s.styles, s.gaits, s.seconds_per_clip, s.seed)
         phase_accuracy(clips)
 
     t0 = time.perf_counter()
+    extra = {} if not own_data else data_settings(data, s)
     ds = build_dataset(data, cache_dir=out / "cache", progress=True, clip_seconds=s.clip_seconds,
-                       clip_stride_seconds=s.clip_seconds / 2, seed=s.seed)
+                       clip_stride_seconds=s.clip_seconds / 2, seed=s.seed, **extra)
     log(f"[dataset] built in {time.perf_counter() - t0:.1f} s")
     log(ds.summary())
 

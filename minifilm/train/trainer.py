@@ -18,6 +18,7 @@ an uninterrupted one would.
 """
 from __future__ import annotations
 
+import math
 import sys
 import time
 from dataclasses import asdict, dataclass, field, fields
@@ -42,6 +43,8 @@ class TrainingDiverged(RuntimeError):
 class TrainConfig:
     """Settings of a training run (the paper: 90 epochs, batch 32, Adam lr 1e-4).
 
+    lr_schedule         "constant" (the paper) or "cosine": the learning rate falls from lr to
+                        lr * lr_floor along half a cosine over the `epochs` of the run
     freeze              networks not updated: () for training, ("gating", "motion") to fine-tune Ψ
     input_noise         std of Gaussian noise added to the normalised inputs x and p of every
                         training minibatch (0: none, the paper). At run time the network reads its
@@ -62,6 +65,8 @@ class TrainConfig:
     seed: int = 0
     bll_weight: float = 1.0
     input_noise: float = 0.0
+    lr_schedule: str = "constant"
+    lr_floor: float = 0.1
     freeze: tuple = ()
     clips_per_batch: int | None = None
     checkpoint_path: str | None = None
@@ -76,6 +81,10 @@ class TrainConfig:
             raise ValueError(f"TrainConfig.freeze: unknown network(s) {bad}; choose from {NETWORKS}")
         if self.input_noise < 0:
             raise ValueError(f"TrainConfig.input_noise must be >= 0, got {self.input_noise}")
+        if self.lr_schedule not in ("constant", "cosine"):
+            raise ValueError(f"TrainConfig.lr_schedule must be 'constant' or 'cosine', got {self.lr_schedule!r}")
+        if not 0.0 <= self.lr_floor <= 1.0:
+            raise ValueError(f"TrainConfig.lr_floor must be in [0, 1], got {self.lr_floor}")
         if self.clips_per_batch is not None and self.clips_per_batch < 1:
             raise ValueError(f"TrainConfig.clips_per_batch must be None or >= 1, got {self.clips_per_batch}")
         if self.batch_size < 1 or self.epochs < 0 or self.lr <= 0:
@@ -138,6 +147,15 @@ class Trainer:
                 raise TrainingDiverged(f"step {self.step} ({where}): {name} is not finite "
                                        f"({'nan' if np.any(np.isnan(value)) else 'inf'}); weights not updated")
 
+    def learning_rate(self, epoch: float) -> float:
+        """The learning rate at a (fractional) epoch of the run: constant, or half a cosine from
+        lr at epoch 0 to lr * lr_floor at the last epoch (config.epochs)."""
+        c = self.config
+        if c.lr_schedule == "constant" or c.epochs <= 0:
+            return c.lr
+        u = min(max(epoch / c.epochs, 0.0), 1.0)
+        return c.lr * (c.lr_floor + (1.0 - c.lr_floor) * 0.5 * (1.0 + math.cos(math.pi * u)))
+
     def _shares_clips(self) -> bool:
         """Clip sharing is on and the model conditions on clips (not on style ids)."""
         return self.config.clips_per_batch is not None and not getattr(self.model, "takes_style_ids", False)
@@ -175,6 +193,7 @@ class Trainer:
             self.model.backward(dpred, need_input_grads=False)   # the inputs are data: skip dx, dclip
             self._check_finite(where, [(f"gradient of the {net} network", getattr(self.model, net).params.grad)
                                        for net in NETWORKS if getattr(self.model, net) is not None])
+            self.optimizer.lr = self.learning_rate(self.epoch + i / len(batches))
             self.optimizer.step()
             self.step += 1
             acc = sums.setdefault(s, [0.0, 0.0, 0])

@@ -269,3 +269,17 @@ def test_training_with_shared_clips_runs_psi_on_fewer_clips(monkeypatch):
 def test_clips_per_batch_below_one_is_refused():
     with pytest.raises(ValueError, match="clips_per_batch"):
         TrainConfig(clips_per_batch=0)
+
+
+def test_cosine_learning_rate_schedule():
+    trainer = new_trainer(epochs=4, lr_schedule="cosine", lr_floor=0.1)
+    lr = trainer.config.lr
+    assert trainer.learning_rate(0) == pytest.approx(lr)
+    assert trainer.learning_rate(2) == pytest.approx(lr * 0.55)          # half-way: the mean of lr and the floor
+    assert trainer.learning_rate(4) == pytest.approx(lr * 0.1)
+    assert new_trainer(epochs=4).learning_rate(3) == lr                  # constant by default (the paper)
+    data = make_data(0)
+    trainer.fit(data, epochs=1)
+    assert trainer.optimizer.lr < lr and trainer.optimizer.lr > trainer.learning_rate(1.0) - 1e-12
+    with pytest.raises(ValueError, match="lr_schedule"):
+        TrainConfig(lr_schedule="step")
