@@ -20,23 +20,27 @@ __all__ = ["tracks_from_rollout", "track_with_contacts"]
 
 def tracks_from_rollout(rollout: Rollout, parents: Sequence[int], names: Optional[Sequence[str]] = None,
                         joint_names: Optional[Sequence[str]] = None,
-                        toes: Optional[Sequence[int]] = None) -> List[Track]:
+                        toes: Optional[Sequence[int]] = None, start: int = 0) -> List[Track]:
     """One Track per character of ``rollout`` (output positions, after any skeleton fit).
 
     parents (J,): the layout's parents (``layout.parents``); names: one label per character;
     toes: the joint indices of the predicted contact columns [right, left] (their marks light up
-    while the network predicts contact); joint_names: for labels.
+    while the network predicts contact); joint_names: for labels; start: the first frame shown
+    (e.g. after the first second, which starts from the data's mean pose).
     """
-    B = rollout.positions.shape[0]
+    B, F = rollout.positions.shape[:2]
+    if not 0 <= start < F:
+        raise ValueError(f"tracks_from_rollout: start frame {start} is not in [0, {F})")
+    k = slice(start, None)
     names = list(names) if names is not None else [f"character {b}" for b in range(B)]
     if len(names) != B:
         raise ValueError(f"tracks_from_rollout: {len(names)} names for {B} characters")
     out = []
     for b in range(B):
-        root = rollout.root_positions[b]                                   # (F, 2) on the floor
+        root = rollout.root_positions[b, k]                                # (F, 2) on the floor
         trail = root[:, [0, 0, 1]] * [1.0, 0.0, 1.0]
-        out.append(Track(name=names[b], positions=rollout.positions[b], parents=parents, fps=rollout.fps,
-                         contacts=None if toes is None else rollout.contacts[b].clip(0.0, 1.0),
+        out.append(Track(name=names[b], positions=rollout.positions[b, k], parents=parents, fps=rollout.fps,
+                         contacts=None if toes is None else rollout.contacts[b, k].clip(0.0, 1.0),
                          contact_joints=None if toes is None else list(toes), trail=trail, root=0,
                          joint_names=None if joint_names is None else list(joint_names)))
     return out
