@@ -15,6 +15,10 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, fields
 
 
+#: the largest model allowed (about 1 GiB of float32 weights; the paper's has 44 million)
+MAX_PARAMETERS = 250_000_000
+
+
 @dataclass(frozen=True)
 class ModelConfig:
     """Sizes and options of Ω, Φ and Ψ.
@@ -60,8 +64,27 @@ class ModelConfig:
             raise ValueError(f"ModelConfig.dropout must be in [0, 1), got {self.dropout}")
         if self.pooled_frames < 1:
             raise ValueError(f"ModelConfig.clip_frames={self.clip_frames} is too short for two 2x poolings")
+        if not (isinstance(self.ln_eps, (int, float)) and 0.0 <= self.ln_eps < 1.0):
+            raise ValueError(f"ModelConfig.ln_eps must be in [0, 1), got {self.ln_eps!r}")
+        n = self.n_parameters
+        if n > MAX_PARAMETERS:      # before anything is allocated: a typo must not ask for 600 GiB
+            raise ValueError(f"ModelConfig: these sizes make {n:,} parameters ({4 * n / 2**30:.1f} GiB in float32, "
+                             f"more with the optimiser's moments); at most {MAX_PARAMETERS:,} are allowed "
+                             f"(the paper's model has 44 million)")
 
     # ---- derived sizes -------------------------------------------------------------------
+    @property
+    def n_parameters(self) -> int:
+        """Ω + Φ + Ψ parameters, from the sizes alone (model/style_model.py::parameter_counts counts
+        the same from the networks' shapes)."""
+        K, H, G = self.n_experts, self.hidden, self.gating_hidden
+        gating = self.phase_dim * G + G + G * G + G + G * K + K
+        motion = K * (self.x_dim * H + H + H * H + H + H * self.z_dim + self.z_dim)
+        k, C, Fn = self.conv_kernel, self.clip_channels, self.conv_filters
+        film = (k * C * Fn + Fn + k * Fn * Fn + Fn + self.flat_dim * self.film_dense + self.film_dense
+                + self.film_dense * self.film_dim + self.film_dim)
+        return int(gating + motion + film)
+
     @property
     def film_dim(self) -> int:
         """Length of Ψ's output {γ1, β1, γ2, β2} (Eq. 2) = parameters per style at run time."""

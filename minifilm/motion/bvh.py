@@ -29,6 +29,7 @@ from typing import Dict, List, Optional, Tuple, Union
 
 import numpy as np
 
+from minifilm.errors import MAX_FPS, MIN_FPS, InputError
 from minifilm.motion.kinematics import axis_rotation, euler_to_matrix
 from minifilm.motion.motion import Motion
 
@@ -38,7 +39,7 @@ CHANNEL_NAMES = {f"{axis}{kind}".lower(): f"{axis}{kind}"
                  for axis in "XYZ" for kind in ("position", "rotation")}
 
 
-class BVHError(ValueError):
+class BVHError(InputError):
     """A malformed BVH file. The message names the file, the line number and what was expected."""
 
     def __init__(self, source: str, line: Optional[int], message: str):
@@ -85,7 +86,7 @@ def parse_bvh(text: str, source: str = "<string>", scale: float = 0.01) -> Motio
     """Parse BVH ``text`` (the contents of a file); ``source`` names it in error messages."""
     if not (np.isfinite(scale) and scale > 0):
         raise ValueError(f"parse_bvh({source}): scale must be positive, got {scale}")
-    lines = text.lstrip("\ufeff").split("\n")
+    lines = _LINE_END.split(text.lstrip("\ufeff"))            # \n, \r\n and old Mac \r alike
     header = _Hierarchy(lines, source)
     motion_line = header.parse()
     n_frames, frame_time, first_data_line = _parse_motion_header(lines, motion_line, source)
@@ -95,6 +96,10 @@ def parse_bvh(text: str, source: str = "<string>", scale: float = 0.01) -> Motio
 
 
 _TOKEN = re.compile(r"[{}]|[^\s{}]+")
+_LINE_END = re.compile(r"\r\n|\r|\n")
+#: the largest channel value or offset accepted, in the file's units (10 km in centimetres,
+#: 2,800 turns in degrees): beyond it a file is broken and its numbers would overflow later
+MAX_VALUE = 1e6
 
 
 class _Hierarchy:
@@ -238,8 +243,9 @@ class _Hierarchy:
             value = float(tok)
         except ValueError:
             raise self.error(line, f"expected a number in the {what}, found {tok!r}") from None
-        if not np.isfinite(value):
-            raise self.error(line, f"expected a finite number in the {what}, found {tok!r}")
+        if not abs(value) <= MAX_VALUE:           # also refuses nan and inf
+            raise self.error(line, f"expected a finite number of magnitude at most {MAX_VALUE:g} in the {what}, "
+                                   f"found {_clip(tok)!r}")
         return value
 
     def channel_list(self, name: str) -> Tuple[str, ...]:
@@ -294,6 +300,9 @@ def _parse_motion_header(lines: List[str], motion_line: int, source: str) -> Tup
                 t = float("nan")
             if not (np.isfinite(t) and t > 0):
                 raise BVHError(source, i + 1, f"expected 'Frame Time: <positive seconds>', found {_clip(lines[i])!r}")
+            if not MIN_FPS <= 1.0 / t <= MAX_FPS:
+                raise BVHError(source, i + 1, f"'Frame Time: {t:g}' is {1.0 / t:g} frames per second; expected "
+                                              f"{MIN_FPS:g} to {MAX_FPS:g} (a frame time of {1 / MAX_FPS:g} to {1 / MIN_FPS:g} s)")
             found[key] = t
         i += 1
     return found["frames"], found["time"], i
@@ -328,7 +337,7 @@ def _parse_frames(lines: List[str], first: int, n_frames: int, n_channels: int, 
         values = np.fromiter(map(float, tokens), dtype=np.float64, count=len(tokens))
     except ValueError:
         values = None
-    if values is None or not np.all(np.isfinite(values)):
+    if values is None or not np.all(np.abs(values) <= MAX_VALUE):      # also catches nan and inf
         _raise_bad_value(tokens, line_numbers, n_channels, source)
     return values.reshape(n_frames, n_channels)
 
@@ -337,12 +346,13 @@ def _raise_bad_value(tokens: List[str], line_numbers: List[int], n_channels: int
     """Slow path: find the first non-numeric or non-finite value and name its line."""
     for k, tok in enumerate(tokens):
         try:
-            ok = np.isfinite(float(tok))
+            ok = abs(float(tok)) <= MAX_VALUE
         except ValueError:
             ok = False
         if not ok:
             raise BVHError(source, line_numbers[k // n_channels],
-                           f"expected a finite number as value {k % n_channels + 1}, found {tok!r}")
+                           f"expected a finite number of magnitude at most {MAX_VALUE:g} as value {k % n_channels + 1}, "
+                           f"found {_clip(tok)!r}")
     raise AssertionError("unreachable: a bad value was detected but not found")
 
 

@@ -120,6 +120,11 @@ class Adam:
                 if np.shape(state[key]) != p.data.shape:
                     raise ValueError(f"Adam.load_state_dict: {key!r} is {np.shape(state[key])}, "
                                      f"expected {p.data.shape} (parameter set {i})")
+                if not np.all(np.isfinite(state[key])) or (key[0] == "v" and np.any(np.asarray(state[key]) < 0)):
+                    raise ValueError(f"Adam.load_state_dict: {key!r} holds non-finite"
+                                     f"{' or negative' if key[0] == 'v' else ''} values")
+        if np.any(steps < 0):
+            raise ValueError(f"Adam.load_state_dict: negative step counts {steps.tolist()}")
         for i in range(len(self.sets)):
             self.m[i][...] = state[f"m.{i}"]
             self.v[i][...] = state[f"v.{i}"]

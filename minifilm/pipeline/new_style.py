@@ -121,7 +121,8 @@ def teach_style(run_path, name: str, files: Sequence, steps: int = 400, lr: floa
 
     batch = min(32, len(data))
     epochs = max(1, math.ceil(steps / (len(data) // batch)))
-    config = TrainConfig(epochs=epochs, batch_size=batch, lr=lr, seed=seed, progress=False)
+    # 4 clips per minibatch, as the main job trains (TrainConfig.clips_per_batch)
+    config = TrainConfig(epochs=epochs, batch_size=batch, lr=lr, seed=seed, clips_per_batch=4, progress=False)
     before = Trainer.resume(run.checkpoint, config, restore_optimizer=False).evaluate(data)["loss"]
     t0 = time.perf_counter()
     tuned = finetune(run.checkpoint, data, config=config, style_names=[name])

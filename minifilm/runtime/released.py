@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from minifilm.dataset.stats import NormStats
+from minifilm.errors import InputError
 from minifilm.files import atomic_directory
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
@@ -36,7 +37,7 @@ FILM_PARTS = ("scale1", "shift1", "scale2", "shift2")   # γ1, β1, γ2, β2: th
 _STYLE_FILE = re.compile(r"^Style_(\d{3})_scale1\.bin$")
 
 
-class ReleasedFormatError(ValueError):
+class ReleasedFormatError(InputError):
     """A released-parameter folder is missing a file or has a file of the wrong size."""
 
 
@@ -79,7 +80,12 @@ def _read(directory: Path, name: str, shape) -> np.ndarray:
     if n != expected:
         raise ReleasedFormatError(f"released network: {path} holds {n} float32, expected {expected} "
                                   f"(shape {tuple(shape)})")
-    return np.fromfile(path, dtype="<f4").reshape(shape)
+    values = np.fromfile(path, dtype="<f4").reshape(shape)
+    if not np.all(np.isfinite(values)):
+        bad = np.flatnonzero(~np.isfinite(values.ravel()))
+        raise ReleasedFormatError(f"released network: {path} holds {len(bad)} non-finite value(s) (first at "
+                                  f"float {bad[0]}); the file is corrupt")
+    return values
 
 
 def _read_style_names(directory: Path) -> dict:
@@ -93,7 +99,16 @@ def _read_style_names(directory: Path) -> dict:
         parts = line.split(maxsplit=1)
         if len(parts) != 2 or not re.fullmatch(r"\d{3}", parts[0]):
             raise ReleasedFormatError(f"{path}, line {lineno}: expected 'sss Name', got {line!r}")
-        names[parts[0]] = parts[1].strip()
+        sid, name = parts[0], parts[1].strip()
+        if sid in names:
+            raise ReleasedFormatError(f"{path}, line {lineno}: style id {sid} is named twice "
+                                      f"({names[sid]!r} and {name!r})")
+        if name in names.values():
+            raise ReleasedFormatError(f"{path}, line {lineno}: the name {name!r} is given to two style ids")
+        if not (directory / f"Style_{sid}_scale1.bin").is_file():
+            raise ReleasedFormatError(f"{path}, line {lineno}: names style {sid} ({name!r}), but there is no "
+                                      f"Style_{sid}_scale1.bin (nor its other three files)")
+        names[sid] = name
     return names
 
 
@@ -136,7 +151,13 @@ def load_released(directory, dtype=np.float32) -> ReleasedNetwork:
     ids = sorted(m.group(1) for f in d.iterdir() if (m := _STYLE_FILE.match(f.name)))
     for sid in ids:
         film = np.concatenate([_read(d, f"Style_{sid}_{part}", (cfg.hidden,)) for part in FILM_PARTS])
-        styles[names.get(sid, sid)] = film.astype(dtype)
+        name = names.get(sid, sid)
+        if name in styles:
+            raise ReleasedFormatError(f"released network: two styles are called {name!r} in {d} (an unnamed "
+                                      "style file's id is also the name of another style in styles.txt)")
+        styles[name] = film.astype(dtype)
+    if not styles:
+        raise ReleasedFormatError(f"released network: {d} has no style (Style_<sss>_scale1.bin ...)")
     return ReleasedNetwork(model=model, stats=stats, styles=styles)
 
 

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from minifilm.errors import InputError
 from minifilm.files import atomic_savez
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
@@ -31,7 +32,7 @@ FORMAT = "minifilm-checkpoint-1"
 NETWORKS = ("gating", "motion", "film")
 
 
-class CheckpointError(ValueError):
+class CheckpointError(InputError):
     """A checkpoint file is missing, unreadable, or does not hold what it should."""
 
 
@@ -90,6 +91,11 @@ def load_model_arrays(model, arrays: dict, path="checkpoint", networks=NETWORKS)
         if sub is None:
             continue
         state = subset(arrays, net)
+        for name, value in state.items():
+            value = np.asarray(value)
+            if value.dtype.kind not in "fiu" or not np.all(np.isfinite(value)):
+                raise CheckpointError(f"{path}: parameter '{net}.{name}' holds non-finite or non-numeric values "
+                                      f"({value.dtype}); the checkpoint is corrupt")
         try:
             sub.params.load_state_dict(state, strict=True)
         except (KeyError, ValueError) as e:

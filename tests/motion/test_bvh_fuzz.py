@@ -91,13 +91,15 @@ def test_fuzzed_files_fail_cleanly_or_read_consistently(shared_data, seed):
                 m = parse_bvh(mutated, source)
             except BVHError as err:
                 failures += 1
-                n_lines = mutated.count("\n") + 1
+                n_lines = len(re.split(r"\r\n|\r|\n", mutated))      # a bare CR ends a line too
                 assert str(err).startswith(f"{source}, line "), str(err)
                 assert err.line is not None and 1 <= err.line <= n_lines + 1, str(err)
                 continue
             successes += 1
             check_consistent(m, mutated)
-    assert failures > 300 and successes > 15, (failures, successes)
+    # enough of both kinds for the checks above to mean something (a bare CR from the pool now
+    # ends a line, which breaks a frame's value count: fewer mutants read than before)
+    assert failures > 300 and successes >= 10, (failures, successes)
 
 
 def test_byte_level_cuts_and_garbage_through_read_bvh(shared_data, tmp_path):
