@@ -22,7 +22,7 @@ import numpy as np
 from minifilm.dataset.arrays import TrainData
 from minifilm.features.compute import clip_features, frame_features
 from minifilm.motion.bvh import read_bvh
-from minifilm.motion.editing import resample
+from minifilm.motion.editing import mirror, resample
 from minifilm.motion.motion import Motion
 from minifilm.motion.skeletons import builtin_skeleton
 from minifilm.phases.label import label
@@ -73,7 +73,8 @@ def count_steps(contacts: np.ndarray) -> int:
     return int(np.sum(c[1:] & ~c[:-1]))
 
 
-def clip_training_data(motions: Sequence[Motion], files, run: RunFolder, stats, clip_frames: int, name: str):
+def clip_training_data(motions: Sequence[Motion], files, run: RunFolder, stats, clip_frames: int, name: str,
+                       with_mirror: bool = False):
     """TrainData (one style, id 0) of the clips, normalised with the run's statistics, and the raw
     start frame (x, p) from the middle of the first file."""
     skeleton = builtin_skeleton(run.skeleton_name)
@@ -84,11 +85,13 @@ def clip_training_data(motions: Sequence[Motion], files, run: RunFolder, stats, 
         if count_steps(labels.contacts) < 2:
             raise ValueError(f"{path}: fewer than two foot steps in {motion.n_frames / run.fps:.1f} s "
                              "(a style is learnt from locomotion: walk or run in it for a few steps)")
-        rows = frame_features(motion, skeleton, labels.vectors, labels.contacts, fps=run.fps)
-        xs.append(rows.x)
-        ps.append(rows.p)
-        zs.append(rows.z)
-        ys.append(clip_features(motion, skeleton, clip_seconds, clip_seconds / 2, fps=run.fps))
+        variants = [(motion, labels)] + ([(mirror(motion), labels.mirrored())] if with_mirror else [])
+        for m, lab in variants:
+            rows = frame_features(m, skeleton, lab.vectors, lab.contacts, fps=run.fps)
+            xs.append(rows.x)
+            ps.append(rows.p)
+            zs.append(rows.z)
+            ys.append(clip_features(m, skeleton, clip_seconds, clip_seconds / 2, fps=run.fps))
     clips = np.concatenate(ys)
     if len(clips) == 0:
         longest = max(m.n_frames for m in motions) / run.fps
@@ -105,7 +108,7 @@ def clip_training_data(motions: Sequence[Motion], files, run: RunFolder, stats, 
 
 
 def teach_style(run_path, name: str, files: Sequence, steps: int = 400, lr: float = 5e-4, seed: int = 0,
-                replace: bool = False, log: Callable[[str], None] = print) -> NewStyleResult:
+                replace: bool = False, log: Callable[[str], None] = print, with_mirror: bool = False) -> NewStyleResult:
     """Fine-tune the run's Ψ on ``files`` and add ``name`` to its style library (see the module
     docstring). Raises ValueError naming the file or setting that is wrong; the run folder is then
     untouched."""
@@ -117,7 +120,7 @@ def teach_style(run_path, name: str, files: Sequence, steps: int = 400, lr: floa
     library = run.styles()
     model, stats = run.model_and_stats()
     motions: List[Motion] = [read_clip(f, run, log) for f in files]
-    data, start = clip_training_data(motions, files, run, stats, model.config.clip_frames, name)
+    data, start = clip_training_data(motions, files, run, stats, model.config.clip_frames, name, with_mirror)
 
     batch = min(32, len(data))
     epochs = max(1, math.ceil(steps / (len(data) // batch)))

@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 
 import minifilm.dataset.cache as cache_module
+from minifilm.dataset.arrays import TrainData
 from minifilm.dataset.build import build_dataset
 from minifilm.dataset.dataset import Dataset
+from minifilm.dataset.manifest import (MotionFile, bandai_files, read_manifest, scan_100style,
+                                       write_bandai_manifest, write_manifest)
 from minifilm.dataset.settings import DatasetSettings
 from minifilm.dataset.splits import SPLITS, apply_gap, file_rng, split_files, split_segments
-from minifilm.dataset.manifest import (
-    MotionFile, bandai_files, read_manifest, scan_100style, write_bandai_manifest, write_manifest)
-from minifilm.dataset.arrays import TrainData
 from minifilm.dataset.stats import NormStats
 from minifilm.phases.label import Labels
 from minifilm.phases.local_phases import LocalPhases
@@ -195,8 +195,11 @@ def test_rows_stay_inside_their_segments(small):
 
 
 def test_mirrored_rows_are_mirror_images(small):
-    """Mirroring negates x of every local position / direction and swaps left and right joints."""
-    from minifilm.motion.editing import mirror_pairs
+    """Mirroring swaps left and right joints and negates x of every local position and velocity;
+    a joint's axes are its partner's, x-negated, times the sign its own reflection S_j gives that
+    axis (on the Bandai skeleton -I in the limbs, diag(1, 1, -1) in the spine)."""
+    from minifilm.motion.bvh import read_bvh
+    from minifilm.motion.editing import joint_reflections, mirror_pairs
     from minifilm.motion.skeletons import BANDAI
 
     _, _, ds = small
@@ -209,7 +212,13 @@ def test_mirrored_rows_are_mirror_images(small):
     np.testing.assert_array_equal(sp.frame[a], sp.frame[b])
     ja = sp.x[a][:, ds.layout.x_joints].reshape(-1, 21, 4, 3)
     jb = sp.x[b][:, ds.layout.x_joints].reshape(-1, 21, 4, 3)
-    np.testing.assert_allclose(jb, ja[:, sym] * np.array([-1, 1, 1]), atol=2e-5)
+    motion = read_bvh(ds.files[orig]["path"])
+    S = joint_reflections(motion)[[motion.index(n) for n in BANDAI.joints]]
+    assert np.allclose(np.abs(S), np.abs(S) * np.eye(3))          # diagonal on this skeleton
+    sign = np.ones((21, 4, 3))
+    sign[:, 1] = S[:, 2, 2][:, None]                              # forward: the rotation's column z
+    sign[:, 2] = S[:, 1, 1][:, None]                              # up: its column y
+    np.testing.assert_allclose(jb, ja[:, sym] * np.array([-1, 1, 1]) * sign, atol=2e-5)
     ta, tb = sp.x[a][:, :48].reshape(-1, 12, 4), sp.x[b][:, :48].reshape(-1, 12, 4)
     np.testing.assert_allclose(tb, ta * np.array([-1, 1, -1, 1]), atol=2e-5)
     za, zb = sp.z[a], sp.z[b]
