@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+import gradcheck_report
 from repo_paths import REPO_ROOT, SHARED_DATA  # noqa: F401  (re-exported for the fixtures below)
 
 
@@ -17,3 +18,11 @@ def shared_data() -> Path:
     if not SHARED_DATA.is_dir():
         pytest.skip(f"real data folder not found at {SHARED_DATA} (set MINIFILM_SHARED_DATA)")
     return SHARED_DATA
+
+
+def pytest_terminal_summary(terminalreporter):
+    """The gradient-check table of the (case, seed) tests that ran: ``minifilm gradcheck``'s table."""
+    text = gradcheck_report.table()
+    if text:
+        terminalreporter.write_sep("=", "gradient checks (minifilm gradcheck)")
+        terminalreporter.write_line(text)

@@ -172,8 +172,11 @@ def gather(seed):
 
 
 def conv1d(seed, method="im2col"):
-    """Every kernel size and clip length of the table, channels-last, 'same' padding."""
-    configs = ([(T, k) for k in (1, 3, 5, 7) for T in (6, 7)] if method == "im2col"
+    """Kernel sizes and clip lengths, channels-last, 'same' padding. A clip shorter than the
+    kernel (T 3, k 7) only with im2col: the taps that never meet the clip have a gradient of
+    exactly 0, which the FFT gives as ~1e-17, so the relative error would compare two kinds of
+    rounding there (k 25 > T 16 still has every tap meeting some frame)."""
+    configs = ([(T, k) for k in (1, 3, 5, 7) for T in (6, 7)] + [(3, 7)] if method == "im2col"
                else [(7, 3), (6, 5), (9, 9), (12, 7), (16, 25)])
     out = {}
     for T, k in configs:

@@ -57,44 +57,47 @@ def omega_problem(seed: int) -> Problem:
     """Ω: local phases p -> α, projection objective."""
     rng, cfg = np.random.default_rng(seed), toy_config()
     make = lambda dtype: GatingNetwork(cfg, np.random.default_rng(seed), dtype)   # noqa: E731
-    net = make(np.float64)
+    net, masks = make(np.float64), {}
     _perturb([net.params], rng, 0.1)
-    p = rng.standard_normal((BATCH, cfg.phase_dim))
-    net.forward(p, train=True, rng=rng)
-    masks = dict(net.used_masks)
-    pr = Problem(net, make, lambda m: {"Ω": m.params}, {"p": p},
+    inputs = {"p": rng.standard_normal((BATCH, cfg.phase_dim))}
+    pr = Problem(net, make, lambda m: {"Ω": m.params}, inputs,
                  lambda m, i: m.forward(i["p"], train=True, masks=masks),
-                 lambda m, d: {"p": m.backward(d)}, rng, sites=gating_sites(net))
-    pr.condition()
+                 lambda m, d: {"p": m.backward(d)}, rng, masks,
+                 lambda: _draw(net, lambda: net.forward(inputs["p"], train=True, rng=rng)),
+                 sites=gating_sites(net)).prepare()
     pr.objective = projection(rng.standard_normal((BATCH, cfg.n_experts)))
     return pr
+
+
+def _draw(model, train_pass) -> dict:
+    """The dropout masks of one training pass (drawn from the problem's generator)."""
+    train_pass()
+    return dict(model.used_masks)
 
 
 def phi_problem(seed: int) -> Problem:
     """Φ: x, α and the FiLM parameters (B, 4H) -> z, projection objective."""
     rng, cfg = np.random.default_rng(seed), toy_config()
     make = lambda dtype: MotionNetwork(cfg, np.random.default_rng(seed), dtype)   # noqa: E731
-    net = make(np.float64)
+    net, masks = make(np.float64), {}
     _perturb([net.params], rng, 0.1)
     H = cfg.hidden
-    x = rng.standard_normal((BATCH, cfg.x_dim))
-    alpha = rng.dirichlet(np.ones(cfg.n_experts), size=BATCH)
     film = 0.3 * rng.standard_normal((BATCH, 4 * H))
     film[:, 0:H] += 1.0                                   # γ around 1, β around 0
     film[:, 2 * H:3 * H] += 1.0
-    inputs = {"x": x, "alpha": alpha, "film": film}
-    net.forward(x, alpha, film, train=True, rng=rng)
-    masks = dict(net.used_masks)
+    inputs = {"x": rng.standard_normal((BATCH, cfg.x_dim)),
+              "alpha": rng.dirichlet(np.ones(cfg.n_experts), size=BATCH), "film": film}
+
+    def forward(m, i, **kw):
+        return m.forward(i["x"], i["alpha"], i["film"], train=True, **(kw or {"masks": masks}))
 
     def backward(m, d):
         dx, dalpha, dfilm = m.backward(d)
         return {"x": dx, "alpha": dalpha, "film": dfilm}
 
-    beta = lambda i: inputs["film"][:, (2 * i + 1) * H:(2 * i + 2) * H]   # noqa: E731
-    pr = Problem(net, make, lambda m: {"Φ": m.params}, inputs,
-                 lambda m, i: m.forward(i["x"], i["alpha"], i["film"], train=True, masks=masks),
-                 backward, rng, sites=motion_sites(net, beta))
-    pr.condition()
+    beta = lambda i: film[:, (2 * i + 1) * H:(2 * i + 2) * H]   # noqa: E731
+    pr = Problem(net, make, lambda m: {"Φ": m.params}, inputs, forward, backward, rng, masks,
+                 lambda: _draw(net, lambda: forward(net, inputs, rng=rng)), sites=motion_sites(net, beta)).prepare()
     pr.objective = projection(rng.standard_normal((BATCH, cfg.z_dim)))
     return pr
 
@@ -103,22 +106,21 @@ def psi_problem(seed: int) -> Problem:
     """Ψ: a style clip -> the FiLM parameters, projection objective."""
     rng, cfg = np.random.default_rng(seed), toy_config()
     make = lambda dtype: FilmGenerator(cfg, np.random.default_rng(seed), dtype)   # noqa: E731
-    net = make(np.float64)
+    net, masks = make(np.float64), {}
     _perturb([net.params], rng, 0.1)
-    clip = rng.standard_normal((BATCH, cfg.clip_frames, cfg.clip_channels))
-    net.forward(clip, train=True, rng=rng)
-    masks = dict(net.used_masks)
-    pr = Problem(net, make, lambda m: {"Ψ": m.params}, {"clip": clip},
+    inputs = {"clip": rng.standard_normal((BATCH, cfg.clip_frames, cfg.clip_channels))}
+    pr = Problem(net, make, lambda m: {"Ψ": m.params}, inputs,
                  lambda m, i: m.forward(i["clip"], train=True, masks=masks),
-                 lambda m, d: {"clip": m.backward(d)}, rng, sites=film_generator_sites(net), psi=net)
-    pr.condition()
+                 lambda m, d: {"clip": m.backward(d)}, rng, masks,
+                 lambda: _draw(net, lambda: net.forward(inputs["clip"], train=True, rng=rng)),
+                 sites=film_generator_sites(net), psi=net).prepare()
     pr.objective = projection(rng.standard_normal((BATCH, cfg.film_dim)))
     return pr
 
 
 # ---- the style model (Eq. 4) and the variants --------------------------------------------------
-def _model_problem(model, make, labels, inputs, forward, backward, rng) -> Problem:
-    """The sites of a whole model in forward order: Ψ (its β feeds Φ), Ω, then Φ."""
+def _model_problem(model, make, labels, inputs, forward, backward, rng, masks) -> Problem:
+    """A whole model's problem, its kinks in forward order: Ψ (its β feeds Φ), Ω, then Φ."""
     sites, psi = [], None
     film = getattr(model, "film", None)
     if isinstance(film, FilmGenerator) and "clip" in inputs:
@@ -135,8 +137,8 @@ def _model_problem(model, make, labels, inputs, forward, backward, rng) -> Probl
         sites += motion_sites(model.motion, beta)
     else:
         sites += expert_net_sites(model.motion)
-    return Problem(model, make, lambda m: _params(m, labels), inputs, forward, backward, rng,
-                   sites=sites, psi=psi)
+    return Problem(model, make, lambda m: _params(m, labels), inputs, forward, backward, rng, masks,
+                   lambda: _draw(model, lambda: forward(model, inputs, rng=rng)), sites=sites, psi=psi).prepare()
 
 
 def style_model_problem(seed: int, form: str = "per-sample") -> Problem:
@@ -145,31 +147,29 @@ def style_model_problem(seed: int, form: str = "per-sample") -> Problem:
     'film-vector' (forward_with_film with one FiLM vector (4H,) for the batch: Ω and Φ)."""
     rng, cfg = np.random.default_rng(seed), toy_config()
     make = lambda dtype: StyleModel(cfg, np.random.default_rng(seed), dtype)   # noqa: E731
-    model = make(np.float64)
+    model, masks = make(np.float64), {}
     _perturb(model.parameter_sets(), rng, 0.1)
     B = BATCH + (form == "shared-clip")
-    x = rng.standard_normal((B, cfg.x_dim))
-    p = rng.standard_normal((B, cfg.phase_dim))
+    x, p = rng.standard_normal((B, cfg.x_dim)), rng.standard_normal((B, cfg.phase_dim))
     clip = rng.standard_normal((2 if form == "shared-clip" else B, cfg.clip_frames, cfg.clip_channels))
     index = np.array([1, 0, 1, 1]) if form == "shared-clip" else None
-    labels = STYLE_NETS
     if form == "film-vector":
-        labels = STYLE_NETS[:2]
-        inputs = {"x": x, "p": p, "film": model.film_parameters(clip)[0].copy()}
-        model.forward_with_film(x, p, inputs["film"], train=True, rng=rng)
-        forward = lambda m, i: m.forward_with_film(i["x"], i["p"], i["film"], train=True, masks=masks)   # noqa: E731
+        labels, inputs = STYLE_NETS[:2], {"x": x, "p": p, "film": model.film_parameters(clip)[0].copy()}
+
+        def forward(m, i, **kw):
+            return m.forward_with_film(i["x"], i["p"], i["film"], train=True, **(kw or {"masks": masks}))
 
         def backward(m, d):
             dx, dp, dfilm = m.backward_with_film(d)
             return {"x": dx, "p": dp, "film": dfilm}
     else:
-        inputs = {"x": x, "p": p, "clip": clip}
-        model.forward(x, p, clip, train=True, rng=rng, clip_index=index)
-        forward = lambda m, i: m.forward(i["x"], i["p"], i["clip"], train=True, masks=masks, clip_index=index)   # noqa: E731
+        labels, inputs = STYLE_NETS, {"x": x, "p": p, "clip": clip}
+
+        def forward(m, i, **kw):
+            return m.forward(i["x"], i["p"], i["clip"], train=True, clip_index=index, **(kw or {"masks": masks}))
+
         backward = lambda m, d: m.backward(d)                                   # noqa: E731
-    masks = dict(model.used_masks)
-    pr = _model_problem(model, make, labels, inputs, forward, backward, rng)
-    pr.condition()
+    pr = _model_problem(model, make, labels, inputs, forward, backward, rng, masks)
     mean, std = rng.standard_normal(cfg.z_dim), 0.5 + rng.random(cfg.z_dim)
     target = bll_target(pr.run(), rng, mean, std)
     pr.objective = training_objective(target, mean, std)
@@ -182,7 +182,7 @@ def style_model_problem(seed: int, form: str = "per-sample") -> Problem:
 
 
 def variant_problem(name: str, seed: int, n_styles: int = 3) -> Problem:
-    """A comparison variant (Sec. 5), mixed styles in the batch, projection objective."""
+    """A comparison variant (Sec. 5) on a batch of mixed styles, projection objective."""
     rng, cfg = np.random.default_rng(seed), toy_config(z_dim=20)
 
     def make(dtype):
@@ -191,33 +191,29 @@ def variant_problem(name: str, seed: int, n_styles: int = 3) -> Problem:
         # rank 4 instead of 30 for the PFNN's CP adapter: the same code, a quarter of the entries
         return VariantModel(name, cfg, np.random.default_rng(seed), n_styles=n_styles, dtype=dtype, rank=4)
 
-    model = make(np.float64)
+    model, masks = make(np.float64), {}
     _perturb(model.parameter_sets(), rng, 0.2)      # adapters start at 0: move everything off it
     cb = getattr(model, "backbone_config", cfg)
     B = 4
     x = rng.standard_normal((B, cb.x_dim))
     p = rng.random((B, 1)) if cb.phase_dim == 1 else rng.standard_normal((B, cb.phase_dim))
     clip = rng.standard_normal((B, cb.clip_frames, cb.clip_channels))
-    style = np.array([0, 2, 2, 1])                  # mixed styles in one batch, style 1 once
-    kw = {} if name == "LPN FiLM" else {"style": style}
+    kw = {} if name == "LPN FiLM" else {"style": np.array([0, 2, 2, 1])}   # mixed styles, style 1 once
     inputs = {"x": x}
     if cb.phase_dim != 1:                           # the PFNN's phase is data: no gradient
         inputs["p"] = p
     if model.modulation == "film":
         inputs["clip"] = clip
 
-    def forward(m, i):
+    def forward(m, i, **train):
         phase = i.get("p", p.astype(i["x"].dtype))
-        return m.forward(i["x"], phase, i.get("clip"), train=True, masks=masks, **kw)
+        return m.forward(i["x"], phase, i.get("clip"), train=True, **(train or {"masks": masks}), **kw)
 
     def backward(m, d):
         g = m.backward(d)
         return {k: g[k] for k in inputs}
 
-    model.forward(x, p, inputs.get("clip"), train=True, rng=rng, **kw)
-    masks = dict(model.used_masks)
     labels = (("Ω", "gating"), ("Φ", "motion"), ("Ψ" if model.modulation == "film" else "style", "film"))
-    pr = _model_problem(model, make, labels, inputs, forward, backward, rng)
-    pr.condition()
+    pr = _model_problem(model, make, labels, inputs, forward, backward, rng, masks)
     pr.objective = projection(rng.standard_normal(pr.run().shape))
     return pr

@@ -96,16 +96,18 @@ def _add(a: np.ndarray, d: np.ndarray) -> None:
 
 
 def shift_away(values: np.ndarray, margin: float) -> np.ndarray:
-    """d (units,): for each unit (last axis) the smallest |d| with every |values + d| >= margin."""
+    """d (units,): for each unit (last axis) the smallest |d| with every |values + d| >= margin,
+    among the shifts that keep a row on each side of 0 where there was one (so both branches of
+    the unit stay exercised and no ReLU unit is shifted dead), else the smallest of all."""
     v = values.reshape(-1, values.shape[-1])
     d = np.zeros(v.shape[1])
     for u in range(v.shape[1]):
         col = v[:, u]
         cands = np.concatenate([[0.0], -col - 1.25 * margin, -col + 1.25 * margin])
-        for c in cands[np.argsort(np.abs(cands), kind="stable")]:
-            if np.all(np.abs(col + c) >= margin):
-                d[u] = c
-                break
+        cands = cands[np.argsort(np.abs(cands), kind="stable")]
+        ok = [c for c in cands if np.all(np.abs(col + c) >= margin)]
+        sides = [c for c in ok if (col + c > 0).any() >= (col > 0).any() and (col + c < 0).any() >= (col < 0).any()]
+        d[u] = (sides or ok)[0]
     return d
 
 
@@ -204,12 +206,13 @@ def bll_target(out, rng, mean, std, margin=MARGIN):
 class Problem:
     """One network's check, built in float64 for one seed.
 
-    forward(model, inputs) -> out with the fixed dropout masks; backward(model, dout) ->
-    {input: gradient}; objective(out) -> (value, dout, kink sides of the loss); nets(model) ->
-    {label: Parameters} in a fixed order; make(dtype) -> a fresh model of the same architecture
-    (the float32 comparison copies ``model``'s parameters into it). sites: the ELUs, ReLUs and
-    layer norms in forward order; psi: the FilmGenerator whose max-pool pairs are kept from ties
-    by redrawing rows of ``inputs['clip']`` (None: no Ψ in this forward pass).
+    forward(model, inputs) -> out with the dropout masks of ``masks`` (the dict the forward
+    reads); draw_masks() -> new masks (a training pass with ``rng``); backward(model, dout) ->
+    {input: gradient}; objective(out) -> (value, dout, kink sides of the loss, scale);
+    nets(model) -> {label: Parameters} in a fixed order; make(dtype) -> a fresh model of the same
+    architecture (the float32 comparison copies ``model``'s parameters into it). sites: the
+    ELUs, ReLUs and layer norms in forward order; psi: the FilmGenerator whose max-pool pairs are
+    kept from ties by redrawing rows of ``inputs['clip']`` (None: no Ψ in this forward pass).
     """
 
     model: object
@@ -219,6 +222,8 @@ class Problem:
     forward: Callable
     backward: Callable
     rng: np.random.Generator
+    masks: dict
+    draw_masks: Callable
     sites: List[Site] = field(default_factory=list)
     psi: Optional[FilmGenerator] = None
     objective: Optional[Callable] = None
@@ -226,6 +231,18 @@ class Problem:
 
     def run(self, model=None, inputs=None):
         return self.forward(self.model if model is None else model, self.inputs if inputs is None else inputs)
+
+    def prepare(self) -> "Problem":
+        """Draw the dropout masks and condition. Masks that cut an array off from the output (a
+        toy layer whose few live units were all dropped: its check would be vacuous) are drawn
+        again."""
+        for _ in range(20):
+            self.masks.clear()
+            self.masks.update(self.draw_masks())
+            self.condition()
+            if self.connected():
+                return self
+        raise RuntimeError("Problem.prepare: no dropout masks left every array connected")
 
     def condition(self) -> None:
         """Move every kink MARGIN from the inputs of its switch and every layer-norm row to
@@ -242,10 +259,21 @@ class Problem:
             clip[bad] = self.rng.standard_normal(clip[bad].shape)
         raise RuntimeError("Problem.condition: could not keep the max-pool pairs away from ties")
 
+    def connected(self) -> bool:
+        """Every input and parameter array gets a non-zero gradient from a random projection."""
+        nets = self.nets(self.model)
+        for ps in nets.values():
+            ps.zero_grad()
+        out = self.run()
+        grads = self.backward(self.model, np.random.default_rng(0).standard_normal(out.shape))
+        arrays = list(grads.values()) + [ps.grads[n] for ps in nets.values() for n in ps.names()]
+        return all(np.abs(g).max() > 0 for g in arrays)
+
     def sides(self, loss_sides) -> np.ndarray:
         """Which side of every kink each input is on (compared on every stencil evaluation)."""
-        parts = [s.sides() for s in self.sites] + [p.ravel() for p in pool_sides(self.psi)] if self.psi else \
-            [s.sides() for s in self.sites]
+        parts = [s.sides() for s in self.sites]
+        if self.psi is not None:
+            parts += [p.ravel() for p in pool_sides(self.psi)]
         return np.concatenate(parts + [loss_sides])
 
     def margin(self, out) -> float:

@@ -44,7 +44,7 @@ from functools import partial
 from typing import Callable, List, Optional, Sequence
 
 
-from minifilm.baselines.variants import VARIANTS
+from minifilm.baselines.variants import SPECS, VARIANTS
 from minifilm.evaluation import gradcheck_kit as kit
 from minifilm.evaluation import gradcheck_networks as nets
 from minifilm.evaluation.gradcheck_setup import Result, check_problem, float32_errors
@@ -118,7 +118,7 @@ def cases() -> List[Case]:
         Case("gated experts (batch 1)", K, partial(kit.expert_linear, batch=1), _pair(FUN, "expert_linear")),
         Case("gated experts (batch 4)", K, kit.expert_linear, _pair(FUN, "expert_linear")),
         Case("gather (shared clips)", K, kit.gather, _pair(FUN, "gather")),
-        Case("conv1d, im2col (k 1-7, T 6-7)", K, kit.conv1d, _pair(CONV, "conv1d") + (f"{CONV}::_im2col",)),
+        Case("conv1d, im2col (k 1-7, T 3-7)", K, kit.conv1d, _pair(CONV, "conv1d") + (f"{CONV}::_im2col",)),
         Case("conv1d, FFT (k 3-25, T 6-16)", K, partial(kit.conv1d, method="fft"),
              _pair(CONV, "conv1d") + _pair(CONV, "_conv1d_fft") + (f"{CONV}::_fft_bases",)),
         Case("max-pool 2 (T 6, 7)", K, kit.max_pool, _pair(CONV, "max_pool1d")),
@@ -160,15 +160,21 @@ def cases() -> List[Case]:
         Case("style model, one FiLM vector", "network", _network(partial(nets.style_model_problem, form="film-vector")),
              (f"{STYLE}.forward_with_film", f"{STYLE}.backward_with_film")),
     ]
+    variant = "minifilm/baselines/variants.py::VariantModel"
     for name in VARIANTS:
-        rows.append(Case(name, "variant", _network(partial(nets.variant_problem, name)),
-                         ("minifilm/baselines/variants.py::VariantModel.backward",
-                          "minifilm/baselines/expert_net.py::ExpertNetwork.backward")))
+        backbone, modulation = SPECS[name]
+        covers = (f"{STYLE}.backward",) if name == "LPN FiLM" else (f"{variant}.backward",)
+        if modulation == "film" and name != "LPN FiLM":
+            covers += (f"{variant}.backward_with_film",)
+        elif modulation != "film":
+            covers += ("minifilm/baselines/expert_net.py::ExpertNetwork.backward",)
+        rows.append(Case(name, "variant", _network(partial(nets.variant_problem, name)), covers))
     return rows
 
 
-#: the float32 comparison: max|g32 − g64| / max|g64| per array must stay under the tolerance
-FLOAT32_TOLERANCE = 1e-4
+#: the float32 comparison: max|g32 − g64| / max|g64| per array must stay under this, ≈ 250 float32
+#: epsilons (1.2e-7); the worst of any network over seeds 0-29 was 9.5e-6 (Ψ), the median 2-10e-7
+FLOAT32_TOLERANCE = 3e-5
 
 
 def float32_cases() -> List[Case]:
@@ -228,13 +234,15 @@ def run_case(case: Case, seeds: Sequence[int] = SEEDS) -> Row:
 
 
 def format_table(rows: Sequence[Row], title: str, error_name: str = "worst rel. error") -> str:
+    """The table: one line per row, then the worst entry of every row that failed."""
     w = max([len(title)] + [len(r.case.name) for r in rows])
     head = f"{title:<{w}}  arrays  entries  seeds  {error_name:>16}  limit    crossed  pass"
     lines = [head, "-" * len(head)]
     for r in rows:
         seeds = f"{min(r.seeds)}-{max(r.seeds)}" if r.seeds else "-"
+        crossed = "-" if r.case.group == "float32" else str(r.crossings)
         lines.append(f"{r.case.name:<{w}}  {r.arrays:>6}  {r.entries:>7}  {seeds:>5}  {r.worst:>16.1e}  "
-                     f"{r.case.limit:<7.0e}  {r.crossings:>7}  {'yes' if r.passed else 'NO'}"
+                     f"{r.case.limit:<7.0e}  {crossed:>7}  {'yes' if r.passed else 'NO'}"
                      + (f"   ({r.case.note})" if r.case.note else ""))
     for r in rows:
         if not r.passed:
@@ -247,6 +255,8 @@ def run(seeds: Sequence[int] = SEEDS, only: Optional[str] = None, out=print) -> 
     t = time.perf_counter()
     pick = [c for c in cases() if not only or only.lower() in c.name.lower()]
     pick32 = [c for c in float32_cases() if not only or only.lower() in c.name.lower()]
+    if not pick and not pick32:
+        raise ValueError(f"gradcheck: no row's name contains {only!r} (the rows: {', '.join(c.name for c in cases())})")
     out(f"Every backward pass against the four-point centred difference in float64 (h = {H:g}, every "
         f"entry,\nobjective normalised to 1e-4; minifilm/evaluation/gradcheck_suite.py explains), seeds "
         f"{min(seeds)}-{max(seeds)}:\n")
@@ -259,4 +269,4 @@ def run(seeds: Sequence[int] = SEEDS, only: Optional[str] = None, out=print) -> 
     bad = [r for r in rows + rows32 if not r.passed]
     out(f"\n{len(rows) + len(rows32) - len(bad)} of {len(rows) + len(rows32)} checks passed "
         f"in {time.perf_counter() - t:.1f} s")
-    return 1 if bad or not (rows or rows32) else 0
+    return 1 if bad else 0
