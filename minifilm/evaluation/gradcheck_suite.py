@@ -163,7 +163,8 @@ def cases() -> List[Case]:
     variant = "minifilm/baselines/variants.py::VariantModel"
     for name in VARIANTS:
         backbone, modulation = SPECS[name]
-        covers = (f"{STYLE}.backward",) if name == "LPN FiLM" else (f"{variant}.backward",)
+        covers = ("minifilm/baselines/variants.py::build_variant",
+                  f"{STYLE}.backward" if name == "LPN FiLM" else f"{variant}.backward")
         if modulation == "film" and name != "LPN FiLM":
             covers += (f"{variant}.backward_with_film",)
         elif modulation != "film":
