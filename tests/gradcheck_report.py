@@ -5,7 +5,7 @@ test through :func:`check`; tests/conftest.py prints :func:`table` in pytest's t
 the same table ``minifilm gradcheck`` prints. (A module of its own: every test folder may import
 it, and conftest.py reads what they recorded.)
 """
-from minifilm.evaluation.gradcheck_suite import Row, format_table
+from minifilm.evaluation.gradcheck_suite import Row, cases, float32_cases, format_table
 
 ROWS: dict = {}
 
@@ -24,9 +24,11 @@ def check(case, seed):
 def table() -> str:
     """Both tables of the rows recorded so far (empty when none ran)."""
     parts = []
+    order = {(False, c.name): i for i, c in enumerate(cases())}
+    order.update({(True, c.name): i for i, c in enumerate(float32_cases())})
     for float32, title, error in ((False, "backward pass", "worst rel. error"),
                                   (True, "network (float32)", "worst rel. diff.")):
-        rows = [r for (f, _), r in ROWS.items() if f == float32]
+        rows = [r for key, r in sorted(ROWS.items(), key=lambda kv: order[kv[0]]) if key[0] == float32]
         if rows:
             parts.append(format_table(rows, title, error))
     return "\n\n".join(parts)
