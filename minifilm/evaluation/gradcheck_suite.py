@@ -43,7 +43,6 @@ from dataclasses import dataclass, field
 from functools import partial
 from typing import Callable, List, Optional, Sequence
 
-
 from minifilm.baselines.variants import SPECS, VARIANTS
 from minifilm.evaluation import gradcheck_kit as kit
 from minifilm.evaluation import gradcheck_networks as nets

@@ -84,10 +84,18 @@ def test_a_check_that_raises_is_a_failed_row():
 
 
 def test_fft_convolutions_forces_the_fft_method_and_restores_the_choice():
+    """The row 'Ψ, FFT convolutions' really runs both of Ψ's convolutions in the FFT form (the
+    toy sizes would pick im2col), and only there."""
+    from minifilm.evaluation import gradcheck_networks as nets
     choose = conv._conv1d_method
     with suite.fft_convolutions():
         assert conv._conv1d_method(1, 9, 3, 3, 3) == "fft"
+        pr = nets.psi_problem(0)
+        pr.run()
+        assert [c.conv[0] for c in pr.model._caches[:2]] == ["fft", "fft"]
     assert conv._conv1d_method is choose and choose(1, 9, 3, 3, 3) == "im2col"
+    pr.run()
+    assert [c.conv[0] for c in pr.model._caches[:2]] == ["im2col", "im2col"]
 
 
 @pytest.mark.parametrize("group", ["kit", "block", "loss", "modulation", "network", "variant"])
