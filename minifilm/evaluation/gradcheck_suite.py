@@ -257,7 +257,7 @@ def run(seeds: Sequence[int] = SEEDS, only: Optional[str] = None, out=print) -> 
     pick32 = [c for c in float32_cases() if not only or only.lower() in c.name.lower()]
     if not pick and not pick32:
         raise ValueError(f"gradcheck: no row's name contains {only!r} (the rows: {', '.join(c.name for c in cases())})")
-    out(f"Every backward pass against the four-point centred difference in float64 (h = {H:g}, every "
+    out(f"Every backward pass against the four-point centred difference in float64 (h = {H:.0e}, every "
         f"entry,\nobjective normalised to 1e-4; minifilm/evaluation/gradcheck_suite.py explains), seeds "
         f"{min(seeds)}-{max(seeds)}:\n")
     rows = [run_case(c, seeds) for c in pick]
