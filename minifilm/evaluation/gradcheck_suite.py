@@ -233,13 +233,18 @@ def run_case(case: Case, seeds: Sequence[int] = SEEDS) -> Row:
     return row
 
 
+def _span(seeds) -> str:
+    seeds = sorted(seeds)
+    return "-" if not seeds else str(seeds[0]) if len(seeds) == 1 else f"{seeds[0]}-{seeds[-1]}"
+
+
 def format_table(rows: Sequence[Row], title: str, error_name: str = "worst rel. error") -> str:
     """The table: one line per row, then the worst entry of every row that failed."""
     w = max([len(title)] + [len(r.case.name) for r in rows])
     head = f"{title:<{w}}  arrays  entries  seeds  {error_name:>16}  limit    crossed  pass"
     lines = [head, "-" * len(head)]
     for r in rows:
-        seeds = f"{min(r.seeds)}-{max(r.seeds)}" if r.seeds else "-"
+        seeds = _span(r.seeds)
         crossed = "-" if r.case.group == "float32" else str(r.crossings)
         lines.append(f"{r.case.name:<{w}}  {r.arrays:>6}  {r.entries:>7}  {seeds:>5}  {r.worst:>16.1e}  "
                      f"{r.case.limit:<7.0e}  {crossed:>7}  {'yes' if r.passed else 'NO'}"
@@ -259,7 +264,7 @@ def run(seeds: Sequence[int] = SEEDS, only: Optional[str] = None, out=print) -> 
         raise ValueError(f"gradcheck: no row's name contains {only!r} (the rows: {', '.join(c.name for c in cases())})")
     out(f"Every backward pass against the four-point centred difference in float64 (h = {H:.0e}, every "
         f"entry,\nobjective normalised to 1e-4; minifilm/evaluation/gradcheck_suite.py explains), seeds "
-        f"{min(seeds)}-{max(seeds)}:\n")
+        f"{_span(seeds)}:\n")
     rows = [run_case(c, seeds) for c in pick]
     out(format_table(rows, "backward pass"))
     rows32 = [run_case(c, seeds) for c in pick32]
