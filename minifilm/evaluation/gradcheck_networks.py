@@ -8,7 +8,8 @@ targets away from the bone-length loss's kinks). Per seed:
 
     build the network, add N(0, 0.1²) to every parameter (variants: 0.2², as their residual
     adapters start at zero) so biases and adapters are generic, draw the inputs (N(0, 1); the
-    PFNN's phase uniform in [0, 1)) and the dropout masks (rate 0.3), then condition.
+    PFNN's phase uniform in [0, 1)) and the dropout masks (rate 0.3), then condition
+    (Problem.prepare: masks that leave an array with no gradient at all are drawn again).
 
 Objectives: the networks on their own and the variants use a random projection of the output,
 L = Σ r ∘ out with r ~ N(0, 1), which exercises the whole Jacobian; the style model uses the

@@ -20,6 +20,10 @@ every point where the network is not smooth, or nearly not, instead of loosening
 * the bone-length loss (|·| at 0, ‖·‖ at a zero-length bone): the target rows are redrawn until
   every bone's length differs from the prediction's by MARGIN.
 
+And the check must not be vacuous: dropout masks that cut an array off from the output (in a toy
+Ψ, all of a seed's few live ReLU units dropped: every gradient of Ψ and the clip is then exactly
+0 on both sides, and "passes") are drawn again (:meth:`Problem.prepare`).
+
 Then the side of every kink is recorded (ELU / ReLU sign, the winner of every max-pool pair,
 the sign of every bone's length error, non-zero predicted bones) and compared on every
 evaluation of the stencil: ``crossings`` counts evaluations on which any changed, and must be 0.
