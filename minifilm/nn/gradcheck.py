@@ -177,7 +177,8 @@ def check_pair(forward: Callable, backward: Callable, inputs: Sequence[np.ndarra
     without a gradient, e.g. a kept-out first layer's data). The scalar checked is
     L = sum(out * r) for a fixed random r, so the whole Jacobian is exercised; it is summed exactly
     (math.fsum), so outputs a perturbation does not touch cancel exactly between f(x + h) and
-    f(x - h). Inputs must be float64; fix any randomness (dropout masks) in ``forward_kwargs``.
+    f(x - h), and normalised with scale = sum|out * r| (see the module docstring). Inputs must be
+    float64; fix any randomness (dropout masks) in ``forward_kwargs``.
     Returns ``{name: rel_error}`` for every input that has a gradient (names default to
     ``input0``, ``input1``, ...).
     """
