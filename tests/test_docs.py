@@ -3,8 +3,9 @@
 * docs/features.md is exactly what scripts/gen_features_doc.py generates from the code's layout;
 * every ```python snippet runs (in order, per file, sharing one namespace, in a scratch folder
   beside which ``../shared/data`` points at the real data). A snippet whose first line is
-  ``# needs: shared data`` is skipped when that data is absent, and nothing after it may depend
-  on it (it runs in a copy of the namespace);
+  ``# needs: shared data`` is skipped when that data is absent (the test fails instead in CI,
+  repo_paths.need_data), and nothing after it may depend on it (it runs in a copy of the
+  namespace);
 * every shell command line (```bash blocks and inline `python ...` spans) names a script or
   module that exists and only options that script defines, and ``pip install -e ".[extra]"``
   names extras that setup.cfg defines (the commands themselves are run by CI: .ci/run and
@@ -26,7 +27,7 @@ from pathlib import Path
 
 import pytest
 
-from repo_paths import REPO_ROOT, SHARED_DATA
+from repo_paths import IN_CI, REPO_ROOT, SHARED_DATA, missing_data
 
 DOCS = [REPO_ROOT / "README.md"] + sorted((REPO_ROOT / "docs").glob("*.md"))
 NEEDS_DATA = "# needs: shared data"
@@ -117,7 +118,7 @@ def test_python_snippets_run(path, tmp_path, monkeypatch):
     ran, skipped = _run_snippets(path, work)
     assert ran + skipped > 0
     if skipped:   # everything else ran and passed; say what could not run
-        pytest.skip(f"{_rel(path)}: {ran} snippet(s) ran and passed; {skipped} need the real data at {SHARED_DATA}")
+        missing_data(SHARED_DATA, f"{_rel(path)}: {ran} snippet(s) ran and passed; {skipped} need the real data, which was")
 
 
 # ---------------------------------------------------------------------------- 3. shell commands
@@ -326,6 +327,8 @@ def test_readme_example_commands_run_in_miniature(tmp_path):
         jobs["minifilm phases"] = mf + ["phases", str(syn / "Limp_FW.bvh"), "--out", str(tmp_path / "phases.png")]
         jobs["plot_phases.py"] = py + ["examples/plot_phases.py", str(syn / "Limp_FW.bvh"), "--out",
                                        str(tmp_path / "phases2.png")]
+    if not (SHARED_DATA / "released-lpn").is_dir() and IN_CI:    # a user's machine: run the rest
+        missing_data(SHARED_DATA / "released-lpn", "the released network (for the README's generate commands)")
     if (SHARED_DATA / "released-lpn").is_dir():
         jobs["minifilm generate"] = mf + [
             "generate", "--params", str(SHARED_DATA / "released-lpn"), "--style", "Zombie", "--script", "figure8",

@@ -8,6 +8,7 @@
     minifilm view         show BVH files: an animated GIF and an offline 3-D HTML player
     minifilm table2       Table 2: parameter counts and run time of the seven comparison models
     minifilm compare      Figure 10 and the style metrics: train and compare the seven models
+    minifilm gradcheck    check every backward pass against numerical gradients (the table)
 
 Each subcommand is a module of this package with ``HELP`` (one line), ``add_arguments(parser)``
 and ``run(args)``. Bad input (a missing file, a malformed BVH, a corrupt checkpoint, an argument
@@ -42,6 +43,9 @@ COMMANDS = {
     # from threads, and on a busy machine threaded BLAS made it ~20x slower here
     "table2": ("minifilm.cli.table2", "Table 2: parameter counts and run time of the seven models", ONE_BLAS_THREAD),
     "compare": ("minifilm.cli.compare", "Figure 10 and style metrics: train and compare the seven models", {}),
+    # tiny arrays: threaded BLAS only adds overhead, and the check shares the machine
+    "gradcheck": ("minifilm.cli.gradcheck", "check every backward pass against numerical gradients (the table)",
+                  {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}),
 }
 
 #: What a user can get wrong: these errors describe the input and are printed as one line.

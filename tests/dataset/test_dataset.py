@@ -223,6 +223,14 @@ def test_mirrored_rows_are_mirror_images(small):
     np.testing.assert_allclose(tb, ta * np.array([-1, 1, -1, 1]), atol=2e-5)
     za, zb = sp.z[a], sp.z[b]
     np.testing.assert_array_equal(zb[:, ds.layout.z_contacts], za[:, ds.layout.z_contacts][:, ::-1])
+    # the phases: the mirrored rows carry the original's local phases with the left and right
+    # slots swapped (slots left hand, right hand, left foot, right foot; one (sin, cos) pair each),
+    # in p and in z's next phases and phase updates
+    swap = [2, 3, 0, 1, 6, 7, 4, 5]
+    assert np.abs(sp.p[a][:, swap] - sp.p[a]).max() > 0.1          # the swap is visible
+    np.testing.assert_array_equal(sp.p[b], sp.p[a][:, swap])
+    for cols in (ds.layout.z_phases, ds.layout.z_phase_updates):
+        np.testing.assert_array_equal(zb[:, cols], za[:, cols][:, swap])
 
 
 def test_normalisation_from_training_rows_only(small):
@@ -241,6 +249,39 @@ def test_normalisation_from_training_rows_only(small):
     np.testing.assert_allclose(td.x.mean(axis=0), 0.0, atol=1e-3)
     vd = ds.train_data("val")                                 # val windows are shorter than a clip
     assert len(vd.clips) == len(ds.train.clips)
+
+
+def test_train_data_normalises_p_z_and_clips_with_the_training_statistics(small):
+    """p and z with their own training statistics; the style clips with the statistics of x's
+    joint block (the clip's 12 numbers per joint are x's joint features, original-pipeline §9);
+    every split with the training split's statistics, and clips from the training split when a
+    split's own windows are too short."""
+    _, _, ds = small
+    st, J = ds.stats, ds.layout.x_joints
+    for name, a in (("p", ds.train.p), ("z", ds.train.z)):
+        a = a.astype(np.float64)
+        std = a.std(axis=0)
+        std[std < 1e-6] = 1.0
+        np.testing.assert_allclose(getattr(st, f"{name}_mean"), a.mean(axis=0), atol=1e-9)
+        np.testing.assert_allclose(getattr(st, f"{name}_std"), std, rtol=1e-7, atol=1e-12)
+    assert ds.train.clips.shape[-1] == J.stop - J.start
+    for name in ("train", "val"):
+        td, sp = ds.train_data(name), ds.split(name)
+        clips = ds.split(name if len(sp.clips) and set(sp.style) <= set(sp.clip_style) else "train")
+        expect = {"p": (sp.p - st.p_mean) / st.p_std, "z": (sp.z - st.z_mean) / st.z_std,
+                  "clips": (clips.clips - st.x_mean[J]) / st.x_std[J]}
+        for key, want in expect.items():
+            got = getattr(td, key)
+            assert got.dtype == np.float32 and got.shape == want.shape, key
+            np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-5, err_msg=f"{name}.{key}")
+        np.testing.assert_array_equal(td.clip_style, clips.clip_style)
+    td = ds.train_data("train")
+    for key in ("p", "z"):                                    # standardised columns (not constant ones)
+        a = getattr(td, key).astype(np.float64)
+        live = getattr(st, f"{key}_std") != 1.0
+        np.testing.assert_allclose(a.mean(axis=0), 0.0, atol=1e-4)
+        np.testing.assert_allclose(a[:, live].std(axis=0), 1.0, rtol=1e-4)
+    assert ds.train_data("train", dtype=np.float64).p.dtype == np.float64
 
 
 def test_cache_second_build_is_loaded(small, shared_data):

@@ -8,6 +8,7 @@ from minifilm.baselines.variants import build_variant
 from minifilm.features.layout import FeatureLayout
 from minifilm.motion.skeletons import STYLE100
 from minifilm.dataset.stats import NormStats
+from minifilm.evaluation.metrics import silhouette_samples, silhouette_score
 
 LAYOUT = FeatureLayout.for_skeleton(STYLE100)
 
@@ -82,7 +83,16 @@ def test_tiny_compare_run(tmp_path):
         assert np.isfinite(r["errors"]["mse"]) and r["errors"]["mse"] > 0
         assert set(r["errors"]["per_style"]) == set(ctx.seen)
     ft = out["finetune"]
-    assert ft is not None and -1 <= ft["separation"]["after"]["silhouette"] <= 1
+    assert ft is not None and ft["steps"] >= 1
+    # fine-tuning moved Ψ: the held-out style's error changed, and the separations reported are
+    # those of the FiLM codes' embedding it returns
+    assert ft["after_new"]["mse"] != ft["before_new"]["mse"]
+    labels = np.asarray(ft["labels"])
+    for tag in ("before", "after"):
+        sep = ft["separation"][tag]
+        assert sep["silhouette_2d"] == pytest.approx(silhouette_score(sep["embedding"], labels), abs=1e-12)
+        focus = silhouette_samples(sep["embedding"], labels)[labels == len(ctx.seen)].mean()
+        assert sep["focus_silhouette_2d"] == pytest.approx(focus, abs=1e-12)
     text = out["report"].read_text()
     assert "LPN FiLM" in text and "LPN one-hot" in text and "Figure 10" in text
 

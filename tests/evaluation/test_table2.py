@@ -1,6 +1,8 @@
 """Table 2 (Sec. 5.2.1): the parameter counts of the seven variants equal the paper's where the
 architecture determines them, the shape-only counts equal what the models allocate, and the
 `minifilm table2` command prints and writes the table."""
+import types
+
 import numpy as np
 import pytest
 
@@ -78,7 +80,40 @@ def test_bad_counts_are_refused_before_any_work(capsys):
 
 
 def test_timing_covers_every_variant():
+    """The real networks: every variant runs through the one inference path and gets a time."""
     cfg = ModelConfig.tiny(z_dim=40)
     t = table2.time_variants(VARIANTS, cfg, frames=3, runs=2)
     assert set(t) == set(VARIANTS)
-    assert all(mean > 0 and std >= 0 for mean, std in t.values())
+    assert all(np.isfinite(mean) and mean > 0 and np.isfinite(std) for mean, std in t.values())
+
+
+def test_timing_is_the_mean_and_std_over_interleaved_runs_of_ms_per_frame(monkeypatch):
+    """With a fake clock that each prediction advances by a known time (variant k: k + 1 ms per
+    frame, plus 0.25 ms more in each later run; the warm-up call 1 s), time_variants must give
+    exactly the mean and std over runs of ms per frame, leave the warm-up out, and interleave the
+    runs (run 1 of every variant, then run 2, ...)."""
+    now, calls = [0.0], []
+
+    class FakeNetwork:
+        def __init__(self, name, cost_ms):
+            self.name, self.cost_ms, self.calls = name, cost_ms, -1
+
+        def predict(self, x, p, style):
+            calls.append(self.name)
+            if self.calls < 0:                     # the warm-up: slow, and must not be counted
+                now[0] += 1.0
+            else:                                  # run r = calls // frames
+                now[0] += 1e-3 * (self.cost_ms + 0.25 * (self.calls // frames))
+            self.calls += 1
+
+    names, frames, runs = ["PFNN one-hot", "LPN FiLM", "MANN FiLM"], 4, 3
+    cost = {n: k + 1.0 for k, n in enumerate(names)}
+    monkeypatch.setattr(table2, "_timing_inputs", lambda name, config, frames, rng: (
+        FakeNetwork(name, cost[name]), np.zeros((frames, 1)), np.zeros((frames, 1)), None))
+    monkeypatch.setattr(table2, "time", types.SimpleNamespace(perf_counter=lambda: now[0]))
+    t = table2.time_variants(names, ModelConfig.tiny(), frames=frames, runs=runs)
+    for n in names:
+        per_run = [cost[n] + 0.25 * r for r in range(runs)]
+        assert t[n] == pytest.approx((np.mean(per_run), np.std(per_run)), rel=1e-9)
+    timed = calls[len(names):]
+    assert timed == [n for _ in range(runs) for n in names for _ in range(frames)]

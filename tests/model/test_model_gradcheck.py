@@ -1,99 +1,85 @@
-"""Whole-model gradient check (Eq. 2-7): every parameter of Ω, Φ and Ψ and the inputs x, p, y,
-through loss = MSE + BLL, in float64 with dropout on (fixed masks)."""
+"""Gradient checks of the model: its blocks, the losses (with their degenerate branches), Ω, Φ, Ψ
+and the style model (Eq. 2-7) in its three forms, each on seeds 0-4, and the float32 backward
+passes against float64.
+
+The rows of ``minifilm gradcheck`` run here one (row, seed) per test (minifilm/evaluation/
+gradcheck_suite.py gives the method and the limits; gradcheck_networks.py the set-up: toy
+networks, dropout on with fixed masks, every kink kept MARGIN away and watched by a guard).
+"""
 import numpy as np
 import pytest
 
-from minifilm.model.config import ModelConfig
+from gradcheck_report import check
+from minifilm.evaluation import gradcheck_networks as nets
+from minifilm.evaluation.gradcheck_setup import MARGIN, PARENTS, POS_IDX, SIGMA_MIN, problem_pairs
+from minifilm.evaluation.gradcheck_suite import FLOAT32_TOLERANCE, SEEDS, cases, float32_cases
 from minifilm.model.losses import bone_length_loss, mse_loss
-from minifilm.model.style_model import StyleModel
-from minifilm.nn.gradcheck import check_gradients
 
-# toy skeleton: 4 joints, positions at output columns 2.., chain 0-1-2 and 0-3
-PARENTS = np.array([-1, 0, 1, 0])
-POS_IDX = 2 + np.arange(12).reshape(4, 3)
+MODEL_ROWS = [c for c in cases() if c.group in ("block", "loss", "network")]
+FLOAT32_ROWS = [c for c in float32_cases() if c.name[0] in "ΩΦΨ" or c.name.startswith("style model")]
 
 
-def toy_config(dropout=0.3):
-    return ModelConfig(x_dim=6, z_dim=15, phase_dim=8, n_experts=3, hidden=5, gating_hidden=4,
-                       clip_frames=9, clip_channels=3, conv_filters=3, conv_kernel=3, film_dense=6,
-                       dropout=dropout)
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("case", MODEL_ROWS, ids=lambda c: c.name)
+def test_model_gradients(case, seed):
+    """Blocks, losses and whole networks: every entry of every input and parameter array."""
+    check(case, seed)
 
 
-def make_problem(seed, dropout=0.3, B=3):
-    rng = np.random.default_rng(seed)
-    cfg = toy_config(dropout)
-    model = StyleModel(cfg, rng, dtype=np.float64)
-    for ps in model.parameter_sets():                 # non-zero biases, so their grads matter
-        ps.data += 0.1 * rng.standard_normal(ps.size)
-    x = rng.standard_normal((B, cfg.x_dim))
-    p = rng.standard_normal((B, cfg.phase_dim))
-    clip = rng.standard_normal((B, cfg.clip_frames, cfg.clip_channels))
-    z = rng.standard_normal((B, cfg.z_dim))
-    out_mean = rng.standard_normal(cfg.z_dim)
-    out_std = 0.5 + rng.random(cfg.z_dim)
-    return model, x, p, clip, z, out_mean, out_std, rng
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("case", FLOAT32_ROWS, ids=lambda c: c.name)
+def test_float32_backward_matches_float64(case, seed):
+    """Training runs in float32: the same backward pass (same parameters, inputs, dropout masks
+    and incoming gradient) agrees with float64 to FLOAT32_TOLERANCE, relative, per array."""
+    assert case.limit == FLOAT32_TOLERANCE
+    check(case, seed)
 
 
-def test_whole_model_gradients_with_dropout():
-    model, x, p, clip, z, mean, std, rng = make_problem(2)
-    model.forward(x, p, clip, train=True, rng=rng)
-    masks = model.used_masks
-    assert set(masks) == {"gating0", "gating1", "gating2", "motion0", "motion1", "motion2", "film_dense"}
-    assert any(not m.all() for m in masks.values())   # dropout really drops something
-
-    def loss():
-        pred = model.forward(x, p, clip, train=True, masks=masks)
-        return mse_loss(pred, z)[0] + bone_length_loss(pred, z, POS_IDX, PARENTS, mean, std)[0]
-
-    model.zero_grad()
-    pred = model.forward(x, p, clip, train=True, masks=masks)
-    _, d1 = mse_loss(pred, z)
-    _, d2 = bone_length_loss(pred, z, POS_IDX, PARENTS, mean, std)
-    dinputs = model.backward(d1 + d2)
-
-    pairs = {"x": (x, dinputs["x"]), "p": (p, dinputs["p"]), "clip": (clip, dinputs["clip"])}
-    for net_name, ps in zip(("gating", "motion", "film"), model.parameter_sets()):
-        for name in ps.names():
-            pairs[f"{net_name}.{name}"] = (ps.params[name], ps.grads[name])
-    # Step size: with the elementwise metric, centred differences have rounding noise of about
-    # ulp(f) / h ~ 1e-11 at h = 1e-5, which fails the smallest gradient entries (~1e-5) of a
-    # 900-entry check; h = 1e-4 brings the noise to ~1e-12 while the h^2 truncation error stays
-    # ~1e-10. The seed is one whose ReLU / max-pool / |.| inputs are not within h of a kink
-    # (a kink crossed by the perturbation is a property of finite differences, not a bug).
-    errors = check_gradients(loss, pairs, h=1e-4)
-    bad = {k: v for k, v in errors.items() if not v < 1e-6}
-    assert not bad, bad
-    # every parameter array got a non-trivial gradient (nothing silently disconnected)
-    for k, (_, g) in pairs.items():
-        assert np.abs(g).max() > 0, k
+@pytest.mark.parametrize("form", ["per-sample", "shared-clip", "film-vector"])
+def test_the_set_up_keeps_every_kink_away_and_really_drops_units(form):
+    """What the whole-model checks rely on: every ELU / ReLU input, max-pool pair and bone-length
+    term at least MARGIN from its switch, every layer-norm row at σ >= SIGMA_MIN, a mask at every
+    dropout site that really drops units at (nearly) all of them, and every input and parameter
+    array with a non-zero gradient (nothing silently disconnected)."""
+    for seed in SEEDS:
+        pr = nets.style_model_problem(seed, form)
+        out, _, _, _, _, pairs = problem_pairs(pr)
+        assert pr.margin(out) >= MARGIN and pr.sigma_min() >= SIGMA_MIN
+        masks = pr.model.used_masks
+        sites = {"gating0", "gating1", "gating2", "motion0", "motion1", "motion2"} | \
+            ({"film_dense"} if form != "film-vector" else set())
+        assert sites <= set(masks) and sum(not masks[s].all() for s in sites) >= len(sites) - 2
+        for name, (_, g) in pairs.items():
+            assert np.abs(g).max() > 0, (form, seed, name)
 
 
-def test_forward_with_film_gradients_shared_style_vector():
-    """A single precomputed FiLM vector (4H,) shared by the batch: dfilm is summed over it."""
-    model, x, p, clip, z, mean, std, rng = make_problem(1, dropout=0.0)
-    film = model.film_parameters(clip)[0].copy()
+def test_a_wrong_backward_pass_fails_its_row(monkeypatch):
+    """Break FiLM's dβ in Φ's backward pass by 1e-6: the Φ row and the whole-model row fail."""
+    from minifilm.nn import functional as F
+    real = F.film_backward
 
-    def loss():
-        return mse_loss(model.forward_with_film(x, p, film), z)[0]
+    def broken(dout, cache):
+        dh, dgamma, dbeta = real(dout, cache)
+        return dh, dgamma, dbeta * (1 + 1e-6)
 
-    model.zero_grad()
-    _, d = mse_loss(model.forward_with_film(x, p, film), z)
-    dx, dp, dfilm = model.backward_with_film(d)
-    assert dfilm.shape == film.shape
-    errors = check_gradients(loss, {"x": (x, dx), "p": (p, dp), "film": (film, dfilm)}, h=1e-5)
-    assert max(errors.values()) < 1e-6, errors
+    monkeypatch.setattr(F, "film_backward", broken)
+    for name in ("Φ motion network (Eq. 3)", "style model, MSE + BLL (Eq. 4-7)"):
+        case = next(c for c in cases() if c.name == name)
+        assert max(case.check(0).errors.values()) > case.limit
 
 
 @pytest.mark.parametrize("seed", range(5))
 def test_shared_clips_are_the_per_sample_form_with_clips_repeated(seed):
     """Clips shared by the batch (TrainConfig.clips_per_batch): Ψ runs on M = 2 clips and each
-    sample uses one of them (clip_index). That is exactly the per-sample form (checked numerically
-    above) with the clips repeated, the dropout masks of Ψ repeated alike, and the gradient of a
-    shared clip / of Ψ's parameters the sum over the samples using it (the gather's backward,
-    checked numerically in tests/nn/test_gradcheck.py). Both sides analytic, equal to rounding."""
-    model, x, p, _, z, mean, std, rng = make_problem(10 + seed, B=4)
-    cfg = model.config
-    clips = rng.standard_normal((2, cfg.clip_frames, cfg.clip_channels))
+    sample uses one of them (clip_index). That is exactly the per-sample form with the clips
+    repeated, the dropout masks of Ψ repeated alike, and the gradient of a shared clip / of Ψ's
+    parameters the sum over the samples using it. Both sides analytic, equal to rounding (the
+    numerical check of both forms is in the table)."""
+    pr = nets.style_model_problem(10 + seed, "shared-clip")
+    model, (x, p, clips) = pr.model, (pr.inputs[k] for k in ("x", "p", "clip"))
+    rng = np.random.default_rng(seed)
+    z = rng.standard_normal((len(x), model.config.z_dim))
+    mean, std = rng.standard_normal(z.shape[1]), 0.5 + rng.random(z.shape[1])
     index = np.array([1, 0, 1, 1])
     model.forward(x, p, clips, train=True, rng=rng, clip_index=index)
     masks = model.used_masks

@@ -161,6 +161,52 @@ def test_speed_calibration_inverts_the_measured_map():
     np.testing.assert_allclose(side, [[4.0, 0.0]], atol=1e-5)
 
 
+def test_calibrate_speed_measures_each_command_and_direction_after_settling():
+    """calibrate_speed: one character per (direction, command), all in one batch, each commanded
+    at a constant speed and direction for `seconds`; the achieved speed is the path length
+    after `settle` seconds over that time. A fake controller moves character b at a known speed
+    (a function of its command and direction) after the settle time, and 10x faster before it."""
+    from types import SimpleNamespace
+    from minifilm.runtime.calibration import calibrate_speed
+
+    def achieved(speed, direction):
+        return speed * (0.6 - 0.2 * direction / 180.0)
+
+    class FakeController:
+        fps = 30.0
+
+        def run(self, scripts, n, film, phases=None, start_x=None):
+            self.args = (scripts, n, film, phases, start_x)
+            k0 = int(round(2.0 * self.fps))
+            t = np.arange(n) / self.fps
+            pos = []
+            for s in scripts:
+                v, d = float(s.speeds[0]), float(np.degrees(s.moves[0]))
+                assert np.allclose(s.speeds, v) and np.allclose(np.degrees(s.moves), d) and s.duration == 5.0
+                w = achieved(v, d)
+                dist = np.where(t < t[k0], 10 * w * t, 10 * w * t[k0] + w * (t - t[k0]))
+                pos.append(dist[:, None] * np.array([np.cos(np.radians(d)), np.sin(np.radians(d))]))
+            return SimpleNamespace(root_positions=np.stack(pos))
+
+    ctl = FakeController()
+    commands, directions = (0.5, 1.0, 3.0), (0.0, 90.0, 180.0)
+    film, phases = np.arange(4.0), np.ones(8)
+    cal = calibrate_speed(ctl, film, commands=commands, directions=directions, seconds=5.0, settle=2.0,
+                          phases=phases)
+    scripts, n, film_seen, phases_seen, start_x = ctl.args
+    assert n == 150 and film_seen is film and phases_seen is phases and start_x is None
+    assert [(float(s.speeds[0]), round(float(np.degrees(s.moves[0])))) for s in scripts] == \
+        [(v, d) for d in directions for v in commands]                 # direction-major, one batch
+    expect = np.array([[achieved(v, d) for v in commands] for d in directions])
+    np.testing.assert_allclose(cal.achieved[:, 1:], expect, rtol=1e-9)          # after the origin
+    np.testing.assert_allclose(cal.commanded, [0.0, *commands])
+    np.testing.assert_allclose(cal.directions, directions)
+    for d in directions:                                              # and the map inverts
+        np.testing.assert_allclose(cal.command_for(achieved(1.0, d), d), 1.0, atol=1e-6)
+    with pytest.raises(ValueError, match="settle"):
+        calibrate_speed(ctl, film, seconds=2.0, settle=2.0)
+
+
 def test_per_frame_films_reach_the_network_in_order():
     net, script, stats, a, u = glide_setup()
     seen = []

@@ -18,6 +18,7 @@ from minifilm.motion.skeletons import STYLE100
 from minifilm.runtime.controller import Controller, root_joint_indices
 from minifilm.runtime.network import RuntimeNetwork
 from minifilm.runtime.style_library import StyleLibrary
+from repo_paths import need_data
 
 WALKING = ("Neutral", "Old", "Zombie")
 MINUTE = 3600
@@ -27,9 +28,7 @@ MINUTE = 3600
 def released(shared_data):
     from minifilm.runtime.released import load_released
 
-    folder = shared_data / "released-lpn"
-    if not folder.is_dir():
-        pytest.skip(f"released network not found at {folder}")
+    folder = need_data(shared_data / "released-lpn", "the released network")
     rel = load_released(folder)
     net = RuntimeNetwork.from_model(rel.model, rel.stats, runtime_layer_norm=True)
     layout = FeatureLayout.for_skeleton(STYLE100)
@@ -38,9 +37,7 @@ def released(shared_data):
 
 @pytest.fixture(scope="module")
 def skeleton(shared_data):
-    header = shared_data / "100style" / "Neutral_FR_first3frames.bvh"
-    if not header.is_file():
-        pytest.skip(f"100STYLE header not found at {header}")
+    header = need_data(shared_data / "100style" / "Neutral_FR_first3frames.bvh", "the 100STYLE header")
     return read_bvh(header)
 
 

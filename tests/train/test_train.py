@@ -283,3 +283,118 @@ def test_cosine_learning_rate_schedule():
     assert trainer.optimizer.lr < lr and trainer.optimizer.lr > trainer.learning_rate(1.0) - 1e-12
     with pytest.raises(ValueError, match="lr_schedule"):
         TrainConfig(lr_schedule="step")
+
+
+# ---- settings and entry points: bll_weight, evaluate's weighting, train(), resume, checkpoints ----
+@pytest.mark.parametrize("weight", [0.0, 0.5, 2.0])
+def test_bll_weight_scales_the_bone_length_loss_and_its_gradient(weight):
+    """L = L_mse + w L_bll (Eq. 5-7 with the weight of TrainConfig.bll_weight): the reported BLL is
+    w times Eq. (7) and the gradient w times its gradient; w = 0 leaves the MSE alone."""
+    from minifilm.model.losses import bone_length_loss, mse_loss
+    trainer = new_trainer(bll_weight=weight)
+    rng = np.random.default_rng(0)
+    pred, target = rng.standard_normal((5, CFG.z_dim)), rng.standard_normal((5, CFG.z_dim))
+    mse, bll, dpred = trainer.losses(pred, target)
+    m, dm = mse_loss(pred, target)
+    b, db = bone_length_loss(pred, target, POS_IDX, PARENTS, STATS.z_mean, STATS.z_std)
+    assert b > 0.1 and mse == m
+    assert bll == pytest.approx(weight * b, rel=1e-12, abs=0.0)
+    np.testing.assert_allclose(dpred, dm + weight * db, rtol=1e-12, atol=1e-15)
+    if weight == 0.0:
+        assert bll == 0.0 and np.array_equal(dpred, dm)
+
+
+def test_bll_weight_changes_training():
+    """The weight reaches the optimiser: one epoch with w = 0 and w = 2 from the same start ends
+    at different weights, and the recorded training BLL of w = 0 is 0."""
+    data = make_data(0)
+    runs = {w: new_trainer(epochs=1, bll_weight=w) for w in (0.0, 2.0)}
+    for t in runs.values():
+        t.fit(data)
+    assert runs[0.0].history[0]["train"]["bll"] == 0.0 and runs[2.0].history[0]["train"]["bll"] > 0
+    assert not np.array_equal(runs[0.0].model.motion.params.data, runs[2.0].model.motion.params.data)
+
+
+def test_evaluate_weights_every_style_equally():
+    """Eq. (5)/(7) average per style, then over styles: a style with 10 frames counts as much as
+    one with 100 (evaluation batches of 7 frames, so the per-style means span uneven batches).
+    One clip per style, so the expected numbers follow from plain forward passes."""
+    data = make_data(3, styles=(0, 1), frames=(10, 100), n_clips=1)
+    trainer = new_trainer(eval_batch=7)
+    result = trainer.evaluate(data)
+    per_style = {}
+    for s in (0, 1):
+        idx = np.flatnonzero(data.style == s)
+        clip = data.clips[data.clip_style == s]
+        pred = trainer.model.forward(data.x[idx], data.p[idx], np.repeat(clip, len(idx), axis=0))
+        mse, bll, _ = trainer.losses(pred, data.z[idx])
+        per_style[f"S{s}"] = (mse, bll)
+        assert result["per_style"][f"S{s}"]["mse"] == pytest.approx(mse, rel=1e-4)
+        assert result["per_style"][f"S{s}"]["bll"] == pytest.approx(bll, rel=1e-4)
+    (m0, b0), (m1, b1) = per_style["S0"], per_style["S1"]
+    assert result["mse"] == pytest.approx((m0 + m1) / 2, rel=1e-4)
+    assert result["bll"] == pytest.approx((b0 + b1) / 2, rel=1e-4)
+    assert result["loss"] == pytest.approx(result["mse"] + result["bll"], rel=1e-12)
+    frame_weighted = (10 * m0 + 100 * m1) / 110
+    assert abs(result["mse"] - frame_weighted) > 100 * abs(result["mse"] - (m0 + m1) / 2)
+
+
+def test_train_is_a_fresh_trainer_fitted():
+    """train(): a new Trainer with the given settings, fitted for config.epochs with validation
+    after every epoch, exactly as building the Trainer and calling fit would."""
+    data, val = make_data(0), make_data(1)
+    cfg = TrainConfig(epochs=2, batch_size=16, lr=2e-3, seed=4)
+    trainer = train(StyleModel(CFG, np.random.default_rng(4)), data, val, STATS, POS_IDX, PARENTS, cfg,
+                    style_names=[f"S{i}" for i in range(10)])
+    manual = Trainer(StyleModel(CFG, np.random.default_rng(4)), STATS, TrainConfig(**cfg.to_dict()), POS_IDX,
+                     PARENTS, [f"S{i}" for i in range(10)])
+    manual.fit(data, val)
+    assert trainer.epoch == 2 and [h["epoch"] for h in trainer.history] == [1, 2]
+    assert all("val" in h for h in trainer.history) and trainer.config is cfg
+    assert json.dumps(trainer.history) == json.dumps(manual.history)
+    for a, b in zip(trainer.model.parameter_sets(), manual.model.parameter_sets()):
+        np.testing.assert_array_equal(a.data, b.data)
+
+
+def test_resume_without_the_optimiser_is_a_new_run_from_the_weights(tmp_path):
+    """restore_optimizer=False (what fine-tuning uses): the weights, statistics and loss settings
+    come from the checkpoint, but the optimiser, the generator, the epoch count and the history
+    start afresh, so the run equals a new Trainer built on those weights."""
+    path = tmp_path / "ck.npz"
+    first = new_trainer(epochs=1, checkpoint_path=str(path))
+    first.fit(make_data(0))
+    assert first.optimizer.steps[0] > 0
+    cfg = TrainConfig(epochs=1, batch_size=16, lr=2e-3, seed=9)
+    fresh = Trainer.resume(path, cfg, restore_optimizer=False)
+    for a, b in zip(first.model.parameter_sets(), fresh.model.parameter_sets()):
+        np.testing.assert_array_equal(a.data, b.data)
+    assert fresh.epoch == 0 and fresh.step == 0 and fresh.history == []
+    assert fresh.optimizer.steps == [0, 0, 0] and all(not m.any() for m in fresh.optimizer.m + fresh.optimizer.v)
+    assert fresh.rng.bit_generator.state == np.random.default_rng(9).bit_generator.state
+    np.testing.assert_array_equal(fresh.positions_idx, POS_IDX)
+    # and it trains like a new Trainer on the same weights
+    twin = Trainer(StyleModel(CFG, np.random.default_rng(0)), STATS, cfg, POS_IDX, PARENTS, fresh.style_names)
+    for a, b in zip(twin.model.parameter_sets(), fresh.model.parameter_sets()):
+        a.data[...] = b.data
+    for t in (fresh, twin):
+        t.fit(make_data(0))
+    for a, b in zip(twin.model.parameter_sets(), fresh.model.parameter_sets()):
+        np.testing.assert_array_equal(a.data, b.data)
+    # restore_optimizer=True (the default) continues the old run instead
+    cont = Trainer.resume(path, cfg)
+    assert cont.epoch == 1 and cont.optimizer.steps == first.optimizer.steps
+
+
+@pytest.mark.parametrize("every,epochs,saved", [(1, 3, [1, 2, 3]), (2, 3, [2]), (2, 4, [2, 4]), (5, 3, [])])
+def test_checkpoint_every_n_epochs(tmp_path, monkeypatch, every, epochs, saved):
+    path = tmp_path / "ck.npz"
+    trainer = new_trainer(epochs=epochs, checkpoint_path=str(path), checkpoint_every=every)
+    calls = []
+    real_save = trainer.save
+    monkeypatch.setattr(trainer, "save", lambda p: (calls.append((trainer.epoch, p)), real_save(p)))
+    trainer.fit(make_data(0, frames=(32, 32, 32)))
+    assert calls == [(e, str(path)) for e in saved]
+    if saved:
+        assert load_checkpoint(path)[0]["epoch"] == saved[-1]
+    else:
+        assert not path.exists()

@@ -12,6 +12,7 @@ import pytest
 from minifilm.motion.bvh import read_bvh
 from minifilm.viewer import track_from_bvh, track_from_motion, write_html
 
+from repo_paths import need_data
 from viewer_helpers import foot_contacts, synthetic_walker
 
 Image = pytest.importorskip("PIL.Image", reason="screenshots are compared with Pillow")
@@ -45,9 +46,7 @@ class Page:
 @pytest.fixture(scope="module")
 def scene(browser, tmp_path_factory, shared_data):
     """One page with a real Bandai walk (30 fps) and a synthetic walker with foot contacts."""
-    bvh = shared_data / "bandai2" / "dataset-2_walk_normal_001.bvh"
-    if not bvh.is_file():
-        pytest.skip(f"real BVH not found: {bvh}")
+    bvh = need_data(shared_data / "bandai2" / "dataset-2_walk_normal_001.bvh", "a real BVH")
     walker = synthetic_walker(n_frames=90, fps=60.0, turn=0.5)
     P, _ = walker.world()
     feet = [walker.names.index("LeftFootSite"), walker.names.index("RightFootSite")]

@@ -5,6 +5,7 @@ import pytest
 from minifilm.motion.bvh import BVHError, read_bvh
 from minifilm.viewer import Track, as_tracks, track_from_bvh, track_from_motion
 
+from repo_paths import need_data
 from viewer_helpers import foot_contacts, synthetic_walker
 
 
@@ -46,9 +47,7 @@ def test_bandai_drops_zero_sites_and_the_static_root(bandai_walk):
 
 def test_a_moving_floor_root_is_not_drawn_either(shared_data):
     # Bandai 1 walk-back: the translation is on joint_Root, which moves on the floor under Hips.
-    path = shared_data / "bvh" / "bandai1" / "dataset-1_walk-back_normal_001.bvh"
-    if not path.is_file():
-        pytest.skip(f"real BVH not found: {path}")
+    path = need_data(shared_data / "bvh" / "bandai1" / "dataset-1_walk-back_normal_001.bvh", "a real BVH")
     motion = read_bvh(path)
     assert np.ptp(motion.world()[0][:, 0], axis=0).max() > 1.0  # joint_Root walks
     track = track_from_bvh(path)

@@ -1,0 +1,106 @@
+"""The gradient-check suite itself (minifilm/evaluation/gradcheck_suite.py, ``minifilm gradcheck``):
+it has a row for every backward pass, prints the table, fails loudly (exit code 1) when a
+backward pass is wrong, and forces the FFT convolution when asked. The rows themselves run in
+tests/nn/test_gradcheck.py, tests/model/test_model_gradcheck.py and
+tests/baselines/test_baselines_gradcheck.py."""
+import ast
+import re
+import subprocess
+import sys
+
+import pytest
+
+from minifilm.evaluation import gradcheck_suite as suite
+from minifilm.nn import conv
+from minifilm.nn import functional as F
+from repo_paths import REPO_ROOT
+
+COVERED = {ref for case in suite.cases() for ref in case.covers}
+
+
+def test_every_backward_pass_of_docs_backprop_has_a_row():
+    """docs/backprop.md names the backward passes (and the code they rest on) as
+    `path::name`: each one is covered by a row of the table."""
+    text = (REPO_ROOT / "docs" / "backprop.md").read_text(encoding="utf-8")
+    refs = {r for r in re.findall(r"`(minifilm/[\w/]+\.py::[\w.]+)`", text)
+            if not r.startswith("minifilm/nn/gradcheck.py")}         # the method, not a backward pass
+    assert len(refs) > 15
+    assert not refs - COVERED, f"named in docs/backprop.md but in no row of the suite: {sorted(refs - COVERED)}"
+
+
+def backward_passes():
+    """Every *_backward function of the kit and the blocks, and every backward method of the
+    networks and style modulations, as `path::name`."""
+    out = []
+    for rel in ("minifilm/nn/functional.py", "minifilm/nn/conv.py", "minifilm/model/blocks.py"):
+        tree = ast.parse((REPO_ROOT / rel).read_text(encoding="utf-8"))
+        out += [f"{rel}::{n.name}" for n in tree.body if isinstance(n, ast.FunctionDef) and n.name.endswith("_backward")]
+    for rel in ("minifilm/model/gating.py", "minifilm/model/motion_net.py", "minifilm/model/film_generator.py",
+                "minifilm/model/style_model.py", "minifilm/baselines/style_modulation.py",
+                "minifilm/baselines/expert_net.py", "minifilm/baselines/variants.py"):
+        tree = ast.parse((REPO_ROOT / rel).read_text(encoding="utf-8"))
+        out += [f"{rel}::{c.name}.{f.name}" for c in tree.body if isinstance(c, ast.ClassDef)
+                for f in c.body if isinstance(f, ast.FunctionDef) and f.name.startswith("backward")]
+    return out
+
+
+def test_every_backward_pass_in_the_code_has_a_row():
+    passes = backward_passes()
+    assert "minifilm/nn/functional.py::layer_norm_backward" in passes and len(passes) > 25
+    missing = [p for p in passes if p not in COVERED]
+    assert not missing, f"backward passes without a row in the gradient-check table: {missing}"
+
+
+def test_the_command_prints_the_table():
+    proc = subprocess.run([sys.executable, "-m", "minifilm", "gradcheck", "--only", "layer norm (biased", "--seeds", "2"],
+                          capture_output=True, text=True, timeout=120, cwd=REPO_ROOT)
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    head = next(i for i, line in enumerate(lines) if line.startswith("backward pass"))
+    assert lines[head].split() == ["backward", "pass", "arrays", "entries", "seeds", "worst", "rel.", "error",
+                                   "limit", "crossed", "pass"]
+    row = lines[head + 2].split()
+    assert row[:5] == ["layer", "norm", "(biased", "σ,", "ε"] and row[-1] == "yes" and row[-3] == "1e-07"
+    assert float(row[-4]) < 1e-7 and row[-5] == "0-1"
+    assert "1 of 1 checks passed" in proc.stdout
+
+
+def test_a_wrong_backward_pass_fails_the_table_and_the_exit_code(monkeypatch):
+    real = F.softmax_backward
+    monkeypatch.setattr(F, "softmax_backward", lambda dout, cache: real(dout, cache) * (1 + 1e-6))
+    printed = []
+    assert suite.run(seeds=[0], only="softmax", out=printed.append) == 1
+    text = "\n".join(printed)
+    assert re.search(r"^softmax .* NO$", text, re.M) and "FAILED softmax: seed 0: x[" in text
+    monkeypatch.setattr(F, "softmax_backward", real)
+    assert suite.run(seeds=[0], only="softmax", out=printed.append) == 0
+
+
+def test_a_check_that_raises_is_a_failed_row():
+    case = suite.Case("raises", "kit", lambda seed: 1 / 0)
+    row = suite.run_case(case, [0, 1])
+    assert not row.passed and "ZeroDivisionError" in row.error
+    assert "FAILED raises: seed 0: ZeroDivisionError" in suite.format_table([row], "backward pass")
+
+
+def test_fft_convolutions_forces_the_fft_method_and_restores_the_choice():
+    """The row 'Ψ, FFT convolutions' really runs both of Ψ's convolutions in the FFT form (the
+    toy sizes would pick im2col), and only there."""
+    from minifilm.evaluation import gradcheck_networks as nets
+    choose = conv._conv1d_method
+    with suite.fft_convolutions():
+        assert conv._conv1d_method(1, 9, 3, 3, 3) == "fft"
+        pr = nets.psi_problem(0)
+        pr.run()
+        assert [c.conv[0] for c in pr.model._caches[:2]] == ["fft", "fft"]
+    assert conv._conv1d_method is choose and choose(1, 9, 3, 3, 3) == "im2col"
+    pr.run()
+    assert [c.conv[0] for c in pr.model._caches[:2]] == ["im2col", "im2col"]
+
+
+@pytest.mark.parametrize("group", ["kit", "block", "loss", "modulation", "network", "variant"])
+def test_rows_have_covers_and_names_are_unique(group):
+    rows = [c for c in suite.cases() if c.group == group]
+    assert rows and all(c.covers for c in rows)
+    names = [c.name for c in suite.cases()] + [c.name + " (float32)" for c in suite.float32_cases()]
+    assert len(names) == len(set(names))
