@@ -10,7 +10,13 @@ network's folder, pictures) goes through here:
   folder, which then replaces the target (an old folder of that name is moved aside first and
   removed after the swap, so nothing of it survives in the new one);
 * :func:`atomic_path` is the same for writers that want a file name (Pillow, matplotlib);
-* :func:`check_writable` says, before any long computation, whether a path can be written.
+* :func:`check_writable` says, before any long computation, whether a path can be written;
+* :func:`read_npz` is the one reader of the ``.npz`` archives minifilm writes: it checks every
+  member's declared size against the file and a memory budget *before* allocating, never unpickles,
+  and turns every way an archive can be broken into one error naming the file.
+
+A writer killed midway (power cut, SIGKILL) cannot clean up after itself; its temporary file carries
+its process id, and the next writer of the same target removes temporaries whose process is gone.
 
 Files get the permissions a plain ``open(path, "w")`` would give (0666 less the umask): the
 temporary files of ``tempfile`` are created 0600, which would make outputs private by accident.
@@ -21,14 +27,17 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import shutil
 import tempfile
+import zipfile
+import zlib
 from pathlib import Path
-from typing import BinaryIO, Callable, Iterator, Union
+from typing import BinaryIO, Callable, Dict, Iterator, Optional, Type, Union
 
 import numpy as np
 
-from minifilm.errors import OutputPathError
+from minifilm.errors import InputError, OutputPathError
 
 PathLike = Union[str, os.PathLike]
 
@@ -38,6 +47,40 @@ def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
     return mask
+
+
+def _temp_prefix(target: Path) -> str:
+    """Temporary siblings of ``target`` are named ``.<name>.<pid>.<random><suffix>``."""
+    return f".{target.name}.{os.getpid()}."
+
+
+def _process_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:         # somebody else's process
+        return True
+    return True
+
+
+def remove_stale_temporaries(target: PathLike) -> int:
+    """Delete temporary siblings of ``target`` left by writers that were killed (their process no
+    longer exists); returns how many were removed. Temporaries of live writers are left alone."""
+    target = Path(target)
+    pattern = re.compile(r"^\." + re.escape(target.name) + r"\.(\d+)\..*\.(tmp|part|old)$")
+    removed = 0
+    try:
+        siblings = list(target.parent.iterdir())
+    except OSError:
+        return 0
+    for p in siblings:
+        m = pattern.match(p.name)
+        if m and int(m.group(1)) != os.getpid() and not _process_alive(int(m.group(1))):
+            with contextlib.suppress(OSError):
+                shutil.rmtree(p) if p.is_dir() and not p.is_symlink() else p.unlink()
+                removed += 1
+    return removed
 
 
 def check_writable(path: PathLike, what: str = "output") -> Path:
@@ -73,7 +116,8 @@ def atomic_path(path: PathLike, what: str = "output") -> Iterator[str]:
         reason = "does not exist" if not folder.exists() else "is not a folder"
         raise OutputPathError(f"cannot write {what} to {target}: folder {folder} {reason}")
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=folder)
+        remove_stale_temporaries(target)
+        fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(target), suffix=".part", dir=folder)
     except OSError as e:
         raise OutputPathError(f"cannot write {what} to {target}: {e.strerror or e}") from None
     os.close(fd)
@@ -95,7 +139,8 @@ def atomic_write(path: PathLike, write: Callable[[BinaryIO], None]) -> Path:
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    remove_stale_temporaries(path)
+    fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=".tmp", dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as f:
             write(f)
@@ -140,13 +185,14 @@ def atomic_directory(path: PathLike) -> Iterator[Path]:
     path.parent.mkdir(parents=True, exist_ok=True)
     if path.exists() and not path.is_dir():
         raise NotADirectoryError(f"{path}: exists and is not a folder")
-    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
+    remove_stale_temporaries(path)
+    tmp = Path(tempfile.mkdtemp(prefix=_temp_prefix(path), suffix=".tmp", dir=path.parent))
     try:
         os.chmod(tmp, 0o777 & ~_umask())
         yield tmp
         old = None
         if path.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".old", dir=path.parent))
+            old = Path(tempfile.mkdtemp(prefix=_temp_prefix(path), suffix=".old", dir=path.parent))
             os.replace(path, old / "folder")
         os.replace(tmp, path)
         if old is not None:
@@ -154,3 +200,51 @@ def atomic_directory(path: PathLike) -> Iterator[Path]:
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+#: The most a single .npz archive may ask for when read: far above any minifilm file (the paper's
+#: model and its Adam state are ~70 MB), far below a machine's memory.
+MAX_NPZ_BYTES = 1 << 30
+
+
+def read_npz(path: PathLike, what: str = "archive", error: Type[InputError] = InputError,
+             max_bytes: Optional[int] = MAX_NPZ_BYTES) -> Dict[str, np.ndarray]:
+    """Every array of the ``.npz`` at ``path`` -> {name: array}, or ``error`` naming ``what`` and the file.
+
+    Before reading, each member's ``.npy`` header is checked: no object dtype (that would be a
+    pickle), and the size it declares must fit in the member and, summed, in ``max_bytes`` (None: no
+    budget, for dataset caches, which hold whatever data the user has). So a
+    truncated or forged archive is an error, never a huge allocation or a half-read array.
+    FileNotFoundError when there is no file at all (the caller knows better what that means).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{what} {path}: no such file")
+    where = f"{what} {path}"
+    try:
+        with zipfile.ZipFile(path) as archive:
+            total = 0
+            for info in archive.infolist():
+                if not info.filename.endswith(".npy"):
+                    raise error(f"{where}: member {info.filename!r} is not a .npy array")
+                with archive.open(info) as member:
+                    version = np.lib.format.read_magic(member)
+                    header = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                              else np.lib.format.read_array_header_2_0)
+                    shape, _, dtype = header(member)
+                if dtype.hasobject:
+                    raise error(f"{where}: array {info.filename[:-4]!r} holds Python objects (refused: never unpickled)")
+                nbytes = int(np.prod(shape, dtype=np.float64)) * dtype.itemsize
+                if nbytes > info.file_size:
+                    raise error(f"{where}: array {info.filename[:-4]!r} declares {nbytes:,} bytes but holds "
+                                f"{info.file_size:,} (truncated or forged)")
+                total += nbytes
+                if max_bytes is not None and total > max_bytes:
+                    raise error(f"{where}: its arrays would take more than {max_bytes / 2**30:g} GiB of memory")
+        with np.load(path, allow_pickle=False) as z:
+            return {name: z[name] for name in z.files}
+    except error:
+        raise
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, ValueError, OSError, EOFError, KeyError, MemoryError,
+            zlib.error, NotImplementedError) as e:
+        raise error(f"{where}: not a readable .npz archive ({type(e).__name__}: {e})") from None

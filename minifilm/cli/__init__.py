@@ -23,7 +23,7 @@ import os
 import sys
 from typing import Callable, Optional
 
-from minifilm.errors import OutputPathError   # (imports nothing: numpy stays unloaded until a command runs)
+from minifilm.errors import OutputPathError  # (imports nothing: numpy stays unloaded until a command runs)
 
 #: name -> (module, one-line help, environment defaults set before the module is imported)
 #: Training runs on one BLAS thread unless told otherwise: its matrices are small, a second thread
@@ -61,14 +61,28 @@ class Parser(argparse.ArgumentParser):
         self.exit(2, f"error: {self.prog}: {message} (see {self.prog} --help)\n")
 
 
+def describe_error(e: BaseException) -> str:
+    """One line for an input error: an OSError as 'path: reason' (not '[Errno 2] ...'), with any
+    note added on the way up (e.g. which file a dataset was being built from)."""
+    if isinstance(e, OSError) and e.filename is not None and e.strerror:
+        text = f"{e.filename}: {e.strerror}"
+    else:
+        text = str(e) or type(e).__name__
+    notes = " ".join(getattr(e, "__notes__", []))
+    return " ".join(f"{text} {notes}".split())
+
+
 def report_errors(main: Callable[[], Optional[int]]) -> None:
     """Call ``main()`` and exit with its code, or print ``error: <message>`` and exit 2 when it
     raises an input error (FileNotFoundError, a ValueError such as BVHError, CheckpointError, ...)."""
     try:
         code = main()
     except INPUT_ERRORS as e:
-        print(f"error: {e}", file=sys.stderr)
+        print(f"error: {describe_error(e)}", file=sys.stderr)
         sys.exit(2)
+    except MemoryError:
+        print("error: out of memory (the input asks for more than this machine has)", file=sys.stderr)
+        sys.exit(1)
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         sys.exit(130)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 from pathlib import Path
 
 
@@ -38,6 +39,25 @@ def positive(kind=float, high=None):
 
 
 def png_path(text: str) -> Path:
-    """An output picture path; '.png' is added when it has no suffix (matplotlib would add it)."""
+    """An output picture path; '.png' is added when it has no suffix (matplotlib would add it).
+    A folder is refused rather than quietly becoming 'folder.png' beside it."""
     p = Path(text)
+    if p.is_dir():
+        raise argparse.ArgumentTypeError(f"{text} is a folder; give a file name (e.g. {p / 'phases.png'})")
     return p if p.suffix else p.with_suffix(".png")
+
+
+def output_folder(text: str) -> Path:
+    """A folder to write into: it may not exist yet, but it may not be a file, and the nearest
+    existing folder above it must be writable."""
+    p = Path(text)
+    if p.exists() and not p.is_dir():
+        raise argparse.ArgumentTypeError(f"{text} is a file, expected a folder")
+    existing = p
+    while not existing.exists():
+        existing = existing.parent
+    if not existing.is_dir():
+        raise argparse.ArgumentTypeError(f"{text}: {existing} is a file, not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise argparse.ArgumentTypeError(f"{text}: folder {existing} is not writable")
+    return p

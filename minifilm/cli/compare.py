@@ -11,8 +11,9 @@ Writes a markdown report with plots (--out, default reports/); see minifilm/eval
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
-from minifilm.cli.args import in_range, positive
+from minifilm.cli.args import in_range, output_folder, positive
 from minifilm.evaluation.compare import MODEL, SYNTH_HOLDOUT, TINY_MODEL
 from minifilm.evaluation.compare import run as run_compare
 
@@ -24,7 +25,7 @@ def add_arguments(p) -> None:
     p.add_argument("--budget-steps", type=in_range(1, 10**7, int), default=2500,
                    help="training steps per variant, rounded up to whole epochs (default 2500)")
     p.add_argument("--finetune-steps", type=in_range(0, 10**7, int), default=300, help="Ψ fine-tuning steps (default 300)")
-    p.add_argument("--out", default="reports", help="folder of the markdown report and PNGs")
+    p.add_argument("--out", type=output_folder, default=Path("reports"), help="folder of the markdown report and PNGs")
     p.add_argument("--work", default="runs/compare", help="folder for generated data and caches")
     p.add_argument("--variants", help="comma-separated subset of the seven variants (default: all)")
     p.add_argument("--holdout", help=f"style held out for fine-tuning (synthetic default {SYNTH_HOLDOUT})")

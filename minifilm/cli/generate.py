@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from minifilm.cli.args import in_range, png_path, positive
+from minifilm.errors import InputError
 from minifilm.features.layout import FeatureLayout
 from minifilm.files import check_writable
 from minifilm.motion.bvh import read_bvh
@@ -115,6 +116,8 @@ def style_condition(args, lib: StyleLibrary, n: int, fps: float):
     else:
         film, label = lib[style], style
     films = film
+    if args.switch_to and args.switch_at >= args.seconds:
+        raise InputError(f"--switch-at {args.switch_at:g}: the motion lasts only {args.seconds:g} s (--seconds)")
     if args.switch_to:
         films = lib.schedule([(0.0, {style: 1.0}), (args.switch_at, args.switch_to)], n, fps)
         label += f" -> {args.switch_to} at {args.switch_at:g} s"

@@ -12,8 +12,9 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-from minifilm.cli.args import in_range, positive
-from minifilm.pipeline.train_small import Settings, run as run_job
+from minifilm.cli.args import in_range, output_folder, positive
+from minifilm.pipeline.train_small import Settings
+from minifilm.pipeline.train_small import run as run_job
 
 HELP = "the main job: synthetic or your data -> trained model -> generated motion"
 
@@ -22,7 +23,7 @@ def add_arguments(parser) -> None:
     d = Settings()
     parser.add_argument("--data", type=Path, help="folder of <Style>_<Gait>.bvh files, or a CSV manifest "
                         "(file,style,gait[,start,end]) for other datasets (default: synthetic data)")
-    parser.add_argument("--out", type=Path, default=d.out, help=f"output (run) folder (default {d.out})")
+    parser.add_argument("--out", type=output_folder, default=d.out, help=f"output (run) folder (default {d.out})")
     parser.add_argument("--epochs", type=in_range(1, 100_000, int), help=f"training epochs (default {d.epochs})")
     parser.add_argument("--seed", type=in_range(0, 2**32 - 1, int), default=d.seed)
     parser.add_argument("--quick", action="store_true", help="a smaller, faster run of every step")

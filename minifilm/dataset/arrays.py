@@ -10,6 +10,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from minifilm.errors import DataError
+
 
 @dataclass
 class TrainData:
@@ -47,7 +49,16 @@ class TrainData:
                              f"{self.clips.shape} and {self.clip_style.shape}")
         missing = sorted(set(self.style.tolist()) - set(self.clip_style.tolist()))
         if missing:
-            raise ValueError(f"TrainData: style(s) {missing} have frames but no clip")
+            raise DataError(f"TrainData: style(s) {missing} have frames but no clip")
+        for name in ("x", "p", "z", "clips"):
+            a = getattr(self, name)
+            if a.dtype.kind != "f":
+                raise DataError(f"TrainData: {name} must hold floating-point numbers, got {a.dtype}")
+            if not np.all(np.isfinite(a)):       # checked here so a training run never starts on them
+                where = tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])
+                raise DataError(f"TrainData: {name}{list(where)} is {a[where]} (non-finite)")
+        if len(self.style) and (self.style.min() < 0 or self.clip_style.min(initial=0) < 0):
+            raise DataError("TrainData: style ids must be >= 0")
 
     @property
     def styles(self) -> np.ndarray:

@@ -31,6 +31,9 @@ from minifilm.dataset.progress import Progress
 from minifilm.dataset.settings import DatasetSettings
 from minifilm.dataset.splits import SPLITS, apply_gap, file_rng, split_files, split_segments
 from minifilm.dataset.stats import NormStats
+from minifilm.dataset.survey import check_memory, survey
+from minifilm.dataset.validate import check_every_style_trains, check_finite
+from minifilm.errors import DataError
 from minifilm.features.compute import clip_features_from_arrays, frame_features_from_arrays, motion_arrays
 from minifilm.features.layout import FeatureLayout
 from minifilm.motion.bvh import read_bvh
@@ -118,7 +121,12 @@ def build_dataset(source: Union[str, Path, Sequence[MotionFile]],
         if cache_path.is_file() and cached_key(cache_path) == key:
             return Dataset.load(cache_path)
     t0 = time.perf_counter()
+    surveyed = survey(files, settings.fps)
     skeleton = skeleton or _pick_skeleton(settings, files[0])
+    fps = settings.fps or next(iter(surveyed.values())).fps
+    check_memory(surveyed, [settings.mirrors(f) for f in files], FeatureLayout.for_skeleton(skeleton),
+                 int(round(settings.clip_seconds * fps)), int(round(settings.clip_stride_seconds * fps)),
+                 np.dtype(dtype).itemsize)
     ds = _build(files, settings, skeleton, progress, dtype)
     ds.build_seconds = time.perf_counter() - t0
     ds.cache_key = key
@@ -134,9 +142,10 @@ def _build(files: List[MotionFile], settings: DatasetSettings, skeleton, progres
     for i, f in enumerate(files):
         try:
             builder.add(f)
+        except DataError:
+            raise                       # names its file already
         except Exception as e:          # say which file, whatever went wrong inside
-            if hasattr(e, "add_note"):
-                e.add_note(f"(while building the dataset from {f.path})")
+            e.add_note(f"(while building the dataset from {f.path})")
             raise
         bar.update(i + 1, Path(f.path).name)
     return builder.finish()
@@ -174,9 +183,9 @@ class _Builder:
         motion = _load_motion(f, sk, st.fps)
         if self.fps is None:
             self.fps = motion.fps
-        elif abs(motion.fps - self.fps) > 1e-3 * self.fps:
-            raise ValueError(f"{f.path}: {motion.fps:g} fps differs from the other files' {self.fps:g} fps; "
-                             f"set DatasetSettings(fps=...) to resample")
+        elif abs(motion.fps - self.fps) > 1e-3 * self.fps:      # survey() refuses this up front
+            raise DataError(f"{f.path}: {motion.fps:g} fps differs from the other files' {self.fps:g} fps; "
+                            f"set DatasetSettings(fps=...) to resample")
         labels = label(motion, sk, f.style)
         segments = self.segments(f, motion.n_frames)
         primary = f.gait in st.clip_gaits
@@ -192,6 +201,9 @@ class _Builder:
                                  "end": f.end, "segments": segments})
             rows, clips = _featurise(m, sk, lab.contacts, lab.vectors, segments, self.fps, want_clips, st,
                                      self.dtype)
+            for _, ff in rows:
+                for what, a in (("x", ff.x), ("z", ff.z), ("p", ff.p)):
+                    check_finite(a, what, self.layout, f"{f.path}{' (mirrored)' if mirrored else ''}", ff.frames)
             for split, ff in rows:
                 self.parts[split]["rows"].append((src, sid, ff))
             for split, y in clips:
@@ -211,6 +223,7 @@ class _Builder:
         T = int(round(self.settings.clip_seconds * self.fps))
         splits = {name: _stack(self.parts[name], self.layout, T, self.dtype) for name in SPLITS}
         tr = splits["train"]
+        check_every_style_trains(tr, self.styles, self.sources, self.settings, self.fps)
         stats = NormStats.fit(tr.x, tr.p, tr.z, self.settings.min_std)
         return Dataset(self.layout, self.styles, float(self.fps), self.skeleton.name, splits["train"],
                        splits["val"], splits["test"], stats, self.sources, self.settings.to_dict())

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import hashlib
 import json
+import zipfile
+import zlib
 from pathlib import Path
 from typing import Optional, Sequence, Tuple
 
@@ -54,6 +56,7 @@ def cached_key(path: Path) -> Optional[str]:
     """The key stored in a cache file (reads only its small 'meta' entry); None if unreadable."""
     try:
         with np.load(path, allow_pickle=False) as d:
-            return json.loads(str(d["meta"])).get("cache_key")
-    except (OSError, ValueError, KeyError):
-        return None
+            key = json.loads(str(d["meta"])).get("cache_key")
+        return key if isinstance(key, str) else None
+    except (OSError, ValueError, KeyError, AttributeError, EOFError, MemoryError, zipfile.BadZipFile, zlib.error):
+        return None         # a broken cache is rebuilt

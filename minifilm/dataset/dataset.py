@@ -19,9 +19,10 @@ from minifilm.dataset.arrays import TrainData
 from minifilm.dataset.cache import CACHE_FORMAT
 from minifilm.dataset.splits import SPLITS
 from minifilm.dataset.stats import NormStats
+from minifilm.errors import DataError
 from minifilm.features.compute import trajectory_offsets, trajectory_sample_frames
 from minifilm.features.layout import FeatureLayout
-from minifilm.files import atomic_savez
+from minifilm.files import atomic_savez, read_npz
 
 
 @dataclass
@@ -160,12 +161,16 @@ class Dataset:
 
     @classmethod
     def load(cls, path: Union[str, Path]) -> "Dataset":
-        with np.load(path, allow_pickle=False) as d:
+        d = read_npz(path, "dataset cache", DataError, max_bytes=None)
+        try:
             meta = json.loads(str(d["meta"]))
             splits = {name: Split(*(d[f"{name}/{key}"] for key in _SPLIT_ARRAYS)) for name in SPLITS}
             norm = NormStats.from_arrays(d, prefix="norm/")
-        if meta.get("format") != CACHE_FORMAT:
-            raise ValueError(f"{path}: dataset format {meta.get('format')} is not {CACHE_FORMAT}")
+        except (KeyError, ValueError, TypeError) as e:
+            raise DataError(f"dataset cache {path}: not a dataset cache ({type(e).__name__}: {e})") from None
+        if not isinstance(meta, dict) or meta.get("format") != CACHE_FORMAT:
+            raise DataError(f"dataset cache {path}: format {meta.get('format') if isinstance(meta, dict) else meta!r} "
+                            f"is not {CACHE_FORMAT}")
         here = os.path.dirname(os.path.abspath(path))
         for f in meta["files"]:
             f["segments"] = [tuple(s) for s in f["segments"]]

@@ -16,7 +16,8 @@ from typing import Dict, Tuple, Union
 
 import numpy as np
 
-from minifilm.files import atomic_savez
+from minifilm.errors import InputError
+from minifilm.files import atomic_savez, read_npz
 
 FIELDS = ("x_mean", "x_std", "z_mean", "z_std", "p_mean", "p_std")
 
@@ -107,8 +108,11 @@ class NormStats:
 
     @classmethod
     def load(cls, path: Union[str, Path]) -> "NormStats":
-        with np.load(path, allow_pickle=False) as d:
-            return cls.from_arrays({k: d[k] for k in d.files}, prefix="")
+        arrays = read_npz(path, "statistics", InputError)
+        try:
+            return cls.from_arrays(arrays, prefix="")
+        except (KeyError, ValueError) as e:
+            raise InputError(f"statistics {path}: {e}") from None
 
 
 def _mean_std(a: np.ndarray, chunk: int = 1 << 15) -> Tuple[np.ndarray, np.ndarray]:

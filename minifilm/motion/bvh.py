@@ -65,6 +65,13 @@ def read_bvh(path: Union[str, os.PathLike], scale: float = 0.01) -> Motion:
 def bvh_duration(path: Union[str, os.PathLike]) -> float:
     """Seconds of motion in a BVH file (frames x frame time), read from its MOTION header alone,
     without parsing the frames. BVHError when the header is missing or malformed."""
+    n_frames, frame_time = bvh_timing(path)
+    return n_frames * frame_time
+
+
+def bvh_timing(path: Union[str, os.PathLike]) -> Tuple[int, float]:
+    """(frames, seconds per frame) of a BVH file from its MOTION header alone (a fast survey of
+    many files before any is parsed). BVHError when the header is missing or malformed."""
     lines: List[str] = []
     motion_line, after = None, 0
     with open(path, "r", encoding="utf-8", errors="replace") as f:
@@ -79,7 +86,7 @@ def bvh_duration(path: Union[str, os.PathLike]) -> float:
     if motion_line is None:
         raise BVHError(str(path), None, "no MOTION section")
     n_frames, frame_time, _ = _parse_motion_header(lines, motion_line, str(path))
-    return n_frames * frame_time
+    return n_frames, frame_time
 
 
 def parse_bvh(text: str, source: str = "<string>", scale: float = 0.01) -> Motion:

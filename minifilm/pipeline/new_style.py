@@ -135,10 +135,11 @@ def teach_style(run_path, name: str, files: Sequence, steps: int = 400, lr: floa
     library.add_from_clips(name, tuned.model, data.clips)   # existing styles: stored vectors untouched
     others = [n for n in library.names if n != name]
     nearest = min(others, key=lambda n: float(np.linalg.norm(library[n] - library[name]))) if others else ""
+    # styles.npz last: the new style exists for a reader only once its checkpoint and start are there
     checkpoint = run.path / f"model-{name}.npz"
     tuned.save(checkpoint)
-    library.save(run.path / "styles.npz")
     starts = run.starts()
     starts[name] = start
     run.save_starts(starts)
+    library.save(run.path / "styles.npz")
     return NewStyleResult(name, seconds, tuned.step, len(data), len(data.clips), before, after, nearest, checkpoint)

@@ -11,9 +11,14 @@ demo read it, from any working directory:
     skeleton.bvh   one frame of the source skeleton: the BVH files are written on it
 
 Nothing here is pickled; every array file loads with ``allow_pickle=False``.
+
+``run.json`` is what makes a folder a run: it is written last (:meth:`RunFolder.commit`), after
+every other file, and removed first when a run is written again (:meth:`RunFolder.retire`), so a
+training killed midway never leaves something that looks like a run but is not one.
 """
 from __future__ import annotations
 
+import contextlib
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,8 +27,9 @@ from typing import Dict, Optional, Sequence, Tuple
 import numpy as np
 
 from minifilm.dataset.stats import NormStats
+from minifilm.errors import InputError
 from minifilm.features.layout import FeatureLayout
-from minifilm.files import atomic_savez, atomic_write_text
+from minifilm.files import atomic_savez, atomic_write_text, read_npz
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.motion.motion import Motion
@@ -36,7 +42,7 @@ FORMAT = "minifilm-run-1"
 MANIFEST = "run.json"
 
 
-class RunFolderError(ValueError):
+class RunFolderError(InputError):
     """A folder is not a minifilm run folder, or one of its files is missing or broken."""
 
 
@@ -52,17 +58,27 @@ class RunFolder:
     position_bias: float
 
     # ---- writing ----------------------------------------------------------------------------
+    @staticmethod
+    def retire(path) -> None:
+        """Make ``path`` no longer a run (remove its run.json) before it is written again."""
+        with contextlib.suppress(FileNotFoundError):
+            (Path(path) / MANIFEST).unlink()
+
     @classmethod
-    def write_manifest(cls, path, layout: FeatureLayout, fps: float, skeleton_name: str, bvh_scale: float,
-                       template: Motion, position_bias: float) -> "RunFolder":
-        """Write run.json and skeleton.bvh (one frame of ``template``) into ``path``."""
+    def prepare(cls, path, layout: FeatureLayout, fps: float, skeleton_name: str, bvh_scale: float,
+                template: Motion, position_bias: float) -> "RunFolder":
+        """Write skeleton.bvh (one frame of ``template``) into ``path``; the folder becomes a run
+        when :meth:`commit` writes run.json, after everything else."""
         path = Path(path)
         write_bvh(template.slice(0, 1), path / "skeleton.bvh", scale=bvh_scale)
-        manifest = {"format": FORMAT, "layout": layout.to_dict(), "fps": float(fps),
-                    "skeleton": skeleton_name, "bvh_scale": float(bvh_scale),
-                    "position_bias": float(position_bias)}
-        atomic_write_text(path / MANIFEST, json.dumps(manifest, indent=1) + "\n")
         return cls(path, layout, float(fps), skeleton_name, float(bvh_scale), float(position_bias))
+
+    def commit(self) -> Path:
+        """Write run.json: the folder is a complete run from now on."""
+        manifest = {"format": FORMAT, "layout": self.layout.to_dict(), "fps": self.fps,
+                    "skeleton": self.skeleton_name, "bvh_scale": self.bvh_scale,
+                    "position_bias": self.position_bias}
+        return atomic_write_text(self.path / MANIFEST, json.dumps(manifest, indent=1) + "\n")
 
     def save_starts(self, starts: Dict[str, Tuple[np.ndarray, np.ndarray]]) -> Path:
         """Per style, the raw input frame x (x_dim,) and phases p (8,) a rollout starts from."""
@@ -113,16 +129,38 @@ class RunFolder:
         load_model_arrays(model, arrays, self.checkpoint)
         return model, stats
 
-    def styles(self) -> StyleLibrary:
-        return StyleLibrary.load(self._file("styles.npz"))
+    def film_dim(self) -> int:
+        """The length of the run's FiLM vectors (4 * hidden), from the checkpoint's configuration."""
+        meta, _ = load_checkpoint(self.checkpoint)
+        try:
+            return int(meta["model_config"]["hidden"]) * 4
+        except (KeyError, TypeError, ValueError):
+            raise CheckpointError(f"checkpoint {self.checkpoint}: no model configuration") from None
+
+    def styles(self, film_dim: Optional[int] = None) -> StyleLibrary:
+        """The style library; ``film_dim`` (default: read from the checkpoint) is the width it
+        must have, so a library of another run is an error here rather than a broadcast error
+        in the middle of a rollout."""
+        dim = self.film_dim() if film_dim is None else film_dim
+        return StyleLibrary.load(self._file("styles.npz"), dim=dim)
 
     def starts(self) -> Dict[str, Tuple[np.ndarray, np.ndarray]]:
         """style -> (x (x_dim,), p (8,)); empty when the folder has no starts.npz."""
         path = self.path / "starts.npz"
         if not path.is_file():
             return {}
-        with np.load(path, allow_pickle=False) as d:
-            return {str(n): (d["x"][i], d["p"][i]) for i, n in enumerate(d["names"])}
+        where = f"run folder {self.path}: starts.npz"
+        d = read_npz(path, f"run folder {self.path}: start frames", RunFolderError)
+        try:
+            names, x, p = d["names"], np.asarray(d["x"], np.float64), np.asarray(d["p"], np.float64)
+        except (KeyError, ValueError, TypeError) as e:
+            raise RunFolderError(f"{where}: not a start-frame file ({e})") from None
+        if names.ndim != 1 or x.shape != (len(names), self.layout.x_dim) or p.shape != (len(names), 8):
+            raise RunFolderError(f"{where}: arrays {names.shape}, {x.shape}, {p.shape}, expected (S,), "
+                                 f"(S, {self.layout.x_dim}), (S, 8)")
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(p))):
+            raise RunFolderError(f"{where}: non-finite values")
+        return {str(n): (x[i], p[i]) for i, n in enumerate(names.tolist())}
 
     def template(self) -> Motion:
         """The source skeleton (one frame), in metres."""

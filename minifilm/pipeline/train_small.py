@@ -295,6 +295,7 @@ def run(s: Settings, data: Optional[Path] = None) -> dict:
     of the generated motion under 'recognition'."""
     out = Path(s.out)
     out.mkdir(parents=True, exist_ok=True)
+    RunFolder.retire(out)          # a run again only when this one is complete (run_folder.py)
     t_start = time.perf_counter()
     own_data = data is not None
     if data is None:
@@ -317,13 +318,14 @@ def run(s: Settings, data: Optional[Path] = None) -> dict:
 
     skeleton = builtin_skeleton(ds.skeleton)
     template = read_bvh(ds.files[0]["path"], scale=skeleton.bvh_scale)   # the source skeleton, its own units
-    folder = RunFolder.write_manifest(out, ds.layout, ds.fps, ds.skeleton, skeleton.bvh_scale, template,
-                                      s.position_bias)
+    folder = RunFolder.prepare(out, ds.layout, ds.fps, ds.skeleton, skeleton.bvh_scale, template,
+                               s.position_bias)
     library = style_library(trainer, ds)
     library.save(out / "styles.npz")
     folder.save_starts({name: start_from_dataset(ds, name) for name in ds.styles})
     rollouts = generate_per_style(trainer, ds, folder, library, template, s.generate_seconds)
     result["recognition"] = style_recognition(ds, rollouts, s.seed)
     show_styles(rollouts, ds.layout, out / "generated", min(6.0, s.generate_seconds))
+    folder.commit()
     log(f"[done] {time.perf_counter() - t_start:.0f} s in all; outputs in {out}")
     return result

@@ -37,6 +37,7 @@ from typing import Callable, Optional, Sequence, Union
 
 import numpy as np
 
+from minifilm.errors import InputError
 from minifilm.features.compute import trajectory_offsets
 from minifilm.features.layout import CURRENT_SAMPLE, FeatureLayout
 from minifilm.motion.motion import Motion
@@ -82,6 +83,10 @@ def start_from_dataset(dataset, style: str, gait: str = "FW", split: str = "trai
         raise ValueError(f"start_from_dataset: style {style!r} has no rows in the {split!r} split")
     r = rows[len(rows) // 2]
     return np.asarray(sp.x[r], np.float64), np.asarray(sp.p[r], np.float64)
+
+
+class NonFiniteOutputError(InputError):
+    """The network produced a non-finite frame: the rollout stops there instead of returning NaN."""
 
 
 class Controller:
@@ -243,13 +248,35 @@ class Controller:
         Returns the new frame (see :meth:`frame`; arrays are the live state, copy to keep them).
         """
         st = self.state
+        film = self._check_command(target_facing, target_velocity, film)
         st.future_pos, st.future_dir = blend_future_trajectory(
             st.future_pos, st.future_dir, target_velocity, target_facing, self.sample_dt,
             self.position_bias, self.direction_bias)
         x = self.build_input()
         z = self.net.predict(x, st.phases, film).astype(np.float64)
+        if not np.all(np.isfinite(z)):      # stop at once: one NaN would spread to every later frame
+            b = int(np.argwhere(~np.isfinite(z))[0][0])
+            raise NonFiniteOutputError(f"the network's output for character {b} is not finite (the motion "
+                                       "diverged: its style vector or speed is far outside the training data)")
         self._apply_output(z)
         return self.frame()
+
+    def _check_command(self, target_facing, target_velocity, film) -> np.ndarray:
+        """The user's command and style vector as arrays of the right shapes with finite values;
+        InputError naming the argument otherwise (a public entry point: the demo calls it)."""
+        B = self.state.root.shape[0]
+        for name, a in (("target_facing", target_facing), ("target_velocity", target_velocity)):
+            a = np.asarray(a)
+            if a.shape != (B, 2) or not np.all(np.isfinite(a)):
+                raise InputError(f"Controller.step: {name} must be ({B}, 2) finite numbers, got shape {a.shape}")
+        D = getattr(self.net, "film_dim", None)
+        if D is None:                   # a comparison variant's own conditioning (style ids, ...)
+            return film
+        film = np.asarray(film)
+        if film.shape not in ((D,), (B, D)) or film.dtype.kind not in "fiu" or not np.all(np.isfinite(film)):
+            raise InputError(f"Controller.step: film must be ({D},) or ({B}, {D}) finite numbers, got "
+                             f"{film.dtype} {film.shape}")
+        return film
 
     def _apply_output(self, z: np.ndarray) -> None:
         st, L = self.state, self.layout

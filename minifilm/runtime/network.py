@@ -19,7 +19,7 @@ FiLM vector (4H,) or (B, 4H) for FiLM models, style ids for the one-hot and adap
 """
 from __future__ import annotations
 
-from typing import Callable, Sequence, Tuple
+from typing import Callable, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -121,6 +121,12 @@ class RuntimeNetwork:
             raise ValueError(f"RuntimeNetwork: the gating network reads {gate.in_dim} phases, the "
                              f"statistics have {len(stats.p_mean)}")
         return cls(gate, experts, stats, FilmHidden(cfg.hidden, unbiased, eps), dtype)
+
+    @property
+    def film_dim(self) -> Optional[int]:
+        """The length of a FiLM style vector (4 * hidden) for a FiLM network; None for the other
+        conditionings of the comparison variants."""
+        return 4 * self.hidden.hidden if isinstance(self.hidden, FilmHidden) else None
 
     def predict(self, x_raw: np.ndarray, p_raw: np.ndarray, cond) -> np.ndarray:
         """Raw output z (B, z_dim) from raw x (B, x_dim), raw phases p (B, phase_dim) and the

@@ -19,17 +19,22 @@ from typing import Dict, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-from minifilm.files import atomic_savez
+from minifilm.errors import InputError
+from minifilm.files import atomic_savez, read_npz
 
-__all__ = ["StyleLibrary", "UnknownStyleError", "blend_film", "smoothstep"]
+__all__ = ["StyleLibrary", "StyleLibraryError", "UnknownStyleError", "blend_film", "smoothstep"]
 
 
-class UnknownStyleError(KeyError, ValueError):
-    """A style name the library does not hold. A KeyError for dict-like use and a ValueError so
+class UnknownStyleError(KeyError, InputError):
+    """A style name the library does not hold. A KeyError for dict-like use and an InputError so
     command-line tools report it as bad input (:func:`minifilm.cli.run`) instead of a traceback."""
 
     def __str__(self) -> str:      # KeyError would print the message in quotes
         return str(self.args[0]) if self.args else ""
+
+
+class StyleLibraryError(InputError):
+    """A style library file that cannot be used; the message names the file and what is wrong."""
 
 
 def smoothstep(u: np.ndarray) -> np.ndarray:
@@ -118,15 +123,33 @@ class StyleLibrary:
         atomic_savez(path, {"names": np.array(self.names, dtype=str), "films": films})
 
     @classmethod
-    def load(cls, path: Union[str, os.PathLike]) -> "StyleLibrary":
-        with np.load(path, allow_pickle=False) as f:
-            missing = {"names", "films"} - set(f.files)
-            if missing:
-                raise ValueError(f"{path}: not a style library, missing arrays {sorted(missing)}")
-            names, films = f["names"], f["films"]
-        if films.ndim != 2 or len(names) != len(films):
-            raise ValueError(f"{path}: {len(names)} names but films of shape {films.shape}")
-        return cls(dict(zip(names.tolist(), films)), dtype=films.dtype)
+    def load(cls, path: Union[str, os.PathLike], dim: Optional[int] = None) -> "StyleLibrary":
+        """Read a library written by :meth:`save`. ``dim``: the FiLM width the library must have
+        (its network's 4*hidden). StyleLibraryError naming the file for anything else: a broken
+        archive, names that are not unique non-empty strings, non-finite or non-float vectors."""
+        where = f"style library {path}"
+        arrays = read_npz(path, "style library", StyleLibraryError)
+        missing = {"names", "films"} - set(arrays)
+        if missing:
+            raise StyleLibraryError(f"{where}: not a style library, missing arrays {sorted(missing)}")
+        names, films = arrays["names"], arrays["films"]
+        if names.ndim != 1 or names.dtype.kind != "U":
+            raise StyleLibraryError(f"{where}: 'names' must be a 1-D array of strings, got {names.dtype} {names.shape}")
+        if films.ndim != 2 or len(names) != len(films) or films.dtype.kind != "f":
+            raise StyleLibraryError(f"{where}: {len(names)} names but films of {films.dtype} {films.shape}, "
+                                    "expected floats (names, D)")
+        if dim is not None and len(names) and films.shape[1] != dim:
+            raise StyleLibraryError(f"{where}: FiLM vectors of length {films.shape[1]}, but the network needs {dim}")
+        listed = names.tolist()
+        if any(not n.strip() for n in listed):
+            raise StyleLibraryError(f"{where}: a style has an empty name")
+        repeated = sorted({n for n in listed if listed.count(n) > 1})
+        if repeated:
+            raise StyleLibraryError(f"{where}: styles named more than once: {repeated}")
+        bad = [n for n, v in zip(listed, films) if not np.all(np.isfinite(v))]
+        if bad:
+            raise StyleLibraryError(f"{where}: non-finite FiLM values in {bad[:5]}")
+        return cls(dict(zip(listed, films)), dtype=films.dtype)
 
     # ------------------------------------------------------------------ mixing
     def blend(self, weights: Mapping[str, float]) -> np.ndarray:

@@ -18,13 +18,12 @@ good one stays intact.
 from __future__ import annotations
 
 import json
-import zipfile
 from pathlib import Path
 
 import numpy as np
 
 from minifilm.errors import InputError
-from minifilm.files import atomic_savez
+from minifilm.files import atomic_savez, read_npz
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
 
@@ -51,11 +50,7 @@ def load_checkpoint(path) -> tuple[dict, dict]:
     path = Path(path)
     if not path.is_file():
         raise CheckpointError(f"checkpoint {path}: no such file")
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            arrays = {name: z[name] for name in z.files}
-    except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError) as e:
-        raise CheckpointError(f"checkpoint {path}: not a readable .npz archive ({type(e).__name__}: {e})") from e
+    arrays = read_npz(path, "checkpoint", CheckpointError)
     if "meta.json" not in arrays:
         raise CheckpointError(f"checkpoint {path}: missing 'meta.json' entry")
     try:
