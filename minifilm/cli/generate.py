@@ -52,11 +52,12 @@ def add_arguments(ap) -> None:
     src.add_argument("--run", type=Path, help="a run folder written by minifilm train")
     ap.add_argument("--style", help="style name (see --list-styles); default: the first style")
     ap.add_argument("--style2", help="second style, blended with --blend w: (1-w) style + w style2")
-    ap.add_argument("--blend", type=in_range(0.0, 1.0), default=0.5, help="weight of --style2, in [0, 1]")
+    ap.add_argument("--blend", type=in_range(0.0, 1.0), help="weight of --style2, in [0, 1] (default 0.5)")
     ap.add_argument("--style3", help="third style: barycentric blend with --weights w1 w2 w3")
     ap.add_argument("--weights", type=in_range(0.0, 1.0), nargs=3, help="three weights >= 0 summing to 1")
     ap.add_argument("--switch-to", help="switch to this style at --switch-at seconds (smooth, 1 s)")
-    ap.add_argument("--switch-at", type=in_range(0.0, 24 * 3600.0), default=10.0)
+    ap.add_argument("--switch-at", type=in_range(0.0, 24 * 3600.0),
+                    help="seconds (default 10, or half the motion when shorter)")
     ap.add_argument("--script", default="figure8", choices=sorted(SCRIPTS))
     ap.add_argument("--speed", type=in_range(0.0, 10.0), default=1.3, help="walking speed, m/s (0-10)")
     ap.add_argument("--seconds", type=positive(float, 3600.0), default=30.0, help="length, seconds")
@@ -104,23 +105,31 @@ class Source:
 
 def style_condition(args, lib: StyleLibrary, n: int, fps: float):
     """(film for the whole run or per frame, the film of the start style, a label)."""
-    style = args.style or lib.names[0]
+    style = lib.names[0] if args.style is None else args.style
+    lib[style]                       # an unknown name fails here, before any work
+    for flag, value, needs in (("--blend", args.blend, args.style2), ("--switch-at", args.switch_at, args.switch_to)):
+        if value is not None and not needs:
+            raise InputError(f"{flag} needs {'--style2' if flag == '--blend' else '--switch-to'}")
+    blend = 0.5 if args.blend is None else args.blend
+    switch_at = min(10.0, args.seconds / 2) if args.switch_at is None else args.switch_at
+    if args.weights and not args.style3:
+        raise InputError("--weights w1 w2 w3 needs --style2 and --style3 (three styles to weigh)")
     if args.style3:
         if not args.weights or not args.style2:
-            raise ValueError("--style3 needs --style2 and --weights w1 w2 w3")
+            raise InputError("--style3 needs --style2 and --weights w1 w2 w3")
         film = lib.barycentric([style, args.style2, args.style3], args.weights)
         label = f"{style}/{args.style2}/{args.style3} at {args.weights}"
     elif args.style2:
-        film = lib.blend({style: 1 - args.blend, args.style2: args.blend})
-        label = f"{style} + {args.blend:g} {args.style2}"
+        film = lib.blend([(style, 1 - blend), (args.style2, blend)])
+        label = f"{style} + {blend:g} {args.style2}"
     else:
         film, label = lib[style], style
     films = film
-    if args.switch_to and args.switch_at >= args.seconds:
-        raise InputError(f"--switch-at {args.switch_at:g}: the motion lasts only {args.seconds:g} s (--seconds)")
+    if args.switch_to and switch_at >= args.seconds:
+        raise InputError(f"--switch-at {switch_at:g}: the motion lasts only {args.seconds:g} s (--seconds)")
     if args.switch_to:
-        films = lib.schedule([(0.0, {style: 1.0}), (args.switch_at, args.switch_to)], n, fps)
-        label += f" -> {args.switch_to} at {args.switch_at:g} s"
+        films = lib.schedule([(0.0, {style: 1.0}), (switch_at, args.switch_to)], n, fps)
+        label += f" -> {args.switch_to} at {switch_at:g} s"
     return films, film, label
 
 
@@ -141,7 +150,7 @@ def run(args) -> int:
     body = None if src.fit == "none" else Controller.skeleton_for(src.layout, src.skeleton)
     ctrl = Controller(src.network, src.layout, fps=src.fps, foot_locker=locker, skeleton=body,
                       feed_back_fit=src.fit == "feedback", **src.options)
-    start_x, phases = src.starts.get(args.style or lib.names[0], (None, None))
+    start_x, phases = src.starts.get(lib.names[0] if args.style is None else args.style, (None, None))
 
     cal = None
     if src.calibrate:

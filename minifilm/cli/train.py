@@ -37,6 +37,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--split-files", dest="split", action="store_const", const="files",
                         help="with --data: the same as --split files")
     parser.add_argument("--mirror", action="store_true", help="with --data: also train on every file's mirror")
+    parser.add_argument("--fps", type=in_range(1.0, 1000.0), help="with --data: resample every file to this "
+                        "frame rate (needed when the files were recorded at different rates)")
     parser.add_argument("--clips-per-batch", type=in_range(1, 4096, int), default=d.clips_per_batch,
                         help="style clips per minibatch, shared by its samples (default "
                              f"{d.clips_per_batch}; 32 = one clip per sample, as the paper)")
@@ -44,7 +46,8 @@ def add_arguments(parser) -> None:
 
 def settings(args) -> Settings:
     clips = None if args.clips_per_batch is None or args.clips_per_batch >= Settings().batch_size else args.clips_per_batch
-    s = Settings(seed=args.seed, out=args.out, split=args.split, mirror=args.mirror, clips_per_batch=clips)
+    s = Settings(seed=args.seed, out=args.out, split=args.split, mirror=args.mirror, clips_per_batch=clips,
+                 fps=args.fps)
     if args.quick:
         s = s.quick()
     changes = {"epochs": args.epochs, "seconds_per_clip": args.seconds, "generate_seconds": args.generate_seconds,

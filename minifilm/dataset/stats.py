@@ -101,6 +101,9 @@ class NormStats:
         missing = [prefix + k for k in FIELDS if prefix + k not in arrays]
         if missing:
             raise KeyError(f"NormStats.from_arrays: missing {missing}")
+        not_float = [prefix + k for k in FIELDS if np.asarray(arrays[prefix + k]).dtype.kind != "f"]
+        if not_float:
+            raise ValueError(f"NormStats.from_arrays: {not_float} must hold floating-point numbers")
         return cls(**{k: np.asarray(arrays[prefix + k]) for k in FIELDS})
 
     def save(self, path: Union[str, Path]) -> Path:

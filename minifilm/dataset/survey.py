@@ -62,7 +62,8 @@ def survey(files: Sequence[MotionFile], fps: Optional[float]) -> Dict[Path, File
             listed = ", ".join(f"{s.path.name} ({s.fps:g} fps)" for s in odd[:5])
             more = f" and {len(odd) - 5} more" if len(odd) > 5 else ""
             raise DataError(f"{len(odd)} of {len(out)} files are not at the others' {common:g} fps: {listed}{more}; "
-                            "resample them all to one rate (DatasetSettings(fps=...), minifilm train --fps)")
+                            "resample them all to one rate (--fps of minifilm train / dataset, "
+                            "DatasetSettings(fps=...))")
     return out
 
 

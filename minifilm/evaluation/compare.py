@@ -42,7 +42,7 @@ from minifilm.evaluation.style_classifier import classify_rollout, train_style_c
 from minifilm.model.config import ModelConfig
 from minifilm.motion.skeletons import BUILTIN_SKELETONS
 from minifilm.runtime.control import make_script
-from minifilm.runtime.controller import Controller
+from minifilm.runtime.controller import Controller, NonFiniteOutputError
 from minifilm.synthetic import generator as synthetic
 from minifilm.train.finetune import finetune
 from minifilm.train.trainer import TrainConfig, Trainer
@@ -165,8 +165,11 @@ def run_rollouts(controller, cond, ids, ctx, seconds):
     one-hot weights, handed to the network every frame; else (B, 4H) FiLM vectors."""
     n = int(round(seconds * ctx.ds.fps))
     scripts = [make_script("figure8", seconds) for _ in range(len(cond))]
-    with np.errstate(all="ignore"):     # a diverging variant overflows; diverged() reports it
-        return controller.run(scripts, n, (lambda k: cond) if ids else cond)
+    try:
+        with np.errstate(all="ignore"):     # a diverging variant overflows; the controller stops it
+            return controller.run(scripts, n, (lambda k: cond) if ids else cond)
+    except NonFiniteOutputError:
+        return None                     # diverged(None): reported as such, not an error of the comparison
 
 
 def style_recognition(model, info, ctx):
@@ -189,8 +192,11 @@ def style_recognition(model, info, ctx):
 
 
 def diverged(rollout, limit=10.0):
-    """Non-finite joints, or a joint further than `limit` metres from its root: the autoregressive
-    loop has blown up and rollout metrics would be meaningless."""
+    """No rollout (the controller stopped at a non-finite frame), non-finite joints, or a joint
+    further than `limit` metres from its root: the autoregressive loop has blown up and rollout
+    metrics would be meaningless."""
+    if rollout is None:
+        return True
     P = rollout.positions
     if not np.all(np.isfinite(P)):
         return True

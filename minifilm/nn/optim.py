@@ -117,14 +117,16 @@ class Adam:
             for key in (f"m.{i}", f"v.{i}"):
                 if key not in state:
                     raise KeyError(f"Adam.load_state_dict: missing {key!r}")
+                if np.asarray(state[key]).dtype.kind != "f":
+                    raise ValueError(f"Adam.load_state_dict: {key!r} must hold floats, got {np.asarray(state[key]).dtype}")
                 if np.shape(state[key]) != p.data.shape:
                     raise ValueError(f"Adam.load_state_dict: {key!r} is {np.shape(state[key])}, "
                                      f"expected {p.data.shape} (parameter set {i})")
                 if not np.all(np.isfinite(state[key])) or (key[0] == "v" and np.any(np.asarray(state[key]) < 0)):
                     raise ValueError(f"Adam.load_state_dict: {key!r} holds non-finite"
                                      f"{' or negative' if key[0] == 'v' else ''} values")
-        if np.any(steps < 0):
-            raise ValueError(f"Adam.load_state_dict: negative step counts {steps.tolist()}")
+        if steps.dtype.kind not in "iu" or np.any(steps < 0):
+            raise ValueError(f"Adam.load_state_dict: step counts must be whole numbers >= 0, got {steps.tolist()}")
         for i in range(len(self.sets)):
             self.m[i][...] = state[f"m.{i}"]
             self.v[i][...] = state[f"v.{i}"]

@@ -122,10 +122,9 @@ class RunFolder:
         try:
             model = build_style_model(meta)
             stats = NormStats.from_arrays(arrays, "stats.")
-        except (KeyError, ValueError, TypeError) as e:
-            if isinstance(e, CheckpointError):
-                raise
-            raise CheckpointError(f"checkpoint {self.checkpoint}: bad configuration or statistics ({e})") from e
+        except (KeyError, ValueError, TypeError, AttributeError) as e:
+            raise CheckpointError(f"checkpoint {self.checkpoint}: bad configuration or statistics "
+                                  f"({type(e).__name__}: {e})") from None
         load_model_arrays(model, arrays, self.checkpoint)
         return model, stats
 
@@ -152,9 +151,12 @@ class RunFolder:
         where = f"run folder {self.path}: starts.npz"
         d = read_npz(path, f"run folder {self.path}: start frames", RunFolderError)
         try:
-            names, x, p = d["names"], np.asarray(d["x"], np.float64), np.asarray(d["p"], np.float64)
-        except (KeyError, ValueError, TypeError) as e:
-            raise RunFolderError(f"{where}: not a start-frame file ({e})") from None
+            names, x, p = d["names"], d["x"], d["p"]
+        except KeyError as e:
+            raise RunFolderError(f"{where}: not a start-frame file (no array {e})") from None
+        if names.dtype.kind != "U" or x.dtype.kind != "f" or p.dtype.kind != "f":
+            raise RunFolderError(f"{where}: names must be strings and x, p floats, got {names.dtype}, {x.dtype}, {p.dtype}")
+        x, p = x.astype(np.float64), p.astype(np.float64)
         if names.ndim != 1 or x.shape != (len(names), self.layout.x_dim) or p.shape != (len(names), 8):
             raise RunFolderError(f"{where}: arrays {names.shape}, {x.shape}, {p.shape}, expected (S,), "
                                  f"(S, {self.layout.x_dim}), (S, 8)")

@@ -30,6 +30,7 @@ from typing import Optional, Tuple
 import numpy as np
 
 from minifilm.dataset.build import build_dataset, resolve_files
+from minifilm.errors import InputError
 from minifilm.evaluation.style_classifier import classify_rollout, train_style_classifier
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
@@ -39,7 +40,8 @@ from minifilm.motion.skeletons import STYLE100, builtin_skeleton
 from minifilm.phases.label import label
 from minifilm.pipeline.run_folder import RunFolder
 from minifilm.runtime.control import make_script
-from minifilm.runtime.controller import Controller, root_joint_indices, start_from_dataset
+from minifilm.runtime.controller import (Controller, NonFiniteOutputError, root_joint_indices,
+                                         start_from_dataset)
 from minifilm.runtime.network import RuntimeNetwork
 from minifilm.runtime.style_library import StyleLibrary
 from minifilm.synthetic import generator as synthetic
@@ -84,6 +86,7 @@ class Settings:
     # window of a short file is shorter than the 2 s trajectory window of the features)
     split: str = "auto"
     mirror: bool = False                 # also train on the left/right mirror of every file
+    fps: Optional[float] = None          # your own data: resample every file to this rate (None: as recorded)
 
     def quick(self) -> "Settings":
         """A much smaller run of every step (seconds instead of minutes)."""
@@ -232,7 +235,11 @@ def generate_per_style(trainer: Trainer, ds, run: RunFolder, library: StyleLibra
     for name in ds.styles:
         script = make_script("figure8", seconds)
         start_x, phases = starts[name]
-        rollout = controller.run(script, n_frames, library[name], phases=phases, start_x=start_x)
+        try:
+            rollout = controller.run(script, n_frames, library[name], phases=phases, start_x=start_x)
+        except NonFiniteOutputError:     # an under-trained model: say so, and go on with the others
+            log(f"    {name:<14} diverged (the network's output became non-finite); no BVH written")
+            continue
         path = out / f"{name}.bvh"
         write_bvh(rollout.to_motion(template, joints), path, scale=run.bvh_scale)
         hips = rollout.positions[0, :, 0, 1]
@@ -267,6 +274,9 @@ def show_styles(rollouts: dict, layout, out: Path, gif_seconds: float = 6.0) -> 
     """See the result: every style's generated motion side by side in an animated GIF (the first
     ``gif_seconds``) and in the offline HTML player (all of it)."""
     names = list(rollouts)
+    if not names:
+        log("[view] no generated motion to show")
+        return
     toes = [layout.joint_names.index(t) for t in ("RightToe", "LeftToe")] if "RightToe" in layout.joint_names else None
     tracks = [tracks_from_rollout(rollouts[n], layout.parents, [n], layout.joint_names, toes)[0] for n in names]
     html = write_html(tracks, out / "index.html", title="minifilm: generated styles")
@@ -287,12 +297,28 @@ def data_settings(data: Path, s: Settings) -> dict:
         split = "files" if median < 20.0 else "segments"
         log(f"[dataset] median file {median:.1f} s: {'whole files' if split == 'files' else 'segments of every file'} "
             f"go to train / val / test (--split to choose)")
-    return {"split_unit": split, "mirror_styles": ("*",) if s.mirror else ()}
+    return {"split_unit": split, "mirror_styles": ("*",) if s.mirror else (), "fps": s.fps}
+
+
+def check_inputs(s: Settings, data: Optional[Path]) -> None:
+    """InputError for settings that cannot make a run, before anything is written: unknown or no
+    synthetic styles / gaits, only idle gaits, or a --data that is not a folder of BVH files or a
+    manifest (resolve_files names what is wrong)."""
+    if data is not None:
+        resolve_files(data)
+        return
+    unknown = [x for x in s.styles if x not in synthetic.STYLES] + [g for g in s.gaits if g not in synthetic.GAITS]
+    if unknown:
+        raise InputError(f"unknown synthetic styles or gaits {unknown}; styles are {', '.join(synthetic.STYLES)}, "
+                         f"gaits {', '.join(synthetic.GAITS)}")
+    if not s.styles or not [g for g in s.gaits if g != "ID"]:
+        raise InputError("--styles / --gaits: give at least one style and one gait that is not idle (ID)")
 
 
 def run(s: Settings, data: Optional[Path] = None) -> dict:
     """The whole main job; returns the test result (MSE per style) with the style recognition
     of the generated motion under 'recognition'."""
+    check_inputs(s, data)          # before the run folder is touched
     out = Path(s.out)
     out.mkdir(parents=True, exist_ok=True)
     RunFolder.retire(out)          # a run again only when this one is complete (run_folder.py)

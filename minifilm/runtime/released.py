@@ -93,7 +93,11 @@ def _read_style_names(directory: Path) -> dict:
     names = {}
     if not path.is_file():
         return names
-    for lineno, line in enumerate(path.read_text().splitlines(), start=1):
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as e:
+        raise ReleasedFormatError(f"{path}: not UTF-8 text ({e.reason} at byte {e.start})") from None
+    for lineno, line in enumerate(text.splitlines(), start=1):
         if not line.strip():
             continue
         parts = line.split(maxsplit=1)
@@ -119,9 +123,12 @@ def infer_config(directory) -> ModelConfig:
         raise ReleasedFormatError(f"released network: {d} is not a directory")
     hidden = _n_floats(d / "cp0_b0.bin")
     n_experts = _n_floats(d / "wc2_b.bin")
-    return replace(ModelConfig.paper(), x_dim=_n_floats(d / "Xmean.bin"), z_dim=_n_floats(d / "Ymean.bin"),
-                   phase_dim=_n_floats(d / "GT_Xmean.bin"), n_experts=n_experts, hidden=hidden,
-                   gating_hidden=_n_floats(d / "wc0_b.bin"))
+    try:        # ModelConfig refuses absurd sizes before anything is allocated
+        return replace(ModelConfig.paper(), x_dim=_n_floats(d / "Xmean.bin"), z_dim=_n_floats(d / "Ymean.bin"),
+                       phase_dim=_n_floats(d / "GT_Xmean.bin"), n_experts=n_experts, hidden=hidden,
+                       gating_hidden=_n_floats(d / "wc0_b.bin"))
+    except ValueError as e:
+        raise ReleasedFormatError(f"released network {d}: its file sizes describe an impossible network ({e})") from None
 
 
 def load_released(directory, dtype=np.float32) -> ReleasedNetwork:

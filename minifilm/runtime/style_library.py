@@ -152,12 +152,18 @@ class StyleLibrary:
         return cls(dict(zip(listed, films)), dtype=films.dtype)
 
     # ------------------------------------------------------------------ mixing
-    def blend(self, weights: Mapping[str, float]) -> np.ndarray:
-        """Σ_s w_s film_s for weights (name -> w) summing to 1 (Sec. 4.4); see :func:`blend_film`."""
-        if not weights:
+    def blend(self, weights: Union[Mapping[str, float], Sequence[Tuple[str, float]]]) -> np.ndarray:
+        """Σ_s w_s film_s for weights summing to 1 (Sec. 4.4); see :func:`blend_film`. ``weights``
+        is name -> w or a sequence of (name, w) pairs, in which a style named twice gets the sum
+        of its weights (a blend of a style with itself is that style)."""
+        pairs = list(weights.items()) if isinstance(weights, Mapping) else [tuple(p) for p in weights]
+        if not pairs:
             raise ValueError("blend: no styles given")
-        films = np.stack([self[name] for name in weights])
-        return blend_film(films, [float(w) for w in weights.values()])
+        total: Dict[str, float] = {}
+        for name, w in pairs:
+            total[name] = total.get(name, 0.0) + float(w)
+        films = np.stack([self[name] for name in total])
+        return blend_film(films, list(total.values()))
 
     def barycentric(self, styles: Sequence[str], coords: Sequence[float]) -> np.ndarray:
         """Three styles blended at barycentric coordinates (w1, w2, w3) >= 0, summing to 1."""
@@ -165,7 +171,7 @@ class StyleLibrary:
             raise ValueError(f"barycentric: need 3 styles and 3 coordinates, got {len(styles)} and {len(coords)}")
         if min(coords) < -1e-9:
             raise ValueError(f"barycentric: coordinates must be >= 0 (inside the triangle), got {list(coords)}")
-        return self.blend(dict(zip(styles, coords)))
+        return self.blend(list(zip(styles, coords)))
 
     def schedule(self, keys: Sequence[Tuple[float, Union[str, Mapping[str, float]]]], n_frames: int,
                  fps: float = 60.0, transition_seconds: float = 1.0) -> np.ndarray:

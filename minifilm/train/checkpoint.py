@@ -60,7 +60,23 @@ def load_checkpoint(path) -> tuple[dict, dict]:
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
         raise CheckpointError(f"checkpoint {path}: format is {meta.get('format') if isinstance(meta, dict) else meta!r}, "
                               f"expected {FORMAT!r}")
+    _check_config_fits(meta, arrays, path)
     return meta, arrays
+
+
+def _check_config_fits(meta: dict, arrays: dict, path: Path) -> None:
+    """The stored configuration must be valid and describe about as many parameters as the file
+    holds: a forged ``hidden`` must fail here, before a model of that size is allocated."""
+    if "model_config" not in meta:
+        return
+    try:
+        config = ModelConfig.from_dict(meta["model_config"])
+    except (ValueError, TypeError, KeyError, AttributeError) as e:
+        raise CheckpointError(f"checkpoint {path}: model configuration: {e}") from None
+    stored = sum(a.size for k, a in arrays.items() if k.split(".")[0] in NETWORKS)
+    if config.n_parameters > 2 * stored + 1_000_000:
+        raise CheckpointError(f"checkpoint {path}: its configuration describes {config.n_parameters:,} parameters "
+                              f"but the file holds {stored:,}")
 
 
 def subset(arrays: dict, prefix: str) -> dict:
@@ -88,8 +104,8 @@ def load_model_arrays(model, arrays: dict, path="checkpoint", networks=NETWORKS)
         state = subset(arrays, net)
         for name, value in state.items():
             value = np.asarray(value)
-            if value.dtype.kind not in "fiu" or not np.all(np.isfinite(value)):
-                raise CheckpointError(f"{path}: parameter '{net}.{name}' holds non-finite or non-numeric values "
+            if value.dtype.kind != "f" or not np.all(np.isfinite(value)):
+                raise CheckpointError(f"{path}: parameter '{net}.{name}' holds non-finite or non-float values "
                                       f"({value.dtype}); the checkpoint is corrupt")
         try:
             sub.params.load_state_dict(state, strict=True)

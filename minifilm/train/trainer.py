@@ -305,15 +305,14 @@ class Trainer:
             tcfg = config or TrainConfig.from_dict(meta["train_config"])
             stats = NormStats.from_arrays(arrays, "stats.")
             model = (build_model or build_style_model)(meta)
-        except (KeyError, ValueError, TypeError) as e:
-            if isinstance(e, CheckpointError):
-                raise
-            raise CheckpointError(f"checkpoint {path}: bad configuration or statistics ({e})") from e
+        except (KeyError, ValueError, TypeError, AttributeError) as e:
+            raise CheckpointError(f"checkpoint {path}: bad configuration or statistics ({type(e).__name__}: {e})") from None
         load_model_arrays(model, arrays, path)
-        pos = meta.get("positions_idx")
-        par = meta.get("parents")
-        trainer = cls(model, stats, tcfg, positions_idx=None if pos is None else np.asarray(pos),
-                      parents=None if par is None else np.asarray(par), style_names=meta.get("style_names", []))
+        pos, par = _bone_indices(meta, model.config.z_dim, path)
+        names = meta.get("style_names", [])
+        if not (isinstance(names, list) and all(isinstance(n, str) for n in names)):
+            raise CheckpointError(f"checkpoint {path}: 'style_names' must be a list of strings")
+        trainer = cls(model, stats, tcfg, positions_idx=pos, parents=par, style_names=names)
         if restore_optimizer:
             try:
                 trainer.optimizer.load_state_dict(subset(arrays, "adam"))
@@ -321,8 +320,29 @@ class Trainer:
             except (KeyError, ValueError, TypeError) as e:
                 raise CheckpointError(f"checkpoint {path}: optimiser or rng state unusable ({e})") from e
             trainer.epoch, trainer.step = int(meta["epoch"]), int(meta["step"])
+            if trainer.epoch < 0 or trainer.step < 0:
+                raise CheckpointError(f"checkpoint {path}: epoch {trainer.epoch} and step {trainer.step} must be >= 0")
             trainer.history = list(meta.get("history", []))
         return trainer
+
+
+def _bone_indices(meta: dict, z_dim: int, path):
+    """The checkpoint's positions_idx (J, 3) columns of z and parents (J,) for the bone-length loss
+    (Eq. 6-7), checked: whole numbers, columns inside z, parents before their joints."""
+    pos, par = meta.get("positions_idx"), meta.get("parents")
+    if pos is None or par is None:
+        return None, None
+    try:
+        pos, par = np.asarray(pos), np.asarray(par)
+        ok = (pos.dtype.kind in "iu" and par.dtype.kind in "iu" and pos.ndim == 2 and pos.shape[1] == 3
+              and par.shape == (len(pos),) and pos.size and 0 <= pos.min() and pos.max() < z_dim
+              and all(-1 <= p < j for j, p in enumerate(par.tolist())))
+    except (ValueError, TypeError):
+        ok = False
+    if not ok:
+        raise CheckpointError(f"checkpoint {path}: 'positions_idx' / 'parents' do not describe a skeleton in "
+                              f"z's {z_dim} columns")
+    return pos.astype(np.int64), par.astype(np.int64)
 
 
 def train(model, train_data, val_data, stats, positions_idx=None, parents=None, config=None,
