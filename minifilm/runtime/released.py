@@ -181,9 +181,14 @@ def write_released(model: StyleModel, stats: NormStats, styles: dict, directory)
     so no file of an earlier, larger set of styles survives, and a failure leaves it as it was.
     """
     H = model.config.hidden
+    if not 1 <= len(styles) <= 1000:
+        raise InputError(f"write_released: {len(styles)} styles; the layout numbers them 000-999")
     for name, film in styles.items():           # check everything before writing anything
-        if np.shape(film) != (4 * H,):
-            raise ValueError(f"write_released: style {name!r} has shape {np.shape(film)}, expected ({4 * H},)")
+        if not isinstance(name, str) or not name.strip() or any(c in name for c in "\r\n") or name != name.strip():
+            raise InputError(f"write_released: style name {name!r} must be one line without surrounding spaces")
+        if np.shape(film) != (4 * H,) or not np.all(np.isfinite(film)):
+            raise InputError(f"write_released: style {name!r} has shape {np.shape(film)}, expected ({4 * H},) "
+                             "finite numbers")
     with atomic_directory(directory) as d:
         for name, arr in (("Xmean", stats.x_mean), ("Xstd", stats.x_std), ("Ymean", stats.z_mean),
                           ("Ystd", stats.z_std), ("GT_Xmean", stats.p_mean), ("GT_Xstd", stats.p_std)):
