@@ -26,8 +26,6 @@ import tempfile
 from pathlib import Path
 from typing import BinaryIO, Callable, Iterator, Union
 
-import numpy as np
-
 PathLike = Union[str, os.PathLike]
 
 
@@ -124,6 +122,10 @@ def atomic_savez(path: PathLike, arrays: dict) -> Path:
     Nothing is pickled: object arrays are refused here, so every archive minifilm writes loads
     with ``allow_pickle=False``.
     """
+    # numpy here, not at the top: the command line imports this module before it sets the BLAS
+    # thread count of its batch-1 commands (minifilm/cli/__init__.py), and OpenBLAS reads it once,
+    # when numpy is first imported
+    import numpy as np
     for name, a in arrays.items():
         if np.asarray(a).dtype == object:
             raise TypeError(f"atomic_savez({path}): array {name!r} has dtype object (would be pickled)")

@@ -7,6 +7,7 @@
     minifilm finetune     teach a trained run a new style from a short clip (Ψ only, Sec. 5.3.2)
     minifilm table2       Table 2: parameter counts and run time of the seven comparison models
     minifilm compare      Figure 10 and the style metrics: train and compare the seven models
+    minifilm demo         steer a character live in the browser (the real-time controller)
 
 Each subcommand is a module of this package with ``HELP`` (one line), ``add_arguments(parser)``
 and ``run(args)``. Bad input (a missing file, a malformed BVH, a corrupt checkpoint, an argument
@@ -35,6 +36,9 @@ COMMANDS = {
     "table2": ("minifilm.cli.table2", "Table 2: parameter counts and run time of the seven models",
                {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}),
     "compare": ("minifilm.cli.compare", "Figure 10 and style metrics: train and compare the seven models", {}),
+    # a batch-1 frame loop, like table2's timing: one BLAS thread (see above)
+    "demo": ("minifilm.cli.demo", "steer a character live in the browser (released network or a trained run)",
+             {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}),
 }
 
 #: What a user can get wrong: these errors describe the input and are printed as one line.

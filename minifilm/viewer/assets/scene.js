@@ -50,17 +50,40 @@ export function createStage(view, messageBox, size) {
 
 // A square floor of ``span`` metres with a grid of ``grid``-metre cells, centred on the origin
 // (move ``floor.ground`` and ``floor.grid`` together by whole cells to follow a character).
+// Both are cut into one piece per cell: software WebGL (SwiftShader, the tests' renderer) drops
+// a long line or a large triangle that reaches behind the camera, so a big floor in one piece
+// vanished near the camera.
 export function addFloor(scene, size, span, grid) {
   const cells = Math.max(1, Math.min(2000, Math.round(span / grid)));
   span = cells * grid;
-  const ground = new THREE.Mesh(new THREE.PlaneGeometry(span, span),
+  const pieces = Math.min(cells, 200);  // the plane's triangles: small enough, and not too many
+  const ground = new THREE.Mesh(new THREE.PlaneGeometry(span, span, pieces, pieces),
                                 new THREE.MeshLambertMaterial({ color: 0xe6e8ec }));
   ground.rotation.x = -Math.PI / 2;
   scene.add(ground);
-  const gridLines = new THREE.GridHelper(span, cells, 0xb9bec8, 0xcdd1d8);
+  const gridLines = gridSegments(span, cells, new THREE.Color(0xb9bec8), new THREE.Color(0xcdd1d8));
   gridLines.position.y = 0.001 * size;  // just above the floor, so it does not flicker into it
   scene.add(gridLines);
   return { ground, grid: gridLines, cell: grid, span };
+}
+
+// The lines of THREE.GridHelper(span, cells, centre, other), each cut into one segment per cell
+// (at most 400 per line).
+function gridSegments(span, cells, centre, other) {
+  const half = span / 2, step = span / cells, pieces = Math.min(cells, 400), piece = span / pieces;
+  const position = [], colour = [];
+  for (let i = 0; i <= cells; i++) {
+    const a = -half + i * step, c = i === cells / 2 ? centre : other;
+    for (let k = 0; k < pieces; k++) {
+      const b0 = -half + k * piece, b1 = b0 + piece;
+      position.push(a, 0, b0, a, 0, b1, b0, 0, a, b1, 0, a);
+      for (let v = 0; v < 4; v++) colour.push(c.r, c.g, c.b);
+    }
+  }
+  const geometry = new THREE.BufferGeometry();
+  geometry.setAttribute('position', new THREE.Float32BufferAttribute(position, 3));
+  geometry.setAttribute('color', new THREE.Float32BufferAttribute(colour, 3));
+  return new THREE.LineSegments(geometry, new THREE.LineBasicMaterial({ vertexColors: true, toneMapped: false }));
 }
 
 // Geometries shared by every skeleton of one body size; ``build`` makes one skeleton's meshes
