@@ -147,7 +147,8 @@ class Character:
                   st.root, st.facing, st.phases, st.contacts, st.future_pos, st.future_dir)
         if not all(np.all(np.isfinite(a)) for a in arrays):
             return "the network's output became non-finite"
-        reach = np.abs(st.out_pos[0][:, [0, 2]] - st.root[0]).max()
+        # what is shown and what the next input is built from (they differ when the fit is not fed back)
+        reach = max(np.abs(pos[0][:, [0, 2]] - st.root[0]).max() for pos in (st.out_pos, st.joint_pos))
         if reach > MAX_REACH:
             return f"the network's output flew apart (a joint {reach:.0f} m from the root)"
         return None
