@@ -4,8 +4,8 @@ The released network needs one (:func:`minifilm.runtime.calibration.calibrate_sp
 1.3 m/s makes it walk at about 0.5 m/s), and measuring one takes about 2.3 s of CPU (27 characters
 for 8 s). The start style is measured before the server starts; any other style the first time a
 page asks for it, in a worker *process* at low priority: in a thread of the server it would hold
-Python's GIL for seconds and make the frame loop wait for it. Until a style's calibration is
-there, the start style's stands in for it.
+Python's GIL for seconds and make the frame loop wait for it (``calibration_worker.py``). Until a
+style's calibration is there, the start style's stands in for it.
 
 A mix of styles is commanded with the mix of their commands, ``sum_s w_s command_s(speed)``, the
 same linear mixing the FiLM vectors get.
@@ -15,14 +15,13 @@ from __future__ import annotations
 import concurrent.futures
 import math
 import multiprocessing
-import os
 import sys
 import threading
 from typing import Dict, Mapping, Optional, Sequence
 
 import numpy as np
 
-from minifilm.demo.source import DemoSource
+from minifilm.demo import calibration_worker
 from minifilm.runtime.calibration import SpeedCalibration, calibrate_speed
 from minifilm.runtime.controller import Controller
 
@@ -74,10 +73,10 @@ class Calibrations:
                 # spawn, not fork: the server has threads running, which a fork would copy mid-step
                 self._pool = concurrent.futures.ProcessPoolExecutor(
                     max_workers=1, mp_context=multiprocessing.get_context("spawn"),
-                    initializer=_worker_start, initargs=(str(self.source.params),))
+                    initializer=calibration_worker.start, initargs=(str(self.source.params),))
             pool = self._pool
         for name in todo:
-            future = pool.submit(_worker_measure, name)
+            future = pool.submit(calibration_worker.measure_style, name)
             future.add_done_callback(lambda f, n=name: self._done(n, f))
 
     def _done(self, name: str, future) -> None:
@@ -119,20 +118,3 @@ class Calibrations:
             pool, self._pool = self._pool, None
         if pool is not None:
             pool.shutdown(wait=False, cancel_futures=True)
-
-
-# ---- the worker process -----------------------------------------------------------------------
-_SOURCE = None
-
-
-def _worker_start(params: str) -> None:
-    global _SOURCE
-    try:
-        os.nice(10)          # the frame loop comes first: measure with what it leaves
-    except OSError:
-        pass
-    _SOURCE = DemoSource.released(params, calibrate=True)
-
-
-def _worker_measure(name: str) -> SpeedCalibration:
-    return measure(_SOURCE, name)

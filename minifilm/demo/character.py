@@ -29,7 +29,7 @@ from minifilm.demo.protocol import (InputMessage, ResetMessage, SettingsMessage,
                                     weights_dict)
 from minifilm.demo.source import DemoSource
 from minifilm.demo.steering import Steering, heading_vector
-from minifilm.demo.style_mix import StyleMix
+from minifilm.demo.style_mix import StyleMix, film_digest
 from minifilm.motion.foot_ik import FootLocker
 from minifilm.runtime.controller import Controller
 
@@ -169,7 +169,8 @@ class Character:
         """What the page draws: joint positions (J*3, metres, world, y up), contacts [right, left],
         phases (8: amplitude * (sin, cos) for left hand, right hand, left foot, right foot), root
         and facing (x, z), the heading steered, the commanded velocity and speed (m/s, before
-        calibration), the measured speed, the style mix now and its target, the toggles, and the
+        calibration), the measured speed, the style mix now and its target and the fingerprint of
+        its FiLM vector (:func:`~minifilm.demo.style_mix.film_digest`), the toggles, and the
         Controller's step time (ms; the stage adds ``frameMs``, the whole frame's, and ``t``)."""
         st = self.ctrl.state
         mix = self.mix.weights
@@ -180,6 +181,7 @@ class Character:
             "heading": rounded(heading_vector(self.steering.theta)), "velocity": rounded(self.velocity),
             "commanded": round(self.commanded, 4), "speed": round(self.actual_speed(), 4),
             "weights": weights_dict(mix.items()), "target": weights_dict(self.mix.target.items()),
+            "film": film_digest(self.mix.film),
             "footLock": self.foot_lock, "fit": self.fit, "stepMs": round(self.step_ms, 4),
             "calibrated": (not self.calibrations.enabled) or all(self.calibrations.has(n) for n in mix),
         }

@@ -35,6 +35,7 @@ from minifilm.demo.protocol import (MAX_MESSAGE_BYTES, PROTOCOL_VERSION, TRANSPO
 from minifilm.demo.site import Site
 from minifilm.demo.source import DemoSource
 from minifilm.demo.stage import Stage, StageFull
+from minifilm.demo.style_mix import film_digest
 
 MAX_QUEUED = 64          # control messages (errors, notices) waiting for a slow page; older ones go
 
@@ -110,6 +111,7 @@ class DemoServer:
                            max_characters)
         self.site = Site(f"minifilm demo: {source.name}")
         self.styles = frozenset(source.library.names)
+        self.film_digests = {n: film_digest(source.library[n]) for n in source.library.names}
         self._loop = self._stopping = self._thread = None
         self._ready = threading.Event()
         self._error: Optional[BaseException] = None
@@ -156,6 +158,7 @@ class DemoServer:
         return encode({
             "type": "hello", "protocol": PROTOCOL_VERSION, "id": character.ident, "source": self.source.name,
             "fps": self.source.fps, "styles": self.source.library.names, "style": character.mix.target,
+            "films": self.film_digests,
             "joints": list(layout.joint_names), "parents": [int(p) for p in layout.parents],
             "contactJoints": self.source.contact_joints(), "size": round(float(state.out_pos[0][:, 1].max()), 3),
             "settings": {"footLock": character.foot_lock, "fit": character.fit},

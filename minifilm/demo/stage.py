@@ -82,6 +82,12 @@ class Stage:
         with self._lock:
             self._members.pop(character.ident, None)
 
+    def member(self, ident: int):
+        """The character ``ident`` (None when its page has gone)."""
+        with self._lock:
+            found = self._members.get(ident)
+        return found[0] if found else None
+
     @property
     def count(self) -> int:
         with self._lock:

@@ -9,11 +9,18 @@ own array, so a one-hot mix is exactly that style's vector.
 """
 from __future__ import annotations
 
+import hashlib
 from typing import Dict, Mapping, Tuple
 
 import numpy as np
 
 from minifilm.runtime.style_library import StyleLibrary, smoothstep
+
+
+def film_digest(film: np.ndarray) -> str:
+    """A short fingerprint of a FiLM vector's exact bits: a page (or a test) can tell which vector
+    drove a frame, e.g. that the blend triangle at a corner is bit for bit that style."""
+    return hashlib.blake2b(np.ascontiguousarray(film).tobytes(), digest_size=8).hexdigest()
 
 
 class StyleMix:

@@ -1,0 +1,33 @@
+"""The speed-calibration worker process of the demo (see ``calibrations.py``).
+
+This module is what a spawned worker imports first, so it imports nothing that loads numpy at
+its top: :func:`start` first gives the worker one BLAS thread and a low priority, then loads the
+network. (OpenBLAS reads its thread count once, when numpy is imported; with two threads each a
+batch-1 step spins on a shared machine, and the worker's measurement took 40 times longer.)
+"""
+from __future__ import annotations
+
+import os
+
+_SOURCE = None
+
+
+def start(params: str) -> None:
+    """Worker initialiser: one BLAS thread, nice 10 (the frame loop comes first), the released network."""
+    global _SOURCE
+    for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ[name] = "1"
+    try:
+        os.nice(10)
+    except OSError:
+        pass
+    # after the thread count is set: these import numpy
+    from minifilm.demo.calibrations import measure
+    from minifilm.demo.source import DemoSource
+    _SOURCE = (DemoSource.released(params, calibrate=True), measure)
+
+
+def measure_style(name: str):
+    """The SpeedCalibration of style ``name`` (in the worker)."""
+    source, measure = _SOURCE
+    return measure(source, name)
