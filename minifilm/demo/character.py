@@ -25,11 +25,10 @@ from typing import List, Optional, Tuple
 import numpy as np
 
 from minifilm.demo.calibrations import Calibrations
-from minifilm.demo.protocol import (InputMessage, ResetMessage, SettingsMessage, StyleMessage, rounded,
-                                    weights_dict)
+from minifilm.demo.protocol import InputMessage, ResetMessage, SettingsMessage, StyleMessage, weights_dict
 from minifilm.demo.source import DemoSource
 from minifilm.demo.steering import Steering, heading_vector
-from minifilm.demo.style_mix import StyleMix, film_digest
+from minifilm.demo.style_mix import StyleMix
 from minifilm.motion.foot_ik import FootLocker
 from minifilm.runtime.controller import Controller
 
@@ -122,8 +121,9 @@ class Character:
         facing, velocity, self.commanded = self.steering.advance(self.dt)
         self.velocity = velocity
         film = self.mix.advance(self.dt)
+        weights = self.mix.weights
         try:
-            command = self.calibrations.command(velocity, facing, self.mix.weights)
+            command = self.calibrations.command(velocity, facing, weights)
             t0 = time.perf_counter()
             with np.errstate(all="ignore"):    # overflow is caught by the guard below, not warned
                 self.ctrl.step(facing[None], command[None], film)
@@ -139,7 +139,7 @@ class Character:
             notices.append(f"{problem}: the character was reset where it stood")
         self.frame_no += 1
         self._roots.append(self.ctrl.state.root[0].copy())
-        return self.frame_message(), notices
+        return self.frame_message(weights), notices
 
     def _check(self) -> Optional[str]:
         st = self.ctrl.state
@@ -162,26 +162,32 @@ class Character:
         """Mean root speed (m/s) over the last ``SPEED_WINDOW`` seconds."""
         if len(self._roots) < 2:
             return 0.0
-        roots = np.asarray(self._roots)
-        return float(np.linalg.norm(roots[-1] - roots[0]) / ((len(roots) - 1) * self.dt))
+        d = self._roots[-1] - self._roots[0]
+        return math.hypot(d[0], d[1]) / ((len(self._roots) - 1) * self.dt)
 
-    def frame_message(self) -> dict:
+    def frame_message(self, weights=None) -> dict:
         """What the page draws: joint positions (J*3, metres, world, y up), contacts [right, left],
         phases (8: amplitude * (sin, cos) for left hand, right hand, left foot, right foot), root
         and facing (x, z), the heading steered, the commanded velocity and speed (m/s, before
-        calibration), the measured speed, the style mix now and its target and the fingerprint of
-        its FiLM vector (:func:`~minifilm.demo.style_mix.film_digest`), the toggles, and the
-        Controller's step time (ms; the stage adds ``frameMs``, the whole frame's, and ``t``)."""
+        calibration), the measured speed, the style mix now (``weights``, default the mix's) and
+        its target and the fingerprint of its FiLM vector
+        (:func:`~minifilm.demo.style_mix.film_digest`), the toggles, and the Controller's step
+        time (ms; the stage adds ``frameMs``, the whole frame's, and ``t``)."""
         st = self.ctrl.state
-        mix = self.mix.weights
-        return {
-            "type": "frame", "n": self.frame_no, "ack": self.ack,
-            "positions": rounded(st.out_pos[0]), "contacts": rounded(st.contacts[0], 3),
-            "phases": rounded(st.phases[0]), "root": rounded(st.root[0]), "facing": rounded(st.facing[0]),
-            "heading": rounded(heading_vector(self.steering.theta)), "velocity": rounded(self.velocity),
+        mix = self.mix.weights if weights is None else weights
+        # every number of the frame rounded in one pass (0.1 mm, 1e-4 of a phase), then cut up
+        numbers = np.round(np.concatenate([st.out_pos[0].reshape(-1), st.contacts[0], st.phases[0], st.root[0],
+                                           st.facing[0], heading_vector(self.steering.theta), self.velocity]),
+                           4).tolist()
+        a = 3 * len(st.out_pos[0])
+        cut = dict(positions=(0, a), contacts=(a, a + 2), phases=(a + 2, a + 10), root=(a + 10, a + 12),
+                   facing=(a + 12, a + 14), heading=(a + 14, a + 16), velocity=(a + 16, a + 18))
+        frame = {"type": "frame", "n": self.frame_no, "ack": self.ack}
+        frame.update({key: numbers[i:j] for key, (i, j) in cut.items()})
+        frame.update({
             "commanded": round(self.commanded, 4), "speed": round(self.actual_speed(), 4),
             "weights": weights_dict(mix.items()), "target": weights_dict(self.mix.target.items()),
-            "film": film_digest(self.mix.film),
-            "footLock": self.foot_lock, "fit": self.fit, "stepMs": round(self.step_ms, 4),
+            "film": self.mix.digest, "footLock": self.foot_lock, "fit": self.fit, "stepMs": round(self.step_ms, 4),
             "calibrated": (not self.calibrations.enabled) or all(self.calibrations.has(n) for n in mix),
-        }
+        })
+        return frame

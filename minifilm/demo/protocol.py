@@ -31,8 +31,6 @@ import math
 from dataclasses import dataclass
 from typing import Collection, Dict, Optional, Sequence, Tuple, Union
 
-import numpy as np
-
 PROTOCOL_VERSION = 1
 #: The largest page message the server reads and answers (an error reply above it).
 MAX_MESSAGE_BYTES = 4096
@@ -225,11 +223,6 @@ def refused(message: str) -> str:
 
 def pong(t: float, seq: Optional[int] = None) -> str:
     return encode({"type": "pong", "t": t, "seq": seq})
-
-
-def rounded(a: np.ndarray, decimals: int = 4) -> list:
-    """A flat list of floats rounded to ``decimals`` (0.1 mm for positions in metres)."""
-    return np.round(np.asarray(a, dtype=np.float64).reshape(-1), decimals).tolist()
 
 
 def weights_dict(weights: Sequence[Tuple[str, float]], decimals: int = 4) -> Dict[str, float]:

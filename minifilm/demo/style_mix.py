@@ -33,6 +33,7 @@ class StyleMix:
         self._from_w, self._from = self._target_w, self._target
         self.film = self._target
         self._u, self._seconds = 1.0, 0.0
+        self._digest, self._digest_of = "", None
 
     def change(self, weights: Mapping[str, float], seconds: float) -> None:
         """Start moving to ``weights`` (names -> w >= 0 summing to 1) over ``seconds``."""
@@ -59,6 +60,13 @@ class StyleMix:
         self._u = 1.0
         self._from_w, self._from = self._target_w, self._target
         self.film = self._target
+
+    @property
+    def digest(self) -> str:
+        """:func:`film_digest` of the current FiLM vector (computed again only when it changes)."""
+        if self._digest_of is not self.film:
+            self._digest, self._digest_of = film_digest(self.film), self.film
+        return self._digest
 
     @property
     def changing(self) -> bool:

@@ -164,7 +164,7 @@ function readouts() {
   const f = demo.frame;
   $('commanded').textContent = `${f.commanded.toFixed(2)} m/s`;
   $('actual').textContent = `${f.speed.toFixed(2)} m/s`;
-  $('frametime').textContent = `${median(frameTimes).toFixed(2)} ms (server, median)`;
+  $('frametime').textContent = `${median(frameTimes).toFixed(2)} ms`;   // median of the last 60
   const span = (arrivals[arrivals.length - 1] - arrivals[0]) / 1000;
   $('fps').textContent = arrivals.length > 1 ? `${((arrivals.length - 1) / span).toFixed(1)} / s` : '-';
   $('latency').textContent = demo.latencyMs === null ? '-' : `${demo.latencyMs.toFixed(0)} ms`;

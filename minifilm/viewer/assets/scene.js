@@ -50,13 +50,13 @@ export function createStage(view, messageBox, size) {
 
 // A square floor of ``span`` metres with a grid of ``grid``-metre cells, centred on the origin
 // (move ``floor.ground`` and ``floor.grid`` together by whole cells to follow a character).
-// Both are cut into one piece per cell: software WebGL (SwiftShader, the tests' renderer) drops
+// Both are cut into pieces of about a cell: software WebGL (SwiftShader, the tests' renderer) drops
 // a long line or a large triangle that reaches behind the camera, so a big floor in one piece
 // vanished near the camera.
 export function addFloor(scene, size, span, grid) {
   const cells = Math.max(1, Math.min(2000, Math.round(span / grid)));
   span = cells * grid;
-  const pieces = Math.min(cells, 200);  // the plane's triangles: small enough, and not too many
+  const pieces = Math.min(cells, 40);   // the plane's triangles: small enough, and not too many
   const ground = new THREE.Mesh(new THREE.PlaneGeometry(span, span, pieces, pieces),
                                 new THREE.MeshLambertMaterial({ color: 0xe6e8ec }));
   ground.rotation.x = -Math.PI / 2;
@@ -68,9 +68,9 @@ export function addFloor(scene, size, span, grid) {
 }
 
 // The lines of THREE.GridHelper(span, cells, centre, other), each cut into one segment per cell
-// (at most 400 per line).
+// (at most 40 per line: software rendering pays for every segment).
 function gridSegments(span, cells, centre, other) {
-  const half = span / 2, step = span / cells, pieces = Math.min(cells, 400), piece = span / pieces;
+  const half = span / 2, step = span / cells, pieces = Math.min(cells, 40), piece = span / pieces;
   const position = [], colour = [];
   for (let i = 0; i <= cells; i++) {
     const a = -half + i * step, c = i === cells / 2 ? centre : other;
