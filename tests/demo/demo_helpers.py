@@ -114,9 +114,10 @@ def http_get(port: int, target: str, host: str = None, extra: str = "") -> tuple
     return status, body
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def browser():
-    """Headless Chromium through playwright; skips with the reason when either is unavailable."""
+    """Headless Chromium through playwright; skips with the reason when either is unavailable.
+    (Module-scoped: one sync playwright per thread at a time, and the viewer tests start their own.)"""
     try:
         from playwright.sync_api import sync_playwright  # optional: browser tests only
     except ImportError:
