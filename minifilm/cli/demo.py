@@ -47,7 +47,7 @@ def add_arguments(ap) -> None:
     ap.add_argument("--no-calibrate", action="store_true",
                     help="command the raw speed (the released network then walks slower than asked)")
     ap.add_argument("--record", type=Path, help="write a scripted session as an animated GIF instead of serving")
-    ap.add_argument("--record-seconds", type=in_range(1.0, 60.0), default=6.0, help="length of --record, seconds")
+    ap.add_argument("--record-seconds", type=in_range(1.0, 60.0), default=5.0, help="length of --record, seconds")
 
 
 def run(args) -> int:
