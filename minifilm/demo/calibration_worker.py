@@ -8,13 +8,24 @@ batch-1 step spins on a shared machine, and the worker's measurement took 40 tim
 from __future__ import annotations
 
 import os
+import threading
+import time
 
 _SOURCE = None
 
 
 def start(params: str) -> None:
-    """Worker initialiser: one BLAS thread, nice 10 (the frame loop comes first), the released network."""
+    """Worker initialiser: one BLAS thread, nice 10 (the frame loop comes first), the released
+    network, and a watch on the server: the worker ends when the server has gone, however it went
+    (killed, it cannot shut its pool down)."""
     global _SOURCE
+    parent = os.getppid()
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(1.0)
+        os._exit(0)
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
     for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ[name] = "1"
     try:

@@ -25,6 +25,7 @@ import asyncio
 import collections
 import ipaddress
 import logging
+import signal
 import threading
 from typing import Callable, Optional
 
@@ -216,10 +217,15 @@ class DemoServer:
             pass
 
     # ---- running ------------------------------------------------------------------------------
-    async def serve(self, on_ready: Optional[Callable[[str], None]] = None) -> None:
-        """Serve until :meth:`stop` (or cancellation); ``on_ready(url)`` once listening."""
+    async def serve(self, on_ready: Optional[Callable[[str], None]] = None, stop_on_signals: bool = False) -> None:
+        """Serve until :meth:`stop` (or cancellation); ``on_ready(url)`` once listening.
+        ``stop_on_signals`` (main thread only): Ctrl-C and SIGTERM stop it the same way, so the
+        pages are told and the calibration worker ends with it."""
         serve = self.modules[0]
         self._loop, self._stopping = asyncio.get_running_loop(), asyncio.Event()
+        if stop_on_signals:
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._loop.add_signal_handler(sig, self._stopping.set)
         try:
             async with serve(self._connection, self.host, self.port, process_request=self._http,
                              max_size=TRANSPORT_MAX_BYTES, compression=None, server_header=None,
@@ -235,9 +241,9 @@ class DemoServer:
             self.calibrations.close()
 
     def run(self, on_ready: Optional[Callable[[str], None]] = None) -> None:
-        """Serve in this thread until Ctrl-C."""
+        """Serve in this thread until Ctrl-C or SIGTERM."""
         try:
-            asyncio.run(self.serve(on_ready))
+            asyncio.run(self.serve(on_ready, stop_on_signals=True))
         except KeyboardInterrupt:
             pass
 

@@ -1,9 +1,12 @@
 """The frame loop: every connected character stepped at the data's frame rate, on a thread of its own.
 
 The loop keeps absolute deadlines (frame k is due at ``start + k / fps``), so it does not drift:
-sleeping too long once makes the next wait shorter. A frame started more than one period late is
-counted and the schedule restarts from now instead of running the missed frames in a burst (the
-character would rush). With nobody connected the thread sleeps and costs nothing.
+sleeping too long once makes the next wait shorter, and frames that fell behind (the process was
+not scheduled for a while: the cores are shared) are run at once until the loop is back on time,
+so the character's time keeps up with the clock. Only after a stall of more than
+``MAX_CATCH_UP`` frames (a suspended laptop, a debugger) does the schedule restart from now
+instead, as running all the missed frames in a burst would make the character rush. With nobody
+connected the thread sleeps and costs nothing.
 
 Its own thread, apart from the network's event loop, so that nothing a page does (a slow
 connection, a burst of messages, the download of the page) can delay a frame: pages only append
@@ -26,6 +29,9 @@ from minifilm.demo.protocol import encode, notice
 
 #: ``deliver(text, is_frame)``: hand a message to a page; must not block.
 Deliver = Callable[[str, bool], None]
+#: Frames the loop may run late to catch up with the clock (1/15 s at 60 fps); after a longer
+#: stall it restarts its schedule instead.
+MAX_CATCH_UP = 4
 
 
 class StageFull(RuntimeError):
@@ -40,9 +46,10 @@ class Stage:
         fps: frames per second (the data's: 60 for the released network).
         clock: seconds, monotonic (``time.perf_counter``).
 
-    Statistics (read by the server's logs and by tests): ``ticks`` frames run, ``late`` times the
-    schedule restarted, ``skipped`` frames so lost, ``frame_ms`` the last step times (ms) of every
-    character, ``errors`` unexpected errors the loop survived.
+    Statistics (for tests and debugging): ``ticks`` frames run, ``behind`` frames started over a
+    period late (then caught up), ``restarts`` times the schedule restarted after a long stall and
+    ``skipped`` the frames so lost, ``frame_ms`` the last step times (ms), ``errors`` unexpected
+    errors the loop survived.
     """
 
     def __init__(self, make_character: Callable[[int], object], fps: float, max_characters: int = 4,
@@ -57,8 +64,8 @@ class Stage:
         self._thread = None
         self._next_ident = 1
         self.start_time = clock()
-        self.ticks = self.late = self.skipped = self.errors = 0
-        self.frame_ms = collections.deque(maxlen=36000)      # 10 minutes of one character at 60 fps
+        self.ticks = self.behind = self.restarts = self.skipped = self.errors = 0
+        self.frame_ms = collections.deque(maxlen=600)        # bounded: the loop runs for hours
 
     # ---- members ----------------------------------------------------------------------------
     def join(self, deliver: Deliver):
@@ -148,10 +155,13 @@ class Stage:
                 elif now < due:
                     time.sleep(due - now)
                     now = self.clock()
-                if now - due > self.period:            # over a frame late: restart the schedule
-                    self.late += 1
-                    self.skipped += int((now - due) / self.period)
+                late = now - due
+                if late > MAX_CATCH_UP * self.period:    # a long stall: do not rush to make it up
+                    self.restarts += 1
+                    self.skipped += int(late / self.period)
                     due = now
+                elif late > self.period:
+                    self.behind += 1
                 self.tick(now)
                 due += self.period
             except Exception:  # noqa: BLE001 - see the module docstring: the loop never dies

@@ -256,8 +256,7 @@ function sendInput() {
   const input = currentInput();
   const key = JSON.stringify(input);
   if (key === lastInput) return;
-  lastInput = key;
-  send(input);
+  if (send(input) !== null) lastInput = key;   // not yet connected: try again next frame
 }
 
 // ---------------------------------------------------------------------------------------------
