@@ -53,7 +53,7 @@ def test_record_writes_a_gif_of_a_scripted_session(tiny_run, tmp_path):
     assert proc.returncode == 0, proc.stderr
     Image = pytest.importorskip("PIL.Image")
     with Image.open(out) as gif:
-        assert gif.n_frames == 20                  # 1 s at the GIF's 20 frames a second
+        assert gif.n_frames == 12                  # 1 s at the GIF's 12 frames a second
 
 
 def test_the_command_line_leaves_numpy_unloaded_so_the_frame_loop_gets_one_blas_thread():
