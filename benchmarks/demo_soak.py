@@ -156,10 +156,12 @@ def soak(args, run_index: int) -> dict:
     n, t, frame_ms, step_ms, finite = (np.array(col) for col in zip(*frames))
     skip = int(args.warmup * fps)                                 # calibrations and caches settle first
     drift = (t - t[0]) - (n - n[0]) / fps                         # seconds frame n is behind its schedule
+    jump = int(np.argmax(np.diff(drift))) if len(drift) > 1 else 0  # where it fell behind most at once
     return dict(run=run_index, seconds=args.seconds, frames=len(n), fps=(n[-1] - n[0]) / (t[-1] - t[0]),
                 lost=int((np.diff(n) - 1).sum()), drift_end_ms=1e3 * drift[-1],
                 drift_max_ms=1e3 * np.abs(drift).max(),
                 drift_growth_ms=1e3 * (drift[len(drift) // 2:].mean() - drift[skip:len(drift) // 2].mean()),
+                worst_stall_ms=1e3 * (t[jump + 1] - t[jump]) if len(t) > 1 else 0.0, worst_stall_at=t[jump] - t[0],
                 frame_median=np.median(frame_ms[skip:]), frame_p99=np.percentile(frame_ms[skip:], 99),
                 frame_max=frame_ms[skip:].max(), step_median=np.median(step_ms[skip:]),
                 step_p99=np.percentile(step_ms[skip:], 99), rss_start=rss[0][1], rss_end=rss[-1][1],
@@ -218,7 +220,7 @@ def main() -> None:
         results.append(res)
         print(f"run {res['run']}: {res['frames']} frames, {res['fps']:.3f} fps (server clock), lost {res['lost']}, "
               f"drift end {res['drift_end_ms']:.1f} ms (max {res['drift_max_ms']:.1f}, growth second half "
-              f"{res['drift_growth_ms']:.2f}) | frame ms median {res['frame_median']:.3f} p99 {res['frame_p99']:.3f} "
+              f"{res['drift_growth_ms']:.2f}; longest gap {res['worst_stall_ms']:.0f} ms at {res['worst_stall_at']:.1f} s) | frame ms median {res['frame_median']:.3f} p99 {res['frame_p99']:.3f} "
               f"max {res['frame_max']:.1f} | step ms median {res['step_median']:.3f} p99 {res['step_p99']:.3f} | "
               f"RSS {res['rss_start']:.1f} -> {res['rss_end']:.1f} MB ({res['rss_growth']:+.1f}; second half "
               f"{res['rss_growth_second_half']:+.1f}) | finite "

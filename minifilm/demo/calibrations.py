@@ -49,10 +49,11 @@ class Calibrations:
         self._cal: Dict[str, SpeedCalibration] = {}
         self._memo: Dict[tuple, float] = {}      # (speed, direction, mix) -> command / speed
         self._asked = set()
-        self._lock = threading.Lock()
+        self._lock = threading.RLock()      # a done callback may run inside _submit
         self._pool: Optional[concurrent.futures.ProcessPoolExecutor] = None
         self._background = background and source.params is not None
         self.fallback: Optional[SpeedCalibration] = None
+        self._closed = False
         if self.enabled:
             for name in first:
                 self._cal[name] = measure(source, name)
@@ -63,21 +64,29 @@ class Calibrations:
             return name in self._cal
 
     def request(self, names) -> None:
-        """Start measuring every style of ``names`` not measured or asked for yet."""
+        """Start measuring every style of ``names`` not measured or asked for yet. Returns at once:
+        the frame loop calls it, and starting the worker process takes tens of milliseconds (it
+        held a frame up by 64 ms when done here), so that happens on a thread of its own."""
         if not (self.enabled and self._background):
             return
         with self._lock:
-            todo = [n for n in names if n not in self._cal and n not in self._asked]
+            todo = [n for n in dict.fromkeys(names) if n not in self._cal and n not in self._asked]
             self._asked.update(todo)
-            if todo and self._pool is None:
+        if todo:
+            threading.Thread(target=self._submit, args=(todo,), name="minifilm-demo-calibrate", daemon=True).start()
+
+    def _submit(self, todo) -> None:
+        with self._lock:
+            if self._closed:
+                return
+            if self._pool is None:
                 # spawn, not fork: the server has threads running, which a fork would copy mid-step
                 self._pool = concurrent.futures.ProcessPoolExecutor(
                     max_workers=1, mp_context=multiprocessing.get_context("spawn"),
                     initializer=calibration_worker.start, initargs=(str(self.source.params),))
-            pool = self._pool
-        for name in todo:
-            future = pool.submit(calibration_worker.measure_style, name)
-            future.add_done_callback(lambda f, n=name: self._done(n, f))
+            for name in todo:
+                future = self._pool.submit(calibration_worker.measure_style, name)
+                future.add_done_callback(lambda f, n=name: self._done(n, f))
 
     def _done(self, name: str, future) -> None:
         try:
@@ -115,6 +124,6 @@ class Calibrations:
 
     def close(self) -> None:
         with self._lock:
-            pool, self._pool = self._pool, None
+            pool, self._pool, self._closed = self._pool, None, True
         if pool is not None:
             pool.shutdown(wait=False, cancel_futures=True)
