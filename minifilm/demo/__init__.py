@@ -15,7 +15,8 @@ Files, from the page inwards: ``assets/`` (the page: demo.html, demo.js, demo.cs
 validation of the page's), ``stage.py`` (the frame loop on its own thread), ``character.py``
 (one page's character: Controller, guard against non-finite output), ``steering.py`` (keys and
 sticks to a target facing and velocity), ``style_mix.py`` (smooth style changes and blends),
-``calibrations.py`` (speed calibration per style, off the loop), ``source.py`` (released
-network or run folder), ``record.py`` (a scripted session recorded server-side, for a GIF).
+``calibrations.py`` and ``calibration_worker.py`` (speed calibration per style, in a worker
+process), ``source.py`` (released network or run folder), ``record.py`` (a scripted session
+recorded server-side, for a GIF), ``client.py`` (a page without a browser: tests, benchmarks).
 Importing this package loads none of them.
 """
