@@ -3,10 +3,10 @@
 The loop keeps absolute deadlines (frame k is due at ``start + k / fps``), so it does not drift:
 sleeping too long once makes the next wait shorter, and frames that fell behind (the process was
 not scheduled for a while: the cores are shared) are run at once until the loop is back on time,
-so the character's time keeps up with the clock. Only after a stall of more than
-``MAX_CATCH_UP`` frames (a suspended laptop, a debugger) does the schedule restart from now
-instead, as running all the missed frames in a burst would make the character rush. With nobody
-connected the thread sleeps and costs nothing.
+so the character's time keeps up with the clock. A page shows the newest frame, so after such a
+stall the character is where it would have been, as after any stall. Only after a stall of more
+than ``MAX_CATCH_UP`` frames (a suspended laptop, a debugger) does the schedule restart from now
+instead of running them all. With nobody connected the thread sleeps and costs nothing.
 
 Its own thread, apart from the network's event loop, so that nothing a page does (a slow
 connection, a burst of messages, the download of the page) can delay a frame: pages only append
@@ -29,9 +29,10 @@ from minifilm.demo.protocol import encode, notice
 
 #: ``deliver(text, is_frame)``: hand a message to a page; must not block.
 Deliver = Callable[[str, bool], None]
-#: Frames the loop may run late to catch up with the clock (1/15 s at 60 fps); after a longer
-#: stall it restarts its schedule instead.
-MAX_CATCH_UP = 4
+#: Frames the loop may run late to catch up with the clock (a quarter of a second at 60 fps); after
+#: a longer stall it restarts its schedule instead. (With 4, stalls of 70-85 ms on this shared
+#: 2-core machine made the loop lose 8 frames in 10 minutes: benchmarks/demo_soak.py.)
+MAX_CATCH_UP = 15
 
 
 class StageFull(RuntimeError):
@@ -156,7 +157,7 @@ class Stage:
                     time.sleep(due - now)
                     now = self.clock()
                 late = now - due
-                if late > MAX_CATCH_UP * self.period:    # a long stall: do not rush to make it up
+                if late > MAX_CATCH_UP * self.period:    # a long stall: do not run all it missed
                     self.restarts += 1
                     self.skipped += int(late / self.period)
                     due = now
