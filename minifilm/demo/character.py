@@ -154,9 +154,12 @@ class Character:
         return None
 
     def _recover(self) -> None:
-        """Reset where the character last stood (its last finite root), facing its heading."""
+        """Reset where the character last stood (its last finite root), facing its heading, with
+        the keys the user holds still held."""
         where = self._roots[-1] if self._roots else np.zeros(2)
+        held = self.steering.move, self.steering.turn, self.steering.speed
         self.reset(where, self.steering.theta)
+        self.steering.hold(*held)
 
     def actual_speed(self) -> float:
         """Mean root speed (m/s) over the last ``SPEED_WINDOW`` seconds."""

@@ -91,6 +91,6 @@ def test_the_guard_resets_a_character_whose_frame_went_wrong(tiny_source, fault,
     encode(frame)
     np.testing.assert_allclose(frame["root"], before, atol=0.05)     # where it stood, not at the origin
     monkeypatch.setattr(ch.ctrl.net, "predict", predict)
-    for _ in range(10):                                              # and it goes on
+    for _ in range(10):                                              # and it goes on, W still held
         frame, notices = ch.step()
-        assert notices == [] and all_finite(frame)
+        assert notices == [] and all_finite(frame) and frame["commanded"] == pytest.approx(1.3)
