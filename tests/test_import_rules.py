@@ -8,6 +8,7 @@ data flow, and sit at the top of their file unless a comment says why not.
     runtime, viewer      -> model, features, motion, dataset
     baselines, evaluation   the comparison of Sec. 5: nothing in the core imports them
     pipeline, cli        whole jobs and the command: they may import everything (cli imports pipeline)
+    demo                 the live demo, an application like pipeline (its __main__ hands over to cli)
 """
 from __future__ import annotations
 
@@ -39,8 +40,9 @@ ALLOWED = {
                    "runtime", "viewer", "files"},
     "pipeline": {"errors", "evaluation", "baselines", "model", "nn", "dataset", "features", "motion", "phases", "synthetic",
                  "train", "runtime", "viewer", "files"},
-    "cli": {"errors", "pipeline", "evaluation", "baselines", "model", "nn", "dataset", "features", "motion", "phases",
-            "synthetic", "train", "runtime", "viewer", "files"},
+    "demo": {"errors", "cli", "pipeline", "runtime", "viewer", "motion", "features", "dataset", "synthetic", "files"},
+    "cli": {"errors", "demo", "pipeline", "evaluation", "baselines", "model", "nn", "dataset", "features", "motion",
+            "phases", "synthetic", "train", "runtime", "viewer", "files"},
     "__main__": {"cli"},
 }
 CORE = {"errors", "files", "nn", "motion", "phases", "features", "synthetic", "dataset", "model", "train", "runtime", "viewer"}

@@ -9,6 +9,7 @@
     minifilm table2       Table 2: parameter counts and run time of the seven comparison models
     minifilm compare      Figure 10 and the style metrics: train and compare the seven models
     minifilm gradcheck    check every backward pass against numerical gradients (the table)
+    minifilm demo         steer a character live in the browser (the real-time controller)
 
 Each subcommand is a module of this package with ``HELP`` (one line), ``add_arguments(parser)``
 and ``run(args)``. Bad input (a missing file, a malformed BVH, a corrupt checkpoint, an argument
@@ -45,7 +46,10 @@ COMMANDS = {
     "compare": ("minifilm.cli.compare", "Figure 10 and style metrics: train and compare the seven models", {}),
     # tiny arrays: threaded BLAS only adds overhead, and the check shares the machine
     "gradcheck": ("minifilm.cli.gradcheck", "check every backward pass against numerical gradients (the table)",
-                  {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}),
+                  ONE_BLAS_THREAD),
+    # a batch-1 frame loop, like table2's timing: one BLAS thread (see above)
+    "demo": ("minifilm.cli.demo", "steer a character live in the browser (released network or a trained run)",
+             ONE_BLAS_THREAD),
 }
 
 #: What a user can get wrong: these errors describe the input and are printed as one line.

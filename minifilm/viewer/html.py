@@ -1,11 +1,13 @@
 """One self-contained HTML file that plays tracks in 3-D with three.js, offline, from disk.
 
-The page is ``assets/player.html`` with four things inlined:
+The page is ``assets/player.html`` with five things inlined:
 
 - three.js (``vendor/three.module.min.js``, one ES module) as the ``data:`` URL of an import map
   entry, so the player's inline ``<script type="module">`` can ``import * as THREE from "three"``
   on a page opened with ``file://``: no server, no CDN, no network request. (An inline module
   cannot import a file by name, and a ``file://`` page may not fetch its neighbours.)
+- ``assets/scene.js`` (stage, floor, skeletons, labels, orbit camera; shared with the live demo
+  of ``minifilm.demo``, which serves it as a file) the same way, as the entry ``"minifilm-scene"``.
 - ``assets/player.js`` (the player) and ``assets/player.css``.
 - The motion data as JSON (``encode.py``: float32 roots + int16 offsets in base64).
 
@@ -33,6 +35,7 @@ __all__ = ["write_html", "page_html", "lane_offsets"]
 
 HERE = Path(__file__).resolve().parent
 THREE_JS = HERE / "vendor" / "three.module.min.js"
+SCENE_JS = HERE / "assets" / "scene.js"
 THREE_VERSION = "0.170.0"
 
 
@@ -63,6 +66,7 @@ def page_html(tracks: List[Track], title: str = "minifilm motion") -> str:
         "TITLE": _escape_text(str(title)),
         "CSS": _asset("player.css"),
         "THREE": base64.b64encode(THREE_JS.read_bytes()).decode("ascii"),
+        "SCENE": base64.b64encode(SCENE_JS.read_bytes()).decode("ascii"),
         "DATA": _json_for_script(data),
         "JS": _asset("player.js"),
         "THREE_VERSION": THREE_VERSION,

@@ -27,9 +27,10 @@ def xia_walk(shared_data) -> Path:
     return need_data(shared_data / "bvh" / "xia" / "neutral_01_000.bvh", "a real BVH")
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def browser():
-    """Headless Chromium through playwright; skips with the reason when either is unavailable."""
+    """Headless Chromium through playwright; skips with the reason when either is unavailable.
+    (Module-scoped: one sync playwright per thread at a time, and the demo's tests start their own.)"""
     try:
         from playwright.sync_api import sync_playwright
     except ImportError:

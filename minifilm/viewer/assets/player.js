@@ -5,14 +5,16 @@
 // axes of the BVH forward kinematics. Each character is drawn inside a THREE.Group moved by its
 // lane offset, so a joint mesh's local position is exactly the decoded BVH position.
 //
+// The three.js pieces (stage, floor, skeletons, labels, orbit camera) are scene.js, shared with the
+// live demo; html.py inlines it as the import-map entry 'minifilm-scene'.
+//
 // For tests and scripts the page exposes window.minifilmPlayer (see the end of this file).
 import * as THREE from 'three';
+import { COLOURS, addFloor, createStage, highlightJoint, makeLabel, orbitControls, placeCamera,
+         poseSkeleton, skeletonKit } from 'minifilm-scene';
 
 const DATA = JSON.parse(document.getElementById('minifilm-data').textContent);
 const SIZE = DATA.size;                      // body size, metres: scales radii, camera, labels
-const COLOURS = [0x1f77b4, 0xd62728, 0x2ca02c, 0x9467bd, 0xff7f0e, 0x17becf, 0x8c564b, 0xe377c2];
-const CONTACT_COLOUR = 0xffc400;
-const UP = new THREE.Vector3(0, 1, 0);
 
 // ---------------------------------------------------------------------------------------------
 // Decoding
@@ -63,26 +65,8 @@ const charFrame = c => Math.min(Math.floor(globalFrame() / FPS * c.fps + 0.5), c
 // ---------------------------------------------------------------------------------------------
 
 const view = document.getElementById('view');
-let renderer;
-try {
-  renderer = new THREE.WebGLRenderer({ antialias: true });
-} catch (e) {
-  // Say so on the page rather than leaving it blank (old browser, or WebGL switched off).
-  const box = document.getElementById('message');
-  box.hidden = false;
-  box.textContent = 'This player needs WebGL, which this browser does not provide: ' + e.message;
-  throw e;
-}
-renderer.setPixelRatio(window.devicePixelRatio || 1);
-renderer.setSize(view.clientWidth, view.clientHeight);
-view.appendChild(renderer.domElement);
-
-const scene = new THREE.Scene();
-scene.background = new THREE.Color(0xf4f5f7);
-scene.add(new THREE.HemisphereLight(0xffffff, 0x8a8f99, 2.2));
-const sun = new THREE.DirectionalLight(0xffffff, 1.6);
-sun.position.set(0.5, 1.0, 0.8);
-scene.add(sun);
+const stage = createStage(view, document.getElementById('message'), SIZE);
+const { renderer, scene, camera } = stage;
 
 // Floor and grid cover every character's whole path, lanes included.
 (function floor() {
@@ -93,63 +77,17 @@ scene.add(sun);
                      Math.abs(c.trailPos[3 * f + 2] + c.offset[2]) + 2 * SIZE);
     }
   }
-  const cells = Math.min(2000, Math.ceil(2 * ext / DATA.grid));
-  const span = cells * DATA.grid;
-  const ground = new THREE.Mesh(new THREE.PlaneGeometry(span, span),
-                                new THREE.MeshLambertMaterial({ color: 0xe6e8ec }));
-  ground.rotation.x = -Math.PI / 2;
-  scene.add(ground);
-  const grid = new THREE.GridHelper(span, cells, 0xb9bec8, 0xcdd1d8);
-  grid.position.y = 0.001 * SIZE;  // just above the floor, so it does not flicker into it
-  scene.add(grid);
+  addFloor(scene, SIZE, Math.ceil(2 * ext / DATA.grid) * DATA.grid, DATA.grid);
 })();
 
-const jointGeometry = new THREE.SphereGeometry(0.022 * SIZE, 12, 8);
-const boneGeometry = new THREE.CylinderGeometry(0.013 * SIZE, 0.013 * SIZE, 1, 8);
-boneGeometry.translate(0, 0.5, 0);  // spans y in [0, 1]: scaled to the bone length, from the parent
-const contactMaterial = new THREE.MeshLambertMaterial({ color: CONTACT_COLOUR });
-
-// Name labels keep a constant size on screen (sizeAttenuation off: scale is a fraction of the
-// view height), so they stay readable however far the camera zooms out.
-function makeLabel(text, colour) {
-  const canvas = document.createElement('canvas');
-  const g = canvas.getContext('2d');
-  const font = 'bold 44px system-ui, sans-serif';
-  g.font = font;
-  canvas.width = Math.ceil(g.measureText(text).width) + 24;
-  canvas.height = 64;
-  g.font = font;  // resizing the canvas resets its state
-  g.textAlign = 'center'; g.textBaseline = 'middle';
-  g.lineWidth = 8; g.strokeStyle = 'rgba(255,255,255,0.92)';
-  g.strokeText(text, canvas.width / 2, 32);
-  g.fillStyle = '#' + colour.toString(16).padStart(6, '0');
-  g.fillText(text, canvas.width / 2, 32);
-  const texture = new THREE.CanvasTexture(canvas);
-  texture.colorSpace = THREE.SRGBColorSpace;  // the canvas holds sRGB colours
-  const sprite = new THREE.Sprite(new THREE.SpriteMaterial({
-    map: texture, depthTest: false, transparent: true, sizeAttenuation: false }));
-  const height = 0.032;
-  sprite.scale.set(height * canvas.width / canvas.height, height, 1);
-  sprite.center.set(0.5, 0);  // anchored at its bottom edge, just above the head
-  sprite.renderOrder = 10;    // drawn last, over the skeletons
-  return sprite;
-}
+const kit = skeletonKit(SIZE);
 
 const actors = CHARS.map((c, i) => {
   const colour = COLOURS[i % COLOURS.length];
-  const material = new THREE.MeshLambertMaterial({ color: colour });
   const group = new THREE.Group();
   group.position.set(c.offset[0], c.offset[1], c.offset[2]);
   scene.add(group);
-  const joints = [], bones = [];
-  for (let j = 0; j < c.nJoints; j++) {
-    const m = new THREE.Mesh(jointGeometry, material);
-    group.add(m); joints.push(m);
-    if (c.parents[j] >= 0) {
-      const b = new THREE.Mesh(boneGeometry, material);
-      group.add(b); bones.push([b, j, c.parents[j]]);
-    }
-  }
+  const sk = kit.build(group, c.parents, colour);
   const trailGeometry = new THREE.BufferGeometry();
   const trail = new Float32Array(c.trailPos);
   for (let f = 0; f < c.nFrames; f++) trail[3 * f + 1] += 0.003 * SIZE;  // above the grid
@@ -158,7 +96,7 @@ const actors = CHARS.map((c, i) => {
   group.add(trailLine);
   const label = makeLabel(c.name, colour);
   group.add(label);
-  return { c, material, group, joints, bones, trailLine, label, frame: -1 };
+  return { c, sk, group, joints: sk.joints, trailLine, label, frame: -1 };
 });
 
 // ---------------------------------------------------------------------------------------------
@@ -166,33 +104,16 @@ const actors = CHARS.map((c, i) => {
 // ---------------------------------------------------------------------------------------------
 
 const toggles = { contacts: true, trail: true, labels: true };
-const tmp = new THREE.Vector3();
 
 function pose(a) {
   const c = a.c, f = charFrame(c);
   a.frame = f;
-  let top = -Infinity;
-  for (let j = 0; j < c.nJoints; j++) {
-    jointPosition(c, f, j, a.joints[j].position);
-    top = Math.max(top, a.joints[j].position.y);
-    a.joints[j].material = a.material;
-    a.joints[j].scale.setScalar(1);
-  }
-  for (const [mesh, j, p] of a.bones) {
-    const from = a.joints[p].position;
-    tmp.subVectors(a.joints[j].position, from);
-    const length = tmp.length();
-    mesh.position.copy(from);
-    if (length > 1e-9) mesh.quaternion.setFromUnitVectors(UP, tmp.divideScalar(length));
-    mesh.scale.set(1, Math.max(length, 1e-9), 1);
-  }
+  const top = poseSkeleton(a.sk, (j, out) => jointPosition(c, f, j, out));
   if (toggles.contacts && c.contactVal) {
     const C = c.contactJoints.length;
     for (let k = 0; k < C; k++) {
       if (c.contactVal[f * C + k] >= 128) {  // 0.5 of 255, the GIF's threshold
-        const m = a.joints[c.contactJoints[k]];
-        m.material = contactMaterial;
-        m.scale.setScalar(1.8);
+        highlightJoint(a.sk, c.contactJoints[k]);
       }
     }
   }
@@ -207,7 +128,6 @@ function pose(a) {
 // Orbit camera (our own: spherical coordinates about a target; follow mode moves the target)
 // ---------------------------------------------------------------------------------------------
 
-const camera = new THREE.PerspectiveCamera(40, 1, 0.01 * SIZE, 2000 * SIZE);
 const orbit = {
   target: new THREE.Vector3(),
   radius: 1,
@@ -230,43 +150,8 @@ function followPoint(out) {
   return out;
 }
 
-function placeCamera() {
-  const ce = Math.cos(orbit.elevation);
-  camera.position.set(orbit.target.x + orbit.radius * ce * Math.sin(orbit.azimuth),
-                      orbit.target.y + orbit.radius * Math.sin(orbit.elevation),
-                      orbit.target.z + orbit.radius * ce * Math.cos(orbit.azimuth));
-  camera.lookAt(orbit.target);
-}
-
-(function orbitControls() {
-  const el = renderer.domElement;
-  let drag = null;
-  el.addEventListener('contextmenu', e => e.preventDefault());
-  el.addEventListener('pointerdown', e => {
-    drag = { x: e.clientX, y: e.clientY, pan: e.button === 2 || e.shiftKey };
-    el.setPointerCapture(e.pointerId);
-  });
-  el.addEventListener('pointerup', e => { drag = null; el.releasePointerCapture(e.pointerId); });
-  el.addEventListener('pointermove', e => {
-    if (!drag) return;
-    const dx = e.clientX - drag.x, dy = e.clientY - drag.y;
-    drag.x = e.clientX; drag.y = e.clientY;
-    if (drag.pan) {
-      document.getElementById('follow').value = 'off';  // a pan picks a place: stop following
-      const k = orbit.radius / el.clientHeight;
-      const right = new THREE.Vector3().setFromMatrixColumn(camera.matrix, 0);
-      const up = new THREE.Vector3().setFromMatrixColumn(camera.matrix, 1);
-      orbit.target.addScaledVector(right, -dx * k).addScaledVector(up, dy * k);
-    } else {
-      orbit.azimuth -= dx * 0.008;
-      orbit.elevation = THREE.MathUtils.clamp(orbit.elevation + dy * 0.008, -0.2, 1.5);
-    }
-  });
-  el.addEventListener('wheel', e => {
-    e.preventDefault();
-    orbit.radius = THREE.MathUtils.clamp(orbit.radius * Math.exp(e.deltaY * 0.001), 0.3 * SIZE, 500 * SIZE);
-  }, { passive: false });
-})();
+// A pan picks a place: stop following.
+orbitControls(renderer.domElement, orbit, camera, SIZE, () => { document.getElementById('follow').value = 'off'; });
 
 // ---------------------------------------------------------------------------------------------
 // Controls
@@ -314,12 +199,7 @@ window.addEventListener('keydown', e => {
   }
 });
 
-function resize() {
-  const w = view.clientWidth, h = view.clientHeight;
-  renderer.setSize(w, h);
-  camera.aspect = w / Math.max(h, 1);
-  camera.updateProjectionMatrix();
-}
+const resize = stage.resize;
 window.addEventListener('resize', resize);
 
 // ---------------------------------------------------------------------------------------------
@@ -332,7 +212,7 @@ function draw(dt) {
   const goal = followPoint(follow);
   // Ease towards the followed point (about 0.15 s) so a switch of mode does not jump.
   if (goal) orbit.target.lerp(goal, dt > 0 ? 1 - Math.exp(-dt / 0.15) : 1);
-  placeCamera();
+  placeCamera(camera, orbit);
   renderer.render(scene, camera);
 }
 

@@ -1,0 +1,81 @@
+"""Steer a character live in the browser: the paper's real-time stylised controller (Sec. 4.4).
+
+    minifilm demo --params ../shared/data/released-lpn      # the authors' released network
+    minifilm demo --run runs/train_small                    # a run folder written by minifilm train
+    minifilm demo --params DIR --port 0                     # any free port (the URL is printed)
+    minifilm demo --params DIR --record demo.gif            # no server: a scripted session as a GIF
+
+Prints the URL of a page on this machine (127.0.0.1; --host opts in to another interface). On
+the page: W A S D or the arrows move, Q / E turn, Shift runs, nothing held stops; a gamepad's left
+stick moves, right stick turns, right trigger runs; pick a style, or blend three in the triangle;
+toggle foot locking and the skeleton fit. Each open page gets its own character (up to
+--max-characters); closing the page frees it. Ctrl-C stops the server.
+
+Needs the websockets package: pip install 'minifilm[demo]'.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from minifilm.cli.args import in_range
+from minifilm.demo.character import DemoSettings
+from minifilm.demo.record import record_gif
+from minifilm.demo.server import DemoServer, is_loopback
+from minifilm.demo.source import DemoSource
+from minifilm.files import check_writable
+
+HELP = "steer a character live in the browser (released network or a trained run)"
+
+
+def add_arguments(ap) -> None:
+    src = ap.add_mutually_exclusive_group(required=True)
+    src.add_argument("--params", type=Path, help="the released network's parameter folder")
+    src.add_argument("--run", type=Path, help="a run folder written by minifilm train")
+    ap.add_argument("--host", default="127.0.0.1",
+                    help="interface to listen on (default 127.0.0.1, this machine only; another opens the demo "
+                         "to whoever can reach that interface)")
+    ap.add_argument("--port", type=in_range(0, 65535, int), default=8765, help="port (0: any free port)")
+    ap.add_argument("--max-characters", type=in_range(1, 16, int), default=4,
+                    help="pages served at once, one character each (1-16)")
+    ap.add_argument("--style", help="the style every character starts in (default Neutral, or the first)")
+    ap.add_argument("--walk-speed", type=in_range(0.1, 5.0), default=1.3, help="walking speed, m/s")
+    ap.add_argument("--run-speed", type=in_range(0.1, 8.0), default=2.8, help="running speed (Shift), m/s")
+    ap.add_argument("--turn-rate", type=in_range(10.0, 720.0), default=120.0, help="turning speed (Q/E), deg/s")
+    ap.add_argument("--foot-lock", action="store_true", help="start with foot locking on")
+    ap.add_argument("--no-fit", action="store_true", help="start with the skeleton fit off")
+    ap.add_argument("--no-calibrate", action="store_true",
+                    help="command the raw speed (the released network then walks slower than asked)")
+    ap.add_argument("--record", type=Path, help="write a scripted session as an animated GIF instead of serving")
+    ap.add_argument("--record-seconds", type=in_range(1.0, 60.0), default=5.0, help="length of --record, seconds")
+
+
+def run(args) -> int:
+    if args.record is not None:
+        check_writable(args.record, "--record")
+    source = DemoSource.released(args.params, calibrate=not args.no_calibrate) if args.params is not None \
+        else DemoSource.run_folder(args.run)
+    settings = DemoSettings(style=args.style or source.default_style(), walk_speed=args.walk_speed,
+                            run_speed=args.run_speed, turn_rate_deg=args.turn_rate, foot_lock=args.foot_lock,
+                            fit=not args.no_fit)
+    if args.record is not None:
+        path = record_gif(source, settings, args.record, seconds=args.record_seconds)
+        print(f"recorded {args.record_seconds:g} s of {settings.style} -> {path}")
+        return 0
+    try:
+        server = DemoServer(source, settings, host=args.host, port=args.port, max_characters=args.max_characters)
+    except ImportError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    if not is_loopback(args.host):
+        print(f"warning: listening on {args.host}: anyone who can reach it can open the demo", file=sys.stderr)
+
+    def ready(url: str) -> None:
+        print(f"minifilm demo: {source.name}, {len(source.library)} styles at {source.fps:g} fps, "
+              f"up to {args.max_characters} pages\n  open {url}   (Ctrl-C stops)", flush=True)
+
+    try:
+        server.run(ready)
+    except OSError as e:          # the port is taken, the address is not this machine's, ...
+        raise ValueError(f"cannot listen on {args.host}:{args.port}: {e.strerror or e}") from None
+    return 0

@@ -1,0 +1,129 @@
+"""Speed calibration per style for the live demo, measured off the frame loop.
+
+The released network needs one (:func:`minifilm.runtime.calibration.calibrate_speed`: commanding
+1.3 m/s makes it walk at about 0.5 m/s), and measuring one takes about 2.3 s of CPU (27 characters
+for 8 s). The start style is measured before the server starts; any other style the first time a
+page asks for it, in a worker *process* at low priority: in a thread of the server it would hold
+Python's GIL for seconds and make the frame loop wait for it (``calibration_worker.py``). Until a
+style's calibration is there, the start style's stands in for it.
+
+A mix of styles is commanded with the mix of their commands, ``sum_s w_s command_s(speed)``, the
+same linear mixing the FiLM vectors get.
+"""
+from __future__ import annotations
+
+import concurrent.futures
+import math
+import multiprocessing
+import sys
+import threading
+from typing import Dict, Mapping, Optional, Sequence
+
+import numpy as np
+
+from minifilm.demo import calibration_worker
+from minifilm.runtime.calibration import SpeedCalibration, calibrate_speed
+from minifilm.runtime.controller import Controller
+
+
+def measure(source, name: str) -> SpeedCalibration:
+    """The calibration of style ``name`` of a :class:`~minifilm.demo.source.DemoSource`."""
+    ctrl = Controller(source.network, source.layout, fps=source.fps, **source.options)
+    x, p = source.starts.get(name, (None, None))
+    return calibrate_speed(ctrl, source.library[name], phases=p, start_x=x)
+
+
+class Calibrations:
+    """Calibrations by style name; ``command`` maps a user's velocity to the network's command.
+
+    Args:
+        source: a DemoSource; when ``source.calibrate`` is False, velocities pass unchanged.
+        first: styles measured here and now (the start style).
+        background: measure other styles in a worker process when asked for; False: use the
+            first style's calibration for every other style.
+    """
+
+    def __init__(self, source, first: Sequence[str] = (), background: bool = True):
+        self.source = source
+        self.enabled = bool(source.calibrate)
+        self._cal: Dict[str, SpeedCalibration] = {}
+        self._memo: Dict[tuple, float] = {}      # (speed, direction, mix) -> command / speed
+        self._asked = set()
+        self._lock = threading.RLock()      # a done callback may run inside _submit
+        self._pool: Optional[concurrent.futures.ProcessPoolExecutor] = None
+        self._background = background and source.params is not None
+        self.fallback: Optional[SpeedCalibration] = None
+        self._closed = False
+        if self.enabled:
+            for name in first:
+                self._cal[name] = measure(source, name)
+            self.fallback = self._cal[first[0]] if first else None
+
+    def has(self, name: str) -> bool:
+        with self._lock:
+            return name in self._cal
+
+    def request(self, names) -> None:
+        """Start measuring every style of ``names`` not measured or asked for yet. Returns at once:
+        the frame loop calls it, and starting the worker process takes tens of milliseconds (it
+        held a frame up by 64 ms when done here), so that happens on a thread of its own."""
+        if not (self.enabled and self._background):
+            return
+        with self._lock:
+            todo = [n for n in dict.fromkeys(names) if n not in self._cal and n not in self._asked]
+            self._asked.update(todo)
+        if todo:
+            threading.Thread(target=self._submit, args=(todo,), name="minifilm-demo-calibrate", daemon=True).start()
+
+    def _submit(self, todo) -> None:
+        with self._lock:
+            if self._closed:
+                return
+            if self._pool is None:
+                # spawn, not fork: the server has threads running, which a fork would copy mid-step
+                self._pool = concurrent.futures.ProcessPoolExecutor(
+                    max_workers=1, mp_context=multiprocessing.get_context("spawn"),
+                    initializer=calibration_worker.start, initargs=(str(self.source.params),))
+            for name in todo:
+                future = self._pool.submit(calibration_worker.measure_style, name)
+                future.add_done_callback(lambda f, n=name: self._done(n, f))
+
+    def _done(self, name: str, future) -> None:
+        try:
+            cal = future.result()
+        except Exception as e:  # noqa: BLE001 - a failed measurement keeps the stand-in, says why
+            if not isinstance(e, concurrent.futures.CancelledError):
+                print(f"minifilm demo: speed calibration of {name!r} failed ({e}); "
+                      "the start style's is used for it", file=sys.stderr)
+            return
+        with self._lock:
+            self._cal[name] = cal
+            self._memo.clear()
+
+    def command(self, velocity: np.ndarray, facing: np.ndarray, weights: Mapping[str, float]) -> np.ndarray:
+        """The network's command (2,) for the user's target velocity (2,) m/s while facing (2,),
+        for the mix ``weights`` (name -> w summing to 1)."""
+        v = np.asarray(velocity, dtype=np.float64)
+        speed = math.hypot(v[0], v[1])
+        if not self.enabled or speed < 1e-9:
+            return v
+        cos = (v[0] * facing[0] + v[1] * facing[1]) / max(speed * math.hypot(facing[0], facing[1]), 1e-9)
+        direction = math.degrees(math.acos(min(1.0, max(-1.0, cos))))
+        # the same held keys ask the same question every frame: remember the answers
+        key = (round(speed, 6), round(direction, 3), tuple(sorted((n, round(w, 6)) for n, w in weights.items())))
+        with self._lock:
+            ratio = self._memo.get(key)
+            if ratio is None:
+                cals = [(w, self._cal.get(n, self.fallback)) for n, w in weights.items()]
+                command = sum(w * (float(c.command_for(speed, direction)) if c is not None else speed)
+                              for w, c in cals)
+                if len(self._memo) > 4096:
+                    self._memo.clear()
+                ratio = self._memo[key] = command / speed
+        return v * ratio
+
+    def close(self) -> None:
+        with self._lock:
+            pool, self._pool, self._closed = self._pool, None, True
+        if pool is not None:
+            pool.shutdown(wait=False, cancel_futures=True)

@@ -1,0 +1,196 @@
+"""One page's character: a batch-1 runtime Controller steered by what the page holds.
+
+Per frame (:meth:`Character.step`, called by the stage's frame loop, never by the network thread):
+
+1. the page's messages that arrived since the last frame are applied in order (held input, style
+   change, settings, reset); the page's thread only appends them to a queue;
+2. the steering turns the heading and gives the target facing and velocity (m/s);
+3. the velocity goes through the style's speed calibration (released network) and the style mix
+   advances (smoothstep transitions);
+4. :meth:`Controller.step` (Sec. 4.4) makes the frame, with the skeleton fit and foot locking as
+   toggled;
+5. the guard: if anything in the new state is not finite, or the body has flown apart (a joint
+   more than ``MAX_REACH`` metres from the root), or the step raised, the character is reset where
+   it last stood and the page is told. The network's output never reaches the page unchecked.
+"""
+from __future__ import annotations
+
+import collections
+import math
+import time
+import traceback
+from dataclasses import dataclass
+from typing import List, Optional, Tuple
+
+import numpy as np
+
+from minifilm.demo.calibrations import Calibrations
+from minifilm.demo.protocol import InputMessage, ResetMessage, SettingsMessage, StyleMessage, weights_dict
+from minifilm.demo.source import DemoSource
+from minifilm.demo.steering import Steering, heading_vector
+from minifilm.demo.style_mix import StyleMix
+from minifilm.motion.foot_ik import FootLocker
+from minifilm.runtime.controller import Controller
+
+MAX_REACH = 20.0          # metres from the root: further means the network's output blew up
+SPEED_WINDOW = 0.25       # seconds over which the shown actual speed is measured
+
+
+@dataclass
+class DemoSettings:
+    """What every new character starts with, and how the user's input maps to speeds."""
+
+    style: str
+    walk_speed: float = 1.3
+    run_speed: float = 2.8
+    turn_rate_deg: float = 120.0
+    foot_lock: bool = False
+    fit: bool = True
+
+
+class Character:
+    """A character of the stage, identified by ``ident``; see the module docstring."""
+
+    def __init__(self, ident: int, source: DemoSource, calibrations: Calibrations, settings: DemoSettings):
+        self.ident, self.source, self.calibrations = ident, source, calibrations
+        self.body = Controller.skeleton_for(source.layout, source.skeleton)
+        self.ctrl = Controller(source.network, source.layout, fps=source.fps, **source.options)
+        self.steering = Steering(settings.walk_speed, settings.run_speed, math.radians(settings.turn_rate_deg))
+        self.mix = StyleMix(source.library, {settings.style: 1.0})
+        self.dt = 1.0 / source.fps
+        self.pending = collections.deque(maxlen=1024)   # appended by the network thread only
+        self.frame_no, self.ack = 0, None
+        self.failures = 0
+        self.step_ms = 0.0           # the Controller's own time for the last frame
+        self.commanded = 0.0
+        self.velocity = np.zeros(2)
+        self._roots = collections.deque(maxlen=max(2, int(round(SPEED_WINDOW * source.fps)) + 1))
+        self.set_fit(settings.fit)
+        self.set_foot_lock(settings.foot_lock)
+        self.reset()
+
+    # ---- settings ---------------------------------------------------------------------------
+    def set_fit(self, on: bool) -> None:
+        """Put every frame on the source skeleton (and feed it back, for the released network)."""
+        self.fit = bool(on)
+        self.ctrl.skeleton = self.body if self.fit else None
+        self.ctrl.feed_back_fit = self.fit and self.source.feed_back_fit
+
+    def set_foot_lock(self, on: bool) -> None:
+        self.foot_lock = bool(on)
+        self.ctrl.foot_locker = FootLocker.from_names(self.source.layout.joint_names) if self.foot_lock else None
+
+    def reset(self, where: Optional[np.ndarray] = None, theta: float = 0.0) -> None:
+        """Stand still at ``where`` (2,) (default the origin) facing heading ``theta``, in the start
+        frame of the style that dominates the mix (the data's mean pose if it has none)."""
+        where = np.zeros(2) if where is None else np.asarray(where, dtype=np.float64)
+        x, p = self.source.starts.get(self.mix.dominant()[0], (None, None))
+        self.ctrl.reset(where[None], heading_vector(theta)[None], phases=None if p is None else p[None], start_x=x)
+        self.steering.reset(theta)
+        self._roots.clear()
+
+    # ---- input ------------------------------------------------------------------------------
+    def submit(self, message) -> None:
+        """Queue a validated page message for the next frame (any thread)."""
+        self.pending.append(message)
+
+    def _apply(self, message) -> None:
+        if isinstance(message, InputMessage):
+            self.steering.hold(message.move, message.turn, message.speed)
+        elif isinstance(message, StyleMessage):
+            weights = dict(message.weights)
+            self.mix.change(weights, message.seconds)
+            self.calibrations.request(weights)
+        elif isinstance(message, SettingsMessage):
+            if message.fit is not None:
+                self.set_fit(message.fit)
+            if message.foot_lock is not None:
+                self.set_foot_lock(message.foot_lock)
+        elif isinstance(message, ResetMessage):
+            self.reset()
+        if message.seq is not None:
+            self.ack = message.seq
+
+    # ---- one frame --------------------------------------------------------------------------
+    def step(self) -> Tuple[dict, List[str]]:
+        """Advance one frame; returns the frame message (a dict, see :meth:`frame_message`) and
+        notices for the page (empty unless the guard reset the character)."""
+        while self.pending:
+            self._apply(self.pending.popleft())
+        notices = []
+        facing, velocity, self.commanded = self.steering.advance(self.dt)
+        self.velocity = velocity
+        film = self.mix.advance(self.dt)
+        weights = self.mix.weights
+        try:
+            command = self.calibrations.command(velocity, facing, weights)
+            t0 = time.perf_counter()
+            with np.errstate(all="ignore"):    # overflow is caught by the guard below, not warned
+                self.ctrl.step(facing[None], command[None], film)
+            self.step_ms = 1e3 * (time.perf_counter() - t0)
+            problem = self._check()
+        except Exception as e:  # noqa: BLE001 - a failed frame resets this character, the loop goes on
+            problem = f"the frame failed ({type(e).__name__}: {e})"
+            self.failures += 1
+            if self.failures <= 3:         # the first few in full; a repeating failure must not flood the log
+                traceback.print_exc()
+        if problem:
+            self._recover()
+            notices.append(f"{problem}: the character was reset where it stood")
+        self.frame_no += 1
+        self._roots.append(self.ctrl.state.root[0].copy())
+        return self.frame_message(weights), notices
+
+    def _check(self) -> Optional[str]:
+        st = self.ctrl.state
+        arrays = (st.out_pos, st.out_fwd, st.out_up, st.joint_pos, st.joint_fwd, st.joint_up, st.joint_vel,
+                  st.root, st.facing, st.phases, st.contacts, st.future_pos, st.future_dir)
+        if not all(np.all(np.isfinite(a)) for a in arrays):
+            return "the network's output became non-finite"
+        # what is shown and what the next input is built from (they differ when the fit is not fed back)
+        reach = max(np.abs(pos[0][:, [0, 2]] - st.root[0]).max() for pos in (st.out_pos, st.joint_pos))
+        if reach > MAX_REACH:
+            return f"the network's output flew apart (a joint {reach:.0f} m from the root)"
+        return None
+
+    def _recover(self) -> None:
+        """Reset where the character last stood (its last finite root), facing its heading, with
+        the keys the user holds still held."""
+        where = self._roots[-1] if self._roots else np.zeros(2)
+        held = self.steering.move, self.steering.turn, self.steering.speed
+        self.reset(where, self.steering.theta)
+        self.steering.hold(*held)
+
+    def actual_speed(self) -> float:
+        """Mean root speed (m/s) over the last ``SPEED_WINDOW`` seconds."""
+        if len(self._roots) < 2:
+            return 0.0
+        d = self._roots[-1] - self._roots[0]
+        return math.hypot(d[0], d[1]) / ((len(self._roots) - 1) * self.dt)
+
+    def frame_message(self, weights=None) -> dict:
+        """What the page draws: joint positions (J*3, metres, world, y up), contacts [right, left],
+        phases (8: amplitude * (sin, cos) for left hand, right hand, left foot, right foot), root
+        and facing (x, z), the heading steered, the commanded velocity and speed (m/s, before
+        calibration), the measured speed, the style mix now (``weights``, default the mix's) and
+        its target and the fingerprint of its FiLM vector
+        (:func:`~minifilm.demo.style_mix.film_digest`), the toggles, and the Controller's step
+        time (ms; the stage adds ``frameMs``, the whole frame's, and ``t``)."""
+        st = self.ctrl.state
+        mix = self.mix.weights if weights is None else weights
+        # every number of the frame rounded in one pass (0.1 mm, 1e-4 of a phase), then cut up
+        numbers = np.round(np.concatenate([st.out_pos[0].reshape(-1), st.contacts[0], st.phases[0], st.root[0],
+                                           st.facing[0], heading_vector(self.steering.theta), self.velocity]),
+                           4).tolist()
+        a = 3 * len(st.out_pos[0])
+        cut = dict(positions=(0, a), contacts=(a, a + 2), phases=(a + 2, a + 10), root=(a + 10, a + 12),
+                   facing=(a + 12, a + 14), heading=(a + 14, a + 16), velocity=(a + 16, a + 18))
+        frame = {"type": "frame", "n": self.frame_no, "ack": self.ack}
+        frame.update({key: numbers[i:j] for key, (i, j) in cut.items()})
+        frame.update({
+            "commanded": round(self.commanded, 4), "speed": round(self.actual_speed(), 4),
+            "weights": weights_dict(mix.items()), "target": weights_dict(self.mix.target.items()),
+            "film": self.mix.digest, "footLock": self.foot_lock, "fit": self.fit, "stepMs": round(self.step_ms, 4),
+            "calibrated": (not self.calibrations.enabled) or all(self.calibrations.has(n) for n in mix),
+        })
+        return frame

@@ -1,0 +1,281 @@
+"""The demo server: the page and one WebSocket per page on one port, the frame loop beside it.
+
+Transport: the ``websockets`` package (the ``demo`` extra, never a core dependency). It is pure
+Python on asyncio with no dependencies of its own, maintained, and its ``process_request`` hook
+answers plain HTTP requests on the same port, so the page, its files and the live connection need
+nothing else. A WebSocket is one connection both ways whose lifetime *is* the page's: the
+character is made when it opens and freed when it closes (a closed tab, a reload). Server-Sent
+Events plus POSTs would need two channels per page, a session id to tie them together and a
+timeout to notice a page that went away.
+
+Per connection: a character joins the stage (or the page gets ``refused`` and the connection
+closes with 1013 when all are taken); the page's messages are validated
+(:func:`minifilm.demo.protocol.parse_message`) and queued for the character, a bad one answered
+with ``error`` and dropped; one sender task sends the page its messages in order, and of the
+frames only the newest, so a slow page skips frames instead of slowing the loop.
+
+HTTP: only GET of the site's exact paths (``site.py``). Served on a loopback address, requests must
+name it in their ``Host`` header (a web page elsewhere cannot reach the server by a DNS name that
+points here), and a WebSocket opened by a browser must come from this server's own page (its
+``Origin``), so another site open in the same browser cannot drive the character.
+"""
+from __future__ import annotations
+
+import asyncio
+import collections
+import ipaddress
+import logging
+import signal
+import threading
+from typing import Callable, Optional
+
+from minifilm.demo.calibrations import Calibrations
+from minifilm.demo.character import Character, DemoSettings
+from minifilm.demo.protocol import (MAX_MESSAGE_BYTES, PROTOCOL_VERSION, TRANSPORT_MAX_BYTES, PingMessage,
+                                    ProtocolError, encode, error, parse_message, pong, refused)
+from minifilm.demo.site import Site
+from minifilm.demo.source import DemoSource
+from minifilm.demo.stage import Stage, StageFull
+from minifilm.demo.style_mix import film_digest
+
+MAX_QUEUED = 64          # control messages (errors, notices) waiting for a slow page; older ones go
+
+
+def websockets_modules():
+    """(serve, ConnectionClosed, Response, Headers) from ``websockets``, or ImportError naming the extra."""
+    try:
+        # an optional extra (minifilm[demo]): imported only when the demo runs
+        from websockets.asyncio.server import serve
+        from websockets.datastructures import Headers
+        from websockets.exceptions import ConnectionClosed
+        from websockets.http11 import Response
+    except ImportError as e:
+        raise ImportError(f"minifilm demo needs the websockets package (13 or newer), which is not installed: "
+                          f"pip install 'minifilm[demo]' ({e})") from None
+    return serve, ConnectionClosed, Response, Headers
+
+
+def is_loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+class Outbox:
+    """What waits to be sent to one page: control messages in order, and the newest frame."""
+
+    def __init__(self):
+        self.control = collections.deque(maxlen=MAX_QUEUED)
+        self.frame: Optional[str] = None
+        self.dropped_frames = 0
+        self.ready = asyncio.Event()
+
+    def put(self, text: str, is_frame: bool) -> None:
+        if is_frame:
+            if self.frame is not None:
+                self.dropped_frames += 1
+            self.frame = text
+        else:
+            self.control.append(text)
+        self.ready.set()
+
+    async def take(self) -> list:
+        await self.ready.wait()
+        self.ready.clear()
+        out = list(self.control)
+        self.control.clear()
+        if self.frame is not None:
+            out.append(self.frame)
+            self.frame = None
+        return out
+
+
+class DemoServer:
+    """The demo for ``source`` on ``host:port`` (port 0: any free port; see ``url`` once started).
+
+    Run it with :meth:`run` (blocks; the command line) or :meth:`start` / :meth:`stop` (a thread of
+    its own; tests and benchmarks).
+    """
+
+    def __init__(self, source: DemoSource, settings: DemoSettings, host: str = "127.0.0.1", port: int = 8765,
+                 max_characters: int = 4, background_calibration: bool = True):
+        if settings.style not in source.library:
+            raise ValueError(f"--style {settings.style!r} is not one of the {len(source.library)} styles: "
+                             f"{', '.join(source.library.names)}")
+        self.modules = websockets_modules()
+        self.source, self.settings, self.host, self.port = source, settings, host, int(port)
+        self.calibrations = Calibrations(source, first=[settings.style], background=background_calibration)
+        self.stage = Stage(lambda ident: Character(ident, source, self.calibrations, settings), source.fps,
+                           max_characters)
+        self.site = Site(f"minifilm demo: {source.name}")
+        self.styles = frozenset(source.library.names)
+        self.film_digests = {n: film_digest(source.library[n]) for n in source.library.names}
+        self._loop = self._stopping = self._thread = None
+        self._ready = threading.Event()
+        self._error: Optional[BaseException] = None
+        self.logger = logging.getLogger("minifilm.demo.websockets")
+        self.logger.setLevel(logging.WARNING)      # not a line per page file or refused request
+
+    @property
+    def url(self) -> str:
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        return f"http://{host}:{self.port}/"
+
+    # ---- HTTP ---------------------------------------------------------------------------------
+    def _allowed_hosts(self) -> set:
+        names = {"127.0.0.1", "localhost", "[::1]", self.host if ":" not in self.host else f"[{self.host}]"}
+        return {f"{n}:{self.port}".lower() for n in names}
+
+    def _http(self, connection, request):
+        """process_request: the page's files, or None to open the WebSocket at /ws."""
+        _, _, Response, Headers = self.modules
+        host = request.headers.get("Host", "").lower()
+        if is_loopback(self.host) and host not in self._allowed_hosts():
+            return self._plain(403, f"unexpected Host header {host[:60]!r}: open {self.url}")
+        path = request.path.split("?", 1)[0]
+        if path == "/ws":
+            origin = request.headers.get("Origin")
+            if origin is not None and origin.lower() != f"http://{host}":
+                return self._plain(403, "a WebSocket of this demo may only be opened by its own page")
+            return None
+        found = self.site.get(path)
+        if found is None:
+            return self._plain(404, "not found")
+        body, kind = found
+        return Response(200, "OK", Headers(self.site.headers(kind, len(body))), body)
+
+    def _plain(self, status: int, text: str):
+        _, _, Response, Headers = self.modules
+        body = text.encode("utf-8")
+        reason = {403: "Forbidden", 404: "Not Found"}[status]
+        return Response(status, reason, Headers(self.site.headers("text/plain; charset=utf-8", len(body))), body)
+
+    # ---- one page -------------------------------------------------------------------------------
+    def hello(self, character: Character) -> str:
+        layout, state = self.source.layout, character.ctrl.state
+        return encode({
+            "type": "hello", "protocol": PROTOCOL_VERSION, "id": character.ident, "source": self.source.name,
+            "fps": self.source.fps, "styles": self.source.library.names, "style": character.mix.target,
+            "films": self.film_digests,
+            "joints": list(layout.joint_names), "parents": [int(p) for p in layout.parents],
+            "contactJoints": self.source.contact_joints(), "size": round(float(state.out_pos[0][:, 1].max()), 3),
+            "settings": {"footLock": character.foot_lock, "fit": character.fit},
+            "speeds": {"walk": self.settings.walk_speed, "run": self.settings.run_speed},
+            "turnRate": self.settings.turn_rate_deg, "calibrate": self.calibrations.enabled,
+            "limits": {"maxMessageBytes": MAX_MESSAGE_BYTES, "maxCharacters": self.stage.max_characters},
+        })
+
+    async def _connection(self, ws) -> None:
+        _, ConnectionClosed, _, _ = self.modules
+        loop = asyncio.get_running_loop()
+        outbox = Outbox()
+
+        def deliver(text: str, is_frame: bool) -> None:      # called by the frame loop's thread
+            try:
+                loop.call_soon_threadsafe(outbox.put, text, is_frame)
+            except RuntimeError:      # the event loop has closed: the server is stopping
+                pass
+
+        try:
+            character = self.stage.join(deliver)
+        except StageFull as e:
+            try:
+                await ws.send(refused(str(e)))
+                await ws.close(1013, "no free character")
+            except ConnectionClosed:
+                pass
+            return
+        outbox.put(self.hello(character), False)
+        sender = asyncio.create_task(self._send(ws, outbox))
+        try:
+            async for data in ws:
+                try:
+                    message = parse_message(data, self.styles)
+                except ProtocolError as e:
+                    outbox.put(error(str(e), e.seq), False)
+                    continue
+                if isinstance(message, PingMessage):
+                    outbox.put(pong(message.t, message.seq), False)
+                else:
+                    character.submit(message)
+        except ConnectionClosed:
+            pass
+        finally:
+            self.stage.leave(character)
+            sender.cancel()
+
+    async def _send(self, ws, outbox: Outbox) -> None:
+        _, ConnectionClosed, _, _ = self.modules
+        try:
+            while True:
+                for text in await outbox.take():
+                    await ws.send(text)
+        except ConnectionClosed:
+            pass
+
+    # ---- running ------------------------------------------------------------------------------
+    async def serve(self, on_ready: Optional[Callable[[str], None]] = None, stop_on_signals: bool = False) -> None:
+        """Serve until :meth:`stop` (or cancellation); ``on_ready(url)`` once listening.
+        ``stop_on_signals`` (main thread only): Ctrl-C and SIGTERM stop it the same way, so the
+        pages are told and the calibration worker ends with it."""
+        serve = self.modules[0]
+        self._loop, self._stopping = asyncio.get_running_loop(), asyncio.Event()
+        if stop_on_signals:
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._loop.add_signal_handler(sig, self._stopping.set)
+        try:
+            async with serve(self._connection, self.host, self.port, process_request=self._http,
+                             max_size=TRANSPORT_MAX_BYTES, compression=None, server_header=None,
+                             logger=self.logger) as server:
+                self.port = server.sockets[0].getsockname()[1]
+                self.stage.start()
+                self._ready.set()
+                if on_ready is not None:
+                    on_ready(self.url)
+                await self._stopping.wait()
+        finally:
+            self.stage.stop()
+            self.calibrations.close()
+
+    def run(self, on_ready: Optional[Callable[[str], None]] = None) -> None:
+        """Serve in this thread until Ctrl-C or SIGTERM."""
+        try:
+            asyncio.run(self.serve(on_ready, stop_on_signals=True))
+        except KeyboardInterrupt:
+            pass
+
+    def start(self, timeout: float = 30.0) -> str:
+        """Serve on a thread of its own; returns the URL once listening (raises what binding raised)."""
+        def main():
+            try:
+                asyncio.run(self.serve())
+            except BaseException as e:  # noqa: BLE001 - handed to the thread that called start()
+                self._error = e
+                self._ready.set()
+        self._thread = threading.Thread(target=main, name="minifilm-demo-server", daemon=True)
+        self._thread.start()
+        if not self._ready.wait(timeout):
+            raise TimeoutError(f"the demo server did not start within {timeout} s")
+        if self._error is not None:
+            raise self._error
+        return self.url
+
+    def stop(self, timeout: float = 10.0) -> None:
+        if self._loop is not None and self._stopping is not None:
+            try:
+                self._loop.call_soon_threadsafe(self._stopping.set)
+            except RuntimeError:
+                pass
+        if self._thread is not None:
+            self._thread.join(timeout)
+            self._thread = None
+
+    def __enter__(self) -> "DemoServer":
+        self.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()

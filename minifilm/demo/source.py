@@ -1,0 +1,76 @@
+"""What drives the demo's characters: the released network or a trained run folder.
+
+The two differ in the settings ``minifilm generate`` measured for them (its ``Source``):
+
+* the authors' released network (``--params``): the 100STYLE skeleton, every frame put on it and
+  the fitted pose fed back to the network (as the Unity demo feeds back its post-IK pose), and a
+  per-style speed calibration (the network follows the user's trajectory only partly, so the
+  commanded m/s is mapped to the command that makes it really move that fast);
+* a run folder written by ``minifilm train`` (``--run``): its own skeleton, fit as an output
+  post-process only, its position bias, start frames per style, no calibration (a small model
+  does not survive the commands far outside its data that calibration asks for).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Dict, Optional, Tuple
+
+import numpy as np
+
+from minifilm.features.layout import FeatureLayout
+from minifilm.motion.motion import Motion
+from minifilm.motion.skeletons import STYLE100
+from minifilm.pipeline.run_folder import RunFolder
+from minifilm.runtime.network import RuntimeNetwork
+from minifilm.runtime.released import load_released
+from minifilm.runtime.style_library import StyleLibrary
+from minifilm.synthetic.generator import rest_motion
+
+
+@dataclass
+class DemoSource:
+    """network, layout, fps, styles and skeleton, plus how to drive them.
+
+    feed_back_fit: with the skeleton fit on, feed the fitted pose back to the network.
+    calibrate: map the user's m/s through a per-style speed calibration.
+    starts: style -> (x (x_dim,), p (8,)) raw start frame; styles without one start from the mean pose.
+    params: the released folder (for a calibration worker that loads the network itself).
+    """
+
+    name: str
+    network: RuntimeNetwork
+    layout: FeatureLayout
+    fps: float
+    library: StyleLibrary
+    skeleton: Motion
+    feed_back_fit: bool
+    calibrate: bool
+    options: dict = field(default_factory=dict)
+    starts: Dict[str, Tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+    params: Optional[Path] = None
+
+    @classmethod
+    def released(cls, params, calibrate: bool = True) -> "DemoSource":
+        rel = load_released(params)
+        return cls(f"released network ({Path(params).name})", rel.network, FeatureLayout.for_skeleton(STYLE100),
+                   60.0, StyleLibrary(rel.styles), rest_motion(), feed_back_fit=True, calibrate=calibrate,
+                   params=Path(params))
+
+    @classmethod
+    def run_folder(cls, path) -> "DemoSource":
+        run = RunFolder.load(path)
+        return cls(f"trained run ({Path(path).name})", run.network(), run.layout, run.fps, run.styles(),
+                   run.template(), feed_back_fit=False, calibrate=False,
+                   options={"position_bias": run.position_bias}, starts=run.starts())
+
+    def default_style(self) -> str:
+        return "Neutral" if "Neutral" in self.library else self.library.names[0]
+
+    def contact_joints(self) -> list:
+        """Exported-joint index of the right and left toe (the contact columns' order), or []."""
+        names = list(self.layout.joint_names)
+        for pair in (("RightToe", "LeftToe"), ("RightAnkle", "LeftAnkle"), ("RightFoot", "LeftFoot")):
+            if all(n in names for n in pair):
+                return [names.index(n) for n in pair]
+        return []

@@ -1,0 +1,217 @@
+"""The demo page in a real browser: headless Chromium, and ``minifilm demo --port 0`` in a process
+of its own on 127.0.0.1, as a user runs it (in the test's process, the test's multi-threaded BLAS
+and the browser driver's work on the GIL slowed the frame loop several times over).
+
+Checked: it loads with no console error and makes no request off 127.0.0.1; holding W for 2 s
+walks the character's root at least 1 m along its facing; holding D moves it to its right;
+choosing another style changes the motion; the blend triangle at a corner is exactly that
+style (the frames carry a fingerprint of the FiLM vector that made them); toggles and a gamepad
+reach the server; closing the tab frees the character for another page. The motion checks need
+the authors' released network (a miniature model trained in a second does not follow commands);
+without it the page is served from a miniature run folder and they skip.
+"""
+import io
+import time
+
+import numpy as np
+import pytest
+
+from demo_helpers import RELEASED, DemoProcess, browser, make_tiny_run  # noqa: F401  (browser: a fixture)
+from minifilm.demo.client import DemoClient
+
+Image = pytest.importorskip("PIL.Image", reason="screenshots are read with Pillow")
+HAS_RELEASED = (RELEASED / "Xmean.bin").is_file()
+NEEDS_RELEASED = f"needs the released network at {RELEASED}: a miniature run does not follow commands"
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory):
+    source = ["--params", RELEASED] if HAS_RELEASED else ["--run", make_tiny_run(tmp_path_factory.mktemp("tiny"))]
+    s = DemoProcess(*source, "--max-characters", 4)
+    yield s
+    s.stop()
+
+
+class Page:
+    """A demo page open in the browser, with everything it logged and requested."""
+
+    def __init__(self, browser, server, init_script=None):
+        self.server, self.messages, self.requests, self.sockets = server, [], [], []
+        self.page = browser.new_page(viewport={"width": 960, "height": 600})
+        if init_script:
+            self.page.add_init_script(init_script)
+        self.page.on("console", lambda m: self.messages.append((m.type, m.text)))
+        self.page.on("pageerror", lambda e: self.messages.append(("pageerror", str(e))))
+        self.page.on("request", lambda r: self.requests.append(r.url))
+        self.page.on("websocket", lambda w: self.sockets.append(w.url))
+        self.page.goto(server.url)
+        self.wait("window.minifilmDemo && minifilmDemo.ready && minifilmDemo.frames > 10", timeout=30)
+
+    def js(self, expression, arg=None):
+        return self.page.evaluate(expression, arg)
+
+    def wait(self, expression: str, timeout: float = 10.0):
+        """Poll ``expression`` until it is true. (Not page.wait_for_function: it evaluates strings
+        with eval, which the page's Content-Security-Policy forbids, as it should.)"""
+        for _ in range(int(timeout / 0.05)):
+            value = self.js(expression)
+            if value:
+                return value
+            self.page.wait_for_timeout(50)
+        raise TimeoutError(f"not true within {timeout} s: {expression}")
+
+    def frame(self) -> dict:
+        return self.js("minifilmDemo.frame")
+
+    def hold(self, key: str, seconds: float):
+        """(frame before, frame after) holding ``key`` for ``seconds``; the key is released after."""
+        before = self.frame()
+        self.page.keyboard.down(key)
+        self.page.wait_for_timeout(int(seconds * 1000))
+        after = self.frame()
+        self.page.keyboard.up(key)
+        return before, after
+
+    def errors(self):
+        return [m for m in self.messages if m[0] in ("error", "pageerror")]
+
+    def close(self):
+        self.page.close()
+
+
+@pytest.fixture
+def page(browser, server):
+    p = Page(browser, server)
+    yield p
+    p.close()
+
+
+def settle(page, seconds=0.6):
+    page.page.wait_for_timeout(int(seconds * 1000))
+
+
+def right_of(facing):
+    return np.array([-facing[1], facing[0]])        # the character's right (see minifilm/demo/steering.py)
+
+
+def test_page_loads_without_errors_and_requests_nothing_off_this_machine(page, server):
+    assert page.errors() == []
+    local = f"http://127.0.0.1:{server.port}/"
+    outside = [u for u in page.requests if not (u.startswith(local) or u.startswith("data:"))]
+    assert outside == [], f"requests off the demo server: {outside}"
+    assert page.requests[0] == local and page.sockets == [f"ws://127.0.0.1:{server.port}/ws"]
+    hello = page.js("minifilmDemo.hello")
+    assert len(hello["styles"]) == (100 if HAS_RELEASED else 2) and hello["fps"] == pytest.approx(60, rel=1e-6)
+    assert page.js("document.getElementById('style').options.length") == len(hello["styles"])
+    image = np.array(Image.open(io.BytesIO(page.page.locator("#view canvas").screenshot())).convert("RGB")).astype(int)
+    assert ((image.max(axis=-1) - image.min(axis=-1)) > 60).sum() > 300     # the coloured skeleton is drawn
+    assert page.errors() == []
+
+
+@pytest.mark.skipif(not HAS_RELEASED, reason=NEEDS_RELEASED)
+def test_holding_w_for_two_seconds_walks_a_metre_along_the_facing(page):
+    settle(page)
+    before, after = page.hold("KeyW", 2.0)
+    step = np.subtract(after["root"], before["root"])
+    assert step @ np.array(before["facing"]) >= 1.0, (before, after)
+    assert page.frame()["ack"] is not None and page.errors() == []
+
+
+@pytest.mark.skipif(not HAS_RELEASED, reason=NEEDS_RELEASED)
+def test_holding_d_moves_the_character_to_its_right(page):
+    settle(page)
+    before, after = page.hold("KeyD", 2.0)
+    step = np.subtract(after["root"], before["root"])
+    facing = np.array(before["facing"])
+    assert step @ right_of(facing) > 0.3 and step @ right_of(facing) > abs(step @ facing), (before, after)
+
+
+@pytest.mark.skipif(not HAS_RELEASED, reason=NEEDS_RELEASED)
+def test_choosing_another_style_changes_the_motion(page):
+    joints = page.js("minifilmDemo.hello.joints")
+    wrists = [joints.index("LeftWrist"), joints.index("RightWrist")]
+    head = joints.index("Head")
+
+    def hands_below_head(seconds=1.0):
+        values = []
+        for _ in range(int(seconds * 10)):
+            p = np.array(page.frame()["positions"]).reshape(-1, 3)
+            values.append(p[head, 1] - p[wrists, 1].mean())
+            page.page.wait_for_timeout(100)
+        return float(np.mean(values))
+
+    page.page.keyboard.down("KeyW")
+    settle(page, 1.0)
+    neutral = hands_below_head()
+    page.page.select_option("#style", "ArmsAboveHead")
+    page.wait("minifilmDemo.frame.weights.ArmsAboveHead === 1")
+    settle(page, 1.0)
+    raised = hands_below_head()
+    page.page.keyboard.up("KeyW")
+    assert neutral > 0.5 and raised < neutral - 0.4, (neutral, raised)   # the hands go up above the head
+
+
+def test_the_blend_triangle_at_a_corner_is_exactly_that_style(page):
+    hello = page.js("minifilmDemo.hello")
+    names = (hello["styles"] * 3)[:3]
+    page.page.select_option("#corner0", names[0])
+    page.page.select_option("#corner1", names[1])
+    page.page.select_option("#corner2", names[2])
+    page.js("minifilmDemo.send({type: 'settings', fit: true})")          # the corner selects sent a blend
+    x, y = page.js("minifilmDemo.corner(1)")
+    page.page.mouse.click(x, y)                                          # a real click on the left corner
+    page.wait(f"JSON.stringify(minifilmDemo.frame.weights) === '{{\"{names[1]}\":1}}'")
+    assert page.frame()["target"] == {names[1]: 1.0}
+    assert page.frame()["film"] == hello["films"][names[1]]              # bit for bit the pure style's vector
+    # the middle of the triangle: a third of each, as the paper's barycentric blend
+    corners = np.array([page.js(f"minifilmDemo.corner({i})") for i in range(3)])
+    page.page.mouse.click(*corners.mean(axis=0))
+    expected = {}
+    for name in names:                                                   # a style at two corners counts twice
+        expected[name] = expected.get(name, 0.0) + 1 / 3
+    page.wait(f"Object.keys(minifilmDemo.frame.target).length === {len(expected)} && "
+              f"!('{names[1]}' in minifilmDemo.frame.target && minifilmDemo.frame.target['{names[1]}'] === 1)")
+    target = page.frame()["target"]
+    assert target.keys() == expected.keys() and all(abs(target[n] - w) < 0.02 for n, w in expected.items())
+
+
+def test_toggles_reach_the_server(page):
+    assert page.frame()["fit"] is True and page.frame()["footLock"] is False
+    page.page.check("#footLock")
+    page.page.uncheck("#fit")
+    page.wait("minifilmDemo.frame.footLock === true && minifilmDemo.frame.fit === false")
+    assert page.errors() == []
+
+
+GAMEPAD = """
+navigator.getGamepads = () => [{ connected: true, axes: [0, -1, 0, 0],
+                                buttons: Array.from({length: 8}, () => ({ value: 0, pressed: false })) }];
+"""
+
+
+def test_a_gamepads_left_stick_moves_the_character(browser, server):
+    p = Page(browser, server, init_script=GAMEPAD)                    # a pad held forward, from the start
+    try:
+        p.wait("minifilmDemo.frame.commanded > 0")
+        f = p.frame()
+        assert f["velocity"] == pytest.approx(list(f["commanded"] * np.array(f["heading"])), abs=1e-3)
+    finally:
+        p.close()
+
+
+def test_closing_the_tab_frees_its_character(browser, server):
+    tab = Page(browser, server)
+    others = [DemoClient(server.url) for _ in range(3)]           # with the tab: all 4 characters taken
+    try:
+        with DemoClient(server.url) as fifth:
+            assert fifth.hello["type"] == "refused" and "in use" in fifth.hello["message"]
+        tab.close()                                                # the tab's character is freed
+        for _ in range(100):
+            with DemoClient(server.url) as again:
+                if again.hello["type"] == "hello":
+                    break
+            time.sleep(0.05)                                       # the server has not seen the close yet
+        assert again.hello["type"] == "hello"
+    finally:
+        for c in others:
+            c.close()

@@ -1,0 +1,60 @@
+"""Speed calibration in the demo (minifilm/demo/calibrations.py): the released network is commanded
+through its style's calibration (a mix through the mix of the commands), other styles are measured
+in a worker process when first asked for, and sources that need none pass velocities unchanged."""
+import time
+
+import numpy as np
+
+from demo_helpers import released_source, tiny_source  # noqa: F401  (fixtures)
+from minifilm.demo import calibrations
+from minifilm.demo.calibrations import Calibrations
+from minifilm.runtime.calibration import SpeedCalibration
+
+
+def fake_measure(source, name):
+    """A network that reaches 40 % of any command forwards and 80 % sideways and backwards
+    (Zombie: half of that), instead of the 2 s measurement of the real one."""
+    k = 0.5 if name == "Zombie" else 1.0
+    return SpeedCalibration(np.array([1.0, 2.0, 4.0, 8.0]), k * np.array([[0.4, 0.8, 1.6, 3.2], [0.8, 1.6, 3.2, 6.4],
+                                                                         [0.8, 1.6, 3.2, 6.4]]), (0.0, 90.0, 180.0))
+
+
+def test_commands_go_through_the_styles_calibration(released_source, monkeypatch):
+    monkeypatch.setattr(calibrations, "measure", fake_measure)
+    cal = Calibrations(released_source, first=["Neutral"], background=False)
+    assert cal.has("Neutral") and not cal.has("Zombie")
+    facing = np.array([0.0, 1.0])
+    np.testing.assert_allclose(cal.command(np.array([0.0, 1.2]), facing, {"Neutral": 1.0}), [0.0, 3.0])
+    np.testing.assert_allclose(cal.command(np.array([-1.2, 0.0]), facing, {"Neutral": 1.0}), [-1.5, 0.0])
+    # a style not measured yet borrows the start style's calibration
+    np.testing.assert_allclose(cal.command(np.array([0.0, 1.2]), facing, {"Zombie": 1.0}), [0.0, 3.0])
+    cal._cal["Zombie"] = fake_measure(None, "Zombie")
+    cal._memo.clear()
+    np.testing.assert_allclose(cal.command(np.array([0.0, 1.2]), facing, {"Zombie": 1.0}), [0.0, 6.0])
+    # a mix is commanded with the mix of the commands
+    np.testing.assert_allclose(cal.command(np.array([0.0, 1.2]), facing, {"Neutral": 0.25, "Zombie": 0.75}),
+                               [0.0, 0.25 * 3.0 + 0.75 * 6.0])
+    assert not cal.command(np.zeros(2), facing, {"Neutral": 1.0}).any()
+
+
+def test_other_styles_are_measured_in_a_worker_process(released_source):
+    cal = Calibrations(released_source, first=[], background=True)
+    try:
+        cal.request(["Zombie", "Zombie"])
+        end = time.monotonic() + 120
+        while not cal.has("Zombie") and time.monotonic() < end:
+            time.sleep(0.1)
+        assert cal.has("Zombie")
+        command = cal.command(np.array([0.0, 1.0]), np.array([0.0, 1.0]), {"Zombie": 1.0})
+        assert command[0] == 0.0 and command[1] > 1.5               # the network walks slower than asked
+    finally:
+        cal.close()
+
+
+def test_sources_without_calibration_pass_velocities_unchanged(tiny_source):
+    cal = Calibrations(tiny_source, first=[tiny_source.default_style()])
+    assert not cal.enabled
+    v = np.array([0.3, 1.1])
+    np.testing.assert_array_equal(cal.command(v, np.array([0.0, 1.0]), {"Neutral": 1.0}), v)
+    cal.request(["LeftHop"])                                      # nothing to measure, no worker
+    assert cal._pool is None
