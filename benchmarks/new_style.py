@@ -22,13 +22,14 @@ from __future__ import annotations
 import argparse
 import csv
 import os
+from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")     # before numpy: as minifilm train does
 os.environ.setdefault("OMP_NUM_THREADS", "1")
+ROOT = Path(__file__).resolve().parents[1]
 
 import time  # noqa: E402
 from dataclasses import replace  # noqa: E402
-from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -43,7 +44,7 @@ from minifilm.pipeline.train_small import Settings, run as train_run  # noqa: E4
 from minifilm.runtime.control import figure_eight  # noqa: E402
 from minifilm.train.checkpoint import build_style_model, load_checkpoint, load_model_arrays  # noqa: E402
 
-DATA = Path(os.environ.get("MINIFILM_SHARED_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
+DATA = Path(os.environ.get("MINIFILM_SHARED_DATA", ROOT.parent / "shared" / "data"))
 
 
 def write_manifest(files, path: Path) -> Path:
