@@ -29,9 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from demo_soak import DemoProcess, source_args  # noqa: E402  (this folder's soak script)
-from minifilm.demo.client import DemoClient  # noqa: E402
+from demo_soak import DemoProcess, source_args  # this folder's soak script
+from minifilm.demo.client import DemoClient
 
 DIRECTIONS = [(0.0, 1.0), (1.0, 0.0), (0.0, -1.0), (-1.0, 0.0), (0.7, 0.7), (-0.7, 0.7)]
 KEYS = ["KeyW", "KeyD", "KeyS", "KeyA"]

@@ -47,9 +47,8 @@ import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(os.environ.get("MINIFILM_SHARED_DATA", ROOT.parent / "shared" / "data"))
-sys.path.insert(0, str(ROOT))
 
-from minifilm.demo.client import DemoClient  # noqa: E402
+from minifilm.demo.client import DemoClient
 
 URL = re.compile(r"http://127\.0\.0\.1:\d+/")
 
@@ -58,10 +57,9 @@ class DemoProcess:
     """``python -m minifilm demo SOURCE --port 0`` on 127.0.0.1; ``url`` once it listens."""
 
     def __init__(self, source_args, extra=()):
-        env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
         self.proc = subprocess.Popen([sys.executable, "-m", "minifilm", "demo", *map(str, source_args), "--port", "0",
                                       "--host", "127.0.0.1", *map(str, extra)],
-                                     stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+                                     stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         self.lines, found = [], threading.Event()
 
         def read():
@@ -210,8 +208,9 @@ def main() -> None:
     ap.add_argument("--json", type=Path, help="also write the results here")
     ap.add_argument("--pacing", action="store_true", help="also: frames back to back vs. every 1/60 s, here")
     args = ap.parse_args()
-    if not 0 < args.warmup < args.seconds:
-        sys.exit("error: --warmup must be shorter than --seconds")
+    if not 0 < 2 * args.warmup < args.seconds:
+        # the drift's growth compares the second half of a run with the first half after the warm-up
+        sys.exit("error: --warmup must be positive and shorter than half of --seconds")
     print(f"# demo soak: {args.seconds:g} s x {args.repeat}, one scripted page; cores {os.cpu_count()}, "
           f"load {os.getloadavg()[0]:.2f}")
     results = []

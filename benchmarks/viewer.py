@@ -15,7 +15,6 @@ before and after), since other work may share the cores.
 import argparse
 import os
 import statistics
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -23,9 +22,8 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
-from minifilm.viewer import Track, track_from_bvh, write_gif, write_html  # noqa: E402
+from minifilm.viewer import Track, track_from_bvh, write_gif, write_html
 
 DATA = Path(os.environ.get("MINIFILM_SHARED_DATA", ROOT.parent / "shared" / "data"))
 CHROMIUM = os.environ.get("MINIFILM_CHROMIUM", "/usr/bin/chromium")
