@@ -1,6 +1,7 @@
 """Generate stylised locomotion with the authors' released network, entirely in NumPy (Sec. 4.4).
 
     python examples/generate_released.py --params ../shared/data/released-lpn --style Zombie --seconds 30 --out zombie.bvh
+    python examples/generate_released.py --params ../shared/data/released-lpn --style Old --gif old.gif --html old.html
 
 A walk-through of the runtime API; ``minifilm generate`` does the same with every option (style
 blends and switches, other scripts, foot locking, pictures, trained runs).
@@ -8,6 +9,7 @@ blends and switches, other scripts, foot locking, pictures, trained runs).
 import argparse
 
 from minifilm.cli import report_errors
+from minifilm.cli.args import positive
 from minifilm.features.layout import FeatureLayout
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.motion.skeletons import STYLE100
@@ -15,16 +17,26 @@ from minifilm.runtime.calibration import calibrate_speed
 from minifilm.runtime.control import figure_eight
 from minifilm.runtime.controller import Controller, root_joint_indices
 from minifilm.runtime.released import load_released
+from minifilm.files import check_writable
 from minifilm.synthetic.generator import rest_motion
+from minifilm.viewer import tracks_from_rollout, write_gif, write_html
+from minifilm.viewer.deps import check_output_tools
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--params", required=True, help="the released parameter folder")
     ap.add_argument("--style", default="Neutral", help="one of the 100 released styles")
-    ap.add_argument("--seconds", type=float, default=30.0)
+    ap.add_argument("--seconds", type=positive(float, 3600.0), default=30.0)
     ap.add_argument("--out", default="motion.bvh")
+    ap.add_argument("--gif", help="also write the motion as an animated GIF (needs minifilm[viz])")
+    ap.add_argument("--html", help="also write it into a 3-D player that opens offline in a browser")
     args = ap.parse_args()
+    for path, kind in ((args.out, "bvh"), (args.gif, "gif"), (args.html, "html")):
+        if path:  # before the work: a typo in a path or a missing package costs nothing
+            check_writable(path, f"--{'out' if kind == 'bvh' else kind}")
+            if kind != "bvh":
+                check_output_tools(path, kind)
 
     # 1. Ω and Φ, the normalisation statistics and 100 FiLM vectors (one per style); Ψ is not
     #    released, nor needed at run time: a style is its FiLM vector.
@@ -48,6 +60,14 @@ def main():
     write_bvh(rollout.to_motion(skeleton, root_joint_indices(layout, skeleton)), args.out)
     speed = rollout.metrics(layout.parents)[0]["speed"]
     print(f"{args.style}: {n} frames, mean speed {speed:.2f} m/s -> {args.out}")
+
+    # 5. See it: a Rollout holds joint positions only, so the layout gives the bones and names.
+    if args.gif or args.html:
+        tracks = tracks_from_rollout(rollout, layout.parents, [args.style], layout.joint_names)
+        if args.gif:
+            print(f"animation -> {write_gif(tracks, args.gif, seconds=min(args.seconds, 10.0)).path}")
+        if args.html:
+            print(f"3-D player -> {write_html(tracks, args.html, title=args.style)}")
 
 
 if __name__ == "__main__":

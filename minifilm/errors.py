@@ -9,7 +9,9 @@ the array, says what was found and what was expected, and is one of:
   ``RunFolderError`` (minifilm/pipeline/run_folder.py), ``UnknownStyleError``
   (minifilm/runtime/style_library.py), :class:`DataError` below;
 * :class:`OutputPathError` (an OSError): an output path that cannot be written;
-* FileNotFoundError / PermissionError from the operating system for a missing or unreadable file.
+* FileNotFoundError / PermissionError from the operating system for a missing or unreadable file;
+* :class:`MissingDependencyError` (an ImportError): an optional package (an extra such as
+  ``minifilm[viz]``) or program (ffmpeg) that the asked-for output needs is not installed.
 
 The `minifilm` command prints any of them as one line, ``error: ...``, and exits with code 2.
 """
@@ -31,6 +33,11 @@ class DataError(InputError):
 class OutputPathError(OSError):
     """An output path cannot be written (a missing or read-only folder, a folder given as a file
     name); the message names the path and says why."""
+
+
+class MissingDependencyError(ImportError):
+    """An optional package or program needed for what was asked is missing; the message names it
+    and how to install it (or what to use instead)."""
 
 
 def check_fps(fps: float, where: str) -> float:

@@ -105,16 +105,19 @@ def check_writable(path: PathLike, what: str = "output") -> Path:
 def atomic_path(path: PathLike, what: str = "output") -> Iterator[str]:
     """``with atomic_path(out, "GIF") as tmp:`` write the file named ``tmp``; on success it
     replaces ``out``. For writers that want a file name rather than a file object (Pillow,
-    matplotlib's movie writers). The temporary file is created at once beside ``out``, so a path
-    that cannot be written raises OutputPathError before the body's work; on any failure the
-    temporary file is removed and ``out`` is left as it was."""
+    matplotlib's movie writers). A missing parent folder is created, as by :func:`atomic_write`.
+    The temporary file is created at once beside ``out``, so a path that cannot be written raises
+    OutputPathError before the body's work; on any failure the temporary file is removed and
+    ``out`` is left as it was."""
     target = Path(path)
     if target.is_dir():
         raise OutputPathError(f"cannot write {what} to {target}: it is a folder, give a file name")
     folder = target.parent
-    if not folder.is_dir():
-        reason = "does not exist" if not folder.exists() else "is not a folder"
-        raise OutputPathError(f"cannot write {what} to {target}: folder {folder} {reason}")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        raise OutputPathError(f"cannot write {what} to {target}: folder {folder} cannot be made "
+                              "(a file is in the way, or its parent is not writable)") from None
     try:
         remove_stale_temporaries(target)
         fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(target), suffix=".part", dir=folder)

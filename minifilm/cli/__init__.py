@@ -24,7 +24,7 @@ import os
 import sys
 from typing import Callable, Optional
 
-from minifilm.errors import OutputPathError  # (imports nothing: numpy stays unloaded until a command runs)
+from minifilm.errors import MissingDependencyError, OutputPathError  # (imports nothing: numpy stays unloaded)
 
 #: name -> (module, one-line help, environment defaults set before the module is imported)
 #: Training runs on one BLAS thread unless told otherwise: its matrices are small, a second thread
@@ -53,8 +53,9 @@ COMMANDS = {
 }
 
 #: What a user can get wrong: these errors describe the input and are printed as one line.
+#: A missing optional package or ffmpeg is reported the same way: the message says what to install.
 INPUT_ERRORS = (FileNotFoundError, NotADirectoryError, IsADirectoryError, PermissionError, OutputPathError,
-                ValueError)
+                ValueError, MissingDependencyError)
 
 
 class Parser(argparse.ArgumentParser):

@@ -39,6 +39,7 @@ from minifilm.runtime.released import load_released
 from minifilm.runtime.style_library import StyleLibrary
 from minifilm.synthetic.generator import rest_motion
 from minifilm.viewer.builders import tracks_from_rollout
+from minifilm.viewer.deps import check_output_tools
 from minifilm.viewer.gif import write_gif
 from minifilm.viewer.html import write_html
 from minifilm.viewer.strip import draw_strip
@@ -135,9 +136,10 @@ def style_condition(args, lib: StyleLibrary, n: int, fps: float):
 
 def run(args) -> int:
     out = check_writable(args.out, "--out")
-    for flag in ("png", "gif", "html"):
+    for flag in ("png", "gif", "html"):  # every picture checked (path, tools) before the rollout
         if getattr(args, flag):
             check_writable(getattr(args, flag), f"--{flag}")
+            check_output_tools(getattr(args, flag), flag)
     src = Source(args)
     lib = src.library
     if args.list_styles:

@@ -19,6 +19,7 @@ from minifilm.motion.bvh import read_bvh
 from minifilm.motion.skeletons import builtin_skeleton, detect_skeleton
 from minifilm.phases.label import label
 from minifilm.phases.local_phases import LocalPhases
+from minifilm.viewer.deps import check_output_tools
 from minifilm.viewer.gif import write_gif
 from minifilm.viewer.phase_plot import plot_phases
 from minifilm.viewer.tracks import track_from_motion
@@ -48,8 +49,10 @@ def load(path, skeleton_name=None):
 
 def run(args) -> int:
     out = check_writable(args.out, "--out")
+    check_output_tools(out, "png")
     if args.animation:
         check_writable(args.animation, "--animation")
+        check_output_tools(args.animation, "gif")
     motion, skeleton = load(args.bvh, args.skeleton)
     labels = label(motion, skeleton, args.style)
     t = np.arange(motion.n_frames) / motion.fps

@@ -15,6 +15,7 @@ from pathlib import Path
 from minifilm.cli.args import in_range, positive
 from minifilm.files import check_writable
 from minifilm.viewer.builders import track_with_contacts
+from minifilm.viewer.deps import check_output_tools
 from minifilm.viewer.gif import write_gif
 from minifilm.viewer.html import write_html
 from minifilm.viewer.mp4 import write_mp4
@@ -28,7 +29,9 @@ def add_arguments(ap) -> None:
     ap.add_argument("--mp4", type=Path, help="MP4 to write (needs ffmpeg on the PATH)")
     ap.add_argument("--html", type=Path, help="self-contained HTML player to write")
     ap.add_argument("--seconds", type=positive(float, 3600.0), help="length of the GIF / MP4 (default: the longest file)")
-    ap.add_argument("--every", type=in_range(1, 1000, int), help="keep every n-th frame in the GIF / MP4")
+    ap.add_argument("--every", type=in_range(1, 1000, int),
+                    help="keep every n-th frame in the GIF / MP4 (default: all frames, except that a GIF "
+                         "keeps at most 50 fps, since browsers slow faster GIFs down: 60 fps becomes 30)")
     ap.add_argument("--size", type=in_range(40, 2000, int), nargs=2, default=(240, 300), metavar=("W", "H"),
                     help="pixels per character panel in the GIF / MP4 (default 240 300)")
     ap.add_argument("--no-contacts", action="store_true", help="do not highlight the foot contacts")
@@ -38,9 +41,11 @@ def add_arguments(ap) -> None:
 def run(args) -> int:
     if args.gif is None and args.mp4 is None and args.html is None:
         args.html = Path("view.html")
-    for flag, path in (("--gif", args.gif), ("--mp4", args.mp4), ("--html", args.html)):
+    outputs = (("--gif", "gif", args.gif), ("--mp4", "mp4", args.mp4), ("--html", "html", args.html))
+    for flag, kind, path in outputs:  # every output checked before the first one is written
         if path is not None:
             check_writable(path, flag)
+            check_output_tools(path, kind)
     tracks = [track_with_contacts(f) for f in args.files]
     if args.no_contacts:
         for t in tracks:
@@ -52,7 +57,7 @@ def run(args) -> int:
               "(open it in a browser; it works offline)")
     if args.gif is not None:
         r = write_gif(tracks, args.gif, **kw)
-        print(f"wrote {args.gif} ({r.frames.shape[1]} frames at {r.fps:g} fps)")
+        print(f"wrote {args.gif} ({r.n_frames} frames at {r.fps:g} fps)")
     if args.mp4 is not None:
         write_mp4(tracks, args.mp4, **kw)
         print(f"wrote {args.mp4}")

@@ -13,10 +13,13 @@ Two sources (used by :func:`minifilm.dataset.build.build_dataset`):
 from __future__ import annotations
 
 import csv
+import io
 import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import List, Optional, Sequence, Union
+
+from minifilm.files import atomic_write
 
 #: 100STYLE gait codes: forwards / backwards / sideways walk and run, idle, transitions.
 STYLE100_GAITS = ("BR", "BW", "FR", "FW", "ID", "SR", "SW")
@@ -180,19 +183,19 @@ def read_manifest(csv_path: Union[str, Path]) -> List[MotionFile]:
 def write_manifest(files: Sequence[MotionFile], csv_path: Union[str, Path]) -> Path:
     """Write ``files`` as a CSV manifest (paths relative to the manifest's folder where possible)."""
     csv_path = Path(csv_path)
-    csv_path.parent.mkdir(parents=True, exist_ok=True)
-    with open(csv_path, "w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh)
-        w.writerow(["file", "style", "gait", "start", "end", "mirror"])
-        for f in files:
-            try:
-                name = Path(f.path).resolve().relative_to(csv_path.parent.resolve())
-            except ValueError:
-                name = Path(f.path).resolve()
-            mirror = "" if f.mirror is None else ("yes" if f.mirror else "no")
-            w.writerow([name.as_posix(), f.style, f.gait,
-                        "" if f.start is None else f.start, "" if f.end is None else f.end, mirror])
-    return csv_path
+    folder = csv_path.parent.resolve()
+    text = io.StringIO(newline="")
+    w = csv.writer(text)
+    w.writerow(["file", "style", "gait", "start", "end", "mirror"])
+    for f in files:
+        try:
+            name = Path(f.path).resolve().relative_to(folder)
+        except ValueError:
+            name = Path(f.path).resolve()
+        mirror = "" if f.mirror is None else ("yes" if f.mirror else "no")
+        w.writerow([name.as_posix(), f.style, f.gait,
+                    "" if f.start is None else f.start, "" if f.end is None else f.end, mirror])
+    return atomic_write(csv_path, lambda fh: fh.write(text.getvalue().encode("utf-8")))
 
 
 def bandai_files(folder: Union[str, Path]) -> List[MotionFile]:

@@ -5,6 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
+from minifilm.files import atomic_write_text
 from minifilm.viewer.deps import pyplot, save_figure
 
 PHASE_STYLES = ("Swimming", "PendulumHands", "LeftHop")
@@ -235,7 +236,7 @@ def write_report(out: Path, name: str, ctx, results, ft, meta) -> Path:
           "autoregressive loop blew up, so no rollout metrics are given for them. Their one-step test errors "
           "above are unaffected.")
     path = out / f"compare_{name}.md"
-    path.write_text("\n".join(L) + "\n")
+    atomic_write_text(path, "\n".join(L) + "\n")
     return path
 
 

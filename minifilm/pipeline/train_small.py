@@ -262,11 +262,14 @@ def style_recognition(ds, rollouts: dict, seed: int = 0) -> dict:
         per_style[name] = float(np.mean(probs.argmax(axis=1) == ds.styles.index(name))) if len(probs) else float("nan")
     scored = [v for v in per_style.values() if np.isfinite(v)]       # a style too short for one window has none
     mean = float(np.mean(scored)) if scored else float("nan")
+    def score(v: float) -> str:  # a run too short for one window has no score, not "nan"
+        return f"{v:.2f}" if np.isfinite(v) else "n/a (too short for one window)"
+
     log(f"[style] recognition of each style's generated motion by a classifier trained on the data "
-        f"(held-out real windows: {info['heldout_acc']:.2f}; {time.perf_counter() - t0:.1f} s):")
+        f"(held-out real windows: {score(info['heldout_acc'])}; {time.perf_counter() - t0:.1f} s):")
     for name, acc in per_style.items():
-        log(f"    {name:<14} {acc:.2f}")
-    log(f"    mean style recognition {mean:.2f}")
+        log(f"    {name:<14} {score(acc)}")
+    log(f"    mean style recognition {score(mean)}")
     return {"per_style": per_style, "mean": mean, "heldout": info["heldout_acc"]}
 
 

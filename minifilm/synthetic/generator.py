@@ -47,6 +47,7 @@ from typing import Iterable, List, Optional, Sequence, Union
 import numpy as np
 from scipy.ndimage import minimum_filter1d
 
+from minifilm.files import atomic_savez
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.motion.motion import Motion
 from minifilm.synthetic.body import (JOINT_INDEX, JOINT_NAMES, OFFSETS, REACH, STANDING_HIPS_HEIGHT, Foot,
@@ -264,7 +265,8 @@ def write_dataset(directory: Union[str, Path], clips: Optional[Sequence[Syntheti
         path = directory / f"{clip.style}_{clip.gait}.bvh"
         write_bvh(clip.motion, path)
         if truth:
-            np.savez(directory / f"{clip.style}_{clip.gait}.truth.npz", true_phase=clip.true_phase,
-                     true_contacts=clip.true_contacts, phase_active=clip.phase_active)
+            atomic_savez(directory / f"{clip.style}_{clip.gait}.truth.npz",
+                         dict(true_phase=clip.true_phase, true_contacts=clip.true_contacts,
+                              phase_active=clip.phase_active))
         paths.append(path)
     return paths

@@ -8,33 +8,66 @@ from __future__ import annotations
 import importlib
 from pathlib import Path
 
+from minifilm.errors import MissingDependencyError
 from minifilm.files import atomic_write
 
-__all__ = ["require", "pyplot", "save_figure"]
+__all__ = ["require", "pyplot", "save_figure", "check_output_tools", "FFmpegMissingError", "MissingDependencyError"]
 
 _PIP_NAME = {"matplotlib": "matplotlib", "PIL": "Pillow"}
 
 
+class FFmpegMissingError(MissingDependencyError):
+    """ffmpeg is not on the PATH (matplotlib's ``animation.ffmpeg_path``)."""
+
+
 def require(module: str, purpose: str):
-    """Import and return ``module``; a clear ImportError naming the extra when it is missing."""
+    """Import and return ``module``; MissingDependencyError (an ImportError) naming the extra when
+    it is missing."""
     try:
         return importlib.import_module(module)
     except ImportError as e:
         top = module.split(".")[0]
-        raise ImportError(f"{purpose} needs {_PIP_NAME.get(top, top)}, which is not installed: "
-                          f"pip install 'minifilm[viz]' ({e})") from None
+        raise MissingDependencyError(f"{purpose} needs {_PIP_NAME.get(top, top)}, which is not installed: "
+                                     f"pip install 'minifilm[viz]' ({e})") from None
 
 
 def pyplot():
-    """``matplotlib.pyplot`` with the file-only Agg backend; ImportError naming the extra when
-    matplotlib is missing."""
+    """``matplotlib.pyplot`` with the file-only Agg backend; MissingDependencyError naming the
+    extra when matplotlib is missing."""
     try:
         import matplotlib  # optional extra (minifilm[viz]): imported only when drawing
     except ImportError:
-        raise ImportError("drawing needs matplotlib: pip install 'minifilm[viz]'") from None
+        raise MissingDependencyError("drawing needs matplotlib, which is not installed: "
+                                     "pip install 'minifilm[viz]'") from None
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt   # after choosing the backend, which must come first
+    import matplotlib.pyplot as plt  # after choosing the backend, which must come first
     return plt
+
+
+def require_ffmpeg(path) -> None:
+    """FFmpegMissingError naming ``path`` unless matplotlib finds ffmpeg."""
+    require("matplotlib", "writing an MP4")
+    from matplotlib.animation import FFMpegWriter  # optional extra, checked just above
+
+    if not FFMpegWriter.isAvailable():
+        raise FFmpegMissingError(f"cannot write MP4 {path}: ffmpeg was not found on the PATH; install it "
+                                 "(e.g. apt-get install ffmpeg) or write a GIF instead, which needs no ffmpeg "
+                                 "(--gif on the command line, write_gif in Python)")
+
+
+def check_output_tools(path, kind: str) -> None:
+    """Before any work: MissingDependencyError unless what writing ``path`` as ``kind`` needs is
+    installed. ``kind``: "gif" (matplotlib, Pillow), "mp4" (matplotlib, ffmpeg), "png"
+    (matplotlib) or "html" (nothing: three.js is vendored)."""
+    if kind == "gif":
+        require("matplotlib", f"writing the GIF {path}")
+        require("PIL.Image", f"writing the GIF {path}")
+    elif kind == "mp4":
+        require_ffmpeg(path)
+    elif kind == "png":
+        require("matplotlib", f"writing the picture {path}")
+    elif kind != "html":
+        raise ValueError(f"check_output_tools: unknown kind {kind!r}")
 
 
 def save_figure(fig, path, dpi: int = 100):

@@ -60,6 +60,7 @@ def page_html(tracks: List[Track], title: str = "minifilm motion") -> str:
         "size": size,
         "grid": grid_step(size),
         "heading": _mean_heading(tracks),
+        "lanes": lanes_width(tracks, offsets, size),
         "characters": encode_tracks(tracks, offsets),
     }
     parts = {
@@ -76,19 +77,36 @@ def page_html(tracks: List[Track], title: str = "minifilm motion") -> str:
 
 
 def lane_offsets(tracks: List[Track], size: float) -> np.ndarray:
-    """(T, 3) offsets that move each track's start to its lane, lanes ``size`` metres apart.
+    """(T, 3) offsets that move each track's start into its own lane.
 
     Lanes run across the tracks' combined direction of travel (along x when they mostly walk
     along z), so characters walking the same way stay side by side instead of in single file.
+    Each lane is as wide as its character's path reaches across, plus ``size`` metres between
+    neighbours: straight walkers end up ``size`` apart, and characters on curved paths (a
+    figure-eight) never walk through each other's lanes.
     """
+    across = _across_axis(tracks)
+    reach = [(t.trail - t.trail[0]) @ across for t in tracks]          # (F,) across, from the start
+    lo = np.array([min(0.0, r.min()) for r in reach])
+    hi = np.array([max(0.0, r.max()) for r in reach])
+    centre = np.zeros(len(tracks))                                    # each start, along ``across``
+    for i in range(1, len(tracks)):
+        centre[i] = centre[i - 1] + hi[i - 1] - lo[i] + size
+    centre -= ((centre + lo).min() + (centre + hi).max()) / 2.0       # lanes centred on the origin
+    starts = np.array([t.trail[0] * np.array([1.0, 0.0, 1.0]) for t in tracks])
+    return centre[:, None] * across - starts
+
+
+def lanes_width(tracks: List[Track], offsets: np.ndarray, size: float) -> float:
+    """Metres across all lanes (paths included): what the player's first camera must frame."""
+    across = _across_axis(tracks)
+    reach = np.concatenate([(t.trail + o) @ across for t, o in zip(tracks, offsets)])
+    return float(reach.max() - reach.min() + size)
+
+
+def _across_axis(tracks: List[Track]) -> np.ndarray:
     travel = np.array([np.abs(t.trail[-1] - t.trail[0]) for t in tracks]).sum(axis=0)  # (3,)
-    across = np.array([1.0, 0.0, 0.0]) if travel[2] >= travel[0] else np.array([0.0, 0.0, 1.0])
-    n = len(tracks)
-    out = []
-    for i, t in enumerate(tracks):
-        start = t.trail[0] * np.array([1.0, 0.0, 1.0])
-        out.append((i - (n - 1) / 2.0) * size * across - start)
-    return np.array(out)
+    return np.array([1.0, 0.0, 0.0]) if travel[2] >= travel[0] else np.array([0.0, 0.0, 1.0])
 
 
 def _mean_heading(tracks: List[Track]) -> float:

@@ -1,7 +1,7 @@
 """MP4 of the same side-by-side animation as the GIF, through matplotlib's ffmpeg writer.
 
 ffmpeg is not a Python package and often missing; when it is, ``write_mp4`` says so in one line
-(and that ``write_gif`` needs no ffmpeg) before doing any work, instead of the classic matplotlib
+(and that a GIF needs no ffmpeg) before doing any work, instead of the classic matplotlib
 failure deep inside an animation save.
 """
 from __future__ import annotations
@@ -9,17 +9,13 @@ from __future__ import annotations
 import os
 from typing import Optional, Tuple, Union
 
-from minifilm.viewer.deps import require
 from minifilm.files import atomic_path
+from minifilm.viewer.deps import FFmpegMissingError, require_ffmpeg
 from minifilm.viewer.render2d import PanelRenderer, Rendering
 from minifilm.viewer.timeline import schedule
 from minifilm.viewer.tracks import as_tracks
 
-__all__ = ["write_mp4", "FFmpegMissingError"]
-
-
-class FFmpegMissingError(RuntimeError):
-    """ffmpeg is not on the PATH (matplotlib's ``animation.ffmpeg_path``)."""
+__all__ = ["write_mp4", "FFmpegMissingError"]  # the error lives in deps; re-exported here
 
 
 def write_mp4(tracks, path: Union[str, os.PathLike], fps: Optional[float] = None,
@@ -32,12 +28,8 @@ def write_mp4(tracks, path: Union[str, os.PathLike], fps: Optional[float] = None
     Raises ``FFmpegMissingError`` when ffmpeg is not found, ``OutputPathError`` when ``path``
     cannot be written (both before rendering), ImportError without matplotlib.
     """
-    require("matplotlib", "writing an MP4")  # optional extra, imported only here
-    from matplotlib.animation import FFMpegWriter
-
-    if not FFMpegWriter.isAvailable():
-        raise FFmpegMissingError(f"cannot write MP4 {path}: ffmpeg was not found on the PATH; install "
-                                 "ffmpeg (e.g. apt-get install ffmpeg) or use write_gif, which needs no ffmpeg")
+    require_ffmpeg(path)
+    from matplotlib.animation import FFMpegWriter  # optional extra, checked by require_ffmpeg
     with atomic_path(path, "MP4") as tmp:
         items = as_tracks(tracks)
         sched = schedule(items, fps=fps, seconds=seconds, every=every)

@@ -265,6 +265,9 @@ def as_tracks(items) -> List[Track]:
             out.append(track_from_motion(item))
         elif isinstance(item, (str, os.PathLike)):
             out.append(track_from_bvh(item))
+        elif hasattr(item, "root_positions") and hasattr(item, "positions"):  # a runtime Rollout
+            raise TypeError("cannot draw a Rollout directly: it carries no skeleton; "
+                            "minifilm.viewer.tracks_from_rollout(rollout, parents, names) makes its tracks")
         else:
             raise TypeError(f"cannot draw a {type(item).__name__}: give Track, Motion or BVH paths")
     if not out:

@@ -7,6 +7,7 @@ modules that use them.)
 from __future__ import annotations
 
 import os
+import shutil
 import re
 import socket
 import subprocess
@@ -28,7 +29,7 @@ from minifilm.demo.source import DemoSource  # noqa: E402
 from minifilm.pipeline.train_small import Settings, run  # noqa: E402
 
 RELEASED = SHARED_DATA / "released-lpn"
-CHROMIUM = os.environ.get("MINIFILM_CHROMIUM", "/usr/bin/chromium")
+CHROMIUM = os.environ.get("MINIFILM_CHROMIUM") or shutil.which("chromium") or "/usr/bin/chromium"
 # Software WebGL: headless machines have no GPU, and SwiftShader renders the same everywhere.
 CHROMIUM_ARGS = ["--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
 

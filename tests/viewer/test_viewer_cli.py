@@ -39,13 +39,58 @@ def test_view_writes_a_gif_and_an_html_player(two_files, tmp_path):
     assert "minifilmPlayer" in html and "walk_a" in html and "walk_b" in html
 
 
+def test_view_reports_the_frames_it_wrote_and_makes_missing_folders(two_files, tmp_path):
+    from PIL import Image
+    out = tmp_path / "new" / "folder" / "v.gif"
+    proc = minifilm("view", *two_files, "--gif", out, "--seconds", "0.5", "--size", "64", "80")
+    assert proc.returncode == 0, proc.stderr
+    with Image.open(out) as im:
+        n = im.n_frames
+    assert f"({n} frames at " in proc.stdout, proc.stdout
+
+
+def _empty_path_env(tmp_path):
+    import os
+    (tmp_path / "empty-bin").mkdir()
+    return dict(os.environ, PATH=str(tmp_path / "empty-bin"))  # no ffmpeg (python is called by full path)
+
+
+def test_view_mp4_without_ffmpeg_is_one_line_before_any_output(two_files, tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    proc = subprocess.run([sys.executable, "-m", "minifilm", "view", str(two_files[0]), "--gif", str(out / "a.gif"),
+                           "--html", str(out / "a.html"), "--mp4", str(out / "a.mp4")], capture_output=True,
+                          text=True, timeout=300, env=_empty_path_env(tmp_path))
+    assert proc.returncode == 2, proc.stdout
+    assert proc.stderr.startswith("error: ") and proc.stderr.count("\n") == 1, proc.stderr
+    assert "ffmpeg was not found" in proc.stderr and "--gif" in proc.stderr and "a.mp4" in proc.stderr
+    assert list(out.iterdir()) == []                              # not even the GIF or the page
+
+
+@pytest.mark.parametrize("command", ["view", "phases"])
+def test_a_missing_drawing_package_is_one_line_before_any_work(two_files, tmp_path, monkeypatch, capsys, command):
+    from minifilm.cli import main
+    monkeypatch.setitem(sys.modules, "PIL", None)          # "import PIL" now fails, as without Pillow
+    monkeypatch.setitem(sys.modules, "PIL.Image", None)
+    out = tmp_path / "out"
+    out.mkdir()
+    args = {"view": ["view", str(two_files[0]), "--html", str(out / "a.html"), "--gif", str(out / "a.gif")],
+            "phases": ["phases", str(two_files[0]), "--out", str(out / "p.png"), "--animation", str(out / "p.gif")]}
+    with pytest.raises(SystemExit) as info:
+        main(args[command])
+    err = capsys.readouterr().err
+    assert info.value.code == 2 and err.startswith("error: ") and err.count("\n") == 1, err
+    assert "Pillow" in err and "minifilm[viz]" in err
+    assert list(out.iterdir()) == []
+
+
 def test_view_without_an_output_writes_view_html(two_files, tmp_path):
     proc = minifilm("view", two_files[0], cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert (tmp_path / "view.html").stat().st_size > 100_000          # three.js is inlined
 
 
-@pytest.mark.parametrize("case", ["missing", "not_bvh", "folder_out", "missing_folder"])
+@pytest.mark.parametrize("case", ["missing", "not_bvh", "folder_out", "parent_is_a_file", "second_output_bad"])
 def test_view_bad_input_is_one_line_and_writes_nothing(two_files, tmp_path, case):
     a, _ = two_files
     junk = tmp_path / "junk.bvh"
@@ -53,7 +98,9 @@ def test_view_bad_input_is_one_line_and_writes_nothing(two_files, tmp_path, case
     args = {"missing": [tmp_path / "nope.bvh", "--gif", tmp_path / "o.gif"],
             "not_bvh": [junk, "--gif", tmp_path / "o.gif"],
             "folder_out": [a, "--gif", tmp_path],
-            "missing_folder": [a, "--html", tmp_path / "no" / "such" / "folder" / "o.html"]}[case]
+            "parent_is_a_file": [a, "--html", junk / "o.html"],
+            # the first output is fine, the second is not: nothing is written at all
+            "second_output_bad": [a, "--html", tmp_path / "ok.html", "--gif", junk / "o.gif"]}[case]
     before = sorted(p.name for p in tmp_path.iterdir())
     proc = minifilm("view", *args)
     assert proc.returncode == 2, proc.stdout

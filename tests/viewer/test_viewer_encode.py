@@ -43,10 +43,29 @@ def test_eight_characters_ten_seconds_sixty_fps_fit_in_five_megabytes():
 
 def test_lanes_run_across_the_walking_direction():
     along_z = [track_from_motion(synthetic_walker(n_frames=30)) for _ in range(3)]  # walks along +z
+    for t in along_z:
+        t.trail[:, 0] = t.trail[0, 0]          # a straight path: lanes exactly `size` apart
     offsets = lane_offsets(along_z, size=1.5)
     starts = np.array([t.trail[0] for t in along_z]) + offsets
     np.testing.assert_allclose(starts[:, 0], [-1.5, 0.0, 1.5])
     np.testing.assert_allclose(starts[:, 2], 0.0, atol=1e-12)
+
+
+def test_characters_on_curved_paths_keep_to_their_own_lanes():
+    # three walkers along +z, each swerving up to 1 m sideways (as on a figure-eight)
+    tracks = []
+    for i, sway in enumerate([1.0, -1.0, 0.5]):
+        t = track_from_motion(synthetic_walker(n_frames=120))
+        side = sway * np.sin(np.linspace(0.0, np.pi, len(t.trail)))
+        t.positions = t.positions + np.stack([side, 0 * side, 0 * side], axis=1)[:, None]
+        t.trail = t.trail + np.stack([side, 0 * side, 0 * side], axis=1)
+        tracks.append(t)
+    size = 1.5
+    offsets = lane_offsets(tracks, size)
+    xs = [(t.trail + o)[:, 0] for t, o in zip(tracks, offsets)]
+    for a, b in zip(xs, xs[1:]):                          # neighbouring lanes, left to right
+        assert b.min() - a.max() >= size - 1e-9
+    assert np.isclose(min(x.min() for x in xs) + max(x.max() for x in xs), 0.0)  # centred
 
 
 def test_names_cannot_break_out_of_the_page():

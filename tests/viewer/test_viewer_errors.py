@@ -29,8 +29,7 @@ def _unwritable(tmp_path):
     a_file = tmp_path / "a_file.txt"
     a_file.write_text("x")
     (tmp_path / "a_folder.out").mkdir()
-    cases = [("missing folder", tmp_path / "nope" / "out.x"),
-             ("folder given as file", tmp_path / "a_folder.out"),
+    cases = [("folder given as file", tmp_path / "a_folder.out"),
              ("parent is a file", a_file / "out.x")]
     if Path("/proc/self").is_dir():  # a read-only place even for root (chmod does not stop root)
         cases.append(("read-only", Path("/proc/minifilm-viewer-test.out")))
@@ -54,6 +53,15 @@ def test_unwritable_paths_fail_before_rendering(kind, tmp_path, walker, monkeypa
         assert str(path) in _single_line(info.value), case
     assert calls == []  # no rendering work was started
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file.txt", "a_folder.out"]
+
+
+@pytest.mark.parametrize("kind", WRITERS)
+def test_a_missing_output_folder_is_made(kind, tmp_path, walker):
+    # as for BVH files and run folders: a new folder is not an error
+    out = tmp_path / "new" / "deeper" / f"out.{kind}"
+    _write(kind, track_from_motion(walker), out)
+    assert out.is_file() and out.stat().st_size > 0
+    assert [p.name for p in out.parent.iterdir()] == [out.name]  # no temporary left beside it
 
 
 @pytest.mark.parametrize("kind", WRITERS)

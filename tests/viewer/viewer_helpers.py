@@ -7,12 +7,13 @@ name rather than ``conftest``: ``tests/conftest.py`` is also called ``conftest``
 from __future__ import annotations
 
 import os
+import shutil
 
 import numpy as np
 
 from minifilm.motion.motion import Motion
 
-CHROMIUM = os.environ.get("MINIFILM_CHROMIUM", "/usr/bin/chromium")
+CHROMIUM = os.environ.get("MINIFILM_CHROMIUM") or shutil.which("chromium") or "/usr/bin/chromium"
 # Software WebGL: headless machines have no GPU, and SwiftShader renders the same everywhere.
 CHROMIUM_ARGS = ["--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
 

@@ -135,7 +135,7 @@ const orbit = {
   elevation: 0.28,
 };
 (function frameAll() {
-  const lanes = CHARS.length * SIZE;
+  const lanes = DATA.lanes || CHARS.length * SIZE;  // metres across every lane, paths included
   orbit.radius = Math.max(3.2 * SIZE, 0.9 * lanes / (2 * Math.tan(THREE.MathUtils.degToRad(20))));
 })();
 
