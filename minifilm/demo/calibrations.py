@@ -92,7 +92,7 @@ class Calibrations:
         try:
             cal = future.result()
         except Exception as e:  # noqa: BLE001 - a failed measurement keeps the stand-in, says why
-            if not isinstance(e, concurrent.futures.CancelledError):
+            if not (self._closed or isinstance(e, concurrent.futures.CancelledError)):  # not when stopping
                 print(f"minifilm demo: speed calibration of {name!r} failed ({e}); "
                       "the start style's is used for it", file=sys.stderr)
             return
@@ -123,7 +123,21 @@ class Calibrations:
         return v * ratio
 
     def close(self) -> None:
+        """Stop measuring: queued styles are dropped and the worker is ended at once. (Only
+        cancelling would let the interpreter's exit wait for the measurement in hand, and for the
+        one queued behind it: at low priority on a busy machine, a minute after SIGTERM.)"""
         with self._lock:
             pool, self._pool, self._closed = self._pool, None, True
-        if pool is not None:
-            pool.shutdown(wait=False, cancel_futures=True)
+        if pool is None:
+            return
+        terminate = getattr(pool, "terminate_workers", None)  # Python 3.14+: cancels and ends them
+        if terminate is not None:
+            terminate()
+            return
+        # Before 3.14 there is no public way to end a pool's worker: keep its processes (shutdown
+        # forgets them) and end them directly.
+        processes = list((getattr(pool, "_processes", None) or {}).values())
+        pool.shutdown(wait=False, cancel_futures=True)
+        for process in processes:
+            if process.is_alive():
+                process.terminate()

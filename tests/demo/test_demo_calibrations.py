@@ -2,6 +2,7 @@
 through its style's calibration (a mix through the mix of the commands), other styles are measured
 in a worker process when first asked for, and sources that need none pass velocities unchanged."""
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -58,3 +59,36 @@ def test_sources_without_calibration_pass_velocities_unchanged(tiny_source):
     np.testing.assert_array_equal(cal.command(v, np.array([0.0, 1.0]), {"Neutral": 1.0}), v)
     cal.request(["LeftHop"])                                      # nothing to measure, no worker
     assert cal._pool is None
+
+
+def test_sigterm_ends_the_server_at_once_with_calibrations_queued(released_source):
+    # One page asks for a mix of all 100 styles: 100 measurements queue for the worker (minutes of
+    # CPU at low priority). SIGTERM must still end the server, its worker with it, in seconds.
+    import signal
+    import subprocess
+
+    from demo_helpers import RELEASED, DemoProcess
+    from minifilm.demo.client import DemoClient
+
+    demo = DemoProcess("--params", RELEASED)
+    try:
+        with DemoClient(demo.url) as page:
+            page.next_frame()
+            names = page.hello["styles"]
+            page.send({"type": "style", "weights": {n: 1 / len(names) for n in names}, "seconds": 1})
+            end = time.monotonic() + 30
+            workers = []
+            while not workers and time.monotonic() < end:   # until the worker process is measuring
+                time.sleep(0.2)
+                children = subprocess.run(["ps", "-ww", "-o", "pid=,args=", "--ppid", str(demo.proc.pid)],
+                                          capture_output=True, text=True).stdout.splitlines()
+                workers = [int(c.split()[0]) for c in children if "spawn_main" in c]
+            assert workers, "no calibration worker was started"
+        demo.proc.send_signal(signal.SIGTERM)
+        t0 = time.monotonic()
+        demo.proc.wait(20)
+        assert time.monotonic() - t0 < 10
+        time.sleep(0.5)
+        assert not any(Path(f"/proc/{pid}").exists() for pid in workers), "the worker outlived the server"
+    finally:
+        demo.stop()
