@@ -11,7 +11,8 @@ timeout to notice a page that went away.
 Per connection: a character joins the stage (or the page gets ``refused`` and the connection
 closes with 1013 when all are taken); the page's messages are validated
 (:func:`minifilm.demo.protocol.parse_message`) and queued for the character, a bad one answered
-with ``error`` and dropped; one sender task sends the page its messages in order, and of the
+with ``error`` and dropped, and a page over its message budget (``budget.py``) is told, then
+disconnected; one sender task sends the page its messages in order, and of the
 frames only the newest, so a slow page skips frames instead of slowing the loop.
 
 HTTP: only GET of the site's exact paths (``site.py``). Served on a loopback address, requests must
@@ -29,6 +30,7 @@ import signal
 import threading
 from typing import Callable, Optional
 
+from minifilm.demo.budget import MessageBudget
 from minifilm.demo.calibrations import Calibrations
 from minifilm.demo.character import Character, DemoSettings
 from minifilm.demo.protocol import (MAX_MESSAGE_BYTES, PROTOCOL_VERSION, TRANSPORT_MAX_BYTES, PingMessage,
@@ -39,6 +41,7 @@ from minifilm.demo.stage import Stage, StageFull
 from minifilm.demo.style_mix import film_digest
 
 MAX_QUEUED = 64          # control messages (errors, notices) waiting for a slow page; older ones go
+CLOSE_TIMEOUT = 2.0      # seconds a closed page has to answer the close; then its connection is dropped
 
 
 def websockets_modules():
@@ -190,8 +193,17 @@ class DemoServer:
             return
         outbox.put(self.hello(character), False)
         sender = asyncio.create_task(self._send(ws, outbox))
+        budget = MessageBudget()
         try:
             async for data in ws:
+                if not budget.take():  # over this page's budget: dropped unparsed (budget.py)
+                    if budget.flooding:
+                        await ws.close(1008, f"too many messages (over {budget.rate:.0f} a second)")
+                        break
+                    if budget.should_warn:
+                        outbox.put(error(f"too many messages: at most {budget.rate:.0f} a second; "
+                                         "the ones over that are dropped"), False)
+                    continue
                 try:
                     message = parse_message(data, self.styles)
                 except ProtocolError as e:
@@ -229,6 +241,7 @@ class DemoServer:
         try:
             async with serve(self._connection, self.host, self.port, process_request=self._http,
                              max_size=TRANSPORT_MAX_BYTES, compression=None, server_header=None,
+                             close_timeout=CLOSE_TIMEOUT,
                              logger=self.logger) as server:
                 self.port = server.sockets[0].getsockname()[1]
                 self.stage.start()

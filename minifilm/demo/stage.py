@@ -8,9 +8,10 @@ stall the character is where it would have been, as after any stall. Only after 
 than ``MAX_CATCH_UP`` frames (a suspended laptop, a debugger) does the schedule restart from now
 instead of running them all. With nobody connected the thread sleeps and costs nothing.
 
-Its own thread, apart from the network's event loop, so that nothing a page does (a slow
-connection, a burst of messages, the download of the page) can delay a frame: pages only append
-messages to a character's queue, and the loop hands finished frames to ``deliver`` callbacks that
+Its own thread, apart from the network's event loop, so that what a page does (a slow
+connection, a burst of messages, the download of the page) does not wait for a frame, nor a frame
+for it: pages only append messages to a character's queue (the two threads still share Python's
+GIL, which is why each page has a message budget, ``budget.py``), and the loop hands finished frames to ``deliver`` callbacks that
 must return at once (the server's posts the text to its event loop). Each character is stepped at
 batch 1 by its own :class:`~minifilm.demo.character.Character`.
 

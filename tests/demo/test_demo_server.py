@@ -125,6 +125,35 @@ def test_a_message_over_the_transport_limit_closes_only_that_connection(server):
         assert wait_until(lambda: server.stage.count == 1)
 
 
+def test_a_flooding_page_is_told_then_disconnected_and_the_others_carry_on(server):
+    from minifilm.demo.budget import MESSAGES_PER_SECOND
+    with DemoClient(server.url) as other:
+        with DemoClient(server.url) as page:
+            flood = json.dumps({"type": "input", "move": [0, 1], "turn": 0, "speed": 0})
+            with pytest.raises(websockets.exceptions.ConnectionClosed) as e:
+                for _ in range(50 * MESSAGES_PER_SECOND):     # far faster than any page sends
+                    page.send(flood)
+                while True:
+                    page.recv(5)
+            assert e.value.rcvd is not None and e.value.rcvd.code == 1008, e.value
+            assert "too many messages" in e.value.rcvd.reason
+        before = other.next_frame()["n"]
+        assert other.next_frame()["n"] > before                   # the other page's frames keep coming
+        assert wait_until(lambda: server.stage.count == 1)
+
+
+def test_a_burst_over_the_budget_is_dropped_with_a_warning_and_the_page_stays(server):
+    from minifilm.demo.budget import MESSAGES_PER_SECOND
+    with DemoClient(server.url) as page:
+        burst = json.dumps({"type": "input", "move": [0, 1], "turn": 0, "speed": 0})
+        for _ in range(MESSAGES_PER_SECOND + 100):          # in a few milliseconds: 100 over
+            page.send(burst)
+        warning = page.wait_for(lambda m: m.get("type") == "error")
+        assert "too many messages" in warning["message"]
+        before = page.next_frame()["n"]
+        assert page.next_frame()["n"] > before
+
+
 def test_a_page_beyond_the_limit_is_refused_clearly(server):
     with DemoClient(server.url), DemoClient(server.url):
         with DemoClient(server.url) as third:
