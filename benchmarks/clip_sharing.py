@@ -1,7 +1,7 @@
 """Clip sharing (TrainConfig.clips_per_batch): training time and quality for 1, 4 and 32 clips per batch.
 
     python benchmarks/clip_sharing.py                   # a short version (4 epochs each, ~4 min)
-    python benchmarks/clip_sharing.py --epochs 20       # the main job's training length (~20 min)
+    python benchmarks/clip_sharing.py --epochs 20       # the length the choice was made at (~20 min)
 
 The paper and the original code pair every sample of a minibatch with its own style clip, so Ψ
 runs on 32 clips per step; minibatches hold one style, so a few clips of it could serve the whole
@@ -81,7 +81,7 @@ def quality(trainer, ds, classifier, info):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--epochs", type=int, default=4, help="training epochs per model (the main job: 20)")
+    ap.add_argument("--epochs", type=int, default=4, help="training epochs per model (the main job: 30)")
     ap.add_argument("--clips", default="1,4,32", help="clips per batch to compare; 32 = one per sample (the paper)")
     ap.add_argument("--holdout", default="Drunk", help="the style held out for the fine-tuning test")
     ap.add_argument("--finetune-steps", type=int, default=300)

@@ -98,7 +98,26 @@ def check_writable(path: PathLike, what: str = "output") -> Path:
         raise OutputPathError(f"{what} {path}: {existing} is a file, not a folder")
     if not os.access(existing, os.W_OK | os.X_OK):
         raise OutputPathError(f"{what} {path}: folder {existing} is not writable")
+    _check_name_lengths(path, existing, what)
     return path
+
+
+#: Bytes a temporary file's name adds to its target's (".name.<pid>.<random>.tmp").
+_TEMP_NAME_EXTRA = 32
+
+
+def _check_name_lengths(path: Path, existing: Path, what: str) -> None:
+    """OutputPathError when a name in ``path`` below ``existing`` is too long for the file system
+    (found now rather than after the work, when the temporary file is made)."""
+    try:
+        name_max = os.pathconf(existing, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        name_max = 255
+    for part in path.relative_to(existing).parts if path.is_relative_to(existing) else (path.name,):
+        extra = _TEMP_NAME_EXTRA if part == path.name else 0
+        if len(os.fsencode(part)) + extra > name_max:
+            raise OutputPathError(f"{what} {path}: the name {part[:40]}... is too long for this file system "
+                                  f"({len(os.fsencode(part))} bytes; at most {name_max - extra} here)")
 
 
 @contextlib.contextmanager

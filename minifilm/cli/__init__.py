@@ -53,9 +53,10 @@ COMMANDS = {
 }
 
 #: What a user can get wrong: these errors describe the input and are printed as one line.
-#: A missing optional package or ffmpeg is reported the same way: the message says what to install.
-INPUT_ERRORS = (FileNotFoundError, NotADirectoryError, IsADirectoryError, PermissionError, OutputPathError,
-                ValueError, MissingDependencyError)
+#: Any OSError about a path (missing, unreadable, a name too long, a symlink loop, a read-only
+#: file system, no space left) is the user's environment, not a bug; so is a missing optional
+#: package or ffmpeg: the message says what to install.
+INPUT_ERRORS = (OSError, OutputPathError, ValueError, MissingDependencyError)
 
 
 class Parser(argparse.ArgumentParser):
@@ -122,5 +123,6 @@ def main(argv=None) -> None:
     parser = Parser(prog=f"minifilm {name}", description=module.__doc__,
                     formatter_class=argparse.RawDescriptionHelpFormatter)
     module.add_arguments(parser)
-    args = parser.parse_args(argv[1:])
-    report_errors(lambda: module.run(args))
+    # parsing inside report_errors too: an argument's type check may meet an OSError (a path name
+    # too long for the file system, a symlink loop)
+    report_errors(lambda: module.run(parser.parse_args(argv[1:])))

@@ -14,7 +14,8 @@ import argparse
 from pathlib import Path
 
 from minifilm.cli.args import in_range, output_folder, positive
-from minifilm.evaluation.compare import MODEL, SYNTH_HOLDOUT, TINY_MODEL
+from minifilm.errors import InputError
+from minifilm.evaluation.compare import MODEL, SYNTH_HOLDOUT, TINY_MODEL, check_variants
 from minifilm.evaluation.compare import run as run_compare
 
 HELP = "Figure 10 and style metrics: train and compare the seven models"
@@ -26,7 +27,7 @@ def add_arguments(p) -> None:
                    help="training steps per variant, rounded up to whole epochs (default 2500)")
     p.add_argument("--finetune-steps", type=in_range(0, 10**7, int), default=300, help="Ψ fine-tuning steps (default 300)")
     p.add_argument("--out", type=output_folder, default=Path("reports"), help="folder of the markdown report and PNGs")
-    p.add_argument("--work", default="runs/compare", help="folder for generated data and caches")
+    p.add_argument("--work", type=output_folder, default=Path("runs/compare"), help="folder for generated data and caches")
     p.add_argument("--variants", help="comma-separated subset of the seven variants (default: all)")
     p.add_argument("--holdout", help=f"style held out for fine-tuning (synthetic default {SYNTH_HOLDOUT})")
     p.add_argument("--interpolate", help="two seen styles A,B for the interpolation test (default: first two)")
@@ -48,7 +49,18 @@ def add_arguments(p) -> None:
 
 def finish(a):
     """Turn the comma-separated options into lists and pick the model sizes."""
-    a.extra_seeds = [int(x) for x in a.extra_seeds.split(",") if x.strip()]
+    try:
+        a.extra_seeds = [int(x) for x in a.extra_seeds.split(",") if x.strip()]
+    except ValueError:
+        raise InputError(f"--extra-seeds {a.extra_seeds!r}: give comma-separated whole numbers, e.g. '1,2'") from None
+    if any(not 0 <= x < 2**32 for x in a.extra_seeds):
+        raise InputError(f"--extra-seeds {a.extra_seeds}: seeds are whole numbers from 0 to 2**32 - 1")
+    if a.interpolate is not None:
+        pair = [x.strip() for x in a.interpolate.split(",")]
+        if len(pair) != 2 or not all(pair) or pair[0] == pair[1]:
+            raise InputError(f"--interpolate {a.interpolate!r}: give two different styles, 'A,B'")
+        a.interpolate = ",".join(pair)
+    check_variants(a.variants)
     a.styles = a.styles.split(",") if a.styles else None
     a.gaits = a.gaits.split(",") if a.gaits else None
     a.model = TINY_MODEL if a.tiny else MODEL

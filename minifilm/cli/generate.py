@@ -74,7 +74,9 @@ def add_arguments(ap) -> None:
     ap.add_argument("--gif", type=Path, help="also write the motion as an animated GIF")
     ap.add_argument("--html", type=Path, help="also write the motion into an offline 3-D HTML player")
     ap.add_argument("--png", type=png_path, help="also draw the motion into this PNG")
-    ap.add_argument("--png-from", type=in_range(0.0, 24 * 3600.0), default=1.0, help="first drawn frame, seconds")
+    ap.add_argument("--png-from", type=in_range(0.0, 24 * 3600.0),
+                    help="first drawn frame, seconds (default 1, the first second starting from the mean pose; "
+                         "half the motion when it is shorter than 2 s)")
     ap.add_argument("--png-every", type=in_range(1, 100_000, int), default=10, help="frames between drawn figures")
     ap.add_argument("--list-styles", action="store_true", help="print the style names and stop")
 
@@ -146,6 +148,14 @@ def run(args) -> int:
         print(" ".join(lib.names))
         return 0
     n = int(round(args.seconds * src.fps))
+    if n < 2:
+        raise InputError(f"--seconds {args.seconds:g}: fewer than two frames at {src.fps:g} fps; "
+                         f"give at least {2 / src.fps:.3g} s")
+    if args.png_from is None:
+        args.png_from = min(1.0, args.seconds / 2)
+    if args.png and args.png_from >= args.seconds:
+        raise InputError(f"--png-from {args.png_from:g}: the motion lasts only {args.seconds:g} s (--seconds); "
+                         "the drawing would be empty")
     films, film, label = style_condition(args, lib, n, src.fps)
     joints = root_joint_indices(src.layout, src.skeleton)
     locker = FootLocker.from_names(src.layout.joint_names) if args.foot_lock else None

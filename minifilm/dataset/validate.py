@@ -53,7 +53,9 @@ def check_every_style_trains(train, styles: Sequence[str], sources: Sequence[dic
             raise DataError(f"style {style!r} has no training rows: its training files are too short "
                             f"({_listing(in_train, fps)})")
         if clips[sid] == 0 and clips.any():
-            longest = max(s["n_frames"] for s in in_train) / fps
+            # what a clip must fit in is a training segment, not the whole file (files are split
+            # into train / validation / test parts, and a clip may not cross into the others)
+            longest = max(b - a for f in in_train for a, b, split in f["segments"] if split == "train") / fps
             raise DataError(f"style {style!r} has no training style clip: a clip lasts {clip_seconds:g} s and its "
-                            f"longest training file {longest:.1f} s ({_listing(in_train, fps)}); give it longer "
-                            "files or use shorter clips")
+                            f"longest stretch of training frames {longest:.1f} s (files: {_listing(in_train, fps)}); "
+                            "give it longer files or use shorter clips")

@@ -33,7 +33,8 @@ import numpy as np
 from minifilm.baselines.runtime import VariantRuntime
 from minifilm.baselines.variant_data import end_effector_indices, variant_data
 from minifilm.baselines.variants import VARIANTS, build_variant
-from minifilm.dataset.build import build_dataset
+from minifilm.dataset.build import build_dataset, resolve_files
+from minifilm.errors import InputError
 from minifilm.evaluation.compare_report import write_report
 from minifilm.evaluation.compare_tools import (film_codes, film_separation, fit_stats, motion_errors,
                                                style_subset)
@@ -254,13 +255,44 @@ def finetune_separation(result, ctx):
 
 
 # ---------------------------------------------------------------------------- the run
+def check_styles(styles, holdout: str, interpolate) -> tuple:
+    """InputError unless the held-out style and the two interpolated ones are among ``styles`` (the
+    interpolated ones seen in training); returns the interpolation pair. Before any work."""
+    if holdout not in styles:
+        raise InputError(f"compare: --holdout {holdout!r} is not a style of the data ({', '.join(styles)})")
+    seen = [s for s in styles if s != holdout]
+    if interpolate is None:
+        if len(seen) < 2:
+            raise InputError(f"compare: the data has {len(styles)} style(s); at least three are needed "
+                             "(one held out, two to interpolate between)")
+        return seen[0], seen[1]
+    bad = [x for x in interpolate if x not in seen]
+    if bad:
+        raise InputError(f"compare: --interpolate {','.join(interpolate)}: not seen in training: "
+                         f"{', '.join(map(repr, bad))} (the seen styles: {', '.join(seen)})")
+    return tuple(interpolate)
+
+
+def check_variants(names) -> list:
+    variants = [v.strip() for v in names.split(",")] if names else list(VARIANTS)
+    unknown = [v for v in variants if v not in VARIANTS]
+    if unknown or not variants:
+        raise InputError(f"compare: unknown variant(s) {unknown}; choose from {list(VARIANTS)}")
+    return variants
+
+
 def run(args):
     t_start = time.perf_counter()
+    variants = check_variants(args.variants)
+    synthetic_data = args.data in (None, "synthetic")
+    if not synthetic_data and not Path(args.data).is_dir():
+        raise FileNotFoundError(f"--data {args.data}: no such folder (give 'synthetic' or a folder of BVH files)")
+    # the style names, from the file names, before anything is generated or built (as the dataset lists them)
+    styles = sorted(set(args.styles or synthetic.STYLES) if synthetic_data else {f.style for f in resolve_files(args.data)})
+    holdout = args.holdout or (SYNTH_HOLDOUT if synthetic_data and SYNTH_HOLDOUT in styles else styles[-1])
+    pa, pb = check_styles(styles, holdout, args.interpolate.split(",") if args.interpolate else None)
     Path(args.work).mkdir(parents=True, exist_ok=True)
     ds, name = load_data(args)
-    holdout = args.holdout or (SYNTH_HOLDOUT if name == "synthetic" and SYNTH_HOLDOUT in ds.styles else ds.styles[-1])
-    if holdout not in ds.styles:
-        raise SystemExit(f"compare: --holdout {holdout!r} is not a style of the data ({', '.join(ds.styles)})")
     log(f"[data] {name}: {len(ds.styles)} styles, {len(ds.train)} training frames at {ds.fps:g} fps; "
         f"held out: {holdout}")
     ctx = Context(ds, holdout, args)
@@ -268,11 +300,6 @@ def run(args):
     epochs = max(1, math.ceil(args.budget_steps / spe))
     log(f"[budget] {args.budget_steps} steps asked -> {epochs} epoch(s) of {spe} style-balanced batches of "
         f"{args.batch_size} = {epochs * spe} steps per variant")
-    variants = [v.strip() for v in args.variants.split(",")] if args.variants else list(VARIANTS)
-    unknown = [v for v in variants if v not in VARIANTS]
-    if unknown:
-        raise SystemExit(f"compare: unknown variant(s) {unknown}; choose from {list(VARIANTS)}")
-    pa, pb = args.interpolate.split(",") if args.interpolate else (ctx.seen[0], ctx.seen[1])
     results = {}
     for v in variants:
         r = train_variant(v, ctx, epochs)

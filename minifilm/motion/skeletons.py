@@ -29,7 +29,16 @@ from typing import Sequence, Tuple
 
 import numpy as np
 
+from minifilm.errors import InputError
 from minifilm.motion.kinematics import look_rotation
+
+
+class MissingJointsError(InputError, KeyError):
+    """A motion lacks joints a skeleton reads (a file of another rig, or the wrong --skeleton).
+    An InputError (one line in the CLI) and, for older callers, a KeyError."""
+
+    def __str__(self) -> str:  # the message, not KeyError's repr of it
+        return str(self.args[0]) if self.args else ""
 
 
 @dataclass(frozen=True)
@@ -96,8 +105,8 @@ class Skeleton:
     def _indices(self, motion, names: Sequence[str], what: str) -> np.ndarray:
         missing = [n for n in names if n not in motion.names]
         if missing:
-            raise KeyError(f"skeleton {self.name!r}: {what} {missing} not found in {motion.source} "
-                           f"(its joints are {list(motion.names)})")
+            raise MissingJointsError(f"skeleton {self.name!r}: {what} {missing} not found in {motion.source} "
+                                     f"(its joints are {list(motion.names)})")
         return np.array([motion.names.index(n) for n in names], dtype=np.int64)
 
     def joint_indices(self, motion) -> np.ndarray:
@@ -122,7 +131,7 @@ def parents_from_motion(motion, joints: Sequence[str]) -> Tuple[int, ...]:
     index = {n: i for i, n in enumerate(joints)}
     missing = [n for n in joints if n not in motion.names]
     if missing:
-        raise KeyError(f"parents_from_motion: joints {missing} not in {motion.source}")
+        raise MissingJointsError(f"parents_from_motion: joints {missing} not in {motion.source}")
     parents = []
     for name in joints:
         a = int(motion.parents[motion.names.index(name)])

@@ -21,7 +21,7 @@ from typing import Optional, Sequence
 import numpy as np
 
 from minifilm.phases.sinusoid_fit import SinusoidFit, fit_sinusoids, overflow_window, range_reduce
-from minifilm.phases.sources import butterworth, contact_source, pca_source, preprocess_source
+from minifilm.phases.sources import butterworth, contact_source, pca_source, preprocess_source, usable_cutoff
 
 __all__ = ["LocalPhases", "SLOTS", "DEFAULT_SOURCES", "default_sources", "fit_sinusoids", "SinusoidFit",
            "phase_and_amplitude", "extract_local_phases", "phase_updates", "hips_local_positions"]
@@ -106,6 +106,7 @@ def phase_and_amplitude(fit: SinusoidFit, local_speed, fps: float, cutoff: float
     lo, hi = overflow_window(np.arange(n), (period // 2).astype(np.int64), n)
     amplitude = fit.amplitude * range_reduce(speed, lo, hi, np.maximum)
     angle = 2 * np.pi * fit.phase
+    cutoff = usable_cutoff(cutoff, fps)
     sc = butterworth(np.stack([np.sin(angle), np.cos(angle)], axis=1), fps, cutoff)
     phase = np.mod(np.arctan2(sc[:, 0], sc[:, 1]) / (2 * np.pi), 1.0)
     phase[(np.hypot(sc[:, 0], sc[:, 1]) == 0) | (phase >= 1.0)] = 0.0

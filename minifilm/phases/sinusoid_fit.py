@@ -234,10 +234,16 @@ def _fit_block(win: _Windows, values, prev_fit, freqs, fps, vmin, vmax, use_conn
     """
     weights = win.w_data + (win.w_conn if use_connect else 0.0)
     targets = np.where(win.w_data > 0, values[win.index], prev_fit[win.index] if use_connect else 0.0)
-    key = (win.offsets.shape[0] == 1, id(win) if win.offsets.shape[0] != 1 else 0, use_connect)
-    if key not in cache:
-        cache[key] = _design(win.offsets, weights, freqs, fps)
-    s, c, g = cache[key]
+    shared = win.offsets.shape[0] == 1
+    key = (shared, 0 if shared else id(win), use_connect)
+    design = cache.get(key)
+    if design is None:
+        design = _design(win.offsets, weights, freqs, fps)
+        # kept for the next sweep, unless it is large (edge windows at high frame rates, where
+        # keeping every block's would cost gigabytes: those are recomputed instead)
+        if shared or win.offsets.size * len(freqs) <= BLOCK_NUMBERS // 8:
+            cache[key] = design
+    s, c, g = design
     r, yy = _rhs(s, c, weights, targets)
     lo_b, hi_b = vmin[:, None], vmax[:, None]
     c1, c2, B, sse = _solve_bounded(g, r, yy, lo_b, hi_b)
@@ -281,6 +287,10 @@ def range_reduce(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, op) -> np.ndarra
     return out
 
 
+#: Numbers in one block's largest arrays (about 64 MB of float64 each).
+BLOCK_NUMBERS = 8_000_000
+
+
 def fit_sinusoids(signal, fps: float, window_seconds: float = 0.5, min_frequency: float = 0.25,
                   max_frequency: float = 4.0, n_frequencies: int = 48, sweeps: int = 3,
                   skip_threshold: float = 1e-3, block: int = 2048,
@@ -295,7 +305,7 @@ def fit_sinusoids(signal, fps: float, window_seconds: float = 0.5, min_frequency
         n_frequencies: size of the log-spaced frequency grid.
         sweeps:  Jacobi sweeps; the first fits the data alone, the others add the connect terms.
         skip_threshold: frames whose data window has Σ|v| below this keep all parameters 0.
-        block:   frames processed at once (bounds memory at about block * 3 * n_frequencies floats).
+        block:   frames processed at once, at most; fewer at high frame rates (``BLOCK_NUMBERS``).
         phase_slope_seconds: span of the phase track whose slope is the reported frequency (see
             the module docstring); 0 reports each window's own F.
     Returns:
@@ -326,8 +336,11 @@ def fit_sinusoids(signal, fps: float, window_seconds: float = 0.5, min_frequency
 
     # Frames whose extended window lies fully inside the signal share offsets and weights.
     interior = (k >= 2 * half) & (k <= n - 1 - 2 * half) & (length == 2 * half + 1)
-    blocks = [(_windows(k[~interior], n, half, shared=False))] if np.any(~interior) else []
-    idx = k[interior]
+    # A block's arrays hold (frames x samples x frequencies) numbers and the samples grow with the
+    # frame rate: fewer frames per block at high rates keep memory flat (2048 at 60 fps, ~160 at 1000).
+    block = max(1, min(int(block), BLOCK_NUMBERS // ((4 * half + 1) * n_frequencies)))
+    edge, idx = k[~interior], k[interior]
+    blocks = [_windows(edge[i:i + block], n, half, shared=False) for i in range(0, edge.size, block)]
     blocks += [_windows(idx[i:i + block], n, half, shared=True) for i in range(0, idx.size, block)]
 
     c1, c2, B, F = (np.zeros(n) for _ in range(4))

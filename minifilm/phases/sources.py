@@ -122,9 +122,16 @@ def butterworth(signal, fps: float, cutoff: float = 4.0, order: int = 2) -> np.n
     return sosfiltfilt(sos, x, axis=0, padtype="constant", padlen=padlen)
 
 
+def usable_cutoff(cutoff: float, fps: float) -> float:
+    """``cutoff`` (Hz), or 80 % of the Nyquist rate when the data cannot carry it: below 10 fps
+    the paper's 4 Hz lies at or above fps/2, so the low-pass keeps what the frames can hold."""
+    return min(float(cutoff), 0.4 * float(fps))
+
+
 def preprocess_source(signal, fps: float, normalise_seconds: float = 1.0, cutoff: float = 4.0,
                       zero_below: float = 1e-3) -> np.ndarray:
-    """Sec. 4.1.4 / §3.7: window normalisation, Butterworth, |v| < 1e-3 -> 0. (F,) -> (F,)."""
-    v = butterworth(window_normalise(signal, fps, normalise_seconds), fps, cutoff)
+    """Sec. 4.1.4 / §3.7: window normalisation, Butterworth, |v| < 1e-3 -> 0. (F,) -> (F,).
+    At low frame rates the cutoff is lowered to what the frames can carry (:func:`usable_cutoff`)."""
+    v = butterworth(window_normalise(signal, fps, normalise_seconds), fps, usable_cutoff(cutoff, fps))
     v[np.abs(v) < zero_below] = 0.0
     return v

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Dict, Optional, Sequence, Tuple
@@ -27,7 +28,7 @@ from typing import Dict, Optional, Sequence, Tuple
 import numpy as np
 
 from minifilm.dataset.stats import NormStats
-from minifilm.errors import InputError
+from minifilm.errors import InputError, check_fps
 from minifilm.features.layout import FeatureLayout
 from minifilm.files import atomic_savez, atomic_write_text, read_npz
 from minifilm.motion.bvh import read_bvh
@@ -101,8 +102,13 @@ class RunFolder:
             meta = json.loads(manifest.read_text(encoding="utf-8"))
             if meta.get("format") != FORMAT:
                 raise ValueError(f"format {meta.get('format')!r}, expected {FORMAT!r}")
-            return cls(path, FeatureLayout.from_dict(meta["layout"]), float(meta["fps"]), str(meta["skeleton"]),
-                       float(meta["bvh_scale"]), float(meta.get("position_bias", 0.75)))
+            fps = check_fps(meta["fps"], "fps")
+            bvh_scale, bias = float(meta["bvh_scale"]), float(meta.get("position_bias", 0.75))
+            if not (math.isfinite(bvh_scale) and bvh_scale > 0):
+                raise ValueError(f"bvh_scale {bvh_scale}: must be a positive number")
+            if not (math.isfinite(bias) and 0.0 < bias <= 100.0):   # an exponent of the trajectory blend
+                raise ValueError(f"position_bias {bias}: must be a positive exponent (at most 100)")
+            return cls(path, FeatureLayout.from_dict(meta["layout"]), fps, str(meta["skeleton"]), bvh_scale, bias)
         except (ValueError, KeyError, TypeError, AttributeError) as e:
             raise RunFolderError(f"run folder {path}: {MANIFEST} is not valid ({e})") from None
 

@@ -22,6 +22,7 @@ result: generated/styles.gif (every style side by side) and generated/index.html
 """
 from __future__ import annotations
 
+import shutil
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -318,27 +319,40 @@ def check_inputs(s: Settings, data: Optional[Path]) -> None:
         raise InputError("--styles / --gaits: give at least one style and one gait that is not idle (ID)")
 
 
-def run(s: Settings, data: Optional[Path] = None) -> dict:
-    """The whole main job; returns the test result (MSE per style) with the style recognition
-    of the generated motion under 'recognition'."""
-    check_inputs(s, data)          # before the run folder is touched
-    out = Path(s.out)
-    out.mkdir(parents=True, exist_ok=True)
-    RunFolder.retire(out)          # a run again only when this one is complete (run_folder.py)
-    t_start = time.perf_counter()
+def prepare_data(s: Settings, data: Optional[Path], out: Path):
+    """The synthetic files (with their phase check) unless ``data`` is given, then the dataset
+    (cached in ``out``/cache)."""
     own_data = data is not None
     if data is None:
         data = out / "data"
         clips = make_synthetic(data, s.styles, s.gaits, s.seconds_per_clip, s.seed)
         phase_accuracy(clips)
-
     t0 = time.perf_counter()
     extra = {} if not own_data else data_settings(data, s)
     ds = build_dataset(data, cache_dir=out / "cache", progress=True, clip_seconds=s.clip_seconds,
                        clip_stride_seconds=s.clip_seconds / 2, seed=s.seed, **extra)
     log(f"[dataset] built in {time.perf_counter() - t0:.1f} s")
     log(ds.summary())
+    return ds
 
+
+def run(s: Settings, data: Optional[Path] = None) -> dict:
+    """The whole main job; returns the test result (MSE per style) with the style recognition
+    of the generated motion under 'recognition'."""
+    check_inputs(s, data)          # before the run folder is touched
+    out = Path(s.out)
+    new_folder = not out.exists()
+    out.mkdir(parents=True, exist_ok=True)
+    t_start = time.perf_counter()
+    try:
+        ds = prepare_data(s, data, out)
+    except BaseException:
+        if new_folder:             # a failure before training leaves no half-made folder behind
+            shutil.rmtree(out, ignore_errors=True)
+        raise
+    # An earlier run in this folder stays whole until training starts writing over it; from here
+    # the folder is a run again only when this one is complete (run_folder.py).
+    RunFolder.retire(out)
     trainer = train(ds, out, s)
     trainer.save(out / "model.npz")
     log(f"[train] checkpoint (model, optimiser, normalisation statistics) saved to {out / 'model.npz'}")

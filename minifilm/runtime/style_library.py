@@ -92,6 +92,8 @@ class StyleLibrary:
 
     def add(self, name: str, film: np.ndarray) -> None:
         """Add or replace one style's FiLM vector (D,)."""
+        if not isinstance(name, str) or not name.strip():
+            raise ValueError(f"StyleLibrary.add({name!r}): a style needs a non-empty name")
         v = np.asarray(film, dtype=self.dtype)
         if v.ndim != 1:
             raise ValueError(f"StyleLibrary.add({name!r}): FiLM vector must be 1-D (D,), got shape {v.shape}")
@@ -141,6 +143,8 @@ class StyleLibrary:
         if dim is not None and len(names) and films.shape[1] != dim:
             raise StyleLibraryError(f"{where}: FiLM vectors of length {films.shape[1]}, but the network needs {dim}")
         listed = names.tolist()
+        if not listed:
+            raise StyleLibraryError(f"{where}: the library holds no styles")
         if any(not n.strip() for n in listed):
             raise StyleLibraryError(f"{where}: a style has an empty name")
         repeated = sorted({n for n in listed if listed.count(n) > 1})

@@ -120,6 +120,17 @@ OTHER = [
     ("dataset: folder missing", ["dataset", f"{T}/nope"]),
     ("dataset: cache is a file", ["dataset", f"{R}/data", "--cache", f"{R}/run.json"]),
     ("compare: data missing", ["compare", "--data", f"{T}/nope", "--tiny"]),
+    ("compare: unknown variant", BASE["compare"] + ["--variants", "Bogus"]),
+    ("compare: seeds not numbers", BASE["compare"] + ["--extra-seeds", "x"]),
+    ("compare: one style to interpolate", BASE["compare"] + ["--interpolate", "Drunk"]),
+    ("compare: work is a file", ["compare", "--tiny", "--work", f"{R}/run.json"]),
+    ("compare: unknown held-out style", BASE["compare"] + ["--data", f"{R}/data", "--holdout", "Nope"]),
+    ("compare: unknown style to interpolate", BASE["compare"] + ["--data", f"{R}/data", "--holdout", "Neutral",
+                                                                 "--interpolate", "Nope,LeftHop"]),
+    ("generate: too short for one frame", BASE["generate"] + ["--seconds", "1e-6"]),
+    ("phases: skeleton of another rig", BASE["phases"] + ["--skeleton", "cmu"]),
+    ("view: name too long", BASE["view"] + ["--gif", f"{T}/" + "a" * 300 + ".gif"]),
+    ("generate: name too long", BASE["generate"] + ["--out", f"{T}/new/" + "a" * 240 + ".bvh"]),
     ("gradcheck: no row matches", ["gradcheck", "--only", "no such backward pass"]),
 ]
 CASES = _numeric_cases() + OTHER

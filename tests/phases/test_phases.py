@@ -305,3 +305,34 @@ def test_extract_checks_its_inputs():
         extract_local_phases(motion.slice(0, 1), TOY, np.zeros((1, 2)))
     with pytest.raises(ValueError, match="no foot contact"):
         extract_local_phases(motion, TOY, np.zeros((t.size, 2)), sources=("contact", "pca", "pca", "pca"))
+
+
+def test_sinusoid_fit_memory_stays_bounded_at_high_frame_rates(monkeypatch):
+    # at 1000 fps a window holds ~1000 samples: the blocks shrink so that no design matrix holds
+    # more than BLOCK_NUMBERS numbers (it once took 3 GB for 6 s), and the fit is the same
+    from minifilm.phases import sinusoid_fit as sf
+    fps = 1000.0
+    t = np.arange(int(3 * fps)) / fps
+    v = np.sin(2 * np.pi * 1.5 * t)
+    sizes = []
+    design = sf._design
+
+    def spy(offsets, weights, freqs, fps_):
+        per_window = freqs.size if freqs.ndim == 1 else 1          # a grid, or one frequency per window
+        sizes.append(np.broadcast_shapes(offsets.shape, weights.shape)[0] * offsets.shape[-1] * per_window)
+        return design(offsets, weights, freqs, fps_)
+    monkeypatch.setattr(sf, "_design", spy)
+    fit = sf.fit_sinusoids(v, fps)
+    assert max(sizes) <= sf.BLOCK_NUMBERS
+    mid = slice(500, -500)
+    np.testing.assert_allclose(fit.frequency[mid], 1.5, rtol=0.02)
+
+
+def test_low_frame_rates_lower_the_cutoff_instead_of_failing():
+    # below 10 fps the paper's 4 Hz lies at or above the Nyquist rate: the filter keeps what it can
+    from minifilm.phases.sources import usable_cutoff
+    assert usable_cutoff(4.0, 60.0) == 4.0 and usable_cutoff(4.0, 5.0) == pytest.approx(2.0)
+    for fps in (2.0, 5.0, 8.0):
+        t = np.arange(int(20 * fps)) / fps
+        v = preprocess_source(np.sin(2 * np.pi * 0.5 * t), fps)
+        assert np.all(np.isfinite(v)) and np.abs(v).max() > 0.1
