@@ -10,6 +10,7 @@ import argparse
 from pathlib import Path
 
 from minifilm.cli import report_errors
+from minifilm.cli.args import positive
 from minifilm.dataset.build import build_dataset
 
 
@@ -18,7 +19,7 @@ def main():
     ap.add_argument("source", help="a folder of BVH files or a CSV manifest")
     ap.add_argument("--cache", default=".cache/datasets", help="cache folder")
     ap.add_argument("--split-files", action="store_true", help="whole files per split (many short files)")
-    ap.add_argument("--clip-seconds", type=float, default=4.0, help="style clip length (the paper: 4 s)")
+    ap.add_argument("--clip-seconds", type=positive(float, 60.0), default=4.0, help="style clip length (the paper: 4 s)")
     args = ap.parse_args()
 
     source = Path(args.source)      # 100STYLE or Bandai Namco file names are understood as they are

@@ -10,6 +10,8 @@ import argparse
 import numpy as np
 
 from minifilm.cli import report_errors
+from minifilm.cli.args import png_path
+from minifilm.files import check_writable
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.skeletons import detect_skeleton
 from minifilm.phases.label import label
@@ -19,8 +21,9 @@ from minifilm.viewer.phase_plot import plot_phases
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("bvh")
-    ap.add_argument("--out", default="phases.png")
+    ap.add_argument("--out", type=png_path, default="phases.png", help="the picture to write (PNG)")
     args = ap.parse_args()
+    check_writable(args.out, "--out")       # before the work: a typo in the path costs nothing
 
     # The skeleton (which joints carry the phases and the contacts, its units) from the joint names.
     skeleton = detect_skeleton(read_bvh(args.bvh, scale=1.0))

@@ -12,7 +12,8 @@ import time
 from pathlib import Path
 
 from minifilm.cli.args import in_range, output_folder, positive
-from minifilm.dataset.build import build_dataset
+from minifilm.dataset.build import build_dataset, resolve_files
+from minifilm.errors import InputError
 
 HELP = "build and cache the training data of BVH files"
 
@@ -32,7 +33,12 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     source = args.source
-    mirror = tuple(s for s in args.mirror.split(",") if s)
+    mirror = tuple(s.strip() for s in args.mirror.split(",") if s.strip())
+    styles = {f.style for f in resolve_files(source)}
+    unknown = [m for m in mirror if m != "*" and m not in styles]
+    if unknown:    # a typo would otherwise quietly mirror nothing
+        raise InputError(f"--mirror {args.mirror}: no style called {', '.join(map(repr, unknown))} in {source} "
+                         f"(its styles: {', '.join(sorted(styles))})")
     t0 = time.perf_counter()
     ds = build_dataset(source, cache_dir=None if args.no_cache else args.cache,
                        mirror_styles=mirror, clip_seconds=args.clip_seconds,

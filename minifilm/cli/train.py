@@ -13,6 +13,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from minifilm.cli.args import in_range, output_folder, positive
+from minifilm.errors import InputError
 from minifilm.pipeline.train_small import Settings
 from minifilm.pipeline.train_small import run as run_job
 
@@ -56,6 +57,24 @@ def settings(args) -> Settings:
     return replace(s, **{k: v for k, v in changes.items() if v is not None})
 
 
+def check_options(args) -> None:
+    """InputError for options that would be silently ignored: the real-data ones without --data,
+    the synthetic set's with it."""
+    if args.data is None:
+        given = [flag for flag, value in (("--split", args.split != "auto"), ("--mirror", args.mirror),
+                                          ("--fps", args.fps is not None)) if value]
+        if given:
+            raise InputError(f"{', '.join(given)}: only with --data (the synthetic set is made at 60 fps, "
+                             "split 80/10/10 and not mirrored)")
+    else:
+        given = [flag for flag, value in (("--styles", args.styles), ("--gaits", args.gaits),
+                                          ("--seconds", args.seconds)) if value is not None]
+        if given:
+            raise InputError(f"{', '.join(given)}: only for the synthetic set, not with --data "
+                             "(the styles of your data come from its file names or manifest)")
+
+
 def run(args) -> int:
+    check_options(args)
     run_job(settings(args), args.data)
     return 0

@@ -49,7 +49,10 @@ class TrainData:
                              f"{self.clips.shape} and {self.clip_style.shape}")
         missing = sorted(set(self.style.tolist()) - set(self.clip_style.tolist()))
         if missing:
-            raise DataError(f"TrainData: style(s) {missing} have frames but no clip")
+            names = [self.style_names[i] if i < len(self.style_names) else i for i in missing]
+            raise DataError(f"TrainData: style(s) {names} have training frames but no style clip: every stretch "
+                            "of their training frames is shorter than a clip; give longer files or shorter "
+                            "clips (clip_seconds, --clip-seconds)")
         for name in ("x", "p", "z", "clips"):
             a = getattr(self, name)
             if a.dtype.kind != "f":

@@ -79,10 +79,13 @@ def scan_100style(folder: Union[str, Path]) -> List[MotionFile]:
 
 
 def _dict_rows(csv_path: Path):
-    with open(csv_path, newline="", encoding="utf-8-sig") as fh:
-        reader = csv.DictReader(fh)
-        for row in reader:
-            yield reader.line_num, {(k or "").strip(): (v or "").strip() for k, v in row.items()}
+    try:
+        with open(csv_path, newline="", encoding="utf-8-sig") as fh:
+            reader = csv.DictReader(fh)
+            for row in reader:
+                yield reader.line_num, {(k or "").strip(): (v or "").strip() for k, v in row.items()}
+    except UnicodeDecodeError as e:
+        raise ValueError(f"{csv_path}: not UTF-8 text (byte {e.start}); save it as UTF-8") from None
 
 
 def read_frame_cuts(csv_path: Union[str, Path]) -> dict:
@@ -149,6 +152,15 @@ def _parse_bool(text: str, where: str) -> Optional[bool]:
 def read_manifest(csv_path: Union[str, Path]) -> List[MotionFile]:
     """Read a CSV manifest (header ``file,style,gait[,start,end][,mirror]``); errors name the line."""
     csv_path = Path(csv_path)
+    try:
+        return _read_manifest(csv_path)
+    except UnicodeDecodeError as e:
+        raise ValueError(f"{csv_path}: not UTF-8 text (byte {e.start} is {e.object[e.start:e.start + 1]!r}); "
+                         "save the manifest as UTF-8") from None
+
+
+def _read_manifest(csv_path: Path) -> List[MotionFile]:
+    seen = {}
     with open(csv_path, newline="", encoding="utf-8") as fh:
         reader = csv.DictReader(fh)
         header = [h.strip() for h in (reader.fieldnames or [])]
@@ -173,8 +185,12 @@ def read_manifest(csv_path: Union[str, Path]) -> List[MotionFile]:
             end = _parse_int(row.get("end", ""), "end", where)
             if start is not None and end is not None and end <= start:
                 raise ValueError(f"{where}: end {end} must be after start {start}")
-            out.append(MotionFile(path, row["style"], row["gait"], start, end,
-                                  _parse_bool(row.get("mirror", ""), where)))
+            mirror = _parse_bool(row.get("mirror", ""), where)
+            key = (path.resolve(), start, end, mirror)   # the same frames twice would weigh double
+            if key in seen:
+                raise ValueError(f"{where}: {path} (the same frames) is listed already on line {seen[key]}")
+            seen[key] = reader.line_num
+            out.append(MotionFile(path, row["style"], row["gait"], start, end, mirror))
     if not out:
         raise ValueError(f"{csv_path}: the manifest lists no files")
     return out

@@ -26,6 +26,7 @@ from minifilm.motion.editing import mirror, resample
 from minifilm.motion.motion import Motion
 from minifilm.motion.skeletons import builtin_skeleton
 from minifilm.phases.label import label
+from minifilm.files import check_writable
 from minifilm.pipeline.run_folder import RunFolder
 from minifilm.train.finetune import finetune
 from minifilm.train.trainer import TrainConfig, Trainer
@@ -114,6 +115,8 @@ def teach_style(run_path, name: str, files: Sequence, steps: int = 400, lr: floa
     untouched."""
     run = RunFolder.load(run_path)
     check_name(name, run, replace)
+    for written in (f"model-{name}.npz", "styles.npz", "starts.npz"):   # before the work, not after it
+        check_writable(run.path / written, f"run folder {run.path}:")
     files = [Path(f) for f in files]
     if not files:
         raise ValueError("no clip given: name one or more BVH files of the new style")

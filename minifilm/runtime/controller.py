@@ -253,11 +253,14 @@ class Controller:
             st.future_pos, st.future_dir, target_velocity, target_facing, self.sample_dt,
             self.position_bias, self.direction_bias)
         x = self.build_input()
-        z = self.net.predict(x, st.phases, film).astype(np.float64)
+        # overflow is caught just below as one clear error, not as a screen of RuntimeWarnings
+        with np.errstate(over="ignore", invalid="ignore"):
+            z = self.net.predict(x, st.phases, film).astype(np.float64)
         if not np.all(np.isfinite(z)):      # stop at once: one NaN would spread to every later frame
             b = int(np.argwhere(~np.isfinite(z))[0][0])
             raise NonFiniteOutputError(f"the network's output for character {b} is not finite (the motion "
-                                       "diverged: its style vector or speed is far outside the training data)")
+                                       "diverged: its style vector or speed is far outside the training data, "
+                                       "or the network's weights are corrupt)")
         self._apply_output(z)
         return self.frame()
 

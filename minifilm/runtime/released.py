@@ -32,6 +32,7 @@ from minifilm.files import atomic_directory
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
 from minifilm.runtime.network import RuntimeNetwork
+from minifilm.runtime.style_library import UnknownStyleError
 
 FILM_PARTS = ("scale1", "shift1", "scale2", "shift2")   # γ1, β1, γ2, β2: the order of Eq. (2)
 _STYLE_FILE = re.compile(r"^Style_(\d{3})_scale1\.bin$")
@@ -39,6 +40,15 @@ _STYLE_FILE = re.compile(r"^Style_(\d{3})_scale1\.bin$")
 
 class ReleasedFormatError(InputError):
     """A released-parameter folder is missing a file or has a file of the wrong size."""
+
+
+class StyleVectors(dict):
+    """name -> FiLM vector, in file order; an unknown name is an UnknownStyleError listing the
+    known ones (a KeyError and an InputError), not a bare KeyError."""
+
+    def __missing__(self, name):
+        raise UnknownStyleError(f"style {name!r} is not one of the released network's {len(self)} styles; "
+                                f"known styles: {', '.join(self)}")
 
 
 @dataclass
@@ -136,10 +146,16 @@ def load_released(directory, dtype=np.float32) -> ReleasedNetwork:
     d = Path(directory)
     cfg = infer_config(d)
     model = StyleModel(cfg, np.random.default_rng(0), dtype=dtype, with_film_generator=False)
-    stats = NormStats(
-        x_mean=_read(d, "Xmean", (cfg.x_dim,)), x_std=_read(d, "Xstd", (cfg.x_dim,)),
-        z_mean=_read(d, "Ymean", (cfg.z_dim,)), z_std=_read(d, "Ystd", (cfg.z_dim,)),
-        p_mean=_read(d, "GT_Xmean", (cfg.phase_dim,)), p_std=_read(d, "GT_Xstd", (cfg.phase_dim,)))
+    arrays = dict(x_mean=_read(d, "Xmean", (cfg.x_dim,)), x_std=_read(d, "Xstd", (cfg.x_dim,)),
+                  z_mean=_read(d, "Ymean", (cfg.z_dim,)), z_std=_read(d, "Ystd", (cfg.z_dim,)),
+                  p_mean=_read(d, "GT_Xmean", (cfg.phase_dim,)), p_std=_read(d, "GT_Xstd", (cfg.phase_dim,)))
+    try:
+        stats = NormStats(**arrays)
+    except ValueError as e:   # e.g. a zero standard deviation: name the file, not the field
+        files = {"x_mean": "Xmean", "x_std": "Xstd", "z_mean": "Ymean", "z_std": "Ystd", "p_mean": "GT_Xmean",
+                 "p_std": "GT_Xstd"}
+        named = next((f"{b}.bin" for k, b in files.items() if k in str(e)), "the statistics files")
+        raise ReleasedFormatError(f"released network {d}: {named}: {e}") from None
 
     G = model.gating.params.params
     for l in range(3):
@@ -154,7 +170,7 @@ def load_released(directory, dtype=np.float32) -> ReleasedNetwork:
             M[f"b{l}"][e] = _read(d, f"cp{l}_b{e}", (out_dim,))
 
     names = _read_style_names(d)
-    styles = {}
+    styles = StyleVectors()
     ids = sorted(m.group(1) for f in d.iterdir() if (m := _STYLE_FILE.match(f.name)))
     for sid in ids:
         film = np.concatenate([_read(d, f"Style_{sid}_{part}", (cfg.hidden,)) for part in FILM_PARTS])

@@ -132,6 +132,11 @@ OTHER = [
     ("view: name too long", BASE["view"] + ["--gif", f"{T}/" + "a" * 300 + ".gif"]),
     ("generate: name too long", BASE["generate"] + ["--out", f"{T}/new/" + "a" * 240 + ".bvh"]),
     ("gradcheck: no row matches", ["gradcheck", "--only", "no such backward pass"]),
+    ("train: --fps without --data", ["train", "--quick", "--fps", "30", "--out", f"{T}/run"]),
+    ("train: --mirror without --data", ["train", "--quick", "--mirror", "--out", f"{T}/run"]),
+    ("train: synthetic styles with --data", ["train", "--quick", "--data", f"{R}/data", "--styles", "Limp",
+                                             "--out", f"{T}/run"]),
+    ("dataset: mirror an unknown style", ["dataset", f"{R}/data", "--mirror", "Bogus", "--no-cache"]),
 ]
 CASES = _numeric_cases() + OTHER
 
