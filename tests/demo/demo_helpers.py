@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from repo_paths import REPO_ROOT, SHARED_DATA
+from repo_paths import REPO_ROOT, SHARED_DATA, need_data
 
 websockets = pytest.importorskip("websockets", reason="the demo needs the websockets package (pip install "
                                                       "'minifilm[demo]')")
@@ -51,8 +51,7 @@ def tiny_source(tmp_path_factory) -> DemoSource:
 @pytest.fixture(scope="module")
 def released_source() -> DemoSource:
     """The authors' released network; skips when it is not in the shared data folder."""
-    if not (RELEASED / "Xmean.bin").is_file():
-        pytest.skip(f"the released network is not at {RELEASED} (set MINIFILM_SHARED_DATA)")
+    need_data(RELEASED / "Xmean.bin", "the released network")      # skipped here, failed in CI
     return DemoSource.released(RELEASED)
 
 
