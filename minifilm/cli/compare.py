@@ -27,7 +27,8 @@ def add_arguments(p) -> None:
                    help="training steps per variant, rounded up to whole epochs (default 2500)")
     p.add_argument("--finetune-steps", type=in_range(0, 10**7, int), default=300, help="Ψ fine-tuning steps (default 300)")
     p.add_argument("--out", type=output_folder, default=Path("reports"), help="folder of the markdown report and PNGs")
-    p.add_argument("--work", type=output_folder, default=Path("runs/compare"), help="folder for generated data and caches")
+    p.add_argument("--work", type=output_folder, default=Path("runs/compare"),
+                   help="folder for generated data and caches")
     p.add_argument("--variants", help="comma-separated subset of the seven variants (default: all)")
     p.add_argument("--holdout", help=f"style held out for fine-tuning (synthetic default {SYNTH_HOLDOUT})")
     p.add_argument("--interpolate", help="two seen styles A,B for the interpolation test (default: first two)")

@@ -11,8 +11,9 @@ instead of running them all. With nobody connected the thread sleeps and costs n
 Its own thread, apart from the network's event loop, so that what a page does (a slow
 connection, a burst of messages, the download of the page) does not wait for a frame, nor a frame
 for it: pages only append messages to a character's queue (the two threads still share Python's
-GIL, which is why each page has a message budget, ``budget.py``), and the loop hands finished frames to ``deliver`` callbacks that
-must return at once (the server's posts the text to its event loop). Each character is stepped at
+GIL, which is why each page has a message budget, ``budget.py``), and the loop hands finished
+frames to ``deliver`` callbacks that must return at once (the server's posts the text to its event
+loop). Each character is stepped at
 batch 1 by its own :class:`~minifilm.demo.character.Character`.
 
 Nothing a character does can stop the loop: a failing frame resets that character (see

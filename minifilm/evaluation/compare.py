@@ -288,7 +288,8 @@ def run(args):
     if not synthetic_data and not Path(args.data).is_dir():
         raise FileNotFoundError(f"--data {args.data}: no such folder (give 'synthetic' or a folder of BVH files)")
     # the style names, from the file names, before anything is generated or built (as the dataset lists them)
-    styles = sorted(set(args.styles or synthetic.STYLES) if synthetic_data else {f.style for f in resolve_files(args.data)})
+    styles = sorted(set(args.styles or synthetic.STYLES) if synthetic_data
+                    else {f.style for f in resolve_files(args.data)})
     holdout = args.holdout or (SYNTH_HOLDOUT if synthetic_data and SYNTH_HOLDOUT in styles else styles[-1])
     pa, pb = check_styles(styles, holdout, args.interpolate.split(",") if args.interpolate else None)
     Path(args.work).mkdir(parents=True, exist_ok=True)
