@@ -204,6 +204,32 @@ def test_a_gamepads_left_stick_moves_the_character(browser, server):
         p.close()
 
 
+PAD_TURNING_AND_RUNNING = """
+navigator.getGamepads = () => [{ connected: true, axes: [0, -1, 1, 0],
+                                buttons: Array.from({length: 8}, (_, i) => ({ value: i === 7 ? 1 : 0,
+                                                                             pressed: i === 7 })) }];
+"""
+
+
+def test_a_gamepads_right_stick_turns_and_its_trigger_runs(browser, server):
+    # right stick fully right: the heading turns (clockwise seen from above, as E); right trigger
+    # fully pressed: the commanded speed is the run speed
+    p = Page(browser, server, init_script=PAD_TURNING_AND_RUNNING)
+    try:
+        run_speed = p.js("minifilmDemo.hello.speeds.run")
+        p.wait(f"minifilmDemo.frame.commanded > {0.99 * run_speed}")
+        first = np.array(p.frame()["heading"])
+        time.sleep(1.0)
+        later = np.array(p.frame()["heading"])
+        theta = lambda h: np.arctan2(h[0], h[1])                   # heading (sin θ, cos θ); right lowers θ
+        turned = np.degrees(np.angle(np.exp(1j * (theta(later) - theta(first)))))
+        assert turned < -20.0, (first, later)                     # to the right, as E turns
+        assert p.frame()["commanded"] == pytest.approx(run_speed, rel=1e-3)
+        assert p.errors() == []
+    finally:
+        p.close()
+
+
 def test_closing_the_tab_frees_its_character(browser, server):
     tab = Page(browser, server)
     others = [DemoClient(server.url) for _ in range(3)]           # with the tab: all 4 characters taken
