@@ -42,8 +42,6 @@ CONV_LAYERS = {
     "paper": [("conv0 240x300->256, k25", 240, 300, 256, 25, False),
               ("conv1 120x256->256, k25", 120, 256, 256, 25, True)],
 }
-TRAIN_SMALL = dict(x_dim=348, z_dim=342, phase_dim=8, n_experts=4, hidden=128, gating_hidden=32,
-                   clip_frames=120, clip_channels=300, conv_filters=32, conv_kernel=9, film_dense=128)
 
 
 def timed(fn, repeat, warmup=1, between=None):
@@ -121,7 +119,7 @@ def adam_rows(rng, repeat_small=100, repeat_paper=8):
     def cold():
         np.add(evict, 1.0, out=evict)
 
-    configs = {"train_small": ModelConfig(**TRAIN_SMALL), "paper": ModelConfig.paper()}
+    configs = {"train_small": ModelConfig.small(x_dim=348, z_dim=342, clip_frames=120, clip_channels=300), "paper": ModelConfig.paper()}
     rows = []
     for name, config in configs.items():
         counts = parameter_counts(config)

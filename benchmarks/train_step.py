@@ -27,15 +27,15 @@ import numpy as np  # noqa: E402
 
 from common import THREADS, compare_ms, header, random_batch, table  # noqa: E402
 from minifilm.model.config import ModelConfig  # noqa: E402
-
-# examples/train_small.py's model on its synthetic data (x 348, z 342, clips of 2 s at 60 fps)
-SMALL = dict(x_dim=348, z_dim=342, phase_dim=8, n_experts=4, hidden=128, gating_hidden=32,
-             clip_frames=120, clip_channels=300, conv_filters=32, conv_kernel=9, film_dense=128,
-             dropout=0.2)
 from minifilm.model.losses import mse_loss  # noqa: E402
 from minifilm.model.style_model import StyleModel  # noqa: E402
 from minifilm.nn.optim import Adam  # noqa: E402
 from torch_reference import from_numpy, load_torch  # noqa: E402
+
+
+# examples/train_small.py's model on its synthetic data (x 348, z 342, clips of 2 s at 60 fps)
+def small_config() -> ModelConfig:
+    return ModelConfig.small(x_dim=348, z_dim=342, clip_frames=120, clip_channels=300)
 
 
 def numpy_step(model, opt, x, p, film, clip, target, rng):
@@ -120,7 +120,7 @@ def main():
     torch = None if args.no_torch else load_torch(THREADS)
     header(f"training step (forward + backward + Adam), {args.config} config, float32, median ms"
            + ("" if torch else "  [PyTorch not installed: NumPy only]"))
-    config = ModelConfig.paper() if args.config == "paper" else ModelConfig(**SMALL)
+    config = ModelConfig.paper() if args.config == "paper" else small_config()
     rows, checks = [], []
     for case in args.case:
         with_clip = case == "b"
