@@ -31,6 +31,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--styles", help="comma-separated synthetic styles (default: all)")
     parser.add_argument("--gaits", help=f"comma-separated synthetic gaits (default: {','.join(d.gaits)})")
     parser.add_argument("--seconds", type=positive(float, 3600.0), help="synthetic seconds per style and gait")
+    parser.add_argument("--clip-seconds", type=positive(float, 60.0),
+                        help=f"length of the style clips y that Ψ reads (default {d.clip_seconds:g} s; the paper "
+                             "4 s); shorter for data of short files")
     parser.add_argument("--generate-seconds", type=positive(float, 3600.0), help="seconds of motion generated per style")
     parser.add_argument("--split", choices=("auto", "files", "segments"), default="auto",
                         help="with --data: whole files to train/val/test, or 80/10/10 segments of every file "
@@ -52,6 +55,7 @@ def settings(args) -> Settings:
     if args.quick:
         s = s.quick()
     changes = {"epochs": args.epochs, "seconds_per_clip": args.seconds, "generate_seconds": args.generate_seconds,
+               "clip_seconds": args.clip_seconds,
                "styles": args.styles and tuple(args.styles.split(",")),
                "gaits": args.gaits and tuple(args.gaits.split(","))}
     return replace(s, **{k: v for k, v in changes.items() if v is not None})

@@ -58,4 +58,4 @@ def check_every_style_trains(train, styles: Sequence[str], sources: Sequence[dic
             longest = max(b - a for f in in_train for a, b, split in f["segments"] if split == "train") / fps
             raise DataError(f"style {style!r} has no training style clip: a clip lasts {clip_seconds:g} s and its "
                             f"longest stretch of training frames {longest:.1f} s (files: {_listing(in_train, fps)}); "
-                            "give it longer files or use shorter clips")
+                            "give it longer files or use shorter clips (--clip-seconds)")

@@ -31,7 +31,7 @@ from typing import Optional, Tuple
 import numpy as np
 
 from minifilm.dataset.build import build_dataset, resolve_files
-from minifilm.errors import InputError
+from minifilm.errors import DataError, InputError
 from minifilm.evaluation.style_classifier import classify_rollout, train_style_classifier
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
@@ -298,8 +298,11 @@ def data_settings(data: Path, s: Settings) -> dict:
     if split == "auto":
         files = resolve_files(data)
         median = float(np.median([bvh_duration(f.path) for f in files]))
-        split = "files" if median < 20.0 else "segments"
-        log(f"[dataset] median file {median:.1f} s: {'whole files' if split == 'files' else 'segments of every file'} "
+        per_style = min(sum(f.style == style for f in files) for style in {f.style for f in files})
+        # whole files only when each style can give one to validation and one to test
+        split = "files" if median < 20.0 and per_style >= 3 else "segments"
+        why = f"median file {median:.1f} s, at least {per_style} file(s) per style"
+        log(f"[dataset] {why}: {'whole files' if split == 'files' else 'segments of every file'} "
             f"go to train / val / test (--split to choose)")
     return {"split_unit": split, "mirror_styles": ("*",) if s.mirror else (), "fps": s.fps}
 
@@ -333,6 +336,12 @@ def prepare_data(s: Settings, data: Optional[Path], out: Path):
                        clip_stride_seconds=s.clip_seconds / 2, seed=s.seed, **extra)
     log(f"[dataset] built in {time.perf_counter() - t0:.1f} s")
     log(ds.summary())
+    empty = [name for name in ("val", "test") if len(getattr(ds, name)) == 0]
+    if empty:   # nothing to validate or test on: say so now, not after training
+        raise DataError(f"{data}: the {' and '.join(empty)} split(s) have no frames: "
+                        + ("with whole files per split (--split files) every style needs at least three files; "
+                           if extra.get("split_unit") == "files" else "the files are too short to split; ")
+                        + "give more or longer files, or use --split segments")
     return ds
 
 

@@ -36,3 +36,19 @@ def test_a_failed_training_into_a_new_folder_leaves_no_folder(tmp_path, data_wit
     with pytest.raises(InputError):
         run(Settings(out=out).quick(), data=data_with_a_two_frame_file)
     assert not out.exists()
+
+
+def test_whole_file_splits_need_three_files_per_style(tmp_path, tiny_run):
+    # one file per style: the automatic choice splits every file into segments instead, and an
+    # explicit --split files is refused before training (no validation or test frames)
+    from dataclasses import replace
+    data = tmp_path / "one_file_each"
+    data.mkdir()
+    for name in ("Neutral_FW.bvh", "LeftHop_FW.bvh"):
+        shutil.copy(tiny_run / "data" / name, data / name)
+    quick = replace(Settings(out=tmp_path / "auto").quick(), epochs=1, generate_seconds=0.5)
+    run(quick, data=data)                                            # auto: segments, a complete run
+    RunFolder.load(tmp_path / "auto")
+    with pytest.raises(InputError, match="val and test split.*at least three files"):
+        run(replace(quick, out=tmp_path / "files", split="files"), data=data)
+    assert not (tmp_path / "files").exists()

@@ -25,6 +25,7 @@ NUMBERS = {
     "train --seconds": ["0", "-1", "nan"],
     "train --clips-per-batch": ["0", "-3", "abc"],
     "train --fps": ["0", "-30", "nan", "5000"],
+    "train --clip-seconds": ["0", "-1", "nan", "100"],
     "finetune --steps": ["0", "-1", "abc", "1e9"],
     "finetune --lr": ["0", "-1", "nan", "2"],
     "table2 --styles": ["-3", "0", "abc"],
