@@ -57,7 +57,7 @@ def run(args) -> int:
               "(open it in a browser; it works offline)")
     if args.gif is not None:
         r = write_gif(tracks, args.gif, **kw)
-        print(f"wrote {args.gif} ({r.n_frames} frames at {r.fps:g} fps)")
+        print(f"wrote {args.gif} ({r.n_frames} frames at {r.fps:.4g} fps)")
     if args.mp4 is not None:
         write_mp4(tracks, args.mp4, **kw)
         print(f"wrote {args.mp4}")
