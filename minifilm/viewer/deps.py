@@ -26,7 +26,8 @@ def require(module: str, purpose: str):
     try:
         return importlib.import_module(module)
     except ImportError as e:
-        top = module.split(".")[0]
+        # the package that is missing, which may be one ``module`` needs (matplotlib needs Pillow)
+        top = (getattr(e, "name", None) or module).split(".")[0]
         raise MissingDependencyError(f"{purpose} needs {_PIP_NAME.get(top, top)}, which is not installed: "
                                      f"pip install 'minifilm[viz]' ({e})") from None
 
@@ -34,11 +35,7 @@ def require(module: str, purpose: str):
 def pyplot():
     """``matplotlib.pyplot`` with the file-only Agg backend; MissingDependencyError naming the
     extra when matplotlib is missing."""
-    try:
-        import matplotlib  # optional extra (minifilm[viz]): imported only when drawing
-    except ImportError:
-        raise MissingDependencyError("drawing needs matplotlib, which is not installed: "
-                                     "pip install 'minifilm[viz]'") from None
+    matplotlib = require("matplotlib", "drawing")  # optional extra (minifilm[viz]): imported only when drawing
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt  # after choosing the backend, which must come first
     return plt
