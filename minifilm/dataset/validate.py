@@ -57,5 +57,5 @@ def check_every_style_trains(train, styles: Sequence[str], sources: Sequence[dic
             # into train / validation / test parts, and a clip may not cross into the others)
             longest = max(b - a for f in in_train for a, b, split in f["segments"] if split == "train") / fps
             raise DataError(f"style {style!r} has no training style clip: a clip lasts {clip_seconds:g} s and its "
-                            f"longest stretch of training frames {longest:.1f} s (files: {_listing(in_train, fps)}); "
+                            f"longest stretch of training frames {longest:.2f} s (files: {_listing(in_train, fps)}); "
                             "give it longer files or use shorter clips (--clip-seconds)")
