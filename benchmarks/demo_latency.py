@@ -25,12 +25,12 @@ import os
 import random
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-from demo_soak import DemoProcess, source_args  # this folder's soak script
+from demo_soak import add_source_arguments, source_args  # this folder's soak script
 from minifilm.demo.client import DemoClient
+from minifilm.demo.process import DemoProcess
 
 DIRECTIONS = [(0.0, 1.0), (1.0, 0.0), (0.0, -1.0), (-1.0, 0.0), (0.7, 0.7), (-0.7, 0.7)]
 KEYS = ["KeyW", "KeyD", "KeyS", "KeyA"]
@@ -114,9 +114,7 @@ def report(label: str, runs) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    src = ap.add_mutually_exclusive_group()
-    src.add_argument("--params", type=Path, help="released network folder (default: ../shared/data/released-lpn)")
-    src.add_argument("--run", type=Path, help="a run folder of minifilm train instead")
+    add_source_arguments(ap)
     ap.add_argument("--changes", type=int, default=150, help="key changes per run")
     ap.add_argument("--repeat", type=int, default=3, help="runs (one server for all)")
     ap.add_argument("--browser", action="store_true", help="also measure through headless Chromium")
@@ -124,7 +122,7 @@ def main() -> None:
     rng = random.Random(0)
     print(f"# demo latency: {args.changes} changes x {args.repeat}; cores {os.cpu_count()}, "
           f"load {os.getloadavg()[0]:.2f}")
-    server = DemoProcess(source_args(args))
+    server = DemoProcess(*source_args(args))
     assert server.url.startswith("http://127.0.0.1:")           # traffic stays on this machine
     try:
         report("python page", [python_page(server.url, args.changes, rng) for _ in range(args.repeat)])

@@ -32,10 +32,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import re
-import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -49,47 +46,13 @@ ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(os.environ.get("MINIFILM_SHARED_DATA", ROOT.parent / "shared" / "data"))
 
 from minifilm.demo.client import DemoClient
+from minifilm.demo.process import DemoProcess
 
-URL = re.compile(r"http://127\.0\.0\.1:\d+/")
-
-
-class DemoProcess:
-    """``python -m minifilm demo SOURCE --port 0`` on 127.0.0.1; ``url`` once it listens."""
-
-    def __init__(self, source_args, extra=()):
-        self.proc = subprocess.Popen([sys.executable, "-m", "minifilm", "demo", *map(str, source_args), "--port", "0",
-                                      "--host", "127.0.0.1", *map(str, extra)],
-                                     stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-        self.lines, found = [], threading.Event()
-
-        def read():
-            for line in self.proc.stdout:
-                self.lines.append(line)
-                if URL.search(line):
-                    found.set()
-            found.set()
-        threading.Thread(target=read, daemon=True).start()
-        if not found.wait(180) or self.proc.poll() is not None:
-            self.stop()
-            raise RuntimeError("minifilm demo did not start:\n" + "".join(self.lines))
-        self.url = URL.search("".join(self.lines)).group(0)
-
-    def rss_mb(self) -> float:
-        """The server's resident memory (VmRSS), MB."""
-        with open(f"/proc/{self.proc.pid}/status") as f:
-            for line in f:
-                if line.startswith("VmRSS:"):
-                    return int(line.split()[1]) / 1024
-        return float("nan")
-
-    def stop(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.terminate()
-            try:
-                self.proc.wait(10)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait(10)
+def add_source_arguments(ap) -> None:
+    """--params / --run: which network the demo serves (shared with demo_latency.py)."""
+    src = ap.add_mutually_exclusive_group()
+    src.add_argument("--params", type=Path, help="released network folder (default: ../shared/data/released-lpn)")
+    src.add_argument("--run", type=Path, help="a run folder of minifilm train instead")
 
 
 def source_args(args) -> list:
@@ -120,7 +83,7 @@ def script(styles):
 
 def soak(args, run_index: int) -> dict:
     load_before = os.getloadavg()[0]
-    server = DemoProcess(source_args(args))
+    server = DemoProcess(*source_args(args))
     assert server.url.startswith("http://127.0.0.1:")           # traffic stays on this machine
     frames, rss = [], []
     try:
@@ -198,9 +161,7 @@ def pacing(args) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    src = ap.add_mutually_exclusive_group()
-    src.add_argument("--params", type=Path, help="released network folder (default: ../shared/data/released-lpn)")
-    src.add_argument("--run", type=Path, help="a run folder of minifilm train instead")
+    add_source_arguments(ap)
     ap.add_argument("--seconds", type=float, default=60.0, help="length of each run (600: the full soak)")
     ap.add_argument("--repeat", type=int, default=2, help="runs, each with a fresh server")
     ap.add_argument("--warmup", type=float, default=10.0, help="seconds left out of the frame times and memory start")

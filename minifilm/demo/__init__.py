@@ -17,6 +17,7 @@ validation of the page's), ``stage.py`` (the frame loop on its own thread), ``ch
 sticks to a target facing and velocity), ``style_mix.py`` (smooth style changes and blends),
 ``calibrations.py`` and ``calibration_worker.py`` (speed calibration per style, in a worker
 process), ``source.py`` (released network or run folder), ``record.py`` (a scripted session
-recorded server-side, for a GIF), ``client.py`` (a page without a browser: tests, benchmarks).
+recorded server-side, for a GIF), ``client.py`` (a page without a browser: tests, benchmarks),
+``process.py`` (the command in a process of its own, for the same).
 Importing this package loads none of them.
 """

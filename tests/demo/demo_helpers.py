@@ -8,17 +8,13 @@ from __future__ import annotations
 
 import os
 import shutil
-import re
 import socket
-import subprocess
-import sys
-import threading
 from dataclasses import replace
 from pathlib import Path
 
 import pytest
 
-from repo_paths import REPO_ROOT, SHARED_DATA, need_data
+from repo_paths import SHARED_DATA, need_data
 
 websockets = pytest.importorskip("websockets", reason="the demo needs the websockets package (pip install "
                                                       "'minifilm[demo]')")
@@ -61,40 +57,6 @@ def serve(source: DemoSource, max_characters: int = 2, **settings) -> DemoServer
                         max_characters=max_characters, background_calibration=False)
     server.start()
     return server
-
-
-class DemoProcess:
-    """``python -m minifilm demo ARGS --port 0`` as a user runs it, in a process of its own (its
-    own BLAS thread setting and GIL, away from the test's), on 127.0.0.1; ``url`` once listening."""
-
-    def __init__(self, *args, timeout: float = 120.0):
-        env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(REPO_ROOT), os.environ.get("PYTHONPATH", "")]))
-        self.proc = subprocess.Popen([sys.executable, "-m", "minifilm", "demo", *map(str, args), "--port", "0"],
-                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
-        self.lines = []
-        found = threading.Event()
-
-        def read():
-            for line in self.proc.stdout:
-                self.lines.append(line)
-                if re.search(r"http://127\.0\.0\.1:\d+/", line):
-                    found.set()
-            found.set()
-        threading.Thread(target=read, daemon=True).start()
-        if not found.wait(timeout) or self.proc.poll() is not None:
-            self.stop()
-            raise RuntimeError(f"minifilm demo did not start: {''.join(self.lines)} {self.proc.stderr.read()}")
-        self.url = re.search(r"http://127\.0\.0\.1:\d+/", "".join(self.lines)).group(0)
-        self.port = int(self.url.rsplit(":", 1)[1].strip("/"))
-
-    def stop(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.terminate()
-            try:
-                self.proc.wait(10)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait(10)
 
 
 def http_get(port: int, target: str, host: str = None, extra: str = "") -> tuple:

@@ -15,10 +15,11 @@ import time
 
 import numpy as np
 import pytest
-from demo_helpers import RELEASED, DemoProcess, browser, make_tiny_run  # noqa: F401  (browser: a fixture)
+from demo_helpers import RELEASED, browser, make_tiny_run  # noqa: F401  (browser: a fixture)
 from repo_paths import need_data
 
 from minifilm.demo.client import DemoClient
+from minifilm.demo.process import DemoProcess
 
 Image = pytest.importorskip("PIL.Image", reason="screenshots are read with Pillow")
 HAS_RELEASED = (RELEASED / "Xmean.bin").is_file()

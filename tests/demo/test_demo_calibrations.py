@@ -67,8 +67,9 @@ def test_sigterm_ends_the_server_at_once_with_calibrations_queued(released_sourc
     import signal
     import subprocess
 
-    from demo_helpers import RELEASED, DemoProcess
+    from demo_helpers import RELEASED
     from minifilm.demo.client import DemoClient
+    from minifilm.demo.process import DemoProcess
 
     demo = DemoProcess("--params", RELEASED)
     try:
