@@ -32,11 +32,11 @@ def main():
     ap.add_argument("--gif", help="also write the motion as an animated GIF (needs minifilm[viz])")
     ap.add_argument("--html", help="also write it into a 3-D player that opens offline in a browser")
     args = ap.parse_args()
-    for path, kind in ((args.out, "bvh"), (args.gif, "gif"), (args.html, "html")):
-        if path:  # before the work: a typo in a path or a missing package costs nothing
-            check_writable(path, f"--{'out' if kind == 'bvh' else kind}")
-            if kind != "bvh":
-                check_output_tools(path, kind)
+    check_writable(args.out, "--out")   # before the work: a typo in a path or a missing package costs nothing
+    for kind in ("gif", "html"):
+        if getattr(args, kind):
+            check_writable(getattr(args, kind), f"--{kind}")
+            check_output_tools(getattr(args, kind), kind)
 
     # 1. Ω and Φ, the normalisation statistics and 100 FiLM vectors (one per style); Ψ is not
     #    released, nor needed at run time: a style is its FiLM vector.

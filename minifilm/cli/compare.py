@@ -15,7 +15,7 @@ from pathlib import Path
 
 from minifilm.cli.args import in_range, output_folder, positive
 from minifilm.errors import InputError
-from minifilm.evaluation.compare import MODEL, SYNTH_HOLDOUT, TINY_MODEL, check_variants
+from minifilm.evaluation.compare import MODEL, SYNTH_HOLDOUT, TINY_MODEL
 from minifilm.evaluation.compare import run as run_compare
 
 HELP = "Figure 10 and style metrics: train and compare the seven models"
@@ -61,7 +61,6 @@ def finish(a):
         if len(pair) != 2 or not all(pair) or pair[0] == pair[1]:
             raise InputError(f"--interpolate {a.interpolate!r}: give two different styles, 'A,B'")
         a.interpolate = ",".join(pair)
-    check_variants(a.variants)
     a.styles = a.styles.split(",") if a.styles else None
     a.gaits = a.gaits.split(",") if a.gaits else None
     a.model = TINY_MODEL if a.tiny else MODEL

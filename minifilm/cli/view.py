@@ -41,11 +41,10 @@ def add_arguments(ap) -> None:
 def run(args) -> int:
     if args.gif is None and args.mp4 is None and args.html is None:
         args.html = Path("view.html")
-    outputs = (("--gif", "gif", args.gif), ("--mp4", "mp4", args.mp4), ("--html", "html", args.html))
-    for flag, kind, path in outputs:  # every output checked before the first one is written
-        if path is not None:
-            check_writable(path, flag)
-            check_output_tools(path, kind)
+    for kind in ("gif", "mp4", "html"):  # every output checked before the first one is written
+        if getattr(args, kind) is not None:
+            check_writable(getattr(args, kind), f"--{kind}")
+            check_output_tools(getattr(args, kind), kind)
     tracks = [track_with_contacts(f) for f in args.files]
     if args.no_contacts:
         for t in tracks:

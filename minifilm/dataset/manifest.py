@@ -85,7 +85,12 @@ def _dict_rows(csv_path: Path):
             for row in reader:
                 yield reader.line_num, {(k or "").strip(): (v or "").strip() for k, v in row.items()}
     except UnicodeDecodeError as e:
-        raise ValueError(f"{csv_path}: not UTF-8 text (byte {e.start}); save it as UTF-8") from None
+        raise _not_utf8(csv_path, e) from None
+
+
+def _not_utf8(csv_path: Path, e: UnicodeDecodeError) -> ValueError:
+    return ValueError(f"{csv_path}: not UTF-8 text (byte {e.start} is {e.object[e.start:e.start + 1]!r}); "
+                      "save it as UTF-8")
 
 
 def read_frame_cuts(csv_path: Union[str, Path]) -> dict:
@@ -155,8 +160,7 @@ def read_manifest(csv_path: Union[str, Path]) -> List[MotionFile]:
     try:
         return _read_manifest(csv_path)
     except UnicodeDecodeError as e:
-        raise ValueError(f"{csv_path}: not UTF-8 text (byte {e.start} is {e.object[e.start:e.start + 1]!r}); "
-                         "save the manifest as UTF-8") from None
+        raise _not_utf8(csv_path, e) from None
 
 
 def _read_manifest(csv_path: Path) -> List[MotionFile]:
