@@ -22,7 +22,8 @@ result: generated/styles.gif (every style side by side) and generated/index.html
 """
 from __future__ import annotations
 
-import shutil
+import contextlib
+import os
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -32,6 +33,7 @@ import numpy as np
 
 from minifilm.dataset.build import build_dataset, resolve_files
 from minifilm.errors import DataError, InputError
+from minifilm.files import atomic_directory, file_names, folder_lock
 from minifilm.evaluation.style_classifier import classify_rollout, train_style_classifier
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
@@ -39,7 +41,7 @@ from minifilm.motion.bvh import bvh_duration, read_bvh
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.motion.skeletons import STYLE100, builtin_skeleton
 from minifilm.phases.label import label
-from minifilm.pipeline.run_folder import RunFolder
+from minifilm.pipeline.run_folder import RunFolder, is_run_entry
 from minifilm.runtime.control import make_script
 from minifilm.runtime.controller import (Controller, NonFiniteOutputError, root_joint_indices,
                                          start_from_dataset)
@@ -185,7 +187,9 @@ def test_table(trainer: Trainer, ds) -> dict:
     return result
 
 
-def save_loss_curve(history, path: Path) -> None:
+def save_loss_curve(history, path: Path, shown: Optional[Path] = None) -> None:
+    """The training and validation losses per epoch as a PNG at ``path`` (``shown``: the path to
+    print, when the file is written in a run still being built)."""
     try:
         plt = pyplot()
     except ImportError as e:
@@ -203,7 +207,7 @@ def save_loss_curve(history, path: Path) -> None:
     ax.set_title("minifilm train_small: LPN + FiLM")
     fig.tight_layout()
     save_figure(fig, path, dpi=100)
-    log(f"[plot] loss curve saved to {path}")
+    log(f"[plot] loss curve saved to {shown or path}")
 
 
 def style_library(trainer: Trainer, ds) -> StyleLibrary:
@@ -215,11 +219,13 @@ def style_library(trainer: Trainer, ds) -> StyleLibrary:
     return library
 
 
-def generate_per_style(trainer: Trainer, ds, run: RunFolder, library: StyleLibrary, template, seconds: float):
+def generate_per_style(trainer: Trainer, ds, run: RunFolder, library: StyleLibrary, template, seconds: float,
+                       shown: Optional[Path] = None):
     """One BVH per style from the autoregressive runtime (Sec. 4.4): a figure-eight path, the motion
     put back on the source skeleton. Each style starts in mid-stride from a frame of its own forward
     walk (pose, trajectory and phases): from the data's mean pose a network this small may never
-    get going."""
+    get going. The files are ``generated/<style>.bvh`` in ``run``, named safely after the styles
+    (minifilm/files/names.py); ``shown`` is the run folder to print."""
     network = RuntimeNetwork.from_model(trainer.model, trainer.stats)
     # every frame is put on the source skeleton (rigid bones); the network keeps seeing its own
     # prediction (fed back, the fitted pose made small models stop stepping more often:
@@ -230,6 +236,7 @@ def generate_per_style(trainer: Trainer, ds, run: RunFolder, library: StyleLibra
     n_frames = int(round(seconds * ds.fps))
     out = run.path / "generated"
     out.mkdir(exist_ok=True)
+    files = file_names(ds.styles)
     starts = run.starts()
     log(f"[generate] {seconds:g} s per style along a figure-eight:")
     rollouts = {}
@@ -241,8 +248,9 @@ def generate_per_style(trainer: Trainer, ds, run: RunFolder, library: StyleLibra
         except NonFiniteOutputError:     # an under-trained model: say so, and go on with the others
             log(f"    {name:<14} diverged (the network's output became non-finite); no BVH written")
             continue
-        path = out / f"{name}.bvh"
+        path = out / f"{files[name]}.bvh"
         write_bvh(rollout.to_motion(template, joints), path, scale=run.bvh_scale)
+        path = (shown or run.path) / "generated" / path.name
         hips = rollout.positions[0, :, 0, 1]
         speed = np.linalg.norm(np.diff(rollout.root_positions[0], axis=0), axis=1).mean() * ds.fps
         log(f"    {name:<14} hips {hips.mean():.2f} m  speed {speed:.2f} m/s   -> {path}")
@@ -274,20 +282,22 @@ def style_recognition(ds, rollouts: dict, seed: int = 0) -> dict:
     return {"per_style": per_style, "mean": mean, "heldout": info["heldout_acc"]}
 
 
-def show_styles(rollouts: dict, layout, out: Path, gif_seconds: float = 6.0) -> None:
+def show_styles(rollouts: dict, layout, out: Path, gif_seconds: float = 6.0, shown: Optional[Path] = None) -> None:
     """See the result: every style's generated motion side by side in an animated GIF (the first
-    ``gif_seconds``) and in the offline HTML player (all of it)."""
+    ``gif_seconds``) and in the offline HTML player (all of it), written into ``out`` (``shown``:
+    the folder to print)."""
+    shown = shown or out
     names = list(rollouts)
     if not names:
         log("[view] no generated motion to show")
         return
     toes = [layout.joint_names.index(t) for t in ("RightToe", "LeftToe")] if "RightToe" in layout.joint_names else None
     tracks = [tracks_from_rollout(rollouts[n], layout.parents, [n], layout.joint_names, toes)[0] for n in names]
-    html = write_html(tracks, out / "index.html", title="minifilm: generated styles")
-    log(f"[view] every style in a 3-D player (opens offline in a browser): {html}")
+    write_html(tracks, out / "index.html", title="minifilm: generated styles")
+    log(f"[view] every style in a 3-D player (opens offline in a browser): {shown / 'index.html'}")
     try:
         write_gif(tracks, out / "styles.gif", seconds=gif_seconds, size=(200, 250))
-        log(f"[view] every style side by side, first {gif_seconds:g} s: {out / 'styles.gif'}")
+        log(f"[view] every style side by side, first {gif_seconds:g} s: {shown / 'styles.gif'}")
     except ImportError as e:
         log(f"[view] no GIF: {e}")
 
@@ -347,37 +357,45 @@ def prepare_data(s: Settings, data: Optional[Path], out: Path):
 
 def run(s: Settings, data: Optional[Path] = None) -> dict:
     """The whole main job; returns the test result (MSE per style) with the style recognition
-    of the generated motion under 'recognition'."""
+    of the generated motion under 'recognition'.
+
+    The run is built in a new folder beside ``s.out`` and swapped in whole when it is complete
+    (minifilm/files/atomic.py), with the folder locked meanwhile (minifilm/files/lock.py): an
+    earlier run there stays whole and usable until then, whatever stops this one (an error,
+    Ctrl-C, SIGTERM, SIGKILL), and a second command writing the same folder is refused."""
     check_inputs(s, data)          # before the run folder is touched
     out = Path(s.out)
-    new_folder = not out.exists()
-    out.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
-    try:
-        ds = prepare_data(s, data, out)
-    except BaseException:
-        if new_folder:             # a failure before training leaves no half-made folder behind
-            shutil.rmtree(out, ignore_errors=True)
-        raise
-    # An earlier run in this folder stays whole until training starts writing over it; from here
-    # the folder is a run again only when this one is complete (run_folder.py).
-    RunFolder.retire(out)
-    trainer = train(ds, out, s)
-    trainer.save(out / "model.npz")
-    log(f"[train] checkpoint (model, optimiser, normalisation statistics) saved to {out / 'model.npz'}")
-    result = test_table(trainer, ds)
-    save_loss_curve(trainer.history, out / "loss_curve.png")
+    with folder_lock(out), atomic_directory(out, "run folder", replaceable=is_run_entry) as work:
+        reuse_cache(out / "cache", work / "cache")
+        ds = prepare_data(s, data, work)
+        trainer = train(ds, work, s)
+        trainer.save(work / "model.npz")
+        log(f"[train] checkpoint (model, optimiser, normalisation statistics) saved to {out / 'model.npz'}")
+        result = test_table(trainer, ds)
+        save_loss_curve(trainer.history, work / "loss_curve.png", shown=out / "loss_curve.png")
 
-    skeleton = builtin_skeleton(ds.skeleton)
-    template = read_bvh(ds.files[0]["path"], scale=skeleton.bvh_scale)   # the source skeleton, its own units
-    folder = RunFolder.prepare(out, ds.layout, ds.fps, ds.skeleton, skeleton.bvh_scale, template,
-                               s.position_bias)
-    library = style_library(trainer, ds)
-    library.save(out / "styles.npz")
-    folder.save_starts({name: start_from_dataset(ds, name) for name in ds.styles})
-    rollouts = generate_per_style(trainer, ds, folder, library, template, s.generate_seconds)
-    result["recognition"] = style_recognition(ds, rollouts, s.seed)
-    show_styles(rollouts, ds.layout, out / "generated", min(6.0, s.generate_seconds))
-    folder.commit()
+        skeleton = builtin_skeleton(ds.skeleton)
+        template = read_bvh(ds.files[0]["path"], scale=skeleton.bvh_scale)   # the source skeleton, its own units
+        folder = RunFolder.prepare(work, ds.layout, ds.fps, ds.skeleton, skeleton.bvh_scale, template,
+                                   s.position_bias)
+        library = style_library(trainer, ds)
+        library.save(work / "styles.npz")
+        folder.save_starts({name: start_from_dataset(ds, name) for name in ds.styles})
+        rollouts = generate_per_style(trainer, ds, folder, library, template, s.generate_seconds, shown=out)
+        result["recognition"] = style_recognition(ds, rollouts, s.seed)
+        show_styles(rollouts, ds.layout, work / "generated", min(6.0, s.generate_seconds), shown=out / "generated")
+        folder.commit()
     log(f"[done] {time.perf_counter() - t_start:.0f} s in all; outputs in {out}")
     return result
+
+
+def reuse_cache(old: Path, new: Path) -> None:
+    """Link the dataset caches of the run being replaced into the new one (a cache of your own
+    data takes a while to build); the old run's files stay as they are."""
+    if not old.is_dir():
+        return
+    new.mkdir(parents=True, exist_ok=True)
+    for f in old.glob("dataset-*.npz"):
+        with contextlib.suppress(OSError):
+            os.link(f, new / f.name)
