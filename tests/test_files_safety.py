@@ -8,6 +8,7 @@ import stat
 import subprocess
 import sys
 import threading
+import unicodedata
 
 import numpy as np
 import pytest
@@ -201,8 +202,8 @@ def test_file_names_made_from_names_stay_in_their_folder(tmp_path):
         path = child_path(tmp_path, name, ".bvh")
         assert path.parent == tmp_path and not path.name.startswith(".")
     assert file_name("CON") != "CON" and file_name("what?") == "what_"
-    names = file_names(["a?b", "a*b", "Neutral", "neutral"])
-    assert len({n.casefold() for n in names.values()}) == 4
+    names = file_names(["a?b", "a*b", "Neutral", "neutral", "caf\u00e9", "cafe\u0301"])
+    assert len({unicodedata.normalize("NFC", n).casefold() for n in names.values()}) == 6
 
 
 # ---- one writer per folder ----------------------------------------------------------------------

@@ -12,6 +12,7 @@ by :func:`child_path`, which cannot leave its folder whatever the name holds.
 from __future__ import annotations
 
 import re
+import unicodedata
 from pathlib import Path
 from typing import Dict, Iterable, Type
 
@@ -73,15 +74,18 @@ def file_name(name: str) -> str:
 def file_names(names: Iterable[str]) -> Dict[str, str]:
     """name -> a file name (:func:`file_name`) for each of ``names``, distinct even where two
     names would give the same file name or differ only in case (macOS and Windows fold case):
-    a later one gets ``-2``, ``-3``, ..."""
+    a later one gets ``-2``, ``-3``, ... (also where they differ only in Unicode normalisation)."""
+    def key(text: str) -> str:          # as a case-folding, normalising disk (macOS) compares names
+        return unicodedata.normalize("NFC", text).casefold()
+
     taken, result = set(), {}
     for name in names:
         base = candidate = file_name(name)
         n = 1
-        while candidate.casefold() in taken:
+        while key(candidate) in taken:
             n += 1
             candidate = f"{base}-{n}"
-        taken.add(candidate.casefold())
+        taken.add(key(candidate))
         result[name] = candidate
     return result
 
