@@ -29,8 +29,8 @@ def name_problem(name) -> str:
     """Why ``name`` may not name a style, or '' when it may."""
     if not isinstance(name, str):
         return f"is a {type(name).__name__}, not text"
-    if not name:
-        return "is empty"
+    if not name.strip():
+        return "is empty or blank"
     if len(name) > MAX_NAME_LENGTH:
         return f"has {len(name)} characters, more than {MAX_NAME_LENGTH}"
     if not name.isprintable():

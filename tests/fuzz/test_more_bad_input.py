@@ -40,7 +40,7 @@ def test_style_libraries_without_styles_or_names_are_refused(tmp_path):
     StyleLibrary().save(tmp_path / "empty.npz")
     with pytest.raises(StyleLibraryError, match="holds no styles"):
         StyleLibrary.load(tmp_path / "empty.npz")
-    with pytest.raises(ValueError, match="non-empty name"):
+    with pytest.raises(ValueError, match="is empty or blank"):
         StyleLibrary().add("  ", np.zeros(4))
 
 
