@@ -595,6 +595,8 @@ def load_folder(folder, clip_seconds=2.0):
         style = path.stem.split("_")[0]
         names, parents, pos, rot, fps = read_bvh(path)
         at = {name: j for j, name in enumerate(names)}
+        if any(n not in at for n in (HIPS, *TOE_TIPS, *PHASE_BONES)):
+            sys.exit(f"{path}: not on the 100STYLE skeleton (it needs {HIPS}, {', '.join(TOE_TIPS + PHASE_BONES)})")
         contacts = foot_contacts(pos[:, [at[n] for n in TOE_TIPS]], fps)
         sources = ["pca", "pca", "contact", "contact"]               # a hopping style's lifted foot: PCA
         sources[3 if style == "LeftHop" else 2 if style == "RightHop" else 0] = "pca"
@@ -610,8 +612,6 @@ def load_folder(folder, clip_seconds=2.0):
         d["train"].append((x[:cut], p[:cut], z[:cut]))
         d["test"].append((x[cut:], p[cut:], z[cut:]))
         d["clips"] += [frames[s:s + T] for s in range(0, cut - T + 1, T // 2)]      # 2 s clips every 1 s
-    if not data:
-        sys.exit(f"no .bvh files in {folder}")
     for d in data.values():
         d["train"], d["test"] = ([np.concatenate(a) for a in zip(*d[split])] for split in ("train", "test"))
         d["clips"] = np.stack(d["clips"])
@@ -628,6 +628,8 @@ def main():
     ap.add_argument("--lr", type=float, default=5e-4)
     ap.add_argument("--seed", type=int, default=0)
     args, B, start = ap.parse_args(), 32, time.perf_counter()
+    if args.data is not None and not any(args.data.glob("*.bvh")):
+        sys.exit(f"no .bvh files in {args.data}")
     if not gradient_check(args.seed):
         sys.exit("the gradient check failed")
     with tempfile.TemporaryDirectory() as tmp:        # the synthetic files live only as long as this

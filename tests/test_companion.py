@@ -2,10 +2,10 @@
 
 The companion imports nothing from minifilm, so these tests are the bridge: the same weights go
 into both, and the forward outputs, the losses and every gradient must agree (float64, relative
-error <= 1e-6, measured ~1e-13); Adam's steps agree; and on real BVH files from ../shared/data the
-companion's reader, foot contacts and per-frame local phases agree with the package's reader and
-its vectorised labelling (minifilm/phases/label.py::label). The last test shows the comparison
-catches a one-detail difference (the layer norm's epsilon).
+error <= 1e-6; measured at most 4e-11); Adam's steps agree; and on real BVH files from
+../shared/data the companion's reader, foot contacts and per-frame local phases agree with the
+package's reader and its vectorised labelling (minifilm/phases/label.py::label). One test shows the
+comparison catches a one-detail difference (the layer norm's epsilon).
 """
 from __future__ import annotations
 
@@ -126,7 +126,7 @@ def test_forward_losses_and_every_gradient_agree_with_the_package(shared_clip, t
 
 
 def test_the_layer_norm_epsilon_matters_so_the_comparison_can_fail(monkeypatch):
-    """With a different ε (the released runtime's 0, or 1e-3) the outputs no longer agree to 1e-6."""
+    """One detail changed (the layer norm's ε, 1e-3 instead of 1e-6) and the outputs no longer agree."""
     rng = np.random.default_rng(4)
     config = ModelConfig.tiny(x_dim=24, z_dim=20, clip_channels=12)
     model = random_model(rng, config)
