@@ -41,8 +41,13 @@ def one_error(argv, capsys, *mentions):
 
 
 def tree(folder):
-    return {str(p.relative_to(folder)): (os.lstat(p).st_mode, p.read_bytes() if p.is_file() and not p.is_symlink() else b"")
-            for p in sorted(folder.rglob("*")) if not stat.S_ISFIFO(os.lstat(p).st_mode)}
+    """path -> (mode, contents) of every file and folder under ``folder`` (other tests' FIFOs and
+    sockets may lie beside: they are listed, never read)."""
+    out = {}
+    for p in sorted(folder.rglob("*")):
+        mode = os.lstat(p).st_mode
+        out[str(p.relative_to(folder))] = (mode, p.read_bytes() if stat.S_ISREG(mode) else b"")
+    return out
 
 
 @pytest.fixture
