@@ -38,6 +38,7 @@ symmetric stencil measures the code's subgradient 0 exactly). Their limit is the
 """
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from functools import partial
@@ -48,7 +49,7 @@ from minifilm.evaluation import gradcheck_kit as kit
 from minifilm.evaluation import gradcheck_networks as nets
 from minifilm.evaluation.gradcheck_setup import Result, check_problem, float32_errors
 from minifilm.nn import conv
-from minifilm.nn.gradcheck import H, LIMIT
+from minifilm.nn.gradcheck import H, LIMIT, worst_error
 
 SEEDS = tuple(range(5))
 FUN, CONV, BLOCKS, LOSSES = "minifilm/nn/functional.py", "minifilm/nn/conv.py", "minifilm/model/blocks.py", \
@@ -208,16 +209,21 @@ class Row:
 
     @property
     def passed(self) -> bool:
-        return self.error is None and self.crossings == 0 and self.worst <= self.case.limit and bool(self.seeds)
+        """Every seed ran, no kink was crossed and the worst error is finite and within the limit
+        (a NaN or inf error is a failure, see minifilm.nn.gradcheck.worst_error)."""
+        return (self.error is None and self.crossings == 0 and bool(self.seeds)
+                and math.isfinite(self.worst) and self.worst <= self.case.limit)
 
     def add(self, seed: int, result: Result) -> None:
+        """Record one seed's result; a NaN or inf error (or none at all) makes the row's worst inf."""
         self.seeds.append(seed)
         self.arrays = max(self.arrays, len(result.errors))
         self.entries = max(self.entries, sum(result.entries.values()))
         self.crossings += result.crossings
-        e = max(result.errors.values())
-        if e >= self.worst:
-            self.worst, self.where = e, f"seed {seed}: {result.worst}"
+        e = worst_error(result.errors)
+        if e > self.worst or not self.where:
+            where = result.worst if result.errors else "no array was checked"
+            self.worst, self.where = e, f"seed {seed}: {where}"
 
 
 def run_case(case: Case, seeds: Sequence[int] = SEEDS) -> Row:

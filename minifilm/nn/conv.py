@@ -21,7 +21,7 @@ import numpy as np
 import scipy.fft
 from numpy.lib.stride_tricks import sliding_window_view
 
-from minifilm.nn.scratch import require, scratch
+from minifilm.nn.scratch import require, require_grad_shape, scratch
 
 # --------------------------------------------------------------------------------------------
 # 1-D convolution over time and max pooling (the FiLM generator Psi, Eq. 2)
@@ -169,6 +169,8 @@ def conv1d_forward(x: np.ndarray, W: np.ndarray, b: np.ndarray, work: dict | Non
     require(x.ndim == 3 and x.shape[2] == C,
             f"conv1d_forward: x is {x.shape}, expected (B, T, {C}) to match W {W.shape}")
     require(b.shape == (F,), f"conv1d_forward: b is {b.shape}, expected ({F},)")
+    require(x.shape[0] > 0 and x.shape[1] > 0,
+            f"conv1d_forward: x is {x.shape}: a batch of 0 clips or clips of 0 frames")
     require(method in ("auto", "im2col", "fft"),
             f"conv1d_forward: method must be 'auto', 'im2col' or 'fft', got {method!r}")
     B, T, _ = x.shape
@@ -219,6 +221,8 @@ def conv1d_backward(dout: np.ndarray, cache, need_dx: bool = True):
     the other big buffers live in it: add dW to your gradients before the layer's next call.
     """
     method, work = cache[0], cache[-1]
+    (B, T, _), F = cache[-3], cache[-2].shape[2]
+    require_grad_shape("conv1d_backward", dout, (B, T, F))
     if method == "fft":
         dx, dW = _conv1d_fft_backward(dout, cache, need_dx)
         return dx, dW, dout.sum(axis=(0, 1))
@@ -283,6 +287,7 @@ def max_pool1d_backward(dout: np.ndarray, cache):
     """dx for :func:`max_pool1d_forward`: each gradient goes to the frame that won its pair."""
     (B, T, C), first = cache
     T2 = T // 2
+    require_grad_shape("max_pool1d_backward", dout, (B, T2, C))
     dx = np.empty((B, T, C), dtype=dout.dtype)
     dx[:, 2 * T2:] = 0                                           # the dropped odd frame, if any
     # Multiplying by the boolean masks is ~10x faster than np.copyto(..., where=) or np.where

@@ -22,7 +22,7 @@ import numpy as np
 
 from minifilm.nn.conv import (conv1d_backward, conv1d_forward, max_pool1d_backward,  # noqa: F401 (re-exported)
                               max_pool1d_forward)
-from minifilm.nn.scratch import require, scratch, sum_to_shape
+from minifilm.nn.scratch import require, require_grad_shape, scratch, sum_to_shape
 
 
 # --------------------------------------------------------------------------------------------
@@ -48,6 +48,7 @@ def linear_backward(dout: np.ndarray, cache, work: dict | None = None):
     gradients before the next call.
     """
     x, W = cache
+    require_grad_shape("linear_backward", dout, x.shape[:-1] + (W.shape[1],))
     x2 = x.reshape(-1, W.shape[0])       # (N, I) with N = product of the leading axes
     d2 = dout.reshape(-1, W.shape[1])    # (N, O)
     dW = np.matmul(x2.T, d2, out=scratch(work, "dW", W.shape, np.result_type(x2, d2)))
@@ -67,6 +68,7 @@ def elu_forward(x: np.ndarray):
 def elu_backward(dout: np.ndarray, cache):
     """dx for :func:`elu_forward`; the slope for x <= 0 is exp(x) = out + 1."""
     x, out = cache
+    require_grad_shape("elu_backward", dout, out.shape)
     return dout * np.where(x > 0, 1, out + 1).astype(dout.dtype, copy=False)
 
 
@@ -78,6 +80,7 @@ def relu_forward(x: np.ndarray):
 def relu_backward(dout: np.ndarray, cache):
     """dx for :func:`relu_forward` (slope 0 at x == 0)."""
     x = cache
+    require_grad_shape("relu_backward", dout, np.shape(x))
     return dout * (x > 0)
 
 
@@ -95,6 +98,7 @@ def softmax_forward(x: np.ndarray):
 def softmax_backward(dout: np.ndarray, cache):
     """dx = y * (dout - sum(dout * y)) row by row (the Jacobian diag(y) - y y^T applied to dout)."""
     y = cache
+    require_grad_shape("softmax_backward", dout, y.shape)
     return y * (dout - np.sum(dout * y, axis=-1, keepdims=True))
 
 
@@ -128,6 +132,7 @@ def layer_norm_backward(dout: np.ndarray, cache):
     A constant row (sigma = 0) gets gradient g / s - mean(g / s), the limit of the formula.
     """
     xc, sigma, s, n = cache
+    require_grad_shape("layer_norm_backward", dout, xc.shape)
     gs = dout / s
     dot = np.sum(dout * xc, axis=-1, keepdims=True)
     denom = s * s * n * sigma
@@ -153,6 +158,7 @@ def film_forward(h: np.ndarray, gamma: np.ndarray, beta: np.ndarray):
 def film_backward(dout: np.ndarray, cache):
     """Gradients of :func:`film_forward`: dh, dgamma, dbeta (each with its input's shape)."""
     h, gamma, beta_shape = cache
+    require_grad_shape("film_backward", dout, h.shape)
     return (dout * gamma, sum_to_shape(dout * h, gamma.shape), sum_to_shape(dout, beta_shape))
 
 
@@ -168,6 +174,9 @@ def dropout_forward(x: np.ndarray, p: float, rng: np.random.Generator | None = N
     expected activation is the same in training and at run time.
     """
     require(0.0 <= p < 1.0, f"dropout_forward: p must be in [0, 1), got {p}")
+    if not np.issubdtype(np.asarray(x).dtype, np.floating):
+        # scaled in x's dtype, 1 / (1 - p) would round to an integer (1 for p < 0.5)
+        raise TypeError(f"dropout_forward: x must be a floating-point array, got {np.asarray(x).dtype}")
     if not train or p == 0.0:
         return x, None
     if mask is None:
@@ -187,6 +196,7 @@ def dropout_backward(dout: np.ndarray, cache):
     if cache is None:
         return dout
     mask, scale = cache
+    require_grad_shape("dropout_backward", dout, mask.shape)
     return dout * mask * scale
 
 
@@ -223,6 +233,7 @@ def expert_linear_backward(dout: np.ndarray, cache):
     """
     x, alpha, W, b, Z = cache
     K, I, O = W.shape
+    require_grad_shape("expert_linear_backward", dout, (x.shape[0], O))
     dZ = (dout @ W.reshape(K * I, O).T).reshape(-1, K, I)       # (B, K, I)
     dW = (Z.T @ dout).reshape(K, I, O)
     db = alpha.T @ dout                                          # (K, O)
@@ -239,14 +250,16 @@ def gather_forward(x: np.ndarray, index: np.ndarray):
     index = np.asarray(index)
     require(index.ndim == 1 and np.issubdtype(index.dtype, np.integer),
             f"gather_forward: index must be 1-D integers, got {index.dtype} {index.shape}")
-    require(index.size == 0 or (index.min() >= 0 and index.max() < x.shape[0]),
-            f"gather_forward: index must lie in [0, {x.shape[0]}), got {index.min()}..{index.max()}")
+    require(index.size > 0, "gather_forward: index is empty (a batch of 0 samples)")
+    lo, hi = int(index.min()), int(index.max())
+    require(lo >= 0 and hi < x.shape[0], f"gather_forward: index must lie in [0, {x.shape[0]}), got {lo}..{hi}")
     return x[index], (index, x.shape)
 
 
 def gather_backward(dout: np.ndarray, cache):
     """dx for :func:`gather_forward`: each row of x receives the sum of the rows gathered from it."""
     index, shape = cache
+    require_grad_shape("gather_backward", dout, (len(index),) + tuple(shape[1:]))
     dx = np.zeros(shape, dtype=dout.dtype)
     np.add.at(dx, index, dout)
     return dx
