@@ -29,7 +29,7 @@ from minifilm.dataset.arrays import TrainData
 from minifilm.dataset.stats import NormStats
 from minifilm.model.losses import bone_length_loss, mse_loss
 from minifilm.model.style_model import StyleModel
-from minifilm.nn.optim import Adam
+from minifilm.nn.fast_optim import ChunkedAdam
 from minifilm.train.batches import draw_clips, draw_shared_clips, epoch_batches
 from minifilm.train.checkpoint import (NETWORKS, CheckpointError, build_style_model, load_checkpoint,
                                        load_model_arrays, model_arrays, save_checkpoint, subset)
@@ -123,7 +123,7 @@ class Trainer:
             sub = getattr(self.model, net)
             if sub is not None:
                 sub.params.trainable = net not in self.config.freeze
-        self.optimizer = Adam(self.model.parameter_sets(), lr=self.config.lr)
+        self.optimizer = ChunkedAdam(self.model.parameter_sets(), lr=self.config.lr)   # fast form of nn/optim.py::Adam
         self.rng = np.random.default_rng(self.config.seed)
         self.epoch = 0
         self.step = 0

@@ -8,6 +8,7 @@ scatter-adds for the convolution (not im2col, not the FFT), per-sample blended w
 import numpy as np
 import pytest
 
+from minifilm.nn.fast_optim import ChunkedAdam
 from minifilm.nn.optim import Adam
 from minifilm.nn.params import Parameters
 from minifilm.nn import conv
@@ -277,14 +278,17 @@ class TextbookAdam:
             self.w[i] = self.w[i] - self.lr * m_hat / (np.sqrt(v_hat) + self.eps)
 
 
+@pytest.mark.parametrize("optimiser", [Adam, ChunkedAdam])
 @pytest.mark.parametrize("dtype,tol", [(np.float64, TOL), (np.float32, 2e-6)])
-def test_adam_equals_the_textbook_update(rng, dtype, tol):
-    """The chunked in-place Adam over three sets (one of several chunks with a partial last one,
-    one smaller than a chunk, one frozen for the first steps and then unfrozen, so the sets' step
-    counts differ) against the textbook rule, over steps of changing gradients; half-way the
-    optimiser is rebuilt from its state_dict. In float32 the two agree to float32 rounding."""
-    from minifilm.nn import optim
-    sizes = [2 * optim.CHUNK + 123, 37, 1000]
+def test_adam_equals_the_textbook_update(rng, dtype, tol, optimiser):
+    """The package's plain Adam (nn/optim.py) and the chunked in-place one (nn/fast_optim.py)
+    over three sets (one of several chunks with a partial last one, one smaller than a chunk,
+    one frozen for the first steps and then unfrozen, so the sets' step counts differ) against
+    the textbook rule written here, over steps of changing gradients; half-way the optimiser is
+    rebuilt from its state_dict. In float32 they agree to float32 rounding."""
+    from minifilm.nn import fast_optim
+    Adam = optimiser                                      # noqa: N806
+    sizes = [2 * fast_optim.CHUNK + 123, 37, 1000]
     sets = [Parameters({"a": (n - 7,), "b": (7,)}, dtype=dtype) for n in sizes]
     for p in sets:
         p.data[...] = rng.standard_normal(p.size)
