@@ -133,9 +133,12 @@ def script_options(path: Path) -> frozenset:
 
 def dispatched_options(source: Path) -> frozenset:
     """Options of the `minifilm` subcommands a script hands its arguments to
-    (``main(["train"] + sys.argv[1:])`` in examples/train_small.py)."""
+    (``main(["train"] + sys.argv[1:])``) or whose options it takes (``from minifilm.cli import train
+    as options`` and ``options.add_arguments(parser)`` in examples/train_small.py)."""
     out = set()
-    for name in re.findall(r"main\(\[[\"'](\w+)[\"']\]", source.read_text(encoding="utf-8")):
+    text = source.read_text(encoding="utf-8")
+    names = re.findall(r"main\(\[[\"'](\w+)[\"']\]", text) + re.findall(r"from minifilm\.cli import (\w+) as \w+", text)
+    for name in names:
         out |= command_options(name) or set()
     return frozenset(out)
 

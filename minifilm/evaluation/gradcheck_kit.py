@@ -164,6 +164,14 @@ def expert_linear(seed, batch=4):
     return pair_result(F.expert_linear_forward, F.expert_linear_backward, inputs, ("x", "alpha", "W", "b"), rng)
 
 
+def expert_blend(seed):
+    """The plain form of the gated-expert layer (weights blended per sample), batch 4."""
+    rng = _rng(seed, 14)
+    alpha = rng.dirichlet(np.ones(3), size=4)
+    inputs = (rng.standard_normal((4, 5)), alpha, rng.standard_normal((3, 5, 4)), rng.standard_normal((3, 4)))
+    return pair_result(F.expert_blend_forward, F.expert_blend_backward, inputs, ("x", "alpha", "W", "b"), rng)
+
+
 def gather(seed):
     """y[b] = x[index[b]] with a row used three times and a row not used (shared style clips)."""
     rng = _rng(seed, 15)

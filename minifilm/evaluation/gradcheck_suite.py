@@ -115,6 +115,7 @@ def cases() -> List[Case]:
         Case("FiLM (per-sample γ, β)", K, kit.film, _pair(FUN, "film")),
         Case("FiLM (γ, β shared by the batch)", K, partial(kit.film, per_sample=False), _pair(FUN, "film")),
         Case("dropout (fixed mask)", K, kit.dropout, _pair(FUN, "dropout")),
+        Case("gated experts, blended weights (plain form)", K, kit.expert_blend, _pair(FUN, "expert_blend")),
         Case("gated experts (batch 1)", K, partial(kit.expert_linear, batch=1), _pair(FUN, "expert_linear")),
         Case("gated experts (batch 4)", K, kit.expert_linear, _pair(FUN, "expert_linear")),
         Case("gather (shared clips)", K, kit.gather, _pair(FUN, "gather")),

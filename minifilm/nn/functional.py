@@ -203,8 +203,42 @@ def dropout_backward(dout: np.ndarray, cache):
 # --------------------------------------------------------------------------------------------
 # Mixture of experts (Sec. 4.1: Phi's weights are blended per sample by the gating output alpha)
 # --------------------------------------------------------------------------------------------
+def expert_blend_forward(x: np.ndarray, alpha: np.ndarray, W: np.ndarray, b: np.ndarray):
+    """The gated-expert layer as the paper describes it: blend the experts' weights, then multiply.
+
+        W_b = sum_k a_bk W_k    b_b = sum_k a_bk b_k    y_b = x_b W_b + b_b
+
+    x: (B, I); alpha: (B, K) (Ω's output, rows summing to 1); W: (K, I, O); b: (K, O) -> y: (B, O).
+    The plain form: it builds a (B, I, O) weight per sample. :func:`expert_linear_forward` computes
+    the same sum without it (4-8x faster) and is the one the networks use.
+    """
+    K, I, O = W.shape
+    require(x.ndim == 2 and x.shape[1] == I and alpha.shape == (x.shape[0], K) and b.shape == (K, O),
+            f"expert_blend_forward: x {x.shape}, alpha {alpha.shape}, W {W.shape}, b {b.shape}; "
+            f"expected (B, {I}), (B, {K}), (K, I, O), ({K}, {O})")
+    W_b = np.einsum("bk,kio->bio", alpha, W)                    # (B, I, O): one weight per sample
+    y = np.einsum("bi,bio->bo", x, W_b) + alpha @ b              # (B, O)
+    return y, (x, alpha, W, b, W_b)
+
+
+def expert_blend_backward(dout: np.ndarray, cache):
+    """Gradients of :func:`expert_blend_forward`: dx (B, I), dalpha (B, K), dW (K, I, O), db (K, O).
+
+    dx_b = W_b dout_b; the blended weight's gradient dW_b = outer(x_b, dout_b) goes to each expert
+    by its weight, dW_k = sum_b a_bk dW_b, and to the gate, dalpha_bk = <W_k, dW_b> + b_k . dout_b.
+    """
+    x, alpha, W, b, W_b = cache
+    require_grad_shape("expert_blend_backward", dout, (x.shape[0], W.shape[2]))
+    dx = np.einsum("bo,bio->bi", dout, W_b)
+    dW_b = x[:, :, None] * dout[:, None, :]                       # (B, I, O)
+    dW = np.einsum("bk,bio->kio", alpha, dW_b)
+    dalpha = np.einsum("kio,bio->bk", W, dW_b) + dout @ b.T
+    return dx, dalpha, dW, alpha.T @ dout
+
+
 def expert_linear_forward(x: np.ndarray, alpha: np.ndarray, W: np.ndarray, b: np.ndarray):
-    """Per-sample blend of K expert linear layers: ``y_b = x_b (sum_k a_bk W_k) + sum_k a_bk b_k``.
+    """Per-sample blend of K expert linear layers: ``y_b = x_b (sum_k a_bk W_k) + sum_k a_bk b_k``,
+    the same numbers as :func:`expert_blend_forward` (tests/nn/test_optimised_equivalence.py).
 
     x: (B, I); alpha: (B, K); W: (K, I, O); b: (K, O) -> y: (B, O).
 

@@ -244,6 +244,20 @@ def test_expert_linear_equals_per_sample_weights(rng, B):
         assert_close(got, ref)
 
 
+@pytest.mark.parametrize("B", [1, 5])
+def test_expert_linear_equals_the_plain_weight_blending_pair(rng, B):
+    """The fast gated-expert pair (one (B, K*I) product) against the plain one of functional.py
+    (blend the experts' weights per sample, then multiply): outputs and all four gradients."""
+    x, W, b = rng.standard_normal((B, 6)), rng.standard_normal((3, 6, 4)), rng.standard_normal((3, 4))
+    alpha = rng.dirichlet(np.ones(3), size=B)
+    dout = rng.standard_normal((B, 4))
+    fast, cache_fast = F.expert_linear_forward(x, alpha, W, b)
+    plain, cache_plain = F.expert_blend_forward(x, alpha, W, b)
+    assert_close(fast, plain)
+    for g_fast, g_plain in zip(F.expert_linear_backward(dout, cache_fast), F.expert_blend_backward(dout, cache_plain)):
+        assert_close(g_fast, g_plain)
+
+
 @pytest.mark.parametrize("unbiased,eps", [(True, 1e-6), (False, 0.0)])
 def test_layer_norm_equals_explicit_jacobian(rng, unbiased, eps):
     x = 3 * rng.standard_normal((5, 9)) + 1
