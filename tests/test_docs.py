@@ -9,7 +9,7 @@
 * every shell command line (```bash blocks and inline `python ...` spans) names a script or
   module that exists and only options that script defines, and ``pip install -e ".[extra]"``
   names extras that setup.cfg defines (the commands themselves are run by CI: .ci/run and
-  tests/test_train_small.py);
+  tests/pipeline/test_train_small.py);
 * every reference ``path`` or ``path::name`` to the code (functions, classes, methods, tests)
   points at a file that exists and a name defined in it, and every relative Markdown link or
   image points at a file that exists (images under 200 KB).

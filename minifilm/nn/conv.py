@@ -33,7 +33,7 @@ from minifilm.nn.scratch import require, require_grad_shape, scratch
 #   "fft"     in the frequency domain a convolution over time is one (B, C) @ (C, F) product per
 #             frequency. With N >= T + k//2 frames of zero padding the DFT's circular convolution
 #             equals the zero-padded one, so nothing is approximated: results differ from im2col's
-#             by float rounding only (tests/test_optimised_equivalence.py). About
+#             by float rounding only (tests/nn/test_optimised_equivalence.py). About
 #             2*3*(N/2+1)*(B + k)*C*F flops: 5-8x fewer than im2col for Ψ at batch 32.
 def _im2col(x: np.ndarray, k: int, work: dict | None = None, name: str = "cols") -> np.ndarray:
     """(B, T, C) -> cols (B*T, k*C): row (b, t) holds frames t - k//2 .. t + k//2, zero-padded.
@@ -42,7 +42,7 @@ def _im2col(x: np.ndarray, k: int, work: dict | None = None, name: str = "cols")
     CONSECUTIVE numbers starting at xp[t, 0]. So the windows are a strided view of the flat
     padded samples (sliding windows of length k*C taken every C numbers), and the one copy that
     makes cols contiguous for the matrix product is a row-by-row memcpy. Row layout is tap-major,
-    (j, c), matching W (k, C, F). Both buffers come from ``work`` when given (see _scratch).
+    (j, c), matching W (k, C, F). Both buffers come from ``work`` when given (see minifilm/nn/scratch.py::scratch).
     """
     B, T, C = x.shape
     pad = k // 2
@@ -161,7 +161,7 @@ def conv1d_forward(x: np.ndarray, W: np.ndarray, b: np.ndarray, work: dict | Non
     ``method``: "im2col" (one matrix product on the im2col matrix, see :func:`_im2col`), "fft"
     (products per frequency, see the notes above and :func:`_conv1d_fft_forward`), or "auto"
     (the cheaper of the two for these sizes). The backward pass uses the same method.
-    ``work``: the layer's workspace (see :func:`_scratch`); the big matrices (the im2col matrix
+    ``work``: the layer's workspace (see :func:`~minifilm.nn.scratch.scratch`); the big matrices (the im2col matrix
     is 230 MB for the paper's first layer at batch 32) are then reused from call to call.
     """
     k, C, F = W.shape

@@ -44,7 +44,7 @@ def linear_forward(x: np.ndarray, W: np.ndarray, b: np.ndarray):
 def linear_backward(dout: np.ndarray, cache, work: dict | None = None):
     """Gradients of :func:`linear_forward`: dx (..., I), dW (I, O), db (O,).
 
-    With ``work`` (see :func:`_scratch`) dW is written into a buffer kept there: add it to your
+    With ``work`` (see :func:`~minifilm.nn.scratch.scratch`) dW is written into a buffer kept there: add it to your
     gradients before the next call.
     """
     x, W = cache
@@ -110,7 +110,7 @@ def layer_norm_forward(x: np.ndarray, unbiased: bool = True, eps: float = 1e-6):
 
     This is the bracket in Eq. (3). ``sigma`` is the standard deviation of each row, unbiased
     (divide by H - 1) or biased (divide by H). The original trains with ``unbiased=True,
-    eps=1e-6`` and runs with ``unbiased=False, eps=0.0`` (original-pipeline §10.2).
+    eps=1e-6`` and runs with ``unbiased=False, eps=0.0`` (docs/original-code.md §10.2).
     x: (..., H) -> y: (..., H).
     """
     H = x.shape[-1]
