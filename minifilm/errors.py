@@ -41,7 +41,10 @@ class MissingDependencyError(ImportError):
 
 
 def check_fps(fps: float, where: str) -> float:
-    """``fps`` if it is a finite rate within [MIN_FPS, MAX_FPS]; InputError naming ``where`` otherwise."""
+    """``fps`` if it is a finite rate within [MIN_FPS, MAX_FPS]; InputError naming ``where`` otherwise
+    (also for True and False, which Python would count as 1 and 0)."""
+    if isinstance(fps, bool):
+        raise InputError(f"{where}: frame rate {fps!r} is not a number")
     try:
         value = float(fps)
     except (TypeError, ValueError):

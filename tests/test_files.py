@@ -1,4 +1,4 @@
-"""minifilm/files.py: atomic writes leave the old file or the new one, never debris, with the
+"""minifilm/files/atomic.py: atomic writes leave the old file or the new one, never debris, with the
 permissions of a plain open(); read_npz refuses broken archives before allocating."""
 import os
 import subprocess
@@ -44,15 +44,15 @@ def test_a_failed_write_leaves_the_old_file_and_no_debris(tmp_path):
 
 
 def test_a_failed_folder_write_leaves_the_old_folder_whole(tmp_path):
-    with atomic_directory(tmp_path / "d") as d:
+    with atomic_directory(tmp_path / "d", replaceable=str.isdigit) as d:
         for i in range(100):
             (d / f"{i:03d}").write_text("old")
     with pytest.raises(RuntimeError):
-        with atomic_directory(tmp_path / "d") as d:
+        with atomic_directory(tmp_path / "d", replaceable=str.isdigit) as d:
             (d / "000").write_text("new")
             raise RuntimeError("killed")
     assert len(list((tmp_path / "d").iterdir())) == 100
-    with atomic_directory(tmp_path / "d") as d:          # fewer files over more: none of the old survive
+    with atomic_directory(tmp_path / "d", replaceable=str.isdigit) as d:          # fewer files over more: none of the old survive
         for i in range(3):
             (d / f"{i:03d}").write_text("new")
     assert sorted(p.name for p in (tmp_path / "d").iterdir()) == ["000", "001", "002"]

@@ -50,7 +50,7 @@ COMPARISON = {"baselines", "evaluation"}
 
 
 def part_of(module_path: Path) -> str:
-    """'nn' for minifilm/nn/functional.py, 'files' for minifilm/files.py."""
+    """'nn' for minifilm/nn/functional.py, 'files' for minifilm/files/atomic.py."""
     rel = module_path.relative_to(PACKAGE)
     return rel.parts[0] if len(rel.parts) > 1 else rel.stem
 

@@ -21,7 +21,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import signal
 import sys
+import threading
 from typing import Callable, Optional
 
 from minifilm.errors import MissingDependencyError, OutputPathError  # (imports nothing: numpy stays unloaded)
@@ -92,6 +94,9 @@ def report_errors(main: Callable[[], Optional[int]]) -> None:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         sys.exit(130)
+    except Terminated:
+        print("terminated", file=sys.stderr)
+        sys.exit(143)
     sys.exit(code if isinstance(code, int) else 0)
 
 
@@ -120,9 +125,35 @@ def main(argv=None) -> None:
     # Imported only when chosen: a command may need an optional extra (matplotlib, the demo's
     # server) that the others do without, and `minifilm --help` stays instant.
     module = importlib.import_module(module_name)
+    from minifilm.files import command_inputs   # here: it loads numpy, which reads the settings above
     parser = Parser(prog=f"minifilm {name}", description=module.__doc__,
                     formatter_class=argparse.RawDescriptionHelpFormatter)
     module.add_arguments(parser)
-    # parsing inside report_errors too: an argument's type check may meet an OSError (a path name
-    # too long for the file system, a symlink loop)
-    report_errors(lambda: module.run(parser.parse_args(argv[1:])))
+    # SIGTERM ends a command the way Ctrl-C does, so what it was writing is cleaned up (a run
+    # being built, a temporary file) and an earlier run stays as it was; the demo sets its own
+    previous = _raise_on_sigterm()
+    try:
+        # parsing inside report_errors too: an argument's type check may meet an OSError (a path name
+        # too long for the file system, a symlink loop); the command's inputs are recorded while it
+        # runs, so that none of its outputs replaces one (minifilm/files/targets.py)
+        with command_inputs():
+            report_errors(lambda: module.run(parser.parse_args(argv[1:])))
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _raise_on_sigterm():
+    """Make SIGTERM raise :class:`Terminated`; returns the handler it replaced (None when this is
+    not the main thread, where Python cannot set handlers: a caller's thread keeps its own)."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGTERM, _terminate)
+
+
+def _terminate(signum, frame):
+    raise Terminated()
+
+
+class Terminated(BaseException):
+    """SIGTERM, raised where the command is so that its cleanup runs (like KeyboardInterrupt)."""

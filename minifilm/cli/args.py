@@ -7,6 +7,8 @@ import math
 import os
 from pathlib import Path
 
+from minifilm.files import note_input
+
 
 def _number(text: str, kind=float):
     try:
@@ -44,6 +46,8 @@ def png_path(text: str) -> Path:
     p = Path(text)
     if p.is_dir():
         raise argparse.ArgumentTypeError(f"{text} is a folder; give a file name (e.g. {p / 'phases.png'})")
+    if p.suffix and p.suffix.lower() != ".png":     # found now, not when the drawing is saved
+        raise argparse.ArgumentTypeError(f"{text}: a PNG picture is written here; give a name ending in .png")
     return p if p.suffix else p.with_suffix(".png")
 
 
@@ -60,4 +64,13 @@ def output_folder(text: str) -> Path:
         raise argparse.ArgumentTypeError(f"{text}: {existing} is a file, not a folder")
     if not os.access(existing, os.W_OK | os.X_OK):
         raise argparse.ArgumentTypeError(f"{text}: folder {existing} is not writable")
+    return p
+
+
+def input_path(text: str) -> Path:
+    """A file or folder the command reads. It is recorded as an input (minifilm/files/targets.py),
+    so that no output of the same command may replace it: ``view a.bvh --html a.bvh`` is refused
+    before any work."""
+    p = Path(text)
+    note_input(p)
     return p

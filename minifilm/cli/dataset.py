@@ -11,7 +11,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from minifilm.cli.args import in_range, output_folder, positive
+from minifilm.cli.args import in_range, input_path, output_folder, positive
 from minifilm.dataset.build import build_dataset, resolve_files
 from minifilm.errors import InputError
 
@@ -19,7 +19,7 @@ HELP = "build and cache the training data of BVH files"
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("source", type=Path, help="a folder of BVH files or a CSV manifest")
+    parser.add_argument("source", type=input_path, help="a folder of BVH files or a CSV manifest")
     parser.add_argument("--cache", type=output_folder, default=Path(".cache/datasets"), help="cache folder")
     parser.add_argument("--no-cache", action="store_true", help="always rebuild, write no cache")
     parser.add_argument("--mirror", default="*", help="comma-separated styles to mirror, '*' = all, '' = none")

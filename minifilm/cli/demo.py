@@ -18,7 +18,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from minifilm.cli.args import in_range
+from minifilm.cli.args import in_range, input_path
 from minifilm.demo.character import DemoSettings
 from minifilm.demo.record import record_gif
 from minifilm.demo.server import DemoServer, is_loopback
@@ -30,8 +30,8 @@ HELP = "steer a character live in the browser (released network or a trained run
 
 def add_arguments(ap) -> None:
     src = ap.add_mutually_exclusive_group(required=True)
-    src.add_argument("--params", type=Path, help="the released network's parameter folder")
-    src.add_argument("--run", type=Path, help="a run folder written by minifilm train")
+    src.add_argument("--params", type=input_path, help="the released network's parameter folder")
+    src.add_argument("--run", type=input_path, help="a run folder written by minifilm train")
     ap.add_argument("--host", default="127.0.0.1",
                     help="interface to listen on (default 127.0.0.1, this machine only; another opens the demo "
                          "to whoever can reach that interface)")

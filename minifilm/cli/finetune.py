@@ -12,14 +12,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from minifilm.cli.args import in_range, positive
+from minifilm.cli.args import in_range, input_path, positive
 from minifilm.pipeline.new_style import teach_style
 
 HELP = "teach a trained run a new style from a short clip (Ψ only)"
 
 
 def add_arguments(ap) -> None:
-    ap.add_argument("files", nargs="+", type=Path, help="BVH file(s) of the new style")
+    ap.add_argument("files", nargs="+", type=input_path, help="BVH file(s) of the new style")
     ap.add_argument("--run", type=Path, required=True, help="a run folder written by minifilm train")
     ap.add_argument("--name", required=True, help="the new style's name")
     ap.add_argument("--replace", action="store_true", help="replace a style of the same name")

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from minifilm.cli.args import in_range, png_path, positive
+from minifilm.cli.args import in_range, input_path, png_path, positive
 from minifilm.errors import InputError
 from minifilm.features.layout import FeatureLayout
 from minifilm.files import check_writable
@@ -49,8 +49,8 @@ HELP = "generate motion with the released network or a trained run"
 
 def add_arguments(ap) -> None:
     src = ap.add_mutually_exclusive_group(required=True)
-    src.add_argument("--params", type=Path, help="the released network's parameter folder")
-    src.add_argument("--run", type=Path, help="a run folder written by minifilm train")
+    src.add_argument("--params", type=input_path, help="the released network's parameter folder")
+    src.add_argument("--run", type=input_path, help="a run folder written by minifilm train")
     ap.add_argument("--style", help="style name (see --list-styles); default: the first style")
     ap.add_argument("--style2", help="second style, blended with --blend w: (1-w) style + w style2")
     ap.add_argument("--blend", type=in_range(0.0, 1.0), help="weight of --style2, in [0, 1] (default 0.5)")
@@ -63,7 +63,7 @@ def add_arguments(ap) -> None:
     ap.add_argument("--speed", type=in_range(0.0, 10.0), default=1.3, help="walking speed, m/s (0-10)")
     ap.add_argument("--seconds", type=positive(float, 3600.0), default=30.0, help="length, seconds")
     ap.add_argument("--out", type=Path, default=Path("motion.bvh"), help="BVH file to write")
-    ap.add_argument("--skeleton-bvh", type=Path,
+    ap.add_argument("--skeleton-bvh", type=input_path,
                     help="BVH whose hierarchy, offsets and channel order the output uses (default: the "
                          "run's skeleton, or the 100STYLE skeleton for the released network)")
     ap.add_argument("--foot-lock", action="store_true", help="pin feet in predicted contact (leg IK)")
@@ -137,12 +137,12 @@ def style_condition(args, lib: StyleLibrary, n: int, fps: float):
 
 
 def run(args) -> int:
+    src = Source(args)                   # first: the files it reads may not be outputs (checked next)
     out = check_writable(args.out, "--out")
     for flag in ("png", "gif", "html"):  # every picture checked (path, tools) before the rollout
         if getattr(args, flag):
             check_writable(getattr(args, flag), f"--{flag}")
             check_output_tools(getattr(args, flag), flag)
-    src = Source(args)
     lib = src.library
     if args.list_styles:
         print(" ".join(lib.names))

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from minifilm.cli.args import png_path, seconds_at_least
+from minifilm.cli.args import input_path, png_path, seconds_at_least
 from minifilm.files import check_writable
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.skeletons import builtin_skeleton, detect_skeleton
@@ -28,7 +28,7 @@ HELP = "draw a BVH file's contacts and local phases (Figure 4)"
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("bvh", type=Path, help="the BVH file")
+    parser.add_argument("bvh", type=input_path, help="the BVH file")
     parser.add_argument("--out", type=png_path, default=Path("phases.png"), help="PNG to write (default phases.png)")
     parser.add_argument("--skeleton", default=None, help="built-in skeleton name (default: detected)")
     parser.add_argument("--style", default=None, help="style name, e.g. LeftHop (chooses the sources)")

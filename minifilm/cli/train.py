@@ -10,9 +10,8 @@ Writes a run folder (--out, default runs/train_small) that ``minifilm generate -
 from __future__ import annotations
 
 from dataclasses import replace
-from pathlib import Path
 
-from minifilm.cli.args import in_range, output_folder, positive
+from minifilm.cli.args import in_range, input_path, output_folder, positive
 from minifilm.errors import InputError
 from minifilm.pipeline.train_small import Settings
 from minifilm.pipeline.train_small import run as run_job
@@ -22,7 +21,7 @@ HELP = "the main job: synthetic or your data -> trained model -> generated motio
 
 def add_arguments(parser) -> None:
     d = Settings()
-    parser.add_argument("--data", type=Path, help="folder of <Style>_<Gait>.bvh files, or a CSV manifest "
+    parser.add_argument("--data", type=input_path, help="folder of <Style>_<Gait>.bvh files, or a CSV manifest "
                         "(file,style,gait[,start,end]) for other datasets (default: synthetic data)")
     parser.add_argument("--out", type=output_folder, default=d.out, help=f"output (run) folder (default {d.out})")
     parser.add_argument("--epochs", type=in_range(1, 100_000, int), help=f"training epochs (default {d.epochs})")

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from minifilm.cli.args import in_range, positive
+from minifilm.cli.args import in_range, input_path, positive
 from minifilm.files import check_writable
 from minifilm.viewer.builders import track_with_contacts
 from minifilm.viewer.deps import check_output_tools
@@ -24,7 +24,7 @@ HELP = "show BVH files as an animated GIF and an offline 3-D HTML player"
 
 
 def add_arguments(ap) -> None:
-    ap.add_argument("files", nargs="+", type=Path, help="BVH files, one character each")
+    ap.add_argument("files", nargs="+", type=input_path, help="BVH files, one character each")
     ap.add_argument("--gif", type=Path, help="animated GIF to write")
     ap.add_argument("--mp4", type=Path, help="MP4 to write (needs ffmpeg on the PATH)")
     ap.add_argument("--html", type=Path, help="self-contained HTML player to write")

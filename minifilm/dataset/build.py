@@ -34,6 +34,7 @@ from minifilm.dataset.stats import NormStats
 from minifilm.dataset.survey import check_memory, survey
 from minifilm.dataset.validate import check_every_style_trains, check_finite
 from minifilm.errors import DataError
+from minifilm.files import check_name, note_input
 from minifilm.features.compute import clip_features_from_arrays, frame_features_from_arrays, motion_arrays
 from minifilm.features.layout import FeatureLayout
 from minifilm.motion.bvh import read_bvh
@@ -46,13 +47,17 @@ def resolve_files(source: Union[str, Path, Sequence[MotionFile]]) -> List[Motion
     """A folder (100STYLE or Bandai Namco naming), a .csv manifest, or a list of MotionFile."""
     if isinstance(source, (str, Path)):
         p = Path(source)
-        if p.suffix.lower() == ".csv":
-            return read_manifest(p)
-        return scan_folder(p)
-    files = list(source)
-    if not files or not all(isinstance(f, MotionFile) for f in files):
-        raise TypeError("build_dataset: source must be a folder, a .csv manifest or a non-empty list "
-                        "of minifilm.dataset.manifest.MotionFile")
+        files = read_manifest(p) if p.suffix.lower() == ".csv" else scan_folder(p)
+        note_input(p)
+    else:
+        files = list(source)
+        if not files or not all(isinstance(f, MotionFile) for f in files):
+            raise TypeError("build_dataset: source must be a folder, a .csv manifest or a non-empty list "
+                            "of minifilm.dataset.manifest.MotionFile")
+    for f in files:             # names from data become file names: one rule (minifilm/files/names.py)
+        check_name(f.style, f"{f.path}: style")
+        check_name(f.gait, f"{f.path}: gait")
+        note_input(f.path)      # no output of this command may replace a file it learns from
     return files
 
 

@@ -18,6 +18,7 @@ import numpy as np
 
 from minifilm.dataset.manifest import MotionFile
 from minifilm.dataset.settings import DatasetSettings
+from minifilm.files import open_regular
 
 #: Bump when the meaning of the cached arrays changes without any source file changing.
 CACHE_FORMAT = 1
@@ -55,8 +56,9 @@ def dataset_cache_key(files: Sequence[MotionFile], settings: DatasetSettings, sk
 def cached_key(path: Path) -> Optional[str]:
     """The key stored in a cache file (reads only its small 'meta' entry); None if unreadable."""
     try:
-        with np.load(path, allow_pickle=False) as d:
+        with open_regular(path, "dataset cache") as f, np.load(f, allow_pickle=False) as d:
             key = json.loads(str(d["meta"])).get("cache_key")
         return key if isinstance(key, str) else None
-    except (OSError, ValueError, KeyError, AttributeError, EOFError, MemoryError, zipfile.BadZipFile, zlib.error):
-        return None         # a broken cache is rebuilt
+    except (OSError, ValueError, KeyError, AttributeError, EOFError, MemoryError, RecursionError,
+            zipfile.BadZipFile, zlib.error):
+        return None         # a broken cache (or something else under its name) is rebuilt

@@ -22,7 +22,7 @@ from minifilm.dataset.stats import NormStats
 from minifilm.errors import DataError
 from minifilm.features.compute import trajectory_offsets, trajectory_sample_frames
 from minifilm.features.layout import FeatureLayout
-from minifilm.files import atomic_savez, read_npz
+from minifilm.files import atomic_savez, parse_json, read_npz
 
 
 @dataclass
@@ -163,7 +163,7 @@ class Dataset:
     def load(cls, path: Union[str, Path]) -> "Dataset":
         d = read_npz(path, "dataset cache", DataError, max_bytes=None)
         try:
-            meta = json.loads(str(d["meta"]))
+            meta = parse_json(str(d["meta"]), f"dataset cache {path}: 'meta'", DataError)
             splits = {name: Split(*(d[f"{name}/{key}"] for key in _SPLIT_ARRAYS)) for name in SPLITS}
             norm = NormStats.from_arrays(d, prefix="norm/")
         except (KeyError, ValueError, TypeError) as e:

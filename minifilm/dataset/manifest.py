@@ -12,19 +12,23 @@ Two sources (used by :func:`minifilm.dataset.build.build_dataset`):
 """
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
+import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import List, Optional, Sequence, Union
+from typing import Iterator, List, Optional, Sequence, Union
 
-from minifilm.files import atomic_write
+from minifilm.files import atomic_write, check_name, check_regular, open_regular
 
 #: 100STYLE gait codes: forwards / backwards / sideways walk and run, idle, transitions.
 STYLE100_GAITS = ("BR", "BW", "FR", "FW", "ID", "SR", "SW")
-_STYLE100_NAME = re.compile(r"^(?P<style>[A-Za-z0-9]+)_(?P<gait>BR|BW|FR|FW|ID|SR|SW|TR\d*)\.bvh$")
-_BANDAI_NAME = re.compile(r"^dataset-(?P<set>\d+)_(?P<content>[a-z\-]+)_(?P<style>[a-z]+)_(?P<id>\d+)\.bvh$")
+_STYLE100_NAME = re.compile(r"^(?P<style>[A-Za-z0-9]+)_(?P<gait>BR|BW|FR|FW|ID|SR|SW|TR[0-9]*)\.bvh$")
+_BANDAI_NAME = re.compile(r"^dataset-(?P<set>[0-9]+)_(?P<content>[a-z\-]+)_(?P<style>[a-z]+)_(?P<id>[0-9]+)\.bvh$")
+#: the largest CSV read (100STYLE's Frame_Cuts.csv is 8 KB; a manifest of 100,000 files ~10 MB)
+MAX_CSV_BYTES = 64 << 20
 
 
 @dataclass(frozen=True)
@@ -56,9 +60,9 @@ def scan_100style(folder: Union[str, Path]) -> List[MotionFile]:
     folder = Path(folder)
     if not folder.is_dir():
         raise FileNotFoundError(f"scan_100style: {folder} is not a folder")
-    cuts = read_frame_cuts(folder / "Frame_Cuts.csv") if (folder / "Frame_Cuts.csv").is_file() else {}
+    cuts = read_frame_cuts(folder / "Frame_Cuts.csv") if os.path.lexists(folder / "Frame_Cuts.csv") else {}
     symmetric = (read_symmetric_styles(folder / "Dataset_List.csv")
-                 if (folder / "Dataset_List.csv").is_file() else None)
+                 if os.path.lexists(folder / "Dataset_List.csv") else None)
     out, seen = [], {}
     for path in sorted(folder.rglob("*.bvh"), key=lambda p: (p.name, str(p))):
         m = _STYLE100_NAME.match(path.name)
@@ -78,14 +82,27 @@ def scan_100style(folder: Union[str, Path]) -> List[MotionFile]:
     return out
 
 
-def _dict_rows(csv_path: Path):
+@contextlib.contextmanager
+def _csv_reader(csv_path: Path, encoding: str = "utf-8-sig") -> Iterator[csv.DictReader]:
+    """A DictReader over the regular file ``csv_path``; every way its text can be broken (not
+    UTF-8, a field over the csv module's limit, a stray quote) is one ValueError naming the line."""
+    reader = None
     try:
-        with open(csv_path, newline="", encoding="utf-8-sig") as fh:
+        with open_regular(csv_path, "CSV file", MAX_CSV_BYTES) as raw, \
+                io.TextIOWrapper(raw, encoding=encoding, newline="") as fh:
             reader = csv.DictReader(fh)
-            for row in reader:
-                yield reader.line_num, {(k or "").strip(): (v or "").strip() for k, v in row.items()}
+            yield reader
     except UnicodeDecodeError as e:
         raise _not_utf8(csv_path, e) from None
+    except csv.Error as e:
+        line = f": line {reader.line_num}" if reader is not None else ""
+        raise ValueError(f"{csv_path}{line}: not a readable CSV row ({e})") from None
+
+
+def _dict_rows(csv_path: Path):
+    with _csv_reader(csv_path) as reader:
+        for row in reader:
+            yield reader.line_num, {(k or "").strip(): (v or "").strip() for k, v in row.items()}
 
 
 def _not_utf8(csv_path: Path, e: UnicodeDecodeError) -> ValueError:
@@ -134,10 +151,9 @@ def _parse_int(text: str, what: str, where: str) -> Optional[int]:
     text = (text or "").strip()
     if text == "":
         return None
-    try:
-        value = int(text)
-    except ValueError:
-        raise ValueError(f"{where}: column {what!r} must be a whole frame number, got {text!r}") from None
+    if not re.fullmatch(r"-?[0-9]{1,12}", text):     # int() would also take "1_0" and other scripts' digits
+        raise ValueError(f"{where}: column {what!r} must be a whole frame number, got {text[:40]!r}")
+    value = int(text)
     if value < 0:
         raise ValueError(f"{where}: column {what!r} must be >= 0, got {value}")
     return value
@@ -157,16 +173,8 @@ def _parse_bool(text: str, where: str) -> Optional[bool]:
 def read_manifest(csv_path: Union[str, Path]) -> List[MotionFile]:
     """Read a CSV manifest (header ``file,style,gait[,start,end][,mirror]``); errors name the line."""
     csv_path = Path(csv_path)
-    try:
-        return _read_manifest(csv_path)
-    except UnicodeDecodeError as e:
-        raise _not_utf8(csv_path, e) from None
-
-
-def _read_manifest(csv_path: Path) -> List[MotionFile]:
     seen = {}
-    with open(csv_path, newline="", encoding="utf-8") as fh:
-        reader = csv.DictReader(fh)
+    with _csv_reader(csv_path, "utf-8") as reader:
         header = [h.strip() for h in (reader.fieldnames or [])]
         missing = [c for c in ("file", "style", "gait") if c not in header]
         if missing:
@@ -180,11 +188,14 @@ def _read_manifest(csv_path: Path) -> List[MotionFile]:
                 raise ValueError(f"{where}: empty 'file'")
             if not row.get("style") or not row.get("gait"):
                 raise ValueError(f"{where}: 'style' and 'gait' must not be empty")
+            check_name(row["style"], f"{where}: column 'style'")
+            check_name(row["gait"], f"{where}: column 'gait'")
             path = Path(row["file"])
             if not path.is_absolute():
                 path = csv_path.parent / path
-            if not path.is_file():
+            if not os.path.exists(path):
                 raise FileNotFoundError(f"{where}: file {path} does not exist")
+            check_regular(path, f"{where}: file")
             start = _parse_int(row.get("start", ""), "start", where)
             end = _parse_int(row.get("end", ""), "end", where)
             if start is not None and end is not None and end <= start:
@@ -245,6 +256,8 @@ def scan_folder(folder: Union[str, Path]) -> List[MotionFile]:
     (``dataset-N_{content}_{style}_{id}.bvh``) or 100STYLE naming (``<Style>_<Gait>.bvh``, in the
     folder or its sub-folders). For any other naming, write a CSV manifest (:func:`read_manifest`)."""
     folder = Path(folder)
+    if os.path.exists(folder) and not folder.is_dir():
+        raise ValueError(f"{folder}: is a file, not a folder of BVH files or a .csv manifest")
     if not folder.is_dir():
         raise FileNotFoundError(f"{folder}: no such folder")
     if any(_BANDAI_NAME.match(p.name) for p in folder.glob("*.bvh")):

@@ -1,6 +1,6 @@
 """Look at every file of a dataset before building it: frame rates, lengths, and the memory it needs.
 
-Reading only each BVH header (:func:`minifilm.motion.bvh.bvh_timing`), the survey refuses, with one
+Reading only each BVH header (:func:`minifilm.motion.bvh.bvh_header`), the survey refuses, with one
 error naming the files at fault, what would otherwise fail late or blame the wrong file:
 
 * files at different frame rates when no common rate is set (the minority is named, not whichever
@@ -18,7 +18,7 @@ from typing import Dict, List, Optional, Sequence
 
 from minifilm.dataset.manifest import MotionFile
 from minifilm.errors import DataError
-from minifilm.motion.bvh import bvh_timing
+from minifilm.motion.bvh import bvh_header
 
 #: Frames a file needs for one training row (a current frame with a frame before and after it).
 MIN_FRAMES = 3
@@ -32,6 +32,8 @@ class FileSurvey:
     path: Path
     n_frames: int           # frames used: the manifest's range, at the dataset's frame rate
     fps: float              # the file's own rate
+    n_joints: int = 0       # joints in the file's hierarchy (End Sites included): what reading it allocates
+    raw_frames: int = 0     # frames in the file, before cropping and resampling
 
 
 def _round_rate(fps: float) -> float:
@@ -43,7 +45,7 @@ def survey(files: Sequence[MotionFile], fps: Optional[float]) -> Dict[Path, File
     for mixed rates without a common ``fps``, a range outside a file, or a file too short."""
     out: Dict[Path, FileSurvey] = {}
     for f in files:
-        n, frame_time = bvh_timing(f.path)
+        n, frame_time, n_joints = bvh_header(f.path)
         rate = 1.0 / frame_time
         a = 0 if f.start is None else f.start
         b = n if f.end is None else f.end
@@ -53,7 +55,7 @@ def survey(files: Sequence[MotionFile], fps: Optional[float]) -> Dict[Path, File
         if used < MIN_FRAMES:
             raise DataError(f"{f.path}: {used} frame{'s' if used != 1 else ''} to use; a file needs at least "
                             f"{MIN_FRAMES} (one frame with a neighbour on each side)")
-        out[Path(f.path)] = FileSurvey(Path(f.path), used, rate)
+        out[Path(f.path)] = FileSurvey(Path(f.path), used, rate, n_joints, n)
     if fps is None:
         rates = Counter(_round_rate(s.fps) for s in out.values())
         if len(rates) > 1:
@@ -87,8 +89,10 @@ def check_memory(surveyed: Dict[Path, FileSurvey], mirrored: List[bool], layout,
     clip_per_frame = clip_frames * layout.clip_dim * itemsize / max(1, clip_stride_frames)
     frames = sum(s.n_frames * (2 if m else 1) for s, m in zip(surveyed.values(), mirrored))
     arrays = frames * (row + clip_per_frame)
-    biggest = max(s.n_frames for s in surveyed.values())
-    work = biggest * 2 * layout.n_joints * WORK_BYTES_PER_JOINT_FRAME
+    # the file's own joints (a rig may have far more than the skeleton's exported ones), read at
+    # its own rate before any resampling
+    work = max(max(s.n_frames, s.raw_frames) * max(s.n_joints, layout.n_joints) for s in surveyed.values()) \
+        * 2 * WORK_BYTES_PER_JOINT_FRAME
     total = int(arrays + work)
     if total > budget:
         raise DataError(f"the dataset would need about {total / 2**30:.1f} GiB ({frames:,} frames of "

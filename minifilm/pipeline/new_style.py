@@ -11,7 +11,6 @@ checked before anything is written.
 from __future__ import annotations
 
 import math
-import re
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,13 +25,10 @@ from minifilm.motion.editing import mirror, resample
 from minifilm.motion.motion import Motion
 from minifilm.motion.skeletons import builtin_skeleton
 from minifilm.phases.label import label
-from minifilm.files import check_writable
+from minifilm.files import check_name, check_writable, child_path, folder_lock
 from minifilm.pipeline.run_folder import RunFolder
 from minifilm.train.finetune import finetune
 from minifilm.train.trainer import TrainConfig, Trainer
-
-NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9 _.+-]{0,63}$")
-
 
 @dataclass
 class NewStyleResult:
@@ -47,10 +43,8 @@ class NewStyleResult:
     checkpoint: Path
 
 
-def check_name(name: str, run: RunFolder, replace: bool) -> None:
-    if not NAME.match(name or ""):
-        raise ValueError(f"--name {name!r}: use 1-64 letters, digits, spaces or _ . + - (starting with a "
-                         "letter or digit)")
+def check_new_name(name: str, run: RunFolder, replace: bool) -> None:
+    check_name(name, "--name")
     if name in run.styles() and not replace:
         raise ValueError(f"--name {name!r}: the run already has a style of that name (--replace to overwrite it)")
 
@@ -113,11 +107,19 @@ def teach_style(run_path, name: str, files: Sequence, steps: int = 400, lr: floa
                 replace: bool = False, log: Callable[[str], None] = print, with_mirror: bool = False) -> NewStyleResult:
     """Fine-tune the run's Ψ on ``files`` and add ``name`` to its style library (see the module
     docstring). Raises ValueError naming the file or setting that is wrong; the run folder is then
-    untouched."""
-    run = RunFolder.load(run_path)
-    check_name(name, run, replace)
-    for written in (f"model-{name}.npz", "styles.npz", "starts.npz"):   # before the work, not after it
-        check_writable(run.path / written, f"run folder {run.path}:")
+    untouched. The run folder is locked meanwhile: a second command writing it is refused."""
+    RunFolder.load(run_path)                    # a run folder at all, before a lock file is made beside it
+    with folder_lock(run_path):
+        return _teach_style(RunFolder.load(run_path), name, files, steps, lr, seed, replace, log, with_mirror)
+
+
+def _teach_style(run: RunFolder, name: str, files: Sequence, steps: int, lr: float, seed: int, replace: bool,
+                 log: Callable[[str], None], with_mirror: bool) -> NewStyleResult:
+    log(f"[finetune] teaching {run.path} the style {name!r} from {len(files)} file(s)")
+    check_new_name(name, run, replace)
+    checkpoint = child_path(run.path, f"model-{name}", ".npz")
+    for written in (checkpoint, run.path / "styles.npz", run.path / "starts.npz"):   # before the work
+        check_writable(written, f"run folder {run.path}:")
     files = [Path(f) for f in files]
     if not files:
         raise ValueError("no clip given: name one or more BVH files of the new style")
@@ -140,7 +142,6 @@ def teach_style(run_path, name: str, files: Sequence, steps: int = 400, lr: floa
     others = [n for n in library.names if n != name]
     nearest = min(others, key=lambda n: float(np.linalg.norm(library[n] - library[name]))) if others else ""
     # styles.npz last: the new style exists for a reader only once its checkpoint and start are there
-    checkpoint = run.path / f"model-{name}.npz"
     tuned.save(checkpoint)
     starts = run.starts()
     starts[name] = start

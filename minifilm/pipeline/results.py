@@ -15,9 +15,11 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import Optional
 
 import numpy as np
 
+from minifilm.files import file_names
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.pipeline.run_folder import RunFolder
 from minifilm.runtime.control import make_script
@@ -50,7 +52,9 @@ def test_table(trainer: Trainer, ds) -> dict:
     return result
 
 
-def save_loss_curve(history, path: Path) -> None:
+def save_loss_curve(history, path: Path, shown: Optional[Path] = None) -> None:
+    """The training and validation losses per epoch as a PNG at ``path`` (``shown``: the path to
+    print, when the file is written in a run still being built)."""
     from minifilm.viewer.deps import pyplot, save_figure      # the viewer loads only when drawing
     try:
         plt = pyplot()
@@ -69,7 +73,7 @@ def save_loss_curve(history, path: Path) -> None:
     ax.set_title("minifilm train_small: LPN + FiLM")
     fig.tight_layout()
     save_figure(fig, path, dpi=100)
-    log(f"[plot] loss curve saved to {path}")
+    log(f"[plot] loss curve saved to {shown or path}")
 
 
 def style_library(trainer: Trainer, ds) -> StyleLibrary:
@@ -81,11 +85,13 @@ def style_library(trainer: Trainer, ds) -> StyleLibrary:
     return library
 
 
-def generate_per_style(trainer: Trainer, ds, run: RunFolder, library: StyleLibrary, template, seconds: float):
+def generate_per_style(trainer: Trainer, ds, run: RunFolder, library: StyleLibrary, template, seconds: float,
+                       shown: Optional[Path] = None):
     """One BVH per style from the autoregressive runtime (Sec. 4.4): a figure-eight path, the motion
     put back on the source skeleton. Each style starts in mid-stride from a frame of its own forward
     walk (pose, trajectory and phases): from the data's mean pose a network this small may never
-    get going."""
+    get going. The files are ``generated/<style>.bvh`` in ``run``, named safely after the styles
+    (minifilm/files/names.py); ``shown`` is the run folder to print."""
     network = RuntimeNetwork.from_model(trainer.model, trainer.stats)
     # every frame is put on the source skeleton (rigid bones); the network keeps seeing its own
     # prediction (fed back, the fitted pose made small models stop stepping more often:
@@ -96,6 +102,7 @@ def generate_per_style(trainer: Trainer, ds, run: RunFolder, library: StyleLibra
     n_frames = int(round(seconds * ds.fps))
     out = run.path / "generated"
     out.mkdir(exist_ok=True)
+    files = file_names(ds.styles)
     starts = run.starts()
     log(f"[generate] {seconds:g} s per style along a figure-eight:")
     rollouts = {}
@@ -107,8 +114,9 @@ def generate_per_style(trainer: Trainer, ds, run: RunFolder, library: StyleLibra
         except NonFiniteOutputError:     # an under-trained model: say so, and go on with the others
             log(f"    {name:<14} diverged (the network's output became non-finite); no BVH written")
             continue
-        path = out / f"{name}.bvh"
+        path = out / f"{files[name]}.bvh"
         write_bvh(rollout.to_motion(template, joints), path, scale=run.bvh_scale)
+        path = (shown or run.path) / "generated" / path.name
         hips = rollout.positions[0, :, 0, 1]
         speed = np.linalg.norm(np.diff(rollout.root_positions[0], axis=0), axis=1).mean() * ds.fps
         log(f"    {name:<14} hips {hips.mean():.2f} m  speed {speed:.2f} m/s   -> {path}")
@@ -121,7 +129,7 @@ def style_recognition(ds, rollouts: dict, seed: int = 0) -> dict:
     style's generated motion (after its first second) that a style classifier trained on the
     run's own data recognises as that style (minifilm/evaluation/style_classifier.py). Its
     accuracy on the data's held-out rows is the ceiling."""
-    from minifilm.evaluation.style_classifier import classify_rollout, train_style_classifier
+    from minifilm.evaluation.style_classifier import classify_rollout, train_style_classifier  # loaded when used
     t0 = time.perf_counter()
     classifier, info = train_style_classifier(ds, seed=seed)
     per_style = {}
@@ -141,22 +149,25 @@ def style_recognition(ds, rollouts: dict, seed: int = 0) -> dict:
     return {"per_style": per_style, "mean": mean, "heldout": info["heldout_acc"]}
 
 
-def show_styles(rollouts: dict, layout, out: Path, gif_seconds: float = 6.0) -> None:
+def show_styles(rollouts: dict, layout, out: Path, gif_seconds: float = 6.0, shown: Optional[Path] = None) -> None:
     """See the result: every style's generated motion side by side in an animated GIF (the first
-    ``gif_seconds``) and in the offline HTML player (all of it)."""
+    ``gif_seconds``) and in the offline HTML player (all of it), written into ``out`` (``shown``:
+    the folder to print)."""
+    # the viewer loads only when the pictures are drawn (not when the job is imported)
     from minifilm.viewer.builders import tracks_from_rollout
     from minifilm.viewer.gif import write_gif
     from minifilm.viewer.html import write_html
+    shown = shown or out
     names = list(rollouts)
     if not names:
         log("[view] no generated motion to show")
         return
     toes = [layout.joint_names.index(t) for t in ("RightToe", "LeftToe")] if "RightToe" in layout.joint_names else None
     tracks = [tracks_from_rollout(rollouts[n], layout.parents, [n], layout.joint_names, toes)[0] for n in names]
-    html = write_html(tracks, out / "index.html", title="minifilm: generated styles")
-    log(f"[view] every style in a 3-D player (opens offline in a browser): {html}")
+    write_html(tracks, out / "index.html", title="minifilm: generated styles")
+    log(f"[view] every style in a 3-D player (opens offline in a browser): {shown / 'index.html'}")
     try:
         write_gif(tracks, out / "styles.gif", seconds=gif_seconds, size=(200, 250))
-        log(f"[view] every style side by side, first {gif_seconds:g} s: {out / 'styles.gif'}")
+        log(f"[view] every style side by side, first {gif_seconds:g} s: {shown / 'styles.gif'}")
     except ImportError as e:
         log(f"[view] no GIF: {e}")

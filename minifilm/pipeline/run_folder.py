@@ -13,14 +13,16 @@ demo read it, from any working directory:
 Nothing here is pickled; every array file loads with ``allow_pickle=False``.
 
 ``run.json`` is what makes a folder a run: it is written last (:meth:`RunFolder.commit`), after
-every other file, and removed first when a run is written again (:meth:`RunFolder.retire`), so a
-training killed midway never leaves something that looks like a run but is not one.
+every other file. ``minifilm train`` builds a run in a new folder beside the old one and swaps it in
+whole when it is complete, holding a lock on the folder meanwhile (``minifilm.pipeline.train_small.run``),
+so a training stopped midway leaves the earlier run as it was, never something that looks like a run
+but is not one; ``minifilm finetune`` holds the same lock while it adds a style.
 """
 from __future__ import annotations
 
-import contextlib
 import json
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Dict, Optional, Sequence, Tuple
@@ -30,7 +32,7 @@ import numpy as np
 from minifilm.dataset.stats import NormStats
 from minifilm.errors import InputError, check_fps
 from minifilm.features.layout import FeatureLayout
-from minifilm.files import atomic_savez, atomic_write_text, read_npz
+from minifilm.files import atomic_savez, atomic_write_text, check_name, check_regular, note_input, read_json, read_npz
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.motion.motion import Motion
@@ -41,6 +43,15 @@ from minifilm.train.checkpoint import CheckpointError, build_style_model, load_c
 
 FORMAT = "minifilm-run-1"
 MANIFEST = "run.json"
+#: every name a run folder holds (model-<NAME>.npz: a fine-tuned style's checkpoint): a folder with
+#: anything else in it is not replaced by a new run
+RUN_ENTRIES = {MANIFEST, "model.npz", "styles.npz", "starts.npz", "skeleton.bvh", "loss_curve.png", "data",
+               "cache", "generated"}
+
+
+def is_run_entry(name: str) -> bool:
+    """Whether ``name`` is something a run folder holds (see RUN_ENTRIES)."""
+    return name in RUN_ENTRIES or (name.startswith("model-") and name.endswith(".npz"))
 
 
 class RunFolderError(InputError):
@@ -59,12 +70,6 @@ class RunFolder:
     position_bias: float
 
     # ---- writing ----------------------------------------------------------------------------
-    @staticmethod
-    def retire(path) -> None:
-        """Make ``path`` no longer a run (remove its run.json) before it is written again."""
-        with contextlib.suppress(FileNotFoundError):
-            (Path(path) / MANIFEST).unlink()
-
     @classmethod
     def prepare(cls, path, layout: FeatureLayout, fps: float, skeleton_name: str, bvh_scale: float,
                 template: Motion, position_bias: float) -> "RunFolder":
@@ -96,13 +101,19 @@ class RunFolder:
         if not path.is_dir():
             raise RunFolderError(f"run folder {path}: no such folder")
         manifest = path / MANIFEST
-        if not manifest.is_file():
+        if not os.path.lexists(manifest):
             raise RunFolderError(f"run folder {path}: no {MANIFEST} (not a folder written by minifilm train)")
+        meta = read_json(note_input(manifest), f"run folder {path}:", RunFolderError)
         try:
-            meta = json.loads(manifest.read_text(encoding="utf-8"))
+            if not isinstance(meta, dict):
+                raise ValueError(f"a {type(meta).__name__}, expected an object")
             if meta.get("format") != FORMAT:
                 raise ValueError(f"format {meta.get('format')!r}, expected {FORMAT!r}")
+            for key in ("fps", "bvh_scale", "position_bias"):     # JSON's true is no number here
+                if key in meta and (isinstance(meta[key], bool) or not isinstance(meta[key], (int, float))):
+                    raise ValueError(f"{key} {meta[key]!r}: expected a number")
             fps = check_fps(meta["fps"], "fps")
+            check_name(meta["skeleton"], "skeleton", ValueError)
             bvh_scale, bias = float(meta["bvh_scale"]), float(meta.get("position_bias", 0.75))
             if not (math.isfinite(bvh_scale) and bvh_scale > 0):
                 raise ValueError(f"bvh_scale {bvh_scale}: must be a positive number")
@@ -114,13 +125,14 @@ class RunFolder:
 
     def _file(self, name: str) -> Path:
         p = self.path / name
-        if not p.is_file():
+        if not os.path.lexists(p):
             raise RunFolderError(f"run folder {self.path}: missing {name}")
+        check_regular(p, f"run folder {self.path}:", RunFolderError)
         return p
 
     @property
     def checkpoint(self) -> Path:
-        return self._file("model.npz")
+        return note_input(self._file("model.npz"))     # read, never written by a command that reads it
 
     def model_and_stats(self):
         """(StyleModel with its trained weights, NormStats) from model.npz."""
@@ -152,7 +164,7 @@ class RunFolder:
     def starts(self) -> Dict[str, Tuple[np.ndarray, np.ndarray]]:
         """style -> (x (x_dim,), p (8,)); empty when the folder has no starts.npz."""
         path = self.path / "starts.npz"
-        if not path.is_file():
+        if not os.path.lexists(path):
             return {}
         where = f"run folder {self.path}: starts.npz"
         d = read_npz(path, f"run folder {self.path}: start frames", RunFolderError)
@@ -168,11 +180,13 @@ class RunFolder:
                                  f"(S, {self.layout.x_dim}), (S, 8)")
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(p))):
             raise RunFolderError(f"{where}: non-finite values")
+        for i, n in enumerate(names.tolist()):
+            check_name(n, f"{where}: style {i}", RunFolderError)
         return {str(n): (x[i], p[i]) for i, n in enumerate(names.tolist())}
 
     def template(self) -> Motion:
         """The source skeleton (one frame), in metres."""
-        return read_bvh(self._file("skeleton.bvh"), scale=self.bvh_scale)
+        return read_bvh(note_input(self._file("skeleton.bvh")), scale=self.bvh_scale)
 
     def network(self) -> RuntimeNetwork:
         model, stats = self.model_and_stats()

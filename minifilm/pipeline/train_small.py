@@ -16,8 +16,9 @@ Steps (each prints what it did):
               style classifier recognises each style in it, and pictures of it (GIF, HTML player)
               (results.py).
 
-``run`` is ``begin`` (steps 1-3), ``train`` (step 4: the Trainer's epochs) and ``finish`` (step 5);
-examples/train_small.py calls ``begin`` and ``finish`` too and writes step 4's loop out itself.
+``run`` is ``with main_job(...) as job`` (steps 1-3, the locked run folder built aside and swapped
+in at the end), ``train`` (step 4: the Trainer's epochs) and ``finish`` (step 5);
+examples/train_small.py uses ``main_job`` and ``finish`` too and writes step 4's loop out itself.
 
 Everything is written to the run folder --out (default runs/train_small; see run_folder.py):
 data/, model.npz (checkpoint with the normalisation statistics), styles.npz (FiLM vector per
@@ -26,7 +27,8 @@ result: generated/styles.gif (every style side by side) and generated/index.html
 """
 from __future__ import annotations
 
-import shutil
+import contextlib
+import os
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -36,12 +38,13 @@ import numpy as np
 
 from minifilm.dataset.build import build_dataset, resolve_files
 from minifilm.errors import DataError, InputError
+from minifilm.files import atomic_directory, folder_lock
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
 from minifilm.motion.bvh import bvh_duration, read_bvh
 from minifilm.motion.skeletons import STYLE100, builtin_skeleton
 from minifilm.phases.label import label
-from minifilm.pipeline.run_folder import RunFolder
+from minifilm.pipeline.run_folder import RunFolder, is_run_entry
 from minifilm.pipeline.results import (generate_per_style, save_loss_curve, show_styles,  # noqa: F401
                                        style_library, style_recognition, test_table)
 from minifilm.runtime.controller import start_from_dataset
@@ -147,7 +150,7 @@ def new_trainer(job: "Job") -> Trainer:
     trainer = Trainer(model, ds.stats,
                       TrainConfig(epochs=s.epochs, batch_size=s.batch_size, lr=s.learning_rate, seed=s.seed,
                                   lr_schedule=s.lr_schedule, clips_per_batch=s.clips_per_batch,
-                                  checkpoint_path=str(job.out / "model.npz")),
+                                  checkpoint_path=str(job.work / "model.npz")),
                       positions_idx=layout.joint_columns("z", "position"), parents=np.asarray(layout.parents),
                       style_names=ds.styles)
     n_params = sum(p.size for p in model.parameter_sets())
@@ -230,64 +233,77 @@ def prepare_data(s: Settings, data: Optional[Path], out: Path):
 
 @dataclass
 class Job:
-    """The main job under way: its settings, the data folder (None: synthetic), the run folder,
-    the dataset and the time it started."""
+    """The main job under way: its settings, the data folder (None: synthetic), the run folder
+    ``out``, the folder ``work`` the run is built in (swapped in for ``out`` when complete), the
+    dataset and the time it started."""
 
     settings: Settings
     data: Optional[Path]
     out: Path
+    work: Path
     ds: object
     t_start: float
 
 
-def begin(s: Settings, data: Optional[Path] = None) -> Job:
-    """Steps 1-3: check the settings, make the synthetic data (with its phase check) unless
-    ``data`` is given, build the dataset. Nothing is written before the checks; a failure here
-    removes a run folder it made, and an earlier run in the folder stays whole until now."""
+@contextlib.contextmanager
+def main_job(s: Settings, data: Optional[Path] = None):
+    """Steps 1-3 (check the settings, make the synthetic data with its phase check unless ``data``
+    is given, build the dataset), then the body of the ``with`` block (training and ``finish``).
+
+    The run is built in a new folder beside ``s.out`` and swapped in whole when the block ends
+    without an error (minifilm/files/atomic.py), with the folder locked meanwhile
+    (minifilm/files/lock.py): an earlier run there stays whole and usable until then, whatever
+    stops this one (an error, Ctrl-C, SIGTERM, SIGKILL), and a second command writing the same
+    folder is refused. Yields a :class:`Job`."""
     check_inputs(s, data)          # before the run folder is touched
     out = Path(s.out)
-    new_folder = not out.exists()
-    out.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
-    try:
-        ds = prepare_data(s, data, out)
-    except BaseException:
-        if new_folder:             # a failure before training leaves no half-made folder behind
-            shutil.rmtree(out, ignore_errors=True)
-        raise
-    # An earlier run in this folder stays whole until training starts writing over it; from here
-    # the folder is a run again only when this one is complete (run_folder.py).
-    RunFolder.retire(out)
-    return Job(s, data, out, ds, t_start)
+    with folder_lock(out), atomic_directory(out, "run folder", replaceable=is_run_entry) as work:
+        reuse_cache(out / "cache", work / "cache")
+        ds = prepare_data(s, data, work)
+        yield Job(s, data, out, work, ds, t_start)
+    log(f"[done] {time.perf_counter() - t_start:.0f} s in all; outputs in {out}")
 
 
 def finish(job: Job, trainer: Trainer) -> dict:
-    """Step 5 and after: checkpoint, test table, loss curve, style library, generated motion,
-    style recognition, pictures; the run folder is committed. Returns the test result (MSE per
-    style) with the style recognition under 'recognition'."""
-    ds, out, s = job.ds, job.out, job.settings
-    trainer.save(out / "model.npz")
+    """Step 5: checkpoint, test table, loss curve, style library, generated motion, style
+    recognition, pictures, written into the run being built (printed with the run folder's
+    paths). Returns the test result (MSE per style) with the style recognition under
+    'recognition'."""
+    ds, out, work, s = job.ds, job.out, job.work, job.settings
+    trainer.save(work / "model.npz")
     log(f"[train] checkpoint (model, optimiser, normalisation statistics) saved to {out / 'model.npz'}")
     result = test_table(trainer, ds)
-    save_loss_curve(trainer.history, out / "loss_curve.png")
+    save_loss_curve(trainer.history, work / "loss_curve.png", shown=out / "loss_curve.png")
 
     skeleton = builtin_skeleton(ds.skeleton)
     template = read_bvh(ds.files[0]["path"], scale=skeleton.bvh_scale)   # the source skeleton, its own units
-    folder = RunFolder.prepare(out, ds.layout, ds.fps, ds.skeleton, skeleton.bvh_scale, template,
+    folder = RunFolder.prepare(work, ds.layout, ds.fps, ds.skeleton, skeleton.bvh_scale, template,
                                s.position_bias)
     library = style_library(trainer, ds)
-    library.save(out / "styles.npz")
+    library.save(work / "styles.npz")
     folder.save_starts({name: start_from_dataset(ds, name) for name in ds.styles})
-    rollouts = generate_per_style(trainer, ds, folder, library, template, s.generate_seconds)
+    rollouts = generate_per_style(trainer, ds, folder, library, template, s.generate_seconds, shown=out)
     result["recognition"] = style_recognition(ds, rollouts, s.seed)
-    show_styles(rollouts, ds.layout, out / "generated", min(6.0, s.generate_seconds))
+    show_styles(rollouts, ds.layout, work / "generated", min(6.0, s.generate_seconds), shown=out / "generated")
     folder.commit()
-    log(f"[done] {time.perf_counter() - job.t_start:.0f} s in all; outputs in {out}")
     return result
 
 
 def run(s: Settings, data: Optional[Path] = None) -> dict:
     """The whole main job (``minifilm train``); returns the test result (MSE per style) with the
     style recognition of the generated motion under 'recognition'."""
-    job = begin(s, data)
-    return finish(job, train(job))
+    with main_job(s, data) as job:
+        result = finish(job, train(job))
+    return result
+
+
+def reuse_cache(old: Path, new: Path) -> None:
+    """Link the dataset caches of the run being replaced into the new one (a cache of your own
+    data takes a while to build); the old run's files stay as they are."""
+    if not old.is_dir():
+        return
+    new.mkdir(parents=True, exist_ok=True)
+    for f in old.glob("dataset-*.npz"):
+        with contextlib.suppress(OSError):
+            os.link(f, new / f.name)

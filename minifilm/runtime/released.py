@@ -20,6 +20,7 @@ vectors from unit 0.
 """
 from __future__ import annotations
 
+import os
 import re
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -28,7 +29,7 @@ import numpy as np
 
 from minifilm.dataset.stats import NormStats
 from minifilm.errors import InputError
-from minifilm.files import atomic_directory
+from minifilm.files import atomic_directory, check_name, check_regular, read_regular_bytes
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
 from minifilm.runtime.network import RuntimeNetwork
@@ -75,9 +76,9 @@ class ReleasedNetwork:
 
 
 def _n_floats(path: Path) -> int:
-    if not path.is_file():
+    if not os.path.lexists(path):
         raise ReleasedFormatError(f"released network: missing file {path}")
-    size = path.stat().st_size
+    size = check_regular(path, "released network: file", ReleasedFormatError).st_size
     if size % 4:
         raise ReleasedFormatError(f"released network: {path} has {size} bytes, not a whole number of float32")
     return size // 4
@@ -90,7 +91,10 @@ def _read(directory: Path, name: str, shape) -> np.ndarray:
     if n != expected:
         raise ReleasedFormatError(f"released network: {path} holds {n} float32, expected {expected} "
                                   f"(shape {tuple(shape)})")
-    values = np.fromfile(path, dtype="<f4").reshape(shape)
+    raw = read_regular_bytes(path, "released network: file", 4 * expected, ReleasedFormatError)
+    if len(raw) != 4 * expected:                   # changed since its size was read
+        raise ReleasedFormatError(f"released network: {path} changed while being read")
+    values = np.frombuffer(raw, dtype="<f4").reshape(shape).copy()
     if not np.all(np.isfinite(values)):
         bad = np.flatnonzero(~np.isfinite(values.ravel()))
         raise ReleasedFormatError(f"released network: {path} holds {len(bad)} non-finite value(s) (first at "
@@ -100,29 +104,30 @@ def _read(directory: Path, name: str, shape) -> np.ndarray:
 
 def _read_style_names(directory: Path) -> dict:
     path = directory / "styles.txt"
-    names = {}
-    if not path.is_file():
+    names, taken = {}, set()
+    if not os.path.lexists(path):
         return names
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_regular_bytes(path, "released network: style list", 1 << 20, ReleasedFormatError).decode("utf-8")
     except UnicodeDecodeError as e:
         raise ReleasedFormatError(f"{path}: not UTF-8 text ({e.reason} at byte {e.start})") from None
     for lineno, line in enumerate(text.splitlines(), start=1):
         if not line.strip():
             continue
         parts = line.split(maxsplit=1)
-        if len(parts) != 2 or not re.fullmatch(r"\d{3}", parts[0]):
-            raise ReleasedFormatError(f"{path}, line {lineno}: expected 'sss Name', got {line!r}")
-        sid, name = parts[0], parts[1].strip()
+        if len(parts) != 2 or not re.fullmatch(r"[0-9]{3}", parts[0]):
+            raise ReleasedFormatError(f"{path}, line {lineno}: expected 'sss Name', got {line[:80]!r}")
+        sid, name = parts[0], check_name(parts[1].strip(), f"{path}, line {lineno}", ReleasedFormatError)
         if sid in names:
             raise ReleasedFormatError(f"{path}, line {lineno}: style id {sid} is named twice "
                                       f"({names[sid]!r} and {name!r})")
-        if name in names.values():
+        if name in taken:
             raise ReleasedFormatError(f"{path}, line {lineno}: the name {name!r} is given to two style ids")
         if not (directory / f"Style_{sid}_scale1.bin").is_file():
             raise ReleasedFormatError(f"{path}, line {lineno}: names style {sid} ({name!r}), but there is no "
                                       f"Style_{sid}_scale1.bin (nor its other three files)")
         names[sid] = name
+        taken.add(name)
     return names
 
 
@@ -200,12 +205,12 @@ def write_released(model: StyleModel, stats: NormStats, styles: dict, directory)
     if not 1 <= len(styles) <= 1000:
         raise InputError(f"write_released: {len(styles)} styles; the layout numbers them 000-999")
     for name, film in styles.items():           # check everything before writing anything
-        if not isinstance(name, str) or not name.strip() or any(c in name for c in "\r\n") or name != name.strip():
-            raise InputError(f"write_released: style name {name!r} must be one line without surrounding spaces")
+        check_name(name, "write_released: style name")
         if np.shape(film) != (4 * H,) or not np.all(np.isfinite(film)):
             raise InputError(f"write_released: style {name!r} has shape {np.shape(film)}, expected ({4 * H},) "
                              "finite numbers")
-    with atomic_directory(directory) as d:
+    with atomic_directory(directory, "released network folder",
+                          replaceable=lambda n: n.endswith(".bin") or n == "styles.txt") as d:
         for name, arr in (("Xmean", stats.x_mean), ("Xstd", stats.x_std), ("Ymean", stats.z_mean),
                           ("Ystd", stats.z_std), ("GT_Xmean", stats.p_mean), ("GT_Xstd", stats.p_std)):
             _write(d, name, arr)

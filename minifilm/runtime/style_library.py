@@ -15,12 +15,13 @@ Stored as ``.npz`` with two arrays, ``names`` (S,) unicode and ``films`` (S, D);
 from __future__ import annotations
 
 import os
+from collections import Counter
 from typing import Dict, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
 from minifilm.errors import InputError
-from minifilm.files import atomic_savez, read_npz
+from minifilm.files import atomic_savez, check_name, read_npz
 
 __all__ = ["StyleLibrary", "StyleLibraryError", "UnknownStyleError", "blend_film", "smoothstep"]
 
@@ -88,12 +89,12 @@ class StyleLibrary:
         try:
             return self._films[name]
         except KeyError:
-            raise UnknownStyleError(f"style {name!r} is not in the library; known styles: {self.names}") from None
+            known = ", ".join(self.names[:20]) + (f" and {len(self) - 20} more" if len(self) > 20 else "")
+            raise UnknownStyleError(f"style {name!r} is not in the library; known styles: {known}") from None
 
     def add(self, name: str, film: np.ndarray) -> None:
         """Add or replace one style's FiLM vector (D,)."""
-        if not isinstance(name, str) or not name.strip():
-            raise ValueError(f"StyleLibrary.add({name!r}): a style needs a non-empty name")
+        check_name(name, "StyleLibrary.add")
         v = np.asarray(film, dtype=self.dtype)
         if v.ndim != 1:
             raise ValueError(f"StyleLibrary.add({name!r}): FiLM vector must be 1-D (D,), got shape {v.shape}")
@@ -145,11 +146,12 @@ class StyleLibrary:
         listed = names.tolist()
         if not listed:
             raise StyleLibraryError(f"{where}: the library holds no styles")
-        if any(not n.strip() for n in listed):
-            raise StyleLibraryError(f"{where}: a style has an empty name")
-        repeated = sorted({n for n in listed if listed.count(n) > 1})
+        for i, n in enumerate(listed):          # names from a file: never printed raw
+            check_name(n, f"{where}: style {i}", StyleLibraryError)
+        repeated = sorted(n for n, k in Counter(listed).items() if k > 1)
         if repeated:
-            raise StyleLibraryError(f"{where}: styles named more than once: {repeated}")
+            raise StyleLibraryError(f"{where}: styles named more than once: {repeated[:10]}"
+                                    + (f" and {len(repeated) - 10} more" if len(repeated) > 10 else ""))
         bad = [n for n, v in zip(listed, films) if not np.all(np.isfinite(v))]
         if bad:
             raise StyleLibraryError(f"{where}: non-finite FiLM values in {bad[:5]}")

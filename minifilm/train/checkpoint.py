@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from minifilm.errors import InputError
-from minifilm.files import atomic_savez, read_npz
+from minifilm.files import atomic_savez, parse_json, read_npz
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
 
@@ -48,15 +48,12 @@ def save_checkpoint(path, meta: dict, arrays: dict) -> None:
 def load_checkpoint(path) -> tuple[dict, dict]:
     """Read a checkpoint -> (meta dict, arrays dict). Raises CheckpointError naming the file."""
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise CheckpointError(f"checkpoint {path}: no such file")
     arrays = read_npz(path, "checkpoint", CheckpointError)
     if "meta.json" not in arrays:
         raise CheckpointError(f"checkpoint {path}: missing 'meta.json' entry")
-    try:
-        meta = json.loads(str(arrays.pop("meta.json")))
-    except json.JSONDecodeError as e:
-        raise CheckpointError(f"checkpoint {path}: 'meta.json' is not valid JSON ({e})") from e
+    meta = parse_json(str(arrays.pop("meta.json")), f"checkpoint {path}: 'meta.json'", CheckpointError)
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
         raise CheckpointError(f"checkpoint {path}: format is {meta.get('format') if isinstance(meta, dict) else meta!r}, "
                               f"expected {FORMAT!r}")
