@@ -6,7 +6,7 @@ Rows:
   x,p,z from arrays     frame_features_from_arrays: trajectory + joints + phases for every frame
   clips from arrays     clip_features_from_arrays: 4 s clips, stride 2 s
   x,p,z from Motion     frame_features on a real BVH motion (FK cached, velocities, root transforms)
-  dataset pipeline      one Bandai file end to end as data.py does it: read BVH, FK, contacts,
+  dataset pipeline      one Bandai file end to end as minifilm/dataset/build.py does it: read BVH, FK, contacts,
                         local phases, features of the file and its mirror (phases dominate)
 The machine's cores are shared, so the load average is printed; medians of several runs.
 """

@@ -14,7 +14,7 @@ Adam: one ``Adam.step`` over train_small's three parameter sets (707,420 numbers
 paper's (44,150,520), hot (the numbers still in the cache from the previous step) and cold (a
 64 MB buffer written between steps, as a forward and backward pass would), for chunk sizes
 32768 (before), 65536 (now) and the whole buffer at once; plus, for the record, the same update
-with scipy.linalg.blas's in-place sscal / saxpy (not used by the kit: see optim.py).
+with scipy.linalg.blas's in-place sscal / saxpy (not used by the kit: see benchmarks/README.md, "Adam").
 
 Times are in ms: the minimum of several runs, and the median in brackets.
 """
@@ -29,8 +29,8 @@ import numpy as np  # noqa: E402
 from common import header, load_average, table  # noqa: E402
 from minifilm.model.config import ModelConfig  # noqa: E402
 from minifilm.model.style_model import parameter_counts  # noqa: E402
-from minifilm.nn import optim  # noqa: E402
-from minifilm.nn.optim import Adam  # noqa: E402
+from minifilm.nn import fast_optim as optim  # noqa: E402  (the chunked Adam and its CHUNK)
+from minifilm.nn.fast_optim import ChunkedAdam as Adam  # noqa: E402  (what training uses)
 from minifilm.nn.params import Parameters  # noqa: E402
 from minifilm.nn import conv  # noqa: E402
 from minifilm.nn import functional as F  # noqa: E402

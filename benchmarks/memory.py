@@ -51,7 +51,7 @@ def child(side: str, case: str, batch: int) -> dict:
     from minifilm.model.config import ModelConfig
     from minifilm.model.losses import mse_loss
     from minifilm.model.style_model import StyleModel
-    from minifilm.nn.optim import Adam
+    from minifilm.nn.fast_optim import ChunkedAdam as Adam
 
     config = ModelConfig.paper()
     rng = np.random.default_rng(0)

@@ -135,7 +135,7 @@ def main():
           f"percentiles 5/25/50/75/95 = {np.round(np.percentile(ratios, [5, 25, 50, 75, 95]), 3)}; "
           f"ours more than 1 % higher in {np.mean(ratios > 1.01):.0%}, more than 1 % lower in "
           f"{np.mean(ratios < 0.99):.0%} (the naive single start can stop in a local minimum; "
-          f"its bounds come from the data window only, ours from the 1 s window, see phase_fit.py)")
+          f"its bounds come from the data window only, ours from the 1 s window, see minifilm/phases/sinusoid_fit.py)")
     print("\nper end effector:", ", ".join(SLOTS))
 
 

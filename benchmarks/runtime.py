@@ -57,7 +57,7 @@ def timeit(fn, repeat=5, number=100):
 
 
 def blend_first(net: RuntimeNetwork, model, x, p, film):
-    """Batch 1 with the expert weights blended first: W = Σ_k α_k W_k (DESIGN.md's batch-1 advice)."""
+    """Batch 1 with the expert weights blended first: W = Σ_k α_k W_k (the original runtime's form, docs/original-code.md §10.2)."""
     h = (x - net._x_mean) * net._x_inv
     alpha = net.gate(h[None], p[None])[0]
     m = model.motion.params.params

@@ -3,7 +3,7 @@
 PyTorch is NOT a dependency of minifilm: only the benchmark scripts import this file, and
 ``load_torch()`` returns None when torch is not installed, so they skip the PyTorch column.
 
-The PyTorch model computes exactly what minifilm.model.StyleModel computes (``from_numpy``
+The PyTorch model computes exactly what minifilm.model.style_model.StyleModel computes (``from_numpy``
 copies a NumPy model's weights, and the benchmarks print the largest difference of outputs
 and gradients as a check):
 

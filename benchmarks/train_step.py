@@ -29,7 +29,7 @@ from common import THREADS, compare_ms, header, random_batch, table  # noqa: E40
 from minifilm.model.config import ModelConfig  # noqa: E402
 from minifilm.model.losses import mse_loss  # noqa: E402
 from minifilm.model.style_model import StyleModel  # noqa: E402
-from minifilm.nn.optim import Adam  # noqa: E402
+from minifilm.nn.fast_optim import ChunkedAdam as Adam  # noqa: E402  (what training uses)
 from torch_reference import from_numpy, load_torch  # noqa: E402
 
 

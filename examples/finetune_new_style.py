@@ -13,7 +13,7 @@ Steps:
  2. train:     a small LPN + FiLM model on the seen styles;
  3. before:    test error of the held-out style with Ψ as trained (it has never seen that style);
  4. fine-tune: Ω and Φ frozen, only Ψ trained on the held-out style's training frames
-               (minifilm.train.trainer.finetune), timed;
+               (minifilm.train.finetune.finetune), timed;
  5. after:     test error of the held-out style again, and of the seen styles (Ψ changed for them too);
                FiLM-code separation (silhouette of Ψ(clip) grouped by style, all styles, before and
                after) and a PCA plot of the codes.

@@ -1,28 +1,75 @@
-"""The whole method, end to end, on data minifilm makes itself (a couple of minutes on a 2-core laptop).
+"""The whole method, end to end, on data minifilm makes itself (about two minutes on a 2-core laptop).
 
     python examples/train_small.py                      # synthetic data, default settings
     python examples/train_small.py --data DIR           # your own folder of <Style>_<Gait>.bvh files
     python examples/train_small.py --quick              # a smaller, faster run of the same steps
 
-This is the same job as ``minifilm train`` (and takes the same options). The steps, each a function
-you can call on its own, are in ``minifilm/pipeline/train_small.py``:
+The same job as ``minifilm train``, with the same options, outputs and numbers. The training loop
+is written out below; the package makes the data before it and the results after it
+(minifilm/pipeline/train_small.py):
 
- 1. data:     ``make_synthetic`` writes 8 synthetic styles x 6 gaits as 100STYLE-like BVH files;
- 2. phases:   ``phase_accuracy`` labels them (``minifilm.phases.label``: foot contacts, then local
-              phases, Sec. 4.1) and measures the phases against the generator's true ones;
- 3. dataset:  ``minifilm.dataset.build.build_dataset`` turns the files into x / p / z rows and style
-              clips, splits and normalises them (Sec. 3.2);
- 4. training: ``train`` fits a small LPN + FiLM model (Eq. 1-7) with style-balanced minibatches;
- 5. results:  ``test_table`` (test MSE per style), ``save_loss_curve``, ``style_library`` (one FiLM
-              vector per style, Sec. 4.4) and ``generate_per_style`` (one BVH per style from the
-              autoregressive runtime along a figure-eight).
+ 1. data:     8 synthetic styles x 6 gaits, written as 100STYLE-like BVH files;
+ 2. phases:   foot contacts, then local phases (Sec. 4.1, Eq. 1), checked against the true ones;
+ 3. dataset:  x / p / z rows and style clips y, split and normalised (Sec. 3.2);
+ 4. training: the small LPN + FiLM model, forward / loss / backward / Adam per minibatch (Eq. 2-7);
+ 5. results:  test MSE per style, one FiLM vector per style, one generated BVH per style along a
+              figure-eight, how well a classifier recognises each style in it, a GIF and an HTML player.
 
 Everything is written to the run folder runs/train_small/ (--out), which ``minifilm generate --run``
 and ``minifilm finetune --run`` read back.
 """
-import sys
+import argparse
+import os
+import time
 
-from minifilm.cli import main
+from minifilm.cli import ONE_BLAS_THREAD
+
+# One BLAS thread, set before numpy loads: the matrices are small, and on a shared machine a second
+# thread made steps slower (benchmarks/README.md), as for `minifilm train`.
+for key, value in ONE_BLAS_THREAD.items():
+    os.environ.setdefault(key, value)
+
+from minifilm.cli import Parser, report_errors  # noqa: E402
+from minifilm.cli import train as options  # noqa: E402
+from minifilm.pipeline.train_small import finish, log_epoch, main_job, new_trainer  # noqa: E402
+from minifilm.train.trainer import EpochLosses  # noqa: E402
+
+
+def main(argv=None) -> None:
+    # ---- settings: those of `minifilm train` (defaults in minifilm/pipeline/train_small.py::Settings:
+    # 30 epochs, batch 32, Adam lr 5e-4, 4 style clips per minibatch, seed 0)
+    parser = Parser(prog="minifilm train", description=options.__doc__,
+                    formatter_class=argparse.RawDescriptionHelpFormatter)
+    options.add_arguments(parser)
+    args = parser.parse_args(argv)
+    options.check_options(args)
+    settings = options.settings(args)
+
+    # ---- 1-3. data, local phases, dataset (the run is built beside --out and swapped in at the end)
+    with main_job(settings, args.data) as job:
+        train_data, val_data = job.ds.train_data("train"), job.ds.train_data("val")
+
+        # ---- 4. training: Ω, Φ, Ψ (minifilm/model/), the losses of Eq. (5)-(7), Adam
+        trainer = new_trainer(job)                # the model, Adam, the random generator, the history
+        model, adam, rng = trainer.model, trainer.optimizer, trainer.rng
+        for _ in range(settings.epochs):
+            t0 = time.perf_counter()
+            losses = EpochLosses(trainer)
+            for b in trainer.minibatches(train_data):   # one style per minibatch, 4 clips of that style
+                model.zero_grad()
+                z = model.forward(b.x, b.p, b.clips, train=True, rng=rng, **b.kw)   # Eq. (4): Φ(x; Ω(p), Ψ(y))
+                mse, bll, dz = trainer.losses(z, b.z)                                # Eq. (5)-(7) and dL/dz
+                model.backward(dz, need_input_grads=False)   # Ψ, Φ, Ω in reverse: every gradient, by hand
+                trainer.check_finite(b, mse, bll)            # a NaN or inf stops here, before the update
+                adam.lr = trainer.learning_rate(trainer.epoch + b.index / b.count)
+                adam.step()                                  # minifilm/nn/fast_optim.py (nn/optim.py: plain)
+                trainer.step += 1
+                losses.add(b, mse, bll)
+            record = trainer.end_epoch(losses.summary(), val_data)   # validation MSE / BLL, checkpoint
+            log_epoch(record, time.perf_counter() - t0)
+
+        # ---- 5. results: test table, loss curve, styles.npz, generated BVH, style recognition, GIF, HTML
+        finish(job, trainer)
 
 if __name__ == "__main__":
-    main(["train"] + sys.argv[1:])
+    report_errors(main)      # bad input: one line "error: ..." and exit code 2, as `minifilm train`

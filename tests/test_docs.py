@@ -9,7 +9,7 @@
 * every shell command line (```bash blocks and inline `python ...` spans) names a script or
   module that exists and only options that script defines, and ``pip install -e ".[extra]"``
   names extras that setup.cfg defines (the commands themselves are run by CI: .ci/run and
-  tests/test_train_small.py);
+  tests/pipeline/test_train_small.py);
 * every reference ``path`` or ``path::name`` to the code (functions, classes, methods, tests)
   points at a file that exists and a name defined in it, and every relative Markdown link or
   image points at a file that exists (images under 200 KB).
@@ -133,9 +133,12 @@ def script_options(path: Path) -> frozenset:
 
 def dispatched_options(source: Path) -> frozenset:
     """Options of the `minifilm` subcommands a script hands its arguments to
-    (``main(["train"] + sys.argv[1:])`` in examples/train_small.py)."""
+    (``main(["train"] + sys.argv[1:])``) or whose options it takes (``from minifilm.cli import train
+    as options`` and ``options.add_arguments(parser)`` in examples/train_small.py)."""
     out = set()
-    for name in re.findall(r"main\(\[[\"'](\w+)[\"']\]", source.read_text(encoding="utf-8")):
+    text = source.read_text(encoding="utf-8")
+    names = re.findall(r"main\(\[[\"'](\w+)[\"']\]", text) + re.findall(r"from minifilm\.cli import (\w+) as \w+", text)
+    for name in names:
         out |= command_options(name) or set()
     return frozenset(out)
 

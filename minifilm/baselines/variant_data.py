@@ -1,11 +1,11 @@
 """Inputs and outputs of the comparison backbones (Sec. 5), derived from the LPN's training data.
 
-The dataset (data.py) produces the LPN's arrays: x, the local phases p (Eq. 1) and z with the
+The dataset (minifilm/dataset/build.py) produces the LPN's arrays: x, the local phases p (Eq. 1) and z with the
 next frame's phases and phase updates. The other backbones see the same motion differently:
 
 PFNN   gate input: ONE global phase φ in [0, 1) (N, 1). It is the angle of the right foot's local
        phase, φ = atan2(s, c) / 2π mod 1 from p's right-foot (sin, cos) pair. The feet's local
-       phases are fitted to the foot contacts (phase source 'contact', original-pipeline §3), so
+       phases are fitted to the foot contacts (phase source 'contact', docs/original-code.md §3), so
        this is a contact-based global phase as the PFNN's: one cycle per right-foot step cycle.
        Output: the 324 motion numbers (trajectory + joints), the phase update Δφ = φ(next) − φ
        wrapped to [−½, ½) (cycles per frame, standardised with the training split's mean / std),

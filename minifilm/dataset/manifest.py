@@ -3,7 +3,7 @@
 Two sources (used by :func:`minifilm.dataset.build.build_dataset`):
 
 * a folder named like 100STYLE, ``<Style>_<Gait>.bvh`` with gait codes BR BW FR FW ID SR SW TR,
-  TR1, TR2, ... (original-pipeline.md §11): :func:`scan_100style`;
+  TR1, TR2, ... (docs/original-code.md §11): :func:`scan_100style`;
 * a CSV manifest for any other dataset, one row per file with the columns
   ``file, style, gait`` and optionally ``start, end`` (a frame range ``[start, end)``, 0-based,
   in the file's own frames) and ``mirror`` (yes/no: add a mirrored copy): :func:`read_manifest`.
@@ -51,7 +51,7 @@ def scan_100style(folder: Union[str, Path]) -> List[MotionFile]:
     download keeps one sub-folder per style). Files whose names do not follow the pattern are
     ignored; a folder without a single matching file, or two files of the same name, is an error.
 
-    The 100STYLE metadata is used when it sits in the folder (original-pipeline.md §11):
+    The 100STYLE metadata is used when it sits in the folder (docs/original-code.md §11):
     ``Frame_Cuts.csv`` crops each file to its stylised part (``<GAIT>_START`` / ``_STOP`` are 1-based
     inclusive frame numbers, read as ``[START-1, STOP)``; ``TR`` uses the ``TR1`` columns; N/A or a
     missing row keeps the whole file), and ``Dataset_List.csv`` marks the styles whose

@@ -1,4 +1,4 @@
-"""Train / validation / test splits of motion files (original-pipeline.md §8.2, made leak-free).
+"""Train / validation / test splits of motion files (docs/original-code.md §8.2, made leak-free).
 
 Every file is cut into contiguous segments: one validation and one test window of ``floor(0.1 L)``
 frames each, drawn with a seeded generator so that they never overlap, and train around them (the
@@ -23,7 +23,7 @@ SPLITS = ("train", "val", "test")
 
 def split_segments(n_frames: int, rng: np.random.Generator,
                    fractions: Sequence[float] = (0.8, 0.1, 0.1)) -> List[Tuple[int, int, str]]:
-    """Cut ``[0, n_frames)`` into contiguous segments ``(start, stop, split)`` (original §8.2).
+    """Cut ``[0, n_frames)`` into contiguous segments ``(start, stop, split)`` (docs/original-code.md §8.2).
 
     The validation and test windows are ``floor(f L)`` frames each; they never overlap, their
     order and positions are random (seeded by ``rng``); the rest, up to three pieces, is train.

@@ -1,4 +1,4 @@
-"""Normalisation statistics: the one class every stage reads them from (original-pipeline §8.5).
+"""Normalisation statistics: the one class every stage reads them from (docs/original-code.md §8.5).
 
     x̂ = (x - x_mean) / x_std      network input (Sec. 3.2)
     p̂ = (p - p_mean) / p_std      local phases fed to the gating network Ω (the released GT_X stats)

@@ -1,4 +1,4 @@
-"""Pieces shared by the comparison (evaluate_compare.py) and examples/finetune_new_style.py.
+"""Pieces shared by the comparison (minifilm/evaluation/compare.py) and examples/finetune_new_style.py.
 
 - `style_subset`: the frames and clips of some styles of a dataset as a TrainData, normalised with
   given statistics and with the style ids renumbered 0 .. S-1 (to hold a style out of training);

@@ -24,7 +24,7 @@ from minifilm.model import blocks
 from minifilm.model.dropout import Dropout
 from minifilm.model.losses import bone_length_loss, mse_loss
 from minifilm.nn import functional as F
-from minifilm.nn.gradcheck import compare_gradients
+from minifilm.nn.gradcheck import compare_gradients, worst_error
 
 
 def _rng(seed: int, salt: int) -> np.random.Generator:
@@ -87,8 +87,8 @@ def merge(results: dict) -> Result:
         entries.update({f"{k} ({label})": v for k, v in r.entries.items()})
         crossings += r.crossings
         margin = min(margin, r.margin)
-        if max(r.errors.values()) > worst[0]:
-            worst = (max(r.errors.values()), f"{label}: {r.worst}")
+        if worst_error(r.errors) > worst[0]:
+            worst = (worst_error(r.errors), f"{label}: {r.worst}")
     return Result(errors, entries, crossings, margin, worst[1])
 
 
@@ -162,6 +162,14 @@ def expert_linear(seed, batch=4):
     alpha = rng.dirichlet(np.ones(3), size=batch)
     inputs = (rng.standard_normal((batch, 5)), alpha, rng.standard_normal((3, 5, 4)), rng.standard_normal((3, 4)))
     return pair_result(F.expert_linear_forward, F.expert_linear_backward, inputs, ("x", "alpha", "W", "b"), rng)
+
+
+def expert_blend(seed):
+    """The plain form of the gated-expert layer (weights blended per sample), batch 4."""
+    rng = _rng(seed, 14)
+    alpha = rng.dirichlet(np.ones(3), size=4)
+    inputs = (rng.standard_normal((4, 5)), alpha, rng.standard_normal((3, 5, 4)), rng.standard_normal((3, 4)))
+    return pair_result(F.expert_blend_forward, F.expert_blend_backward, inputs, ("x", "alpha", "W", "b"), rng)
 
 
 def gather(seed):

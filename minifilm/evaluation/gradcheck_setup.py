@@ -264,14 +264,18 @@ class Problem:
         raise RuntimeError("Problem.condition: could not keep the max-pool pairs away from ties")
 
     def connected(self) -> bool:
-        """Every input and parameter array gets a non-zero gradient from a random projection."""
+        """Every input and parameter array gets a non-zero gradient from a random projection
+        (FloatingPointError when one is not finite)."""
         nets = self.nets(self.model)
         for ps in nets.values():
             ps.zero_grad()
         out = self.run()
         grads = self.backward(self.model, np.random.default_rng(0).standard_normal(out.shape))
-        arrays = list(grads.values()) + [ps.grads[n] for ps in nets.values() for n in ps.names()]
-        return all(np.abs(g).max() > 0 for g in arrays)
+        arrays = {**grads, **{f"{label}.{n}": ps.grads[n] for label, ps in nets.items() for n in ps.names()}}
+        bad = [name for name, g in arrays.items() if not np.all(np.isfinite(g))]
+        if bad:                         # a broken backward pass: no mask can fix it, so say so
+            raise FloatingPointError(f"the backward pass gave non-finite gradients (NaN or inf) of {', '.join(bad)}")
+        return all(np.abs(g).max() > 0 for g in arrays.values())
 
     def sides(self, loss_sides) -> np.ndarray:
         """Which side of every kink each input is on (compared on every stencil evaluation)."""
@@ -306,7 +310,9 @@ class Result:
 
 
 def result_of(comparisons: dict, crossings: int = 0, margin: float = np.inf) -> Result:
-    name = max(comparisons, key=lambda k: comparisons[k].error)
+    if not comparisons:
+        return Result({}, {}, crossings, margin, "no array was checked")
+    name = max(comparisons, key=lambda k: comparisons[k].error)    # errors are never NaN (inf instead)
     c = comparisons[name]
     where = f"{name}{list(c.worst)}: analytic {c.analytic[c.worst]:.3e}, numerical {c.numerical[c.worst]:.3e}"
     return Result({k: v.error for k, v in comparisons.items()}, {k: v.entries for k, v in comparisons.items()},
@@ -365,6 +371,9 @@ def float32_errors(pr: Problem) -> Result:
         g32 = pairs32[k][1]
         if out.dtype != np.float32 or g32.dtype != np.float32:
             raise TypeError(f"float32 check: {k} came out as {g32.dtype} (output {out.dtype})")
-        errors[k] = float(np.max(np.abs(g32 - g64)) / max(np.max(np.abs(g64)), 1e-300))
+        with np.errstate(invalid="ignore", over="ignore"):
+            diff = float(np.max(np.abs(g32.astype(np.float64) - g64)) / max(float(np.max(np.abs(g64))), 1e-300))
+        finite = np.all(np.isfinite(g32)) and np.all(np.isfinite(g64))
+        errors[k] = diff if finite and math.isfinite(diff) else math.inf      # NaN / inf: a failure
     worst = max(errors, key=errors.get)
     return Result(errors, {k: int(g.size) for k, g in pairs64.items()}, worst=f"{worst}: {errors[worst]:.1e}")

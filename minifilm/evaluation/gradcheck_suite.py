@@ -38,6 +38,7 @@ symmetric stencil measures the code's subgradient 0 exactly). Their limit is the
 """
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from functools import partial
@@ -48,7 +49,7 @@ from minifilm.evaluation import gradcheck_kit as kit
 from minifilm.evaluation import gradcheck_networks as nets
 from minifilm.evaluation.gradcheck_setup import Result, check_problem, float32_errors
 from minifilm.nn import conv
-from minifilm.nn.gradcheck import H, LIMIT
+from minifilm.nn.gradcheck import H, LIMIT, worst_error
 
 SEEDS = tuple(range(5))
 FUN, CONV, BLOCKS, LOSSES = "minifilm/nn/functional.py", "minifilm/nn/conv.py", "minifilm/model/blocks.py", \
@@ -114,6 +115,7 @@ def cases() -> List[Case]:
         Case("FiLM (per-sample γ, β)", K, kit.film, _pair(FUN, "film")),
         Case("FiLM (γ, β shared by the batch)", K, partial(kit.film, per_sample=False), _pair(FUN, "film")),
         Case("dropout (fixed mask)", K, kit.dropout, _pair(FUN, "dropout")),
+        Case("gated experts, blended weights (plain form)", K, kit.expert_blend, _pair(FUN, "expert_blend")),
         Case("gated experts (batch 1)", K, partial(kit.expert_linear, batch=1), _pair(FUN, "expert_linear")),
         Case("gated experts (batch 4)", K, kit.expert_linear, _pair(FUN, "expert_linear")),
         Case("gather (shared clips)", K, kit.gather, _pair(FUN, "gather")),
@@ -208,16 +210,21 @@ class Row:
 
     @property
     def passed(self) -> bool:
-        return self.error is None and self.crossings == 0 and self.worst <= self.case.limit and bool(self.seeds)
+        """Every seed ran, no kink was crossed and the worst error is finite and within the limit
+        (a NaN or inf error is a failure, see minifilm.nn.gradcheck.worst_error)."""
+        return (self.error is None and self.crossings == 0 and bool(self.seeds)
+                and math.isfinite(self.worst) and self.worst <= self.case.limit)
 
     def add(self, seed: int, result: Result) -> None:
+        """Record one seed's result; a NaN or inf error (or none at all) makes the row's worst inf."""
         self.seeds.append(seed)
         self.arrays = max(self.arrays, len(result.errors))
         self.entries = max(self.entries, sum(result.entries.values()))
         self.crossings += result.crossings
-        e = max(result.errors.values())
-        if e >= self.worst:
-            self.worst, self.where = e, f"seed {seed}: {result.worst}"
+        e = worst_error(result.errors)
+        if e > self.worst or not self.where:
+            where = result.worst if result.errors else "no array was checked"
+            self.worst, self.where = e, f"seed {seed}: {where}"
 
 
 def run_case(case: Case, seeds: Sequence[int] = SEEDS) -> Row:

@@ -17,7 +17,7 @@ import numpy as np
 from minifilm.features.compute import joint_features
 from minifilm.motion.kinematics import look_rotation, velocities
 from minifilm.nn import functional as F
-from minifilm.nn.optim import Adam
+from minifilm.nn.fast_optim import ChunkedAdam
 from minifilm.nn.params import Parameters
 
 
@@ -159,7 +159,7 @@ class StyleClassifier:
         self.mean = X.mean(axis=0)
         self.std = np.where(X.std(axis=0) > 1e-8, X.std(axis=0), 1.0)
         S = (X - self.mean) / self.std
-        opt = Adam([self.params], lr=lr)
+        opt = ChunkedAdam([self.params], lr=lr)
         history = []
         for _ in range(epochs):
             order = rng.permutation(len(S))

@@ -1,4 +1,4 @@
-"""Input frame x, output frame z and style clip y (paper Sec. 3.2; original-pipeline.md §5-§9).
+"""Input frame x, output frame z and style clip y (paper Sec. 3.2; docs/original-code.md §5-§9).
 
 The column meaning lives in :class:`~minifilm.features.layout.FeatureLayout`; this file does the
 arithmetic. The core functions work on plain arrays so they can be read (and tested) without BVH
@@ -11,11 +11,11 @@ files:
     root_rot   (F, 3, 3)     LookRotation(flattened facing); its column 2 is the facing direction
 
 "Relative to a root (R, r)" means ``R^T (x - r)`` for points and ``R^T d`` for directions
-(original-pipeline §0.3).
+(docs/original-code.md §0.3).
 
 Segments. Every function takes a frame range ``[start, stop)`` and never reads a frame outside it:
 a trajectory sample that falls outside is point-reflected about the segment's first / last frame
-(original-pipeline §5), and the current frames are ``start+1 .. stop-2`` (the first and last frame
+(docs/original-code.md §5), and the current frames are ``start+1 .. stop-2`` (the first and last frame
 of a segment are never current, as in the original exporter §8.3: the first frame's velocity would
 need the frame before, the last has no next frame). So a validation segment's rows contain no
 training frame, and short clips still give rows.
@@ -76,7 +76,7 @@ def trajectory_sample_frames(current: np.ndarray, offsets: np.ndarray, start: in
     """Which frame each trajectory sample reads, and about which frame it is reflected.
 
     For a target ``t = current + offset`` inside ``[start, stop)`` the sample is frame t itself.
-    Outside, original-pipeline §5 reflects it: past ``t < start`` reads ``ref = 2 start - t`` and
+    Outside, docs/original-code.md §5 reflects it: past ``t < start`` reads ``ref = 2 start - t`` and
     the position becomes ``2 P(start) - P(ref)``; future ``t > last`` (last = stop-1) reads
     ``ref = 2 last - t`` and becomes ``2 P(last) - P(ref)``. The direction is ``ref``'s, not
     reflected. When the segment is shorter than the window, ``ref`` is clamped into the segment.
@@ -102,7 +102,7 @@ def trajectory_features(root_pos: np.ndarray, root_rot: np.ndarray, current: np.
                         reference: np.ndarray, offsets: np.ndarray, start: int = 0,
                         stop: Optional[int] = None) -> np.ndarray:
     """Trajectory samples ``[pos_x, pos_z, dir_x, dir_z]`` around frames ``current``, expressed
-    relative to the roots of frames ``reference`` (original-pipeline §5, §6.1, §7).
+    relative to the roots of frames ``reference`` (docs/original-code.md §5, §6.1, §7).
 
     x uses ``reference = current`` and all 12 offsets; z uses ``current = k+1``,
     ``reference = k`` and offsets 6..11.
@@ -133,7 +133,7 @@ def trajectory_features(root_pos: np.ndarray, root_rot: np.ndarray, current: np.
 # --------------------------------------------------------------------------- joints
 def joint_features(positions: np.ndarray, rotations: np.ndarray, velocities: np.ndarray,
                    root_pos: np.ndarray, root_rot: np.ndarray) -> np.ndarray:
-    """Per joint ``[p, fwd, up, v]`` relative to a root, interleaved (original-pipeline §6.1).
+    """Per joint ``[p, fwd, up, v]`` relative to a root, interleaved (docs/original-code.md §6.1).
 
     Args:
         positions (N, J, 3), rotations (N, J, 3, 3), velocities (N, J, 3): world quantities of N
@@ -226,7 +226,7 @@ def clip_features_from_arrays(positions, rotations, velocities, root_pos, root_r
     """Style clips y: (M, T, 12 J), T = clip_seconds * fps frames, windows every stride_seconds.
 
     Each clip frame holds the joint block of x relative to that frame's OWN root (Sec. 3.2,
-    original-pipeline §9). Windows start at ``start + 1`` (so every velocity comes from inside the
+    docs/original-code.md §9). Windows start at ``start + 1`` (so every velocity comes from inside the
     segment) and must end by ``stop``; a segment needs T + 1 frames for one clip, as in the
     original.
     """
@@ -292,7 +292,7 @@ def motion_arrays(motion, skeleton, fps: Optional[float] = None):
 def frame_features(motion, skeleton, phases: np.ndarray, contacts: np.ndarray,
                    fps: Optional[float] = None, start: int = 0, stop: Optional[int] = None,
                    dtype=np.float32) -> FrameFeatures:
-    """x, p, z of a :class:`Motion` on ``skeleton``'s exported joints (Sec. 3.2).
+    """x, p, z of a :class:`~minifilm.motion.motion.Motion` on ``skeleton``'s exported joints (Sec. 3.2).
 
     phases (F, 8) from ``LocalPhases.vectors()``; contacts (F, 2) ``[right, left]``.
     fps defaults to the motion's; it sets the trajectory window and the velocity scale.
@@ -306,7 +306,7 @@ def frame_features(motion, skeleton, phases: np.ndarray, contacts: np.ndarray,
 def clip_features(motion, skeleton, clip_seconds: float = 4.0, stride_seconds: float = 2.0,
                   fps: Optional[float] = None, start: int = 0, stop: Optional[int] = None,
                   dtype=np.float32) -> np.ndarray:
-    """Style clips (M, T, 12 J) of a :class:`Motion`; see :func:`clip_features_from_arrays`."""
+    """Style clips (M, T, 12 J) of a :class:`~minifilm.motion.motion.Motion`; see :func:`clip_features_from_arrays`."""
     fps = motion.fps if fps is None else float(fps)
     arrays = motion_arrays(motion, skeleton, fps)
     return clip_features_from_arrays(*arrays, fps, clip_seconds, stride_seconds, start, stop, dtype)

@@ -1,6 +1,6 @@
 """The column layout of the input frame x, the output frame z, the phases p and the style clip y.
 
-This is THE one place that says what every number means (paper Sec. 3.2; original-pipeline.md
+This is THE one place that says what every number means (paper Sec. 3.2; docs/original-code.md
 §5-§7 and §9). The network's bone-length loss, the runtime, the dataset builder and the docs all
 read column indices from a :class:`FeatureLayout`; nobody else hard-codes an offset.
 
@@ -35,7 +35,7 @@ from typing import List, NamedTuple, Tuple
 
 import numpy as np
 
-#: Trajectory sample times in seconds relative to the current frame (original-pipeline §5).
+#: Trajectory sample times in seconds relative to the current frame (docs/original-code.md §5).
 #: The past is spaced 1/6 s, the future 0.2 s: deliberately not uniform.
 TRAJECTORY_SECONDS: Tuple[float, ...] = (-1.0, -5 / 6, -4 / 6, -3 / 6, -2 / 6, -1 / 6,
                                          0.0, 0.2, 0.4, 0.6, 0.8, 1.0)
@@ -45,7 +45,7 @@ CURRENT_SAMPLE = 6
 TRAJECTORY_FIELDS = ("position x", "position z", "direction x", "direction z")
 #: The four 3-vectors stored per joint, in order; each takes 3 columns.
 JOINT_FIELDS = ("position", "forward", "up", "velocity")
-#: Phase slot order of p (original-pipeline §3.1).
+#: Phase slot order of p (docs/original-code.md §3.1).
 PHASE_SLOTS = ("left hand", "right hand", "left foot", "right foot")
 #: Order of the two contact numbers at the end of z.
 CONTACT_ORDER = ("right foot", "left foot")

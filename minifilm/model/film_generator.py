@@ -12,7 +12,7 @@ Parameter count. With the paper's sizes (T 240, C 300, F 256, k 25, dense 2048, 
 network has 1,920,256 + 1,638,656 + 31,459,328 + 4,196,352 = 39,214,592 parameters, which is what
 the original code builds. The paper's Table 2 reports 35,668,530 (S.M.N.); no choice of the
 architecture described in the paper gives that number, so we keep the architecture and report
-39,214,592 (see tests/test_model_params.py).
+39,214,592 (see tests/model/test_model_params.py).
 
 Initialisation: Glorot-uniform weights, zero biases, except the output bias of the γ parts is 1,
 so that at initialisation FiLM is close to the identity (γ ≈ 1, β ≈ 0). The original starts from
@@ -63,7 +63,7 @@ class FilmGenerator:
         self.used_masks: dict = {}
         self._caches = None
         # one workspace per layer: the big im2col matrices and weight gradients are reused from
-        # step to step instead of being mapped afresh (see minifilm.nn.functional._scratch)
+        # step to step instead of being mapped afresh (see minifilm.nn.scratch.scratch)
         self._work = {"conv0": {}, "conv1": {}, "dense0": {}, "dense1": {}}
 
     def forward(self, clip, train=False, rng=None, masks=None):

@@ -2,13 +2,13 @@
 
 For layer i in {1, 2} (the hidden layers), with expert weights blended by α = Ω(p):
 
-    F(i) = Σ_k α_k (W_k h(i-1) + b_k)                          gated experts (fast form, DESIGN.md)
+    F(i) = Σ_k α_k (W_k h(i-1) + b_k)                          gated experts (fast form: nn/functional.py::expert_linear_forward)
     h(i) = ELU( γ(i) ∘ (F(i) − μ) / σ + β(i) )                   Eq. (3): layer norm, FiLM, ELU
 
 and the output layer z = Σ_k α_k (W_k h(2) + b_k) is linear. Dropout (rate config.dropout) is
 applied to the input of every layer during training. Layer norm has no affine parameters of its
 own (FiLM plays that role); training uses the unbiased σ with eps 1e-6 added to σ, the released
-runtime the biased σ without eps (original-pipeline §10.2) — both are options. Each hidden layer
+runtime the biased σ without eps (docs/original-code.md §10.2) — both are options. Each hidden layer
 is one :func:`~minifilm.model.blocks.film_block_forward`.
 
 Expert weights are stored W{l} (K, in, out), b{l} (K, out). Inference at run time goes through

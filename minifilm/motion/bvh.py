@@ -1,4 +1,4 @@
-"""Read and write BVH motion capture files (original-pipeline.md §1.1).
+"""Read and write BVH motion capture files (docs/original-code.md §1.1).
 
 Reading, in the original's terms:
 

@@ -1,6 +1,6 @@
 """Whole-motion edits that build a new ``Motion``: left/right mirroring and resampling.
 
-Mirroring follows original-pipeline.md §1.3 (joint names decide the partners); resampling uses
+Mirroring follows docs/original-code.md §1.3 (joint names decide the partners); resampling uses
 slerp for rotations and linear interpolation for translations, so data at 30, 60 and 120 fps can
 be brought to one rate.
 """
@@ -16,7 +16,7 @@ from minifilm.motion.kinematics import forward_kinematics, matrix_to_quat, quat_
 from minifilm.motion.motion import Motion
 
 # ----------------------------------------------------------------------------------------------
-# Mirroring (original-pipeline.md §1.3)
+# Mirroring (docs/original-code.md §1.3)
 # ----------------------------------------------------------------------------------------------
 
 _SUFFIX_LR = re.compile(r"_([LR])(?=$|_|Site$)")

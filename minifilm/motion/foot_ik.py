@@ -1,4 +1,4 @@
-"""Foot locking from predicted contacts with a two-bone leg IK (Sec. 4.4; original-pipeline §10.3 step 8).
+"""Foot locking from predicted contacts with a two-bone leg IK (Sec. 4.4; docs/original-code.md §10.3 step 8).
 
 While a foot is predicted to be in contact its toe is pinned where it was; the leg is bent to
 reach (hip fixed, thigh and shin lengths kept, knee staying in the leg's current bending plane),

@@ -1,10 +1,10 @@
 """Rotations and kinematics: Euler angles, quaternions, forward kinematics, root-relative frames.
 
-Conventions (original-pipeline.md §0.3): right-handed, Y up, column vectors, so a point ``x`` in a
+Conventions (docs/original-code.md §0.3): right-handed, Y up, column vectors, so a point ``x`` in a
 joint's frame is ``R @ x + p`` in its parent's frame. Angles are radians. Rotation matrices act on
 the last two axes, so every function works on any stack of leading axes, e.g. (F, J, 3, 3).
 
-Euler angles follow the BVH reading (original-pipeline.md §1.1): the channel order ``"YXZ"`` means
+Euler angles follow the BVH reading (docs/original-code.md §1.1): the channel order ``"YXZ"`` means
 ``R = Ry(a0) @ Rx(a1) @ Rz(a2)``, i.e. *intrinsic* rotations in the listed order (which is the same
 matrix as *extrinsic* rotations in the reversed order). In SciPy's naming that is
 ``Rotation.from_euler("YXZ", a)`` with capital letters.
@@ -189,7 +189,7 @@ def slerp(q0: np.ndarray, q1: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 def forward_kinematics(rotations: np.ndarray, translations: np.ndarray,
                        parents: Sequence[int]) -> Tuple[np.ndarray, np.ndarray]:
-    """World transforms from local ones (original-pipeline.md §1.1).
+    """World transforms from local ones (docs/original-code.md §1.1).
 
     ``World_j = World_parent(j) @ [R_j | t_j]``; a root's world transform is its local one.
 
@@ -239,7 +239,7 @@ def right_axis(R: np.ndarray) -> np.ndarray:
 
 
 def velocities(positions: np.ndarray, fps: float) -> np.ndarray:
-    """Backward-difference velocities (original-pipeline.md §1.4): ``v[k] = (x[k] - x[k-1]) * fps``.
+    """Backward-difference velocities (docs/original-code.md §1.4): ``v[k] = (x[k] - x[k-1]) * fps``.
 
     ``positions`` (F, ..., 3) -> (F, ..., 3) in units per second. Frame 0 has no predecessor and
     copies frame 1's value; a single frame gets zero velocity.
@@ -253,7 +253,7 @@ def velocities(positions: np.ndarray, fps: float) -> np.ndarray:
 
 
 def look_rotation(forward: np.ndarray) -> np.ndarray:
-    """Unity's ``LookRotation(f, up=+Y)`` for horizontal directions (original-pipeline.md §0.3).
+    """Unity's ``LookRotation(f, up=+Y)`` for horizontal directions (docs/original-code.md §0.3).
 
     ``forward`` (..., 3) is flattened (y dropped) and normalised, then
     ``R = [[fz, 0, fx], [0, 1, 0], [-fx, 0, fz]]`` (columns: right, up, forward). A direction with no
@@ -276,7 +276,7 @@ def look_rotation(forward: np.ndarray) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------------------------
-# Root-relative coordinates (original-pipeline.md §0.3, "relative to")
+# Root-relative coordinates (docs/original-code.md §0.3, "relative to")
 # ----------------------------------------------------------------------------------------------
 
 def _expand(root: np.ndarray, target_ndim: int, tail: int) -> np.ndarray:

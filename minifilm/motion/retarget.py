@@ -1,7 +1,7 @@
 """Predicted joint positions + forward/up axes -> local rotations on a source skeleton -> Motion.
 
 The network predicts, for each exported joint, its position and the forward (third column) and up
-(second column) axes of its world rotation (original-pipeline §6.1). To write a BVH that opens in
+(second column) axes of its world rotation (docs/original-code.md §6.1). To write a BVH that opens in
 Blender we need the local rotation of every joint of the *source* skeleton, in its own hierarchy:
 
 1. world rotation from the axes: re-orthonormalise (fwd wins, up is made perpendicular to it) and

@@ -3,7 +3,7 @@
 The network predicts every exported joint's world position and forward/up axes independently, so
 its bones stretch and shrink by a few millimetres from frame to frame (the released network's
 8-9 cm collar and chest bones by up to 10 %). The original demo's arm IK re-solves the arm bones
-one at a time towards the predicted positions with their lengths kept (original-pipeline §10.3
+one at a time towards the predicted positions with their lengths kept (docs/original-code.md §10.3
 step 7); :class:`SkeletonFit` does the same for the whole body, on the source skeleton's rest
 offsets:
 

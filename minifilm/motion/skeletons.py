@@ -2,7 +2,7 @@
 
 A ``Skeleton`` names joints of a ``Motion`` (read from a BVH file); it holds no motion itself.
 The paper's features (Sec. 3.2) use the *exported* joints in ``joints`` order; the local phases
-(Sec. 4.1, original-pipeline.md §3.1) use the four ``phase_bones`` (left hand, right hand, left
+(Sec. 4.1, docs/original-code.md §3.1) use the four ``phase_bones`` (left hand, right hand, left
 foot, right foot, in that order); foot contacts (§2) use the two ``contact_bones`` (right toe tip,
 left toe tip). The character's root (§5) is the ``hips`` joint projected on the floor y = 0, and its
 facing is the hips-local ``facing_axis`` in world space, flattened.
@@ -145,7 +145,7 @@ def parents_from_motion(motion, joints: Sequence[str]) -> Tuple[int, ...]:
 # Built-in skeletons
 # ----------------------------------------------------------------------------------------------
 
-#: 100STYLE (original-pipeline.md §1.2): the 23 joints with channels plus the two wrist End Sites;
+#: 100STYLE (docs/original-code.md §1.2): the 23 joints with channels plus the two wrist End Sites;
 #: the head and toe End Sites are dropped (the toe sites are the contact sensors).
 STYLE100 = Skeleton(
     name="100style",
@@ -168,7 +168,7 @@ STYLE100 = Skeleton(
 #: at ``Hips``. The End Sites of the hands and toes have zero offsets (they coincide with their
 #: parents), so the hands and toe joints are the phase bones and the toe End Sites the contact
 #: sensors. The hips' local +Z points forward (checked against the walking direction of every
-#: shared Bandai walk/run file, tests/test_skeletons.py); the bones run along local x.
+#: shared Bandai walk/run file, tests/motion/test_skeletons.py); the bones run along local x.
 BANDAI = Skeleton(
     name="bandai",
     joints=("Hips", "Spine", "Chest", "Neck", "Head",
@@ -254,7 +254,7 @@ def detect_skeleton(motion, candidates: Sequence[Skeleton] = BUILTIN_SKELETONS) 
 
 def facing_directions(motion, skeleton: Skeleton) -> np.ndarray:
     """(F, 3) unit horizontal facing: the hips' ``facing_axis`` in world space, y zeroed, normalised
-    (original-pipeline.md §5). A facing with no horizontal part falls back to +Z."""
+    (docs/original-code.md §5). A facing with no horizontal part falls back to +Z."""
     _, world_R = motion.world()
     axis = np.asarray(skeleton.facing_axis, dtype=np.float64)
     f = world_R[:, skeleton.hips_index(motion)] @ axis
@@ -262,7 +262,7 @@ def facing_directions(motion, skeleton: Skeleton) -> np.ndarray:
 
 
 def root_transforms(motion, skeleton: Skeleton) -> Tuple[np.ndarray, np.ndarray]:
-    """The character root per frame (original-pipeline.md §5).
+    """The character root per frame (docs/original-code.md §5).
 
     Returns:
         root_pos (F, 3): the hips' world position projected on the floor, ``(x_h, 0, z_h)``.

@@ -21,7 +21,7 @@ import numpy as np
 import scipy.fft
 from numpy.lib.stride_tricks import sliding_window_view
 
-from minifilm.nn.scratch import require, scratch
+from minifilm.nn.scratch import require, require_grad_shape, scratch
 
 # --------------------------------------------------------------------------------------------
 # 1-D convolution over time and max pooling (the FiLM generator Psi, Eq. 2)
@@ -33,7 +33,7 @@ from minifilm.nn.scratch import require, scratch
 #   "fft"     in the frequency domain a convolution over time is one (B, C) @ (C, F) product per
 #             frequency. With N >= T + k//2 frames of zero padding the DFT's circular convolution
 #             equals the zero-padded one, so nothing is approximated: results differ from im2col's
-#             by float rounding only (tests/test_optimised_equivalence.py). About
+#             by float rounding only (tests/nn/test_optimised_equivalence.py). About
 #             2*3*(N/2+1)*(B + k)*C*F flops: 5-8x fewer than im2col for Ψ at batch 32.
 def _im2col(x: np.ndarray, k: int, work: dict | None = None, name: str = "cols") -> np.ndarray:
     """(B, T, C) -> cols (B*T, k*C): row (b, t) holds frames t - k//2 .. t + k//2, zero-padded.
@@ -42,7 +42,7 @@ def _im2col(x: np.ndarray, k: int, work: dict | None = None, name: str = "cols")
     CONSECUTIVE numbers starting at xp[t, 0]. So the windows are a strided view of the flat
     padded samples (sliding windows of length k*C taken every C numbers), and the one copy that
     makes cols contiguous for the matrix product is a row-by-row memcpy. Row layout is tap-major,
-    (j, c), matching W (k, C, F). Both buffers come from ``work`` when given (see _scratch).
+    (j, c), matching W (k, C, F). Both buffers come from ``work`` when given (see minifilm/nn/scratch.py::scratch).
     """
     B, T, C = x.shape
     pad = k // 2
@@ -161,7 +161,7 @@ def conv1d_forward(x: np.ndarray, W: np.ndarray, b: np.ndarray, work: dict | Non
     ``method``: "im2col" (one matrix product on the im2col matrix, see :func:`_im2col`), "fft"
     (products per frequency, see the notes above and :func:`_conv1d_fft_forward`), or "auto"
     (the cheaper of the two for these sizes). The backward pass uses the same method.
-    ``work``: the layer's workspace (see :func:`_scratch`); the big matrices (the im2col matrix
+    ``work``: the layer's workspace (see :func:`~minifilm.nn.scratch.scratch`); the big matrices (the im2col matrix
     is 230 MB for the paper's first layer at batch 32) are then reused from call to call.
     """
     k, C, F = W.shape
@@ -169,6 +169,8 @@ def conv1d_forward(x: np.ndarray, W: np.ndarray, b: np.ndarray, work: dict | Non
     require(x.ndim == 3 and x.shape[2] == C,
             f"conv1d_forward: x is {x.shape}, expected (B, T, {C}) to match W {W.shape}")
     require(b.shape == (F,), f"conv1d_forward: b is {b.shape}, expected ({F},)")
+    require(x.shape[0] > 0 and x.shape[1] > 0,
+            f"conv1d_forward: x is {x.shape}: a batch of 0 clips or clips of 0 frames")
     require(method in ("auto", "im2col", "fft"),
             f"conv1d_forward: method must be 'auto', 'im2col' or 'fft', got {method!r}")
     B, T, _ = x.shape
@@ -219,6 +221,8 @@ def conv1d_backward(dout: np.ndarray, cache, need_dx: bool = True):
     the other big buffers live in it: add dW to your gradients before the layer's next call.
     """
     method, work = cache[0], cache[-1]
+    (B, T, _), F = cache[-3], cache[-2].shape[2]
+    require_grad_shape("conv1d_backward", dout, (B, T, F))
     if method == "fft":
         dx, dW = _conv1d_fft_backward(dout, cache, need_dx)
         return dx, dW, dout.sum(axis=(0, 1))
@@ -283,6 +287,7 @@ def max_pool1d_backward(dout: np.ndarray, cache):
     """dx for :func:`max_pool1d_forward`: each gradient goes to the frame that won its pair."""
     (B, T, C), first = cache
     T2 = T // 2
+    require_grad_shape("max_pool1d_backward", dout, (B, T2, C))
     dx = np.empty((B, T, C), dtype=dout.dtype)
     dx[:, 2 * T2:] = 0                                           # the dropped odd frame, if any
     # Multiplying by the boolean masks is ~10x faster than np.copyto(..., where=) or np.where

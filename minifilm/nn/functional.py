@@ -22,7 +22,7 @@ import numpy as np
 
 from minifilm.nn.conv import (conv1d_backward, conv1d_forward, max_pool1d_backward,  # noqa: F401 (re-exported)
                               max_pool1d_forward)
-from minifilm.nn.scratch import require, scratch, sum_to_shape
+from minifilm.nn.scratch import require, require_grad_shape, scratch, sum_to_shape
 
 
 # --------------------------------------------------------------------------------------------
@@ -44,10 +44,11 @@ def linear_forward(x: np.ndarray, W: np.ndarray, b: np.ndarray):
 def linear_backward(dout: np.ndarray, cache, work: dict | None = None):
     """Gradients of :func:`linear_forward`: dx (..., I), dW (I, O), db (O,).
 
-    With ``work`` (see :func:`_scratch`) dW is written into a buffer kept there: add it to your
+    With ``work`` (see :func:`~minifilm.nn.scratch.scratch`) dW is written into a buffer kept there: add it to your
     gradients before the next call.
     """
     x, W = cache
+    require_grad_shape("linear_backward", dout, x.shape[:-1] + (W.shape[1],))
     x2 = x.reshape(-1, W.shape[0])       # (N, I) with N = product of the leading axes
     d2 = dout.reshape(-1, W.shape[1])    # (N, O)
     dW = np.matmul(x2.T, d2, out=scratch(work, "dW", W.shape, np.result_type(x2, d2)))
@@ -67,6 +68,7 @@ def elu_forward(x: np.ndarray):
 def elu_backward(dout: np.ndarray, cache):
     """dx for :func:`elu_forward`; the slope for x <= 0 is exp(x) = out + 1."""
     x, out = cache
+    require_grad_shape("elu_backward", dout, out.shape)
     return dout * np.where(x > 0, 1, out + 1).astype(dout.dtype, copy=False)
 
 
@@ -78,6 +80,7 @@ def relu_forward(x: np.ndarray):
 def relu_backward(dout: np.ndarray, cache):
     """dx for :func:`relu_forward` (slope 0 at x == 0)."""
     x = cache
+    require_grad_shape("relu_backward", dout, np.shape(x))
     return dout * (x > 0)
 
 
@@ -95,6 +98,7 @@ def softmax_forward(x: np.ndarray):
 def softmax_backward(dout: np.ndarray, cache):
     """dx = y * (dout - sum(dout * y)) row by row (the Jacobian diag(y) - y y^T applied to dout)."""
     y = cache
+    require_grad_shape("softmax_backward", dout, y.shape)
     return y * (dout - np.sum(dout * y, axis=-1, keepdims=True))
 
 
@@ -106,7 +110,7 @@ def layer_norm_forward(x: np.ndarray, unbiased: bool = True, eps: float = 1e-6):
 
     This is the bracket in Eq. (3). ``sigma`` is the standard deviation of each row, unbiased
     (divide by H - 1) or biased (divide by H). The original trains with ``unbiased=True,
-    eps=1e-6`` and runs with ``unbiased=False, eps=0.0`` (original-pipeline §10.2).
+    eps=1e-6`` and runs with ``unbiased=False, eps=0.0`` (docs/original-code.md §10.2).
     x: (..., H) -> y: (..., H).
     """
     H = x.shape[-1]
@@ -128,6 +132,7 @@ def layer_norm_backward(dout: np.ndarray, cache):
     A constant row (sigma = 0) gets gradient g / s - mean(g / s), the limit of the formula.
     """
     xc, sigma, s, n = cache
+    require_grad_shape("layer_norm_backward", dout, xc.shape)
     gs = dout / s
     dot = np.sum(dout * xc, axis=-1, keepdims=True)
     denom = s * s * n * sigma
@@ -153,6 +158,7 @@ def film_forward(h: np.ndarray, gamma: np.ndarray, beta: np.ndarray):
 def film_backward(dout: np.ndarray, cache):
     """Gradients of :func:`film_forward`: dh, dgamma, dbeta (each with its input's shape)."""
     h, gamma, beta_shape = cache
+    require_grad_shape("film_backward", dout, h.shape)
     return (dout * gamma, sum_to_shape(dout * h, gamma.shape), sum_to_shape(dout, beta_shape))
 
 
@@ -168,6 +174,9 @@ def dropout_forward(x: np.ndarray, p: float, rng: np.random.Generator | None = N
     expected activation is the same in training and at run time.
     """
     require(0.0 <= p < 1.0, f"dropout_forward: p must be in [0, 1), got {p}")
+    if not np.issubdtype(np.asarray(x).dtype, np.floating):
+        # scaled in x's dtype, 1 / (1 - p) would round to an integer (1 for p < 0.5)
+        raise TypeError(f"dropout_forward: x must be a floating-point array, got {np.asarray(x).dtype}")
     if not train or p == 0.0:
         return x, None
     if mask is None:
@@ -187,14 +196,49 @@ def dropout_backward(dout: np.ndarray, cache):
     if cache is None:
         return dout
     mask, scale = cache
+    require_grad_shape("dropout_backward", dout, mask.shape)
     return dout * mask * scale
 
 
 # --------------------------------------------------------------------------------------------
 # Mixture of experts (Sec. 4.1: Phi's weights are blended per sample by the gating output alpha)
 # --------------------------------------------------------------------------------------------
+def expert_blend_forward(x: np.ndarray, alpha: np.ndarray, W: np.ndarray, b: np.ndarray):
+    """The gated-expert layer as the paper describes it: blend the experts' weights, then multiply.
+
+        W_b = sum_k a_bk W_k    b_b = sum_k a_bk b_k    y_b = x_b W_b + b_b
+
+    x: (B, I); alpha: (B, K) (Ω's output, rows summing to 1); W: (K, I, O); b: (K, O) -> y: (B, O).
+    The plain form: it builds a (B, I, O) weight per sample. :func:`expert_linear_forward` computes
+    the same sum without it (4-8x faster) and is the one the networks use.
+    """
+    K, I, O = W.shape
+    require(x.ndim == 2 and x.shape[1] == I and alpha.shape == (x.shape[0], K) and b.shape == (K, O),
+            f"expert_blend_forward: x {x.shape}, alpha {alpha.shape}, W {W.shape}, b {b.shape}; "
+            f"expected (B, {I}), (B, {K}), (K, I, O), ({K}, {O})")
+    W_b = np.einsum("bk,kio->bio", alpha, W)                    # (B, I, O): one weight per sample
+    y = np.einsum("bi,bio->bo", x, W_b) + alpha @ b              # (B, O)
+    return y, (x, alpha, W, b, W_b)
+
+
+def expert_blend_backward(dout: np.ndarray, cache):
+    """Gradients of :func:`expert_blend_forward`: dx (B, I), dalpha (B, K), dW (K, I, O), db (K, O).
+
+    dx_b = W_b dout_b; the blended weight's gradient dW_b = outer(x_b, dout_b) goes to each expert
+    by its weight, dW_k = sum_b a_bk dW_b, and to the gate, dalpha_bk = <W_k, dW_b> + b_k . dout_b.
+    """
+    x, alpha, W, b, W_b = cache
+    require_grad_shape("expert_blend_backward", dout, (x.shape[0], W.shape[2]))
+    dx = np.einsum("bo,bio->bi", dout, W_b)
+    dW_b = x[:, :, None] * dout[:, None, :]                       # (B, I, O)
+    dW = np.einsum("bk,bio->kio", alpha, dW_b)
+    dalpha = np.einsum("kio,bio->bk", W, dW_b) + dout @ b.T
+    return dx, dalpha, dW, alpha.T @ dout
+
+
 def expert_linear_forward(x: np.ndarray, alpha: np.ndarray, W: np.ndarray, b: np.ndarray):
-    """Per-sample blend of K expert linear layers: ``y_b = x_b (sum_k a_bk W_k) + sum_k a_bk b_k``.
+    """Per-sample blend of K expert linear layers: ``y_b = x_b (sum_k a_bk W_k) + sum_k a_bk b_k``,
+    the same numbers as :func:`expert_blend_forward` (tests/nn/test_optimised_equivalence.py).
 
     x: (B, I); alpha: (B, K); W: (K, I, O); b: (K, O) -> y: (B, O).
 
@@ -223,6 +267,7 @@ def expert_linear_backward(dout: np.ndarray, cache):
     """
     x, alpha, W, b, Z = cache
     K, I, O = W.shape
+    require_grad_shape("expert_linear_backward", dout, (x.shape[0], O))
     dZ = (dout @ W.reshape(K * I, O).T).reshape(-1, K, I)       # (B, K, I)
     dW = (Z.T @ dout).reshape(K, I, O)
     db = alpha.T @ dout                                          # (K, O)
@@ -239,14 +284,16 @@ def gather_forward(x: np.ndarray, index: np.ndarray):
     index = np.asarray(index)
     require(index.ndim == 1 and np.issubdtype(index.dtype, np.integer),
             f"gather_forward: index must be 1-D integers, got {index.dtype} {index.shape}")
-    require(index.size == 0 or (index.min() >= 0 and index.max() < x.shape[0]),
-            f"gather_forward: index must lie in [0, {x.shape[0]}), got {index.min()}..{index.max()}")
+    require(index.size > 0, "gather_forward: index is empty (a batch of 0 samples)")
+    lo, hi = int(index.min()), int(index.max())
+    require(lo >= 0 and hi < x.shape[0], f"gather_forward: index must lie in [0, {x.shape[0]}), got {lo}..{hi}")
     return x[index], (index, x.shape)
 
 
 def gather_backward(dout: np.ndarray, cache):
     """dx for :func:`gather_forward`: each row of x receives the sum of the rows gathered from it."""
     index, shape = cache
+    require_grad_shape("gather_backward", dout, (len(index),) + tuple(shape[1:]))
     dx = np.zeros(shape, dtype=dout.dtype)
     np.add.at(dx, index, dout)
     return dx

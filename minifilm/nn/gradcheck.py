@@ -12,7 +12,7 @@ is smooth, with the scalar normalised to SCALE = 1e-4 (below). On a forward / ba
 
     rng = np.random.default_rng(0)
     errors = check_pair(linear_forward, linear_backward, (x, W, b), rng, names=("x", "W", "b"))
-    assert max(errors.values()) < LIMIT            # e.g. {'x': 3e-11, 'W': 1e-11, 'b': 2e-12}
+    assert passed(errors)                          # e.g. {'x': 3e-11, 'W': 1e-11, 'b': 2e-12}
 
 or, for anything else (a whole network, a loss), a scalar function and the analytic pairs::
 
@@ -42,6 +42,13 @@ huge high derivatives. So checks keep their inputs far from those points
 
 Use float64 only: in float32 the differences drown in rounding (compare float32 backward passes
 with float64 ones instead, as the suite does).
+
+NaN or inf anywhere is a failure. An entry where either gradient is not finite (a backward pass
+that returns NaN, a forward pass that overflows inside the stencil) has the error ``inf``, never
+NaN: NaN compares False with everything, so ``max(errors.values()) < LIMIT`` or ``worst <= limit``
+would let it through depending on the order of the arrays. :func:`worst_error` and
+:func:`passed` read a dict of errors the same way (no errors at all: nothing was checked, a
+failure too); the suite's rows, its table and the tests all go through them.
 """
 from __future__ import annotations
 
@@ -62,17 +69,43 @@ def rel_error(a: np.ndarray, b: np.ndarray) -> float:
     """Largest elementwise relative error ``|a - b| / max(1e-8, |a| + |b|)`` (as in CS231n).
 
     The 1e-8 floor avoids 0 / 0 where both gradients are exactly zero (e.g. dropped units).
+    ``inf`` when any entry of either is NaN or inf.
     """
     return float(np.max(rel_errors(a, b))) if np.size(a) else 0.0
 
 
 def rel_errors(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The elementwise relative errors of :func:`rel_error`, one per entry."""
+    """The elementwise relative errors of :func:`rel_error`, one per entry (``inf`` where either
+    entry is not finite)."""
     a = np.asarray(a, dtype=np.float64)
     b = np.asarray(b, dtype=np.float64)
     if a.shape != b.shape:
         raise ValueError(f"rel_error: shapes differ, {a.shape} vs {b.shape}")
-    return np.abs(a - b) / np.maximum(1e-8, np.abs(a) + np.abs(b))
+    with np.errstate(invalid="ignore"):
+        errs = np.abs(a - b) / np.maximum(1e-8, np.abs(a) + np.abs(b))
+    errs[~(np.isfinite(a) & np.isfinite(b))] = np.inf
+    return errs
+
+
+def worst_error(errors) -> float:
+    """The largest of a check's errors (a dict ``{name: error}`` or any iterable of numbers), a
+    NaN or inf among them counting as ``inf``; ``inf`` too when there are none (nothing was
+    checked). Unlike ``max``, the answer does not depend on the order of the values."""
+    values = [float(e) for e in (errors.values() if isinstance(errors, dict) else errors)]
+    return max((v if math.isfinite(v) else math.inf for v in values), default=math.inf)
+
+
+def passed(errors, limit: float = LIMIT) -> bool:
+    """True when every error of a check is finite and below ``limit`` (see :func:`worst_error`)."""
+    return worst_error(errors) < limit
+
+
+def _check_step(h, where: str) -> float:
+    """h as a float, or a ValueError naming ``where``: the stencil needs a finite step > 0."""
+    ok = isinstance(h, (int, float, np.integer, np.floating)) and not isinstance(h, bool)
+    if not (ok and math.isfinite(h) and h > 0):
+        raise ValueError(f"{where}: h must be a finite step > 0, got {h!r}")
+    return float(h)
 
 
 def numerical_gradient(f: Callable[[], float], x: np.ndarray, h: float = H,
@@ -89,6 +122,7 @@ def numerical_gradient(f: Callable[[], float], x: np.ndarray, h: float = H,
     """
     if order not in (2, 4):
         raise ValueError(f"numerical_gradient: order must be 2 or 4, got {order}")
+    h = _check_step(h, "numerical_gradient")
     if not isinstance(x, np.ndarray) or x.dtype != np.float64:
         raise TypeError("numerical_gradient: x must be a float64 ndarray (centred differences with "
                         f"h={h} are meaningless in lower precision), got "
@@ -127,6 +161,9 @@ def compare_gradients(f: Callable[[], float], pairs: dict, h: float = H, order: 
                       scale: Optional[float] = None) -> dict:
     """Like :func:`check_gradients`, with the details: ``{name: Comparison}`` (the gradients
     compared, i.e. multiplied by ``SCALE / scale`` when ``scale`` is given)."""
+    if scale is not None and not (math.isfinite(scale) and scale > 0):
+        raise ValueError(f"check_gradients: scale must be a finite number > 0 (the size of f's terms), got {scale!r}")
+    h = _check_step(h, "check_gradients")
     k = 1.0 if scale is None else SCALE / scale
     g = f if scale is None else (lambda: k * float(f()))
     out = {}
@@ -155,15 +192,18 @@ def check_gradients(f: Callable[[], float], pairs: dict, h: float = H, order: in
             values of its terms); f and the gradients are then multiplied by SCALE / scale
             before they are compared (see "Why these numbers" above). None: compared as given.
     Returns:
-        ``{name: rel_error(analytic, numerical)}``.
+        ``{name: rel_error(analytic, numerical)}``; ``inf`` for an array where either gradient
+        has a NaN or inf (read them with :func:`passed`).
     """
     return {name: c.error for name, c in compare_gradients(f, pairs, h, order, scale).items()}
 
 
 def pair_loss(forward: Callable, inputs: Sequence[np.ndarray], r: np.ndarray, **forward_kwargs):
-    """The scalar of :func:`check_pair`: ``L = sum(forward(*inputs)[0] * r)``, summed exactly."""
+    """The scalar of :func:`check_pair`: ``L = sum(forward(*inputs)[0] * r)``, summed exactly
+    (NaN when an output is not finite, which fails the check)."""
     def loss() -> float:
-        return math.fsum((forward(*inputs, **forward_kwargs)[0] * r).ravel().tolist())
+        terms = (forward(*inputs, **forward_kwargs)[0] * r).ravel()
+        return math.fsum(terms.tolist()) if np.all(np.isfinite(terms)) else math.nan
     return loss
 
 
@@ -180,7 +220,8 @@ def check_pair(forward: Callable, backward: Callable, inputs: Sequence[np.ndarra
     f(x - h), and normalised with scale = sum|out * r| (see the module docstring). Inputs must be
     float64; fix any randomness (dropout masks) in ``forward_kwargs``.
     Returns ``{name: rel_error}`` for every input that has a gradient (names default to
-    ``input0``, ``input1``, ...).
+    ``input0``, ``input1``, ...); ``inf`` where a gradient or the output is not finite.
+    A backward pass that returns a gradient of the wrong shape is a ValueError.
     """
     out, cache = forward(*inputs, **forward_kwargs)
     r = rng.standard_normal(np.shape(out))
@@ -190,5 +231,6 @@ def check_pair(forward: Callable, backward: Callable, inputs: Sequence[np.ndarra
         raise ValueError(f"check_pair: backward returned {len(grads)} gradients for {len(inputs)} inputs")
     names = list(names) if names is not None else [f"input{i}" for i in range(len(inputs))]
     pairs = {name: (x, g) for name, x, g in zip(names, inputs, grads) if g is not None}
-    scale = math.fsum(np.abs(out * r).ravel().tolist()) or None
+    finite = bool(np.all(np.isfinite(out)))        # a non-finite output: unnormalised, it fails below
+    scale = (math.fsum(np.abs(out * r).ravel().tolist()) or None) if finite else None
     return check_gradients(pair_loss(forward, inputs, r, **forward_kwargs), pairs, h, order, scale)

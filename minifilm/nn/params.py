@@ -2,7 +2,7 @@
 
 Why one buffer: at small batch sizes an optimiser step over dozens of separate arrays costs more
 than the forward pass. With all weights in ``data`` (N,) and all gradients in ``grad`` (N,), one
-Adam step is a handful of in-place vector operations (see optim.py), while layers still read and
+Adam step is a handful of vector operations (optim.py; in place, fast_optim.py), while layers still read and
 write named arrays: ``params["W"]`` is a reshaped view into ``data``, ``grads["W"]`` into ``grad``.
 
 Also here: initialisers that fill an array in place from an explicit ``np.random.Generator``.

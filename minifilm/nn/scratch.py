@@ -1,5 +1,6 @@
-"""Helpers every forward/backward pair uses: shape checks that name the culprit, summing a
-gradient back to a broadcast input's shape, and scratch buffers reused from call to call."""
+"""Helpers every forward/backward pair uses: shape checks that name the culprit (the inputs, and
+the incoming gradient against the output), summing a gradient back to a broadcast input's shape,
+and scratch buffers reused from call to call."""
 from __future__ import annotations
 
 import numpy as np
@@ -9,6 +10,14 @@ def require(ok: bool, message: str) -> None:
     """Raise a ValueError with ``message`` unless ``ok`` (shape checks that name the culprit)."""
     if not ok:
         raise ValueError(message)
+
+
+def require_grad_shape(where: str, dout: np.ndarray, shape: tuple) -> None:
+    """A backward pass's incoming gradient must have its output's shape exactly: numpy would
+    silently broadcast a (1, H) dout over a (B, H) output and return a gradient that is neither
+    (every sample given the same gradient), so a mismatch is a ValueError naming ``where``."""
+    if np.shape(dout) != tuple(shape):
+        raise ValueError(f"{where}: dout is {np.shape(dout)}, expected the output's shape {tuple(shape)}")
 
 
 def sum_to_shape(grad: np.ndarray, shape: tuple) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""Foot contacts from toe-tip sensors (Sec. 4.1.2; original-pipeline.md §2).
+"""Foot contacts from toe-tip sensors (Sec. 4.1.2; docs/original-code.md §2).
 
 A sensor is in contact when it is slow *and* near the floor:
 
@@ -57,7 +57,7 @@ def majority_filter(raw, half_width: int) -> np.ndarray:
     """Majority vote of 0/1 values over the clamped window ``[k - h, k + h] ∩ [0, F-1]``.
 
     raw (F, ...) of 0/1 -> (F, ...) of 0.0/1.0: 1 where ones outnumber zeros, 0 where zeros
-    outnumber ones, the raw value on a tie (original-pipeline.md §2, "Filter").
+    outnumber ones, the raw value on a tie (docs/original-code.md §2, "Filter").
     """
     x = (np.asarray(raw) > 0.5).astype(np.int64)
     n = x.shape[0]
@@ -101,7 +101,7 @@ def foot_contacts(sensor_positions, fps: float, floor_height: Optional[float] = 
     if p.shape[0] == 0:
         return np.zeros((0, 2))
     v = np.zeros_like(p)
-    if p.shape[0] >= 2:  # backward difference, frame 0 copies frame 1 (original-pipeline §1.4)
+    if p.shape[0] >= 2:  # backward difference, frame 0 copies frame 1 (docs/original-code.md §1.4)
         v[1:] = (p[1:] - p[:-1]) * fps
         v[0] = v[1]
     speed = np.linalg.norm(v, axis=-1)

@@ -1,6 +1,6 @@
 """The labelling recipe of one motion file: foot contacts first, then the four local phases.
 
-This is the one place that says how a file is labelled (Sec. 4.1; original-pipeline.md §2-§4),
+This is the one place that says how a file is labelled (Sec. 4.1; docs/original-code.md §2-§4),
 so the dataset builder, the phase plot, the main job's phase check and the benchmarks all label
 the same way:
 
@@ -42,7 +42,7 @@ class Labels:
         return self.phases.vectors()
 
     def mirrored(self) -> "Labels":
-        """The labels of the left-right mirrored motion (original-pipeline §1.3, §4.6): the two
+        """The labels of the left-right mirrored motion (docs/original-code.md §1.3, §4.6): the two
         contact columns swap, and so do the left and right phase slots."""
         return Labels(self.contacts[:, ::-1].copy(), self.phases.mirrored(),
                       tuple(self.sources[i] for i in (1, 0, 3, 2)))

@@ -1,10 +1,10 @@
-"""Local motion phases (Sec. 4.1, Eq. 1; original-pipeline.md §3-§4).
+"""Local motion phases (Sec. 4.1, Eq. 1; docs/original-code.md §3-§4).
 
 Pipeline per end effector b (left hand, right hand, left foot, right foot, in that order):
 
-    source G_b(t)                    phase_sources.py  (contacts for feet, directed PCA for hands)
-      -> preprocess                  phase_sources.py  (1 s normalisation, 4 Hz Butterworth, < 1e-3 -> 0)
-      -> sinusoid fit per frame      phase_fit.py      (A sin(2π(F t − S)) + B over 0.5 s)
+    source G_b(t)                    sources.py         (contacts for feet, directed PCA for hands)
+      -> preprocess                  sources.py         (1 s normalisation, 4 Hz Butterworth, < 1e-3 -> 0)
+      -> sinusoid fit per frame      sinusoid_fit.py    (A sin(2π(F t − S)) + B over 0.5 s)
       -> phase, amplitude            here              (§4.5-§4.6)
       -> p_i = amp · (sin 2πφ, cos 2πφ)                (Eq. 1, §4.7)
 
@@ -33,7 +33,7 @@ DEFAULT_SOURCES = ("pca", "pca", "contact", "contact")
 
 
 def default_sources(style: Optional[str] = None) -> tuple:
-    """Source kinds per slot for a style name (original-pipeline.md §3.3).
+    """Source kinds per slot for a style name (docs/original-code.md §3.3).
 
     In hopping styles the lifted foot never touches the floor, so it gets the contact-free source:
     ``LeftHop`` (hopping on the left foot) -> right foot PCA, ``RightHop`` -> left foot PCA.

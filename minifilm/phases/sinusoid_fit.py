@@ -1,4 +1,4 @@
-"""Sliding-window sinusoid fit behind the local phases (Sec. 4.1.4; original-pipeline §4.1-§4.4).
+"""Sliding-window sinusoid fit behind the local phases (Sec. 4.1.4; docs/original-code.md §4.1-§4.4).
 
 For every frame ``k`` of a preprocessed source signal ``v`` (F,) we fit
 
@@ -298,7 +298,7 @@ def fit_sinusoids(signal, fps: float, window_seconds: float = 0.5, min_frequency
     """Fit ``A sin(2π(F t − S)) + B`` around every frame of ``signal`` (deterministic, vectorised).
 
     Args:
-        signal:  (F,) preprocessed source function (original-pipeline §3.7).
+        signal:  (F,) preprocessed source function (docs/original-code.md §3.7).
         fps:     frames per second of the signal.
         window_seconds: data window, 2P+1 frames with P = round(window_seconds*fps/2) (31 at 60 fps).
         min_frequency, max_frequency: bounds on F in Hz (§4.2: 1/MaxFrequency and MaxFrequency).

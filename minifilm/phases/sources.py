@@ -1,5 +1,5 @@
 """Source functions for the local phases and their preprocessing (Sec. 4.1.2-4.1.4;
-original-pipeline.md §3.3-§3.7).
+docs/original-code.md §3.3-§3.7).
 
 A source function G(t) is a 1-D signal per end effector whose cycles are the bone's cycles:
 
@@ -11,14 +11,14 @@ A source function G(t) is a 1-D signal per end effector whose cycles are the bon
 Before the sinusoid fit each source is normalised in a 1 s window, low-passed by a 2nd-order 4 Hz
 Butterworth filter run forwards and backwards, and values below 1e-3 are set to 0 (Sec. 4.1.4).
 
-Decisions (original-pipeline.md §12):
+Decisions (docs/original-code.md §12):
 * §12.3 contact lag: the original feeds frame k the contact of frame k−1 (an indexing slip). We do
   **not** replicate it: the contact source of frame k is the contact of frame k.
 * §12.8 Butterworth edges: we use ``scipy.signal.sosfiltfilt`` with constant (edge-value) padding
   instead of the original's hand-made edges. On a normalised contact signal the result agrees with
   the original's recursion to about 1e-7 except in the last ~0.5 s, where the original leaves the
   last sample unfiltered and starts its backward pass from it (differences up to ~0.05 there; we
-  filter the last sample like every other). tests/test_phases.py compares the two.
+  filter the last sample like every other). tests/phases/test_phases.py compares the two.
 * The original computes sources only inside a per-file frame range (Frame_Cuts.csv, 100STYLE
   specific) and sets them to 0 outside; here the caller passes the frames to use (slice the motion).
 """
@@ -27,7 +27,6 @@ from __future__ import annotations
 from typing import Sequence
 
 import numpy as np
-from scipy.signal import butter, sosfiltfilt
 
 __all__ = ["contact_source", "pca_source", "principal_direction", "window_normalise", "butterworth",
            "preprocess_source"]
@@ -117,6 +116,8 @@ def butterworth(signal, fps: float, cutoff: float = 4.0, order: int = 2) -> np.n
         raise ValueError(f"butterworth: cutoff {cutoff} Hz must lie in (0, fps/2 = {nyquist}) Hz")
     if x.shape[0] < 2:
         return x.copy()
+    # imported here: scipy.signal is ~85 % of the package's import time, for this one filter
+    from scipy.signal import butter, sosfiltfilt
     sos = butter(order, cutoff / nyquist, output="sos")
     padlen = min(3 * (2 * len(sos) + 1), x.shape[0] - 1)
     return sosfiltfilt(sos, x, axis=0, padtype="constant", padlen=padlen)

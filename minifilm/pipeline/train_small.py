@@ -13,7 +13,12 @@ Steps (each prints what it did):
  4. training: a small LPN + FiLM model (Eq. 1-7) with style-balanced minibatches (Sec. 4.3);
  5. results:  test error per style against the predict-the-mean baseline, a loss-curve PNG, one
               generated BVH per style made by the autoregressive runtime (Sec. 4.4), how well a
-              style classifier recognises each style in it, and pictures of it (GIF, HTML player).
+              style classifier recognises each style in it, and pictures of it (GIF, HTML player)
+              (results.py).
+
+``run`` is ``with main_job(...) as job`` (steps 1-3, the locked run folder built aside and swapped
+in at the end), ``train`` (step 4: the Trainer's epochs) and ``finish`` (step 5);
+examples/train_small.py uses ``main_job`` and ``finish`` too and writes step 4's loop out itself.
 
 Everything is written to the run folder --out (default runs/train_small; see run_folder.py):
 data/, model.npz (checkpoint with the normalisation statistics), styles.npz (FiLM vector per
@@ -33,26 +38,18 @@ import numpy as np
 
 from minifilm.dataset.build import build_dataset, resolve_files
 from minifilm.errors import DataError, InputError
-from minifilm.files import atomic_directory, file_names, folder_lock
-from minifilm.evaluation.style_classifier import classify_rollout, train_style_classifier
+from minifilm.files import atomic_directory, folder_lock
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
 from minifilm.motion.bvh import bvh_duration, read_bvh
-from minifilm.motion.bvh_write import write_bvh
 from minifilm.motion.skeletons import STYLE100, builtin_skeleton
 from minifilm.phases.label import label
 from minifilm.pipeline.run_folder import RunFolder, is_run_entry
-from minifilm.runtime.control import make_script
-from minifilm.runtime.controller import (Controller, NonFiniteOutputError, root_joint_indices,
-                                         start_from_dataset)
-from minifilm.runtime.network import RuntimeNetwork
-from minifilm.runtime.style_library import StyleLibrary
+from minifilm.pipeline.results import (generate_per_style, save_loss_curve, show_styles,  # noqa: F401
+                                       style_library, style_recognition, test_table)
+from minifilm.runtime.controller import start_from_dataset
 from minifilm.synthetic import generator as synthetic
 from minifilm.train.trainer import TrainConfig, Trainer
-from minifilm.viewer.builders import tracks_from_rollout
-from minifilm.viewer.deps import pyplot, save_figure
-from minifilm.viewer.gif import write_gif
-from minifilm.viewer.html import write_html
 
 
 @dataclass
@@ -141,8 +138,10 @@ def phase_accuracy(clips):
 
 
 # ---- 4. training ----------------------------------------------------------------------------------
-def train(ds, out: Path, s: Settings) -> Trainer:
-    """Train the small LPN + FiLM model, one line per epoch; checkpoint after every epoch."""
+def new_trainer(job: "Job") -> Trainer:
+    """The small LPN + FiLM model (Ω, Φ, Ψ) and its Trainer (Adam, the random generator, the history,
+    a checkpoint after every epoch); prints the [train] header."""
+    ds, s = job.ds, job.settings
     layout = ds.layout
     train_data, val_data = ds.train_data("train"), ds.train_data("val")
     config = ModelConfig.small(layout.x_dim, layout.z_dim, train_data.clips.shape[1], layout.clip_dim,
@@ -151,155 +150,32 @@ def train(ds, out: Path, s: Settings) -> Trainer:
     trainer = Trainer(model, ds.stats,
                       TrainConfig(epochs=s.epochs, batch_size=s.batch_size, lr=s.learning_rate, seed=s.seed,
                                   lr_schedule=s.lr_schedule, clips_per_batch=s.clips_per_batch,
-                                  checkpoint_path=str(out / "model.npz")),
+                                  checkpoint_path=str(job.work / "model.npz")),
                       positions_idx=layout.joint_columns("z", "position"), parents=np.asarray(layout.parents),
                       style_names=ds.styles)
     n_params = sum(p.size for p in model.parameter_sets())
     log(f"[train] {n_params:,} parameters; {len(train_data)} training / {len(val_data)} validation frames; "
         f"clips {train_data.clips.shape[1]} x {layout.clip_dim}")
     log(f"    {'epoch':>5} {'train MSE':>10} {'train BLL':>10} {'val MSE':>9} {'val BLL':>9} {'time':>7}")
-    for epoch in range(1, s.epochs + 1):
-        t0 = time.perf_counter()
-        trainer.fit(train_data, val_data, epochs=epoch)
-        rec = trainer.history[-1]
-        log(f"    {epoch:>5} {rec['train']['mse']:>10.4f} {rec['train']['bll']:>10.4f} "
-            f"{rec['val']['mse']:>9.4f} {rec['val']['bll']:>9.4f} {time.perf_counter() - t0:>6.1f}s")
     return trainer
 
 
-# ---- 5. results -----------------------------------------------------------------------------------
-def test_table(trainer: Trainer, ds) -> dict:
-    """Test MSE per style (normalised units) against predicting the training mean (which is 0 in
-    normalised units, so its MSE is the mean squared normalised target)."""
-    test = ds.train_data("test")
-    result = trainer.evaluate(test)
-    log("[test] MSE per style, normalised units (predict-the-mean baseline in brackets):")
-    log(f"    {'style':<14} {'model':>8} {'baseline':>9}")
-    baselines = []
-    for s, name in enumerate(ds.styles):
-        rows = test.style == s
-        if not np.any(rows):
-            continue
-        base = float(np.mean(test.z[rows].astype(np.float64) ** 2))
-        baselines.append(base)
-        log(f"    {name:<14} {result['per_style'][name]['mse']:>8.4f} {base:>9.4f}")
-    log(f"    {'mean':<14} {result['mse']:>8.4f} {np.mean(baselines):>9.4f}")
-    return result
+def log_epoch(record: dict, seconds: float) -> None:
+    """One line per epoch: training and validation losses, and the epoch's time."""
+    log(f"    {record['epoch']:>5} {record['train']['mse']:>10.4f} {record['train']['bll']:>10.4f} "
+        f"{record['val']['mse']:>9.4f} {record['val']['bll']:>9.4f} {seconds:>6.1f}s")
 
 
-def save_loss_curve(history, path: Path, shown: Optional[Path] = None) -> None:
-    """The training and validation losses per epoch as a PNG at ``path`` (``shown``: the path to
-    print, when the file is written in a run still being built)."""
-    try:
-        plt = pyplot()
-    except ImportError as e:
-        log(f"[plot] no loss curve: {e}")
-        return
-    epochs = [r["epoch"] for r in history]
-    fig, ax = plt.subplots(figsize=(6, 4))
-    for split, style in (("train", "-"), ("val", "--")):
-        ax.plot(epochs, [r[split]["mse"] for r in history], style, color="C0", label=f"{split} MSE")
-        ax.plot(epochs, [r[split]["bll"] for r in history], style, color="C1", label=f"{split} BLL")
-    ax.set_xlabel("epoch")
-    ax.set_ylabel("loss (normalised units)")
-    ax.set_yscale("log")
-    ax.legend()
-    ax.set_title("minifilm train_small: LPN + FiLM")
-    fig.tight_layout()
-    save_figure(fig, path, dpi=100)
-    log(f"[plot] loss curve saved to {shown or path}")
-
-
-def style_library(trainer: Trainer, ds) -> StyleLibrary:
-    """One FiLM vector per style: Ψ averaged over the style's training clips (Sec. 4.4)."""
-    train_data = ds.train_data("train")
-    library = StyleLibrary()
-    for s, name in enumerate(ds.styles):
-        library.add_from_clips(name, trainer.model, train_data.clips[train_data.clip_style == s])
-    return library
-
-
-def generate_per_style(trainer: Trainer, ds, run: RunFolder, library: StyleLibrary, template, seconds: float,
-                       shown: Optional[Path] = None):
-    """One BVH per style from the autoregressive runtime (Sec. 4.4): a figure-eight path, the motion
-    put back on the source skeleton. Each style starts in mid-stride from a frame of its own forward
-    walk (pose, trajectory and phases): from the data's mean pose a network this small may never
-    get going. The files are ``generated/<style>.bvh`` in ``run``, named safely after the styles
-    (minifilm/files/names.py); ``shown`` is the run folder to print."""
-    network = RuntimeNetwork.from_model(trainer.model, trainer.stats)
-    # every frame is put on the source skeleton (rigid bones); the network keeps seeing its own
-    # prediction (fed back, the fitted pose made small models stop stepping more often:
-    # benchmarks/trained_rollout.py --fit)
-    joints = root_joint_indices(ds.layout, template)
-    controller = Controller(network, ds.layout, fps=ds.fps, skeleton=Controller.skeleton_for(ds.layout, template),
-                            position_bias=run.position_bias)
-    n_frames = int(round(seconds * ds.fps))
-    out = run.path / "generated"
-    out.mkdir(exist_ok=True)
-    files = file_names(ds.styles)
-    starts = run.starts()
-    log(f"[generate] {seconds:g} s per style along a figure-eight:")
-    rollouts = {}
-    for name in ds.styles:
-        script = make_script("figure8", seconds)
-        start_x, phases = starts[name]
-        try:
-            rollout = controller.run(script, n_frames, library[name], phases=phases, start_x=start_x)
-        except NonFiniteOutputError:     # an under-trained model: say so, and go on with the others
-            log(f"    {name:<14} diverged (the network's output became non-finite); no BVH written")
-            continue
-        path = out / f"{files[name]}.bvh"
-        write_bvh(rollout.to_motion(template, joints), path, scale=run.bvh_scale)
-        path = (shown or run.path) / "generated" / path.name
-        hips = rollout.positions[0, :, 0, 1]
-        speed = np.linalg.norm(np.diff(rollout.root_positions[0], axis=0), axis=1).mean() * ds.fps
-        log(f"    {name:<14} hips {hips.mean():.2f} m  speed {speed:.2f} m/s   -> {path}")
-        rollouts[name] = rollout
-    return rollouts
-
-
-def style_recognition(ds, rollouts: dict, seed: int = 0) -> dict:
-    """How well the generated motion carries each style: the fraction of 0.75 s windows of each
-    style's generated motion (after its first second) that a style classifier trained on the
-    run's own data recognises as that style (minifilm/evaluation/style_classifier.py). Its
-    accuracy on the data's held-out rows is the ceiling."""
-    t0 = time.perf_counter()
-    classifier, info = train_style_classifier(ds, seed=seed)
-    per_style = {}
-    for name, rollout in rollouts.items():
-        probs = classify_rollout(classifier, ds, rollout, window=info["window"], stride=info["stride"])[0]
-        per_style[name] = float(np.mean(probs.argmax(axis=1) == ds.styles.index(name))) if len(probs) else float("nan")
-    scored = [v for v in per_style.values() if np.isfinite(v)]       # a style too short for one window has none
-    mean = float(np.mean(scored)) if scored else float("nan")
-    def score(v: float) -> str:  # a run too short for one window has no score, not "nan"
-        return f"{v:.2f}" if np.isfinite(v) else "n/a (too short for one window)"
-
-    log(f"[style] recognition of each style's generated motion by a classifier trained on the data "
-        f"(held-out real windows: {score(info['heldout_acc'])}; {time.perf_counter() - t0:.1f} s):")
-    for name, acc in per_style.items():
-        log(f"    {name:<14} {score(acc)}")
-    log(f"    mean style recognition {score(mean)}")
-    return {"per_style": per_style, "mean": mean, "heldout": info["heldout_acc"]}
-
-
-def show_styles(rollouts: dict, layout, out: Path, gif_seconds: float = 6.0, shown: Optional[Path] = None) -> None:
-    """See the result: every style's generated motion side by side in an animated GIF (the first
-    ``gif_seconds``) and in the offline HTML player (all of it), written into ``out`` (``shown``:
-    the folder to print)."""
-    shown = shown or out
-    names = list(rollouts)
-    if not names:
-        log("[view] no generated motion to show")
-        return
-    toes = [layout.joint_names.index(t) for t in ("RightToe", "LeftToe")] if "RightToe" in layout.joint_names else None
-    tracks = [tracks_from_rollout(rollouts[n], layout.parents, [n], layout.joint_names, toes)[0] for n in names]
-    write_html(tracks, out / "index.html", title="minifilm: generated styles")
-    log(f"[view] every style in a 3-D player (opens offline in a browser): {shown / 'index.html'}")
-    try:
-        write_gif(tracks, out / "styles.gif", seconds=gif_seconds, size=(200, 250))
-        log(f"[view] every style side by side, first {gif_seconds:g} s: {shown / 'styles.gif'}")
-    except ImportError as e:
-        log(f"[view] no GIF: {e}")
+def train(job: "Job") -> Trainer:
+    """Train the small LPN + FiLM model, one line per epoch; checkpoint after every epoch
+    (examples/train_small.py writes the same loop out step by step)."""
+    trainer = new_trainer(job)
+    train_data, val_data = job.ds.train_data("train"), job.ds.train_data("val")
+    for _ in range(job.settings.epochs):
+        t0 = time.perf_counter()
+        record = trainer.end_epoch(trainer.train_epoch(train_data), val_data)
+        log_epoch(record, time.perf_counter() - t0)
+    return trainer
 
 
 def data_settings(data: Path, s: Settings) -> dict:
@@ -355,38 +231,70 @@ def prepare_data(s: Settings, data: Optional[Path], out: Path):
     return ds
 
 
-def run(s: Settings, data: Optional[Path] = None) -> dict:
-    """The whole main job; returns the test result (MSE per style) with the style recognition
-    of the generated motion under 'recognition'.
+@dataclass
+class Job:
+    """The main job under way: its settings, the data folder (None: synthetic), the run folder
+    ``out``, the folder ``work`` the run is built in (swapped in for ``out`` when complete), the
+    dataset and the time it started."""
 
-    The run is built in a new folder beside ``s.out`` and swapped in whole when it is complete
-    (minifilm/files/atomic.py), with the folder locked meanwhile (minifilm/files/lock.py): an
-    earlier run there stays whole and usable until then, whatever stops this one (an error,
-    Ctrl-C, SIGTERM, SIGKILL), and a second command writing the same folder is refused."""
+    settings: Settings
+    data: Optional[Path]
+    out: Path
+    work: Path
+    ds: object
+    t_start: float
+
+
+@contextlib.contextmanager
+def main_job(s: Settings, data: Optional[Path] = None):
+    """Steps 1-3 (check the settings, make the synthetic data with its phase check unless ``data``
+    is given, build the dataset), then the body of the ``with`` block (training and ``finish``).
+
+    The run is built in a new folder beside ``s.out`` and swapped in whole when the block ends
+    without an error (minifilm/files/atomic.py), with the folder locked meanwhile
+    (minifilm/files/lock.py): an earlier run there stays whole and usable until then, whatever
+    stops this one (an error, Ctrl-C, SIGTERM, SIGKILL), and a second command writing the same
+    folder is refused. Yields a :class:`Job`."""
     check_inputs(s, data)          # before the run folder is touched
     out = Path(s.out)
     t_start = time.perf_counter()
     with folder_lock(out), atomic_directory(out, "run folder", replaceable=is_run_entry) as work:
         reuse_cache(out / "cache", work / "cache")
         ds = prepare_data(s, data, work)
-        trainer = train(ds, work, s)
-        trainer.save(work / "model.npz")
-        log(f"[train] checkpoint (model, optimiser, normalisation statistics) saved to {out / 'model.npz'}")
-        result = test_table(trainer, ds)
-        save_loss_curve(trainer.history, work / "loss_curve.png", shown=out / "loss_curve.png")
-
-        skeleton = builtin_skeleton(ds.skeleton)
-        template = read_bvh(ds.files[0]["path"], scale=skeleton.bvh_scale)   # the source skeleton, its own units
-        folder = RunFolder.prepare(work, ds.layout, ds.fps, ds.skeleton, skeleton.bvh_scale, template,
-                                   s.position_bias)
-        library = style_library(trainer, ds)
-        library.save(work / "styles.npz")
-        folder.save_starts({name: start_from_dataset(ds, name) for name in ds.styles})
-        rollouts = generate_per_style(trainer, ds, folder, library, template, s.generate_seconds, shown=out)
-        result["recognition"] = style_recognition(ds, rollouts, s.seed)
-        show_styles(rollouts, ds.layout, work / "generated", min(6.0, s.generate_seconds), shown=out / "generated")
-        folder.commit()
+        yield Job(s, data, out, work, ds, t_start)
     log(f"[done] {time.perf_counter() - t_start:.0f} s in all; outputs in {out}")
+
+
+def finish(job: Job, trainer: Trainer) -> dict:
+    """Step 5: checkpoint, test table, loss curve, style library, generated motion, style
+    recognition, pictures, written into the run being built (printed with the run folder's
+    paths). Returns the test result (MSE per style) with the style recognition under
+    'recognition'."""
+    ds, out, work, s = job.ds, job.out, job.work, job.settings
+    trainer.save(work / "model.npz")
+    log(f"[train] checkpoint (model, optimiser, normalisation statistics) saved to {out / 'model.npz'}")
+    result = test_table(trainer, ds)
+    save_loss_curve(trainer.history, work / "loss_curve.png", shown=out / "loss_curve.png")
+
+    skeleton = builtin_skeleton(ds.skeleton)
+    template = read_bvh(ds.files[0]["path"], scale=skeleton.bvh_scale)   # the source skeleton, its own units
+    folder = RunFolder.prepare(work, ds.layout, ds.fps, ds.skeleton, skeleton.bvh_scale, template,
+                               s.position_bias)
+    library = style_library(trainer, ds)
+    library.save(work / "styles.npz")
+    folder.save_starts({name: start_from_dataset(ds, name) for name in ds.styles})
+    rollouts = generate_per_style(trainer, ds, folder, library, template, s.generate_seconds, shown=out)
+    result["recognition"] = style_recognition(ds, rollouts, s.seed)
+    show_styles(rollouts, ds.layout, work / "generated", min(6.0, s.generate_seconds), shown=out / "generated")
+    folder.commit()
+    return result
+
+
+def run(s: Settings, data: Optional[Path] = None) -> dict:
+    """The whole main job (``minifilm train``); returns the test result (MSE per style) with the
+    style recognition of the generated motion under 'recognition'."""
+    with main_job(s, data) as job:
+        result = finish(job, train(job))
     return result
 
 

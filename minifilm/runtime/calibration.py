@@ -1,7 +1,7 @@
 """Speed calibration: the command that makes a network really move at the speed the user asks for.
 
 The network follows the user's trajectory only partly (near future samples keep its own
-prediction, original-pipeline §10.4), so commanding v m/s gives a slower walk. The original demo
+prediction, docs/original-code.md §10.4), so commanding v m/s gives a slower walk. The original demo
 hid this behind a per-style "velocity bias" of unclear units (§12 item 16); here the map from
 commanded to achieved speed is measured per style and direction (:func:`calibrate_speed`) and
 inverted (:class:`SpeedCalibration`).
@@ -24,7 +24,7 @@ class SpeedCalibration:
 
     The network follows the user's trajectory only partly (near future samples keep its own
     prediction, §10.4), so commanding v gives a slower walk. The original demo hid this behind a
-    per-style "velocity bias" of unclear units (original-pipeline §12 item 16); here the map is
+    per-style "velocity bias" of unclear units (docs/original-code.md §12 item 16); here the map is
     measured (:func:`calibrate_speed`) and inverted by linear interpolation (in speed, then in
     direction).
 
@@ -103,7 +103,7 @@ def calibrate_speed(controller, film: np.ndarray,
     """Move at each commanded speed in each direction (degrees from the facing: 0 forwards, 90
     sideways, 180 backwards), all at once as one batch, and measure the mean root speed after
     ``settle`` seconds. ``film`` is the style (4H,); ``phases`` (8,) and ``start_x`` (x_dim,)
-    the start state (see :meth:`Controller.reset`; default the data's means).
+    the start state (see :meth:`~minifilm.runtime.controller.Controller.reset`; default the data's means).
 
     Made for the released network. A small network trained on little data may move at its data's
     speeds only (a walk and a run, nothing between), so the calibration asks for commands far

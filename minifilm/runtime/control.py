@@ -12,7 +12,7 @@ which way should it face and how fast (m/s, world x/z) should it move?"  Two kin
 Ready scripts: :func:`straight_walk`, :func:`figure_eight`, :func:`walk_run_stop`, :func:`strafe`.
 
 :func:`blend_future_trajectory` is the user-trajectory blend of the original runtime
-(original-pipeline §10.4, after Zhang et al. 2018), rewritten at the network's own future sample
+(docs/original-code.md §10.4, after Zhang et al. 2018), rewritten at the network's own future sample
 spacing (0.2 s, the training spacing; the demo used 1/6 s, §12 item 10) and in m/s: the user's
 velocity times the sample spacing is a displacement in metres, so no per-style "bias" is needed.
 
@@ -284,7 +284,7 @@ def make_script(name: str, seconds: float, **kwargs) -> Script:
 def blend_future_trajectory(positions: np.ndarray, directions: np.ndarray, target_velocity: np.ndarray,
                             target_facing: np.ndarray, sample_dt: float, position_bias: float = 0.75,
                             direction_bias: float = 1.25) -> Tuple[np.ndarray, np.ndarray]:
-    """Blend the predicted future trajectory with the user's target (original-pipeline §10.4).
+    """Blend the predicted future trajectory with the user's target (docs/original-code.md §10.4).
 
     Sample 0 is the current root and is kept. For future sample s = 1..S-1 with w = s/(S-1):
     ``p_s = p'_{s-1} + lerp(P_s - P_{s-1}, v * sample_dt, 1 - (1-w)^position_bias)`` and

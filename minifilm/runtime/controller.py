@@ -1,4 +1,4 @@
-"""Autoregressive stylised synthesis (Sec. 4.4; original-pipeline §10.2-10.4, with the §12 fixes).
+"""Autoregressive stylised synthesis (Sec. 4.4; docs/original-code.md §10.2-10.4, with the §12 fixes).
 
 Each frame, for every character of a batch:
 
@@ -12,10 +12,10 @@ Each frame, for every character of a batch:
    the world, the local phases advance with ``p <- 0.5 p_pred + 0.5 (p + Δp_pred)`` (§10.2 step 7),
    and optional foot locking (:mod:`minifilm.motion.foot_ik`) post-processes the legs.
 
-Deviations from the Unity demo (original-pipeline §12): future samples at the training spacing
+Deviations from the Unity demo (docs/original-code.md §12): future samples at the training spacing
 (+0.2 .. +1.0 s, not 1/6 s), FiLM applied from hidden unit 0, user speed given in m/s and mapped
 to the command that makes the network really move at that speed by a measured per-style
-calibration (:func:`calibrate_speed`, instead of the demo's velocity bias of unclear units), the
+calibration (:func:`~minifilm.runtime.calibration.calibrate_speed`, instead of the demo's velocity bias of unclear units), the
 root moves by the full predicted delta. The demo's smoothing of joint positions with the predicted
 velocities (``lerp(p_prev + v dt, p, 0.5)``) and of the future trajectory with the previous one
 (weight 0.15) are kept as options. A run starts from the data's mean pose (the input means) with
@@ -347,7 +347,7 @@ class Controller:
             film: (4H,) or (B, 4H) for all frames, (n_frames, 4H) / (n_frames, B, 4H) per frame
                 (style transitions), or a callable frame -> film.
             calibration: maps the user's speed (m/s) to the command that makes this network
-                actually move at that speed (see :func:`calibrate_speed`); None = use as given.
+                actually move at that speed (see :func:`~minifilm.runtime.calibration.calibrate_speed`); None = use as given.
             phases, start_x: the start phases (B, 8) and pose (raw input frames), see :meth:`reset`.
         """
         if isinstance(scripts, Script):

@@ -1,7 +1,7 @@
 """Root-relative frames on the floor, per character: the per-frame arithmetic of the runtime.
 
 A root at (x, z) facing f = (f_x, f_z) (unit, on the floor) has the rotation R = LookRotation(f)
-about the vertical axis; "local" vectors are R^T v, "world" vectors R v (original-pipeline §0.3).
+about the vertical axis; "local" vectors are R^T v, "world" vectors R v (docs/original-code.md §0.3).
 These are written out component by component into preallocated arrays because they run for every
 character on every frame, where ``np.stack`` and general rotation matrices cost more than the
 arithmetic itself.

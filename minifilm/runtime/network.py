@@ -58,7 +58,7 @@ class GatingMLP:
 class FilmHidden:
     """The LPN's hidden layer at inference, Eq. (3): h = ELU(γ ∘ LN(F) + β), with cond = the FiLM
     vector [γ1, β1, γ2, β2] (4H,) or (B, 4H). ``ln_unbiased, ln_eps``: the layer-norm convention
-    (training: True, 1e-6; the released runtime: False, 0.0, original-pipeline §10.2)."""
+    (training: True, 1e-6; the released runtime: False, 0.0, docs/original-code.md §10.2)."""
 
     def __init__(self, hidden: int, ln_unbiased: bool, ln_eps: float):
         self.hidden, self.ln_unbiased, self.ln_eps = hidden, bool(ln_unbiased), float(ln_eps)

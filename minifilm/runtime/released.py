@@ -1,4 +1,4 @@
-"""Read and write the original authors' released network (original-pipeline §10.1).
+"""Read and write the original authors' released network (docs/original-code.md §10.1).
 
 The released LPN + FiLM network (github.com/ianxmason/local-phases, Unity demo parameters) is a
 folder of little-endian float32 files:
@@ -15,7 +15,7 @@ the same architecture load too. The FiLM generator Ψ is not released: the loade
 has Ω and Φ only and runs from the style vectors (Sec. 4.4).
 
 Deviation from the demo: the Unity runtime copies FiLM parameters starting at hidden unit 1, so
-unit 0 gets γ = β = 0 in both layers (original-pipeline §10.2, a bug). We apply the stored
+unit 0 gets γ = β = 0 in both layers (docs/original-code.md §10.2, a bug). We apply the stored
 vectors from unit 0.
 """
 from __future__ import annotations
@@ -58,7 +58,7 @@ class ReleasedNetwork:
     vector, in file order (names from styles.txt, else the 3-digit id).
 
     ``network`` is the model on the one inference path with the demo's layer norm (biased σ,
-    no eps, original-pipeline §10.2): what the runtime controller drives.
+    no eps, docs/original-code.md §10.2): what the runtime controller drives.
     """
 
     model: StyleModel
@@ -70,7 +70,7 @@ class ReleasedNetwork:
                                                  dtype=self.model.dtype)
 
     def predict(self, X, L, film):
-        """One frame (original-pipeline §10.2 steps 1-6): X (x_dim,) raw input, L (phase_dim,)
+        """One frame (docs/original-code.md §10.2 steps 1-6): X (x_dim,) raw input, L (phase_dim,)
         raw local phases, film (4H,) -> Y (z_dim,) raw output."""
         return self.network.predict(np.asarray(X)[None], np.asarray(L)[None], film)[0]
 

@@ -14,7 +14,7 @@ from minifilm.runtime.control import distance_to_path
 
 @dataclass
 class Rollout:
-    """The result of :meth:`Controller.run` for B characters and F frames.
+    """The result of :meth:`~minifilm.runtime.controller.Controller.run` for B characters and F frames.
 
     positions (B, F, J, 3) world joint positions (after foot locking, if on), metres;
     rotations (B, F, J, 3, 3) world joint rotations from the predicted forward/up axes;

@@ -28,7 +28,7 @@ __all__ = ["StyleLibrary", "StyleLibraryError", "UnknownStyleError", "blend_film
 
 class UnknownStyleError(KeyError, InputError):
     """A style name the library does not hold. A KeyError for dict-like use and an InputError so
-    command-line tools report it as bad input (:func:`minifilm.cli.run`) instead of a traceback."""
+    command-line tools report it as bad input (:func:`minifilm.cli.report_errors`) instead of a traceback."""
 
     def __str__(self) -> str:      # KeyError would print the message in quotes
         return str(self.args[0]) if self.args else ""

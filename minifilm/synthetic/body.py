@@ -1,6 +1,6 @@
 """The body of the synthetic generator: the 100STYLE skeleton, feet, two-bone leg IK, spine and arms.
 
-``synthetic.py`` decides *when* things happen (gait timeline, root path, stride phase); this module
+``generator.py`` decides *when* things happen (gait timeline, root path, stride phase); this module
 turns those per-frame drivers into joint rotations. Everything is vectorised over frames (N).
 Conventions as in the 100STYLE data: metres, radians, y up, the hips' local +z is the character's
 front, right-side joints have negative x.

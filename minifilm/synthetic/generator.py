@@ -11,7 +11,7 @@ How a clip is made (everything vectorised over frames):
    walk/run timing per frame; a turning path on the floor; the stride phase θ(t) = ∫ f dt.
 2. Feet. Foot ``i`` has phase φ_i = θ + offset_i. Cycle k is centred on mid-stance φ_i = k + 0.25
    (the paper's convention: a sinusoid fitted to the contact signal peaks at φ = 0.25, i.e. at
-   mid-stance, original-pipeline.md §4.7). The stance covers |φ_i − k − 0.25| <= d/2 with duty
+   mid-stance, docs/original-code.md §4.7). The stance covers |φ_i − k − 0.25| <= d/2 with duty
    factor d. During stance k the toe tip (``<Side>ToeSite``, the contact sensor) is planted at a
    target on the floor y = 0, placed where the hip will be at mid-stance; between stances it swings
    to the next target along a smooth arc. Late in stance the heel rises by rotating the foot about

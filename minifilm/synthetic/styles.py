@@ -1,4 +1,4 @@
-"""Style and gait parameters of the synthetic locomotion generator (``synthetic.py``).
+"""Style and gait parameters of the synthetic locomotion generator (``generator.py``).
 
 A *style* is a handful of numbers that change how the oscillators drive the body: how the feet
 are timed (duty factors, phase offsets, a lifted foot), how high the hips are, how the spine

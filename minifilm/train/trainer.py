@@ -29,7 +29,7 @@ from minifilm.dataset.arrays import TrainData
 from minifilm.dataset.stats import NormStats
 from minifilm.model.losses import bone_length_loss, mse_loss
 from minifilm.model.style_model import StyleModel
-from minifilm.nn.optim import Adam
+from minifilm.nn.fast_optim import ChunkedAdam
 from minifilm.train.batches import draw_clips, draw_shared_clips, epoch_batches
 from minifilm.train.checkpoint import (NETWORKS, CheckpointError, build_style_model, load_checkpoint,
                                        load_model_arrays, model_arrays, save_checkpoint, subset)
@@ -102,6 +102,53 @@ class TrainConfig:
         return cls(**{k: v for k, v in d.items() if k in names})
 
 
+@dataclass
+class Minibatch:
+    """One training minibatch (:meth:`Trainer.minibatches`): samples of one style and their clips.
+
+    x (B, x_dim), p (B, phase_dim), z (B, z_dim), clips (M, T, C); kw: the model's extra forward
+    arguments (``clip_index`` (B,) when M clips are shared by the batch, ``style`` ids for the
+    comparison variants); index of count in the epoch; where: "epoch e, batch i, style s"."""
+
+    index: int
+    count: int
+    style: int
+    x: np.ndarray
+    p: np.ndarray
+    z: np.ndarray
+    clips: np.ndarray
+    kw: dict
+    where: str
+
+
+class EpochLosses:
+    """Per-style sums of an epoch's minibatch losses, and the one-line progress display on stderr
+    (config.progress; None: only when stderr is a terminal)."""
+
+    def __init__(self, trainer: "Trainer"):
+        self.trainer, self.sums, self.t0 = trainer, {}, time.time()
+        progress = trainer.config.progress
+        self.show = progress if progress is not None else sys.stderr.isatty()
+
+    def add(self, b: Minibatch, mse: float, bll: float) -> None:
+        acc = self.sums.setdefault(b.style, [0.0, 0.0, 0])
+        acc[0] += mse
+        acc[1] += bll
+        acc[2] += 1
+        if self.show:
+            t = self.trainer
+            rate = (b.index + 1) / max(time.time() - self.t0, 1e-9)
+            sys.stderr.write(f"\repoch {t.epoch + 1}/{t.config.epochs}  batch {b.index + 1}/{b.count}  "
+                             f"loss {mse + bll:.4f}  {rate:.1f} batch/s ")
+            sys.stderr.flush()
+
+    def summary(self) -> dict:
+        """{'mse', 'bll', 'loss', 'per_style'}: means over each style's minibatches, styles equal."""
+        if self.show:
+            sys.stderr.write("\n")
+        return self.trainer._summarise(self.sums)
+
+
 # ---- the trainer --------------------------------------------------------------------------
 @dataclass
 class Trainer:
@@ -123,7 +170,7 @@ class Trainer:
             sub = getattr(self.model, net)
             if sub is not None:
                 sub.params.trainable = net not in self.config.freeze
-        self.optimizer = Adam(self.model.parameter_sets(), lr=self.config.lr)
+        self.optimizer = ChunkedAdam(self.model.parameter_sets(), lr=self.config.lr)   # fast form of nn/optim.py::Adam
         self.rng = np.random.default_rng(self.config.seed)
         self.epoch = 0
         self.step = 0
@@ -166,13 +213,13 @@ class Trainer:
         return {"style": style_ids} if getattr(self.model, "takes_style_ids", False) else {}
 
     # -- one epoch ---------------------------------------------------------------------
-    def train_epoch(self, data: TrainData):
-        """One epoch of style-balanced minibatches; returns {'mse', 'bll', 'per_style'} means."""
+    def minibatches(self, data: TrainData):
+        """The epoch's minibatches, drawn with the trainer's generator as :meth:`train_epoch` uses
+        them: style-balanced (batches.epoch_batches), each sample with a clip of its style (shared
+        by the batch when config.clips_per_batch is set), inputs in the model's dtype with the
+        configured input noise. Yields :class:`Minibatch`."""
         dtype = self.model.dtype
         batches = epoch_batches(data.style, self.config.batch_size, self.rng)
-        sums = {}
-        t0 = time.time()
-        show = self.config.progress if self.config.progress is not None else sys.stderr.isatty()
         for i, (s, idx) in enumerate(batches):
             kw = self._style_kw(data.style[idx])
             if self._shares_clips():
@@ -185,26 +232,41 @@ class Trainer:
             if self.config.input_noise > 0:
                 x = x + (self.config.input_noise * self.rng.standard_normal(x.shape)).astype(dtype)
                 p = p + (self.config.input_noise * self.rng.standard_normal(p.shape)).astype(dtype)
-            self.model.zero_grad()
-            pred = self.model.forward(x, p, clips, train=True, rng=self.rng, **kw)
-            mse, bll, dpred = self.losses(pred, z)
             where = f"epoch {self.epoch + 1}, batch {i + 1}, style {self._name(s)}"
-            self._check_finite(where, [("MSE loss", mse), ("bone-length loss", bll)])
+            yield Minibatch(i, len(batches), int(s), x, p, z, clips, kw, where)
+
+    def train_epoch(self, data: TrainData):
+        """One epoch of style-balanced minibatches; returns {'mse', 'bll', 'per_style'} means."""
+        losses = EpochLosses(self)
+        for b in self.minibatches(data):
+            self.model.zero_grad()
+            pred = self.model.forward(b.x, b.p, b.clips, train=True, rng=self.rng, **b.kw)
+            mse, bll, dpred = self.losses(pred, b.z)
             self.model.backward(dpred, need_input_grads=False)   # the inputs are data: skip dx, dclip
-            self._check_finite(where, [(f"gradient of the {net} network", getattr(self.model, net).params.grad)
-                                       for net in NETWORKS if getattr(self.model, net) is not None])
-            self.optimizer.lr = self.learning_rate(self.epoch + i / len(batches))
+            self.check_finite(b, mse, bll)
+            self.optimizer.lr = self.learning_rate(self.epoch + b.index / b.count)
             self.optimizer.step()
             self.step += 1
-            acc = sums.setdefault(s, [0.0, 0.0, 0])
-            acc[0] += mse
-            acc[1] += bll
-            acc[2] += 1
-            if show:
-                self._progress(i + 1, len(batches), mse + bll, t0)
-        if show:
-            sys.stderr.write("\n")
-        return self._summarise(sums)
+            losses.add(b, mse, bll)
+        return losses.summary()
+
+    def check_finite(self, b: "Minibatch", mse: float, bll: float) -> None:
+        """TrainingDiverged naming the minibatch and the quantity when a loss or a network's
+        gradient is NaN or inf (called after the backward pass, before the optimiser step)."""
+        self._check_finite(b.where, [("MSE loss", mse), ("bone-length loss", bll)])
+        self._check_finite(b.where, [(f"gradient of the {net} network", getattr(self.model, net).params.grad)
+                                     for net in NETWORKS if getattr(self.model, net) is not None])
+
+    def end_epoch(self, train_losses: dict, val: TrainData | None = None) -> dict:
+        """After an epoch's steps: count it, evaluate ``val``, record the history, checkpoint."""
+        self.epoch += 1
+        record = {"epoch": self.epoch, "step": self.step, "train": train_losses}
+        if val is not None:
+            record["val"] = self.evaluate(val)
+        self.history.append(record)
+        if self.config.checkpoint_path and self.epoch % self.config.checkpoint_every == 0:
+            self.save(self.config.checkpoint_path)
+        return record
 
     # -- evaluation --------------------------------------------------------------------
     def evaluate(self, data: TrainData):
@@ -254,25 +316,13 @@ class Trainer:
     def _name(self, s):
         return self.style_names[s] if s < len(self.style_names) else str(s)
 
-    def _progress(self, done, total, loss, t0):
-        rate = done / max(time.time() - t0, 1e-9)
-        sys.stderr.write(f"\repoch {self.epoch + 1}/{self.config.epochs}  batch {done}/{total}  "
-                         f"loss {loss:.4f}  {rate:.1f} batch/s ")
-        sys.stderr.flush()
 
     # -- the run -----------------------------------------------------------------------
     def fit(self, train: TrainData, val: TrainData | None = None, epochs: int | None = None):
         """Train until `epochs` (default config.epochs) epochs are done in total; returns history."""
         target = self.config.epochs if epochs is None else epochs
         while self.epoch < target:
-            tr = self.train_epoch(train)
-            self.epoch += 1
-            record = {"epoch": self.epoch, "step": self.step, "train": tr}
-            if val is not None:
-                record["val"] = self.evaluate(val)
-            self.history.append(record)
-            if self.config.checkpoint_path and self.epoch % self.config.checkpoint_every == 0:
-                self.save(self.config.checkpoint_path)
+            self.end_epoch(self.train_epoch(train), val)
         return self.history
 
     # -- checkpoints -------------------------------------------------------------------

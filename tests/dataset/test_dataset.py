@@ -253,7 +253,7 @@ def test_normalisation_from_training_rows_only(small):
 
 def test_train_data_normalises_p_z_and_clips_with_the_training_statistics(small):
     """p and z with their own training statistics; the style clips with the statistics of x's
-    joint block (the clip's 12 numbers per joint are x's joint features, original-pipeline §9);
+    joint block (the clip's 12 numbers per joint are x's joint features, docs/original-code.md §9);
     every split with the training split's statistics, and clips from the training split when a
     split's own windows are too short."""
     _, _, ds = small

@@ -104,3 +104,78 @@ def test_rows_have_covers_and_names_are_unique(group):
     assert rows and all(c.covers for c in rows)
     names = [c.name for c in suite.cases()] + [c.name + " (float32)" for c in suite.float32_cases()]
     assert len(names) == len(set(names))
+
+
+# ---- NaN or inf anywhere is a failure, at every entry point ------------------------------------
+def _result(**errors):
+    return suite.Result(errors, {k: 1 for k in errors}, worst="x[0]: analytic nan, numerical 1.0")
+
+
+@pytest.mark.parametrize("value", [float("nan"), float("inf")])
+def test_a_non_finite_error_fails_the_row_in_either_order(value):
+    """A row whose seed gives NaN fails whether that seed comes first or after a good one, and
+    whether the NaN is the first array's or a later one's (max() of a list with a NaN is
+    order-dependent; the row's worst is then inf)."""
+    good, bad_first, bad_last = _result(x=1e-9, W=2e-9), _result(x=value, W=1e-9), _result(x=1e-9, W=value)
+    for seeds in ([good, bad_first], [bad_first, good], [good, bad_last], [bad_last, good], [bad_last]):
+        row = suite.Row(suite.Case("r", "kit", None))
+        for i, result in enumerate(seeds):
+            row.add(i, result)
+        assert not row.passed and row.worst == float("inf")
+        assert "FAILED r: seed" in suite.format_table([row], "backward pass")
+    empty = suite.Row(suite.Case("r", "kit", None))
+    empty.add(0, suite.Result({}, {}))
+    assert not empty.passed and "no array was checked" in empty.where
+
+
+def nan_softmax(monkeypatch):
+    real = F.softmax_backward
+
+    def broken(dout, cache):
+        dx = real(dout, cache)
+        dx[0, 0] = float("nan")
+        return dx
+    monkeypatch.setattr(F, "softmax_backward", broken)
+
+
+def test_a_nan_returning_backward_fails_the_table_the_command_and_the_pytest_check(monkeypatch, capsys):
+    nan_softmax(monkeypatch)
+    case = next(c for c in suite.cases() if c.name == "softmax")
+    # the row
+    row = suite.run_case(case, [0, 1])
+    assert not row.passed and row.worst == float("inf") and "analytic nan" in row.where
+    # the table and the exit code of suite.run
+    printed = []
+    assert suite.run(seeds=[0], only="softmax", out=printed.append) == 1
+    assert re.search(r"^softmax .* inf .* NO$", "\n".join(printed), re.M)
+    # the command (in this process, so the broken backward pass is the one it checks)
+    from minifilm import cli
+    with pytest.raises(SystemExit) as stop:
+        cli.main(["gradcheck", "--only", "softmax", "--seeds", "1"])
+    assert stop.value.code == 1
+    assert re.search(r"^softmax .* NO$", capsys.readouterr().out, re.M)
+    # the pytest suite's check (tests/gradcheck_report.py), which every gradient-check test calls
+    import gradcheck_report
+    saved = dict(gradcheck_report.ROWS)
+    try:
+        with pytest.raises(AssertionError, match=r"softmax, seed 0: inf"):
+            gradcheck_report.check(case, 0)
+    finally:
+        gradcheck_report.ROWS.clear()
+        gradcheck_report.ROWS.update(saved)
+
+
+def test_a_nan_in_a_float32_backward_fails_its_row(monkeypatch):
+    """The float32 table: a NaN in the float32 gradient (only) is a failure, not a NaN that
+    compares False with the tolerance."""
+    real = F.elu_backward
+
+    def broken(dout, cache):
+        dx = real(dout, cache)
+        if dx.dtype == "float32":
+            dx.flat[0] = float("nan")
+        return dx
+    monkeypatch.setattr(F, "elu_backward", broken)
+    case = next(c for c in suite.float32_cases() if c.name == "Φ")
+    row = suite.run_case(case, [0])
+    assert not row.passed and row.worst == float("inf")

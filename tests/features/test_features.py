@@ -15,7 +15,7 @@ from minifilm.features.layout import FeatureLayout
 
 # ----------------------------------------------------------------------------- toy character
 def yaw(theta):
-    """LookRotation of the facing (sin t, 0, cos t): columns right, up, forward (pipeline §0.3)."""
+    """LookRotation of the facing (sin t, 0, cos t): columns right, up, forward (docs/original-code.md §0.3)."""
     c, s = np.cos(theta), np.sin(theta)
     R = np.zeros(np.shape(theta) + (3, 3))
     R[..., 0, 0], R[..., 0, 2] = c, s
@@ -73,7 +73,7 @@ def circle_sample(speed, omega, tau):
 
 # ----------------------------------------------------------------------------- time windows
 @pytest.mark.parametrize("fps, expected", [
-    (60, [-60, -50, -40, -30, -20, -10, 0, 12, 24, 36, 48, 60]),   # original-pipeline §5 table
+    (60, [-60, -50, -40, -30, -20, -10, 0, 12, 24, 36, 48, 60]),   # docs/original-code.md §5 table
     (30, [-30, -25, -20, -15, -10, -5, 0, 6, 12, 18, 24, 30]),
     (120, [-120, -100, -80, -60, -40, -20, 0, 24, 48, 72, 96, 120]),
     (25, [-25, -21, -17, -13, -8, -4, 0, 5, 10, 15, 20, 25]),       # 20.83 -> 21, 4.17 -> 4
@@ -180,7 +180,7 @@ def test_segment_rows_never_read_outside_the_segment():
 
 def test_short_segment_reflection_is_point_reflection():
     """Straight walk, segment shorter than the window: the first sample one frame before the
-    segment is the reflection of the one after it about the first frame (pipeline §5)."""
+    segment is the reflection of the one after it about the first frame (docs/original-code.md §5)."""
     fps, F = 30, 60
     t = np.arange(F) / fps
     positions, rotations, root, R = toy(np.zeros(F), np.stack([np.zeros(F), t * (1 + t)], axis=1))
@@ -304,7 +304,7 @@ def test_reconstruct_world_joints_from_x_and_root_trajectory(shared_data, rel, f
 
 
 def test_matches_released_statistics_on_100style(shared_data):
-    """The real 100STYLE frame against the authors' released Xmean / Xstd (original §13.1): the
+    """The real 100STYLE frame against the authors' released Xmean / Xstd (docs/original-code.md §13.1): the
     current sample is [0,0,0,1], the hips sit at x = z = 0 facing +z, and every column is within
     4 released standard deviations of the released mean (a wrong order or axis would not be)."""
     from minifilm.features.compute import frame_features

@@ -1,7 +1,7 @@
 """FeatureLayout (minifilm/features/layout.py): sizes and column indices of x, z, p and the clip.
 
 Expected numbers come from the paper (x 348, z 342, clip 240 x 300 for 100STYLE) and from
-original-pipeline.md §6-§7 (joint j at 48 + 12 j in x, positions at 24 + 12 j in z, phases at
+docs/original-code.md §6-§7 (joint j at 48 + 12 j in x, positions at 24 + 12 j in z, phases at
 324..331, updates 332..339, contacts 340..341).
 """
 import json

@@ -50,7 +50,7 @@ def test_style100_matches_the_original_export_table(shared_data):
     assert S.STYLE100.parents == (-1, 0, 1, 2, 3, 4, 5, 4, 7, 8, 9, 10, 4, 12, 13, 14, 15, 0, 17, 18, 19,
                                   0, 21, 22, 23)
     m = read_bvh(shared_data / "100style" / "Neutral_FR_first3frames.bvh")
-    # original-pipeline.md §1.2: export_to_bvh
+    # docs/original-code.md §1.2: export_to_bvh
     expected = [0, 1, 2, 3, 4, 5, 6, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 23, 24, 25, 26]
     assert S.STYLE100.joint_indices(m).tolist() == expected
     assert S.STYLE100.contact_indices(m).tolist() == [22, 27]
@@ -136,7 +136,7 @@ def test_units_hips_height_and_feet_on_floor(shared_data, name):
 
 
 # The 100STYLE sample has only 3 frames at the very start of a take (the hips barely move), too
-# little to tell a direction of travel; its +Z facing is the original's (original-pipeline.md §5).
+# little to tell a direction of travel; its +Z facing is the original's (docs/original-code.md §5).
 @pytest.mark.parametrize("name", ["bandai", "cmu", "cmu-mb"])
 def test_root_facing_agrees_with_direction_of_travel(shared_data, name):
     sk = BY_NAME[name]

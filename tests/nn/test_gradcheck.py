@@ -17,7 +17,7 @@ from minifilm.evaluation import gradcheck_kit as kit
 from minifilm.evaluation.gradcheck_suite import SEEDS, cases
 from minifilm.nn import functional as F
 from minifilm.nn.gradcheck import (H, LIMIT, SCALE, check_gradients, check_pair, compare_gradients,
-                                   numerical_gradient, rel_error)
+                                   numerical_gradient, passed, rel_error, worst_error)
 
 KIT = [c for c in cases() if c.group == "kit"]
 
@@ -96,6 +96,66 @@ def test_the_kink_guard_sees_a_crossed_kink():
     result = kit.pair_result(F.elu_forward, F.elu_backward, (x,), ("x",), rng, kinks=lambda c: [c[0]])
     assert result.crossings == 2 and result.margin == pytest.approx(1e-4)
     assert result.errors["x"] > 1e-6
+
+
+# ------------------------------------------------------------------------------ NaN and inf fail
+def _poisoned(backward, value, where=0):
+    """``backward`` with one entry of its ``where``-th gradient replaced by ``value``."""
+    def broken(dout, cache):
+        grads = list(backward(dout, cache))
+        g = np.array(grads[where], dtype=np.float64)
+        g.flat[g.size // 2] = value
+        grads[where] = g
+        return tuple(grads)
+    return broken
+
+
+@pytest.mark.parametrize("value", [np.nan, np.inf, -np.inf])
+@pytest.mark.parametrize("where", [0, 1, 2])
+def test_a_non_finite_gradient_fails_check_pair(value, where):
+    """One NaN or inf in any gradient: its array's error is inf (not NaN, which compares False
+    with everything), so every way of reading the result fails, whatever the arrays' order."""
+    rng = np.random.default_rng(4)
+    x, W, b = rng.standard_normal((3, 4)), rng.standard_normal((4, 2)), rng.standard_normal(2)
+    errors = check_pair(F.linear_forward, _poisoned(F.linear_backward, value, where), (x, W, b), rng,
+                        names=("x", "W", "b"))
+    assert errors[("x", "W", "b")[where]] == np.inf
+    assert not passed(errors) and worst_error(errors) == np.inf
+    for order in (list(errors.values()), list(errors.values())[::-1]):
+        assert not max(order) < LIMIT
+
+
+def test_a_non_finite_forward_output_fails_check_pair():
+    rng = np.random.default_rng(5)
+    x = rng.standard_normal((2, 3))
+    x[1, 2] = np.inf
+    errors = check_pair(F.relu_forward, F.relu_backward, (x,), rng, names=("x",))
+    assert errors["x"] == np.inf and not passed(errors)
+
+
+def test_worst_error_reads_nan_and_inf_as_failures_in_any_order():
+    assert worst_error({"a": 1e-9, "b": np.nan}) == worst_error({"b": np.nan, "a": 1e-9}) == np.inf
+    assert worst_error([np.inf, 0.0]) == np.inf and worst_error({}) == np.inf   # nothing checked
+    assert worst_error({"a": 1e-9, "b": 3e-9}) == 3e-9
+    assert passed({"a": 1e-9}) and not passed({"a": np.nan}) and not passed({}) and not passed({"a": 2e-7})
+    assert rel_error(np.array([1.0, np.nan]), np.array([1.0, 1.0])) == np.inf
+    assert rel_error(np.array([np.inf]), np.array([np.inf])) == np.inf
+
+
+@pytest.mark.parametrize("h", [0, 0.0, -1e-4, np.nan, np.inf, "1e-4", None])
+def test_numerical_gradient_refuses_a_step_that_is_not_finite_and_positive(h):
+    x = np.ones(3)
+    with pytest.raises(ValueError, match="numerical_gradient: h must be a finite step > 0"):
+        numerical_gradient(lambda: float(x.sum()), x, h=h)
+    with pytest.raises(ValueError, match="h must be a finite step > 0"):
+        check_gradients(lambda: float(x.sum()), {"x": (x, np.ones(3))}, h=h)
+
+
+@pytest.mark.parametrize("scale", [0.0, -1.0, np.nan, np.inf])
+def test_check_gradients_refuses_a_scale_that_is_not_finite_and_positive(scale):
+    x = np.ones(3)
+    with pytest.raises(ValueError, match="scale must be a finite number > 0"):
+        check_gradients(lambda: float(x.sum()), {"x": (x, np.ones(3))}, scale=scale)
 
 
 # ------------------------------------------------------------------------------ every pair of the kit

@@ -270,3 +270,59 @@ def test_float32_in_float32_out(name):
     grads = bwd(np.ones_like(out), cache)
     for g in grads if isinstance(grads, tuple) else (grads,):
         assert g.dtype == np.float32, f"{name} backward gave {g.dtype}"
+
+
+# ------------------------------------------------------------------------------ bad arguments
+def _pairs_with_gather(rng):
+    cases = _float32_cases(rng)
+    cases["gather"] = (lambda x: F.gather_forward(x, np.array([0, 2, 2, 1])), F.gather_backward,
+                       (rng.standard_normal((3, 5)).astype(np.float32),))
+    return cases
+
+
+@pytest.mark.parametrize("name", list(_pairs_with_gather(np.random.default_rng(0))))
+def test_a_dout_of_another_shape_than_the_output_is_a_named_error(name):
+    """numpy would broadcast a (1, H) gradient over a (B, H) output (softmax, layer norm) or
+    return a gradient of the wrong shape (FiLM's dh): every backward pass refuses it by name."""
+    rng = np.random.default_rng(6)
+    fwd, bwd, args = _pairs_with_gather(rng)[name]
+    out, cache = fwd(*args)
+    one_row = np.ones((1 if out.shape[0] != 1 else 2,) + out.shape[1:], out.dtype)
+    for dout in (one_row, np.ones(out.shape + (1,), out.dtype), np.ones(out.shape[1:], out.dtype)):
+        if name == "dropout" and cache is None:
+            continue
+        with pytest.raises(ValueError, match=r"_backward: dout is .*expected the output's shape"):
+            bwd(dout, cache)
+    bwd(np.ones_like(out), cache)                    # the right shape still works
+
+
+def test_the_broadcasts_of_the_issue_are_refused():
+    rng = np.random.default_rng(7)
+    x = rng.standard_normal((4, 6))
+    for fwd, bwd in ((F.softmax_forward, F.softmax_backward), (F.layer_norm_forward, F.layer_norm_backward)):
+        _, cache = fwd(x)
+        with pytest.raises(ValueError, match=r"dout is \(1, 6\), expected the output's shape \(4, 6\)"):
+            bwd(np.ones((1, 6)), cache)
+    _, cache = F.film_forward(x, np.ones(6), np.zeros(6))
+    with pytest.raises(ValueError, match=r"film_backward: dout is \(1, 6\)"):
+        F.film_backward(np.ones((1, 6)), cache)
+
+
+def test_a_batch_of_zero_is_a_named_error():
+    with pytest.raises(ValueError, match=r"gather_forward: index is empty \(a batch of 0 samples\)"):
+        F.gather_forward(np.ones((3, 2)), np.array([], dtype=np.int64))
+    with pytest.raises(ValueError, match=r"gather_forward: index must lie in \[0, 3\), got -1..2"):
+        F.gather_forward(np.ones((3, 2)), np.array([2, -1]))
+    for method in ("auto", "im2col", "fft"):
+        with pytest.raises(ValueError, match=r"conv1d_forward: x is \(0, 5, 3\): a batch of 0 clips"):
+            F.conv1d_forward(np.ones((0, 5, 3)), np.ones((3, 3, 2)), np.zeros(2), method=method)
+        with pytest.raises(ValueError, match=r"conv1d_forward: x is \(2, 0, 3\).*clips of 0 frames"):
+            F.conv1d_forward(np.ones((2, 0, 3)), np.ones((3, 3, 2)), np.zeros(2), method=method)
+
+
+@pytest.mark.parametrize("dtype", [np.int64, np.int32, np.uint8, bool])
+def test_dropout_refuses_integer_arrays(dtype):
+    """An integer x was scaled by int(1 / (1 - p)) = 1 for p < 0.5, silently."""
+    x = np.ones((4, 5), dtype=dtype)
+    with pytest.raises(TypeError, match=r"dropout_forward: x must be a floating-point array, got"):
+        F.dropout_forward(x, 0.3, rng=np.random.default_rng(0))

@@ -1,9 +1,16 @@
-"""Adam: hand-computed steps, convergence on a known convex quadratic, freezing, checkpoints."""
+"""Adam: hand-computed steps, convergence on a known convex quadratic, freezing, checkpoints; every
+test runs on the plain Adam (nn/optim.py) and on the chunked one training uses (nn/fast_optim.py)."""
 import numpy as np
 import pytest
 
-from minifilm.nn.optim import Adam
+from minifilm.nn import optim
+from minifilm.nn.fast_optim import ChunkedAdam
 from minifilm.nn.params import Parameters
+
+
+@pytest.fixture(params=[optim.Adam, ChunkedAdam], ids=["Adam", "ChunkedAdam"])
+def Adam(request):  # noqa: N802  (the class under test)
+    return request.param
 
 
 def one_set(values, dtype=np.float64):
@@ -12,7 +19,7 @@ def one_set(values, dtype=np.float64):
     return p
 
 
-def test_first_step_moves_each_weight_by_lr_against_its_gradient_sign():
+def test_first_step_moves_each_weight_by_lr_against_its_gradient_sign(Adam):
     # at t = 1: m_hat = g, v_hat = g^2, so the step is lr * g / (|g| + eps)
     p = one_set([1.0, -2.0, 0.5])
     p.grad[...] = [2.0, -0.5, 0.0]
@@ -21,7 +28,7 @@ def test_first_step_moves_each_weight_by_lr_against_its_gradient_sign():
     np.testing.assert_allclose(p.data, expected, rtol=1e-14)
 
 
-def test_one_step_from_a_known_state_equals_hand_computation():
+def test_one_step_from_a_known_state_equals_hand_computation(Adam):
     lr, b1, b2, eps = 0.01, 0.8, 0.99, 1e-3
     p = one_set([0.3, -1.0])
     opt = Adam([p], lr=lr, beta1=b1, beta2=b2, eps=eps)
@@ -42,7 +49,7 @@ def test_one_step_from_a_known_state_equals_hand_computation():
     assert opt.steps == [5]
 
 
-def test_converges_to_the_minimum_of_a_convex_quadratic():
+def test_converges_to_the_minimum_of_a_convex_quadratic(Adam):
     # f(w) = 0.5 (w - c)^T A (w - c), A symmetric positive definite: the minimum is w = c
     rng = np.random.default_rng(0)
     Q = np.linalg.qr(rng.standard_normal((5, 5)))[0]
@@ -59,7 +66,7 @@ def test_converges_to_the_minimum_of_a_convex_quadratic():
     np.testing.assert_allclose(p.data, c, atol=1e-3)
 
 
-def test_frozen_sets_do_not_move_and_keep_no_state():
+def test_frozen_sets_do_not_move_and_keep_no_state(Adam):
     a = one_set([1.0, 2.0])
     b = one_set([3.0, 4.0])
     b.trainable = False
@@ -77,7 +84,7 @@ def test_frozen_sets_do_not_move_and_keep_no_state():
     np.testing.assert_allclose(b.data, [3.0 - 0.1, 4.0 - 0.1], rtol=1e-7)
 
 
-def test_float32_sets_stay_float32():
+def test_float32_sets_stay_float32(Adam):
     p = one_set([1.0, 2.0], dtype=np.float32)
     p.grad[...] = [0.1, -0.2]
     opt = Adam([p])
@@ -85,7 +92,7 @@ def test_float32_sets_stay_float32():
     assert p.data.dtype == np.float32 and opt.m[0].dtype == np.float32 and opt.v[0].dtype == np.float32
 
 
-def test_updates_in_place_so_views_see_the_change():
+def test_updates_in_place_so_views_see_the_change(Adam):
     p = Parameters({"W": (2, 2), "b": (2,)}, dtype=np.float64)
     W_view, data = p.params["W"], p.data
     p.grad[...] = 1.0
@@ -94,7 +101,7 @@ def test_updates_in_place_so_views_see_the_change():
     np.testing.assert_allclose(W_view, -0.5, rtol=1e-7)
 
 
-def test_state_dict_round_trip_continues_identically():
+def test_state_dict_round_trip_continues_identically(Adam):
     rng = np.random.default_rng(3)
     p1, p2 = one_set(rng.standard_normal(4)), None
     opt1 = Adam([p1], lr=0.01)
@@ -112,7 +119,7 @@ def test_state_dict_round_trip_continues_identically():
     np.testing.assert_array_equal(p1.data, p2.data)
 
 
-def test_load_state_dict_names_what_is_wrong():
+def test_load_state_dict_names_what_is_wrong(Adam):
     opt = Adam([one_set([1.0, 2.0])])
     state = opt.state_dict()
     with pytest.raises(ValueError, match="m.0"):

@@ -8,6 +8,7 @@ scatter-adds for the convolution (not im2col, not the FFT), per-sample blended w
 import numpy as np
 import pytest
 
+from minifilm.nn.fast_optim import ChunkedAdam
 from minifilm.nn.optim import Adam
 from minifilm.nn.params import Parameters
 from minifilm.nn import conv
@@ -243,6 +244,20 @@ def test_expert_linear_equals_per_sample_weights(rng, B):
         assert_close(got, ref)
 
 
+@pytest.mark.parametrize("B", [1, 5])
+def test_expert_linear_equals_the_plain_weight_blending_pair(rng, B):
+    """The fast gated-expert pair (one (B, K*I) product) against the plain one of functional.py
+    (blend the experts' weights per sample, then multiply): outputs and all four gradients."""
+    x, W, b = rng.standard_normal((B, 6)), rng.standard_normal((3, 6, 4)), rng.standard_normal((3, 4))
+    alpha = rng.dirichlet(np.ones(3), size=B)
+    dout = rng.standard_normal((B, 4))
+    fast, cache_fast = F.expert_linear_forward(x, alpha, W, b)
+    plain, cache_plain = F.expert_blend_forward(x, alpha, W, b)
+    assert_close(fast, plain)
+    for g_fast, g_plain in zip(F.expert_linear_backward(dout, cache_fast), F.expert_blend_backward(dout, cache_plain)):
+        assert_close(g_fast, g_plain)
+
+
 @pytest.mark.parametrize("unbiased,eps", [(True, 1e-6), (False, 0.0)])
 def test_layer_norm_equals_explicit_jacobian(rng, unbiased, eps):
     x = 3 * rng.standard_normal((5, 9)) + 1
@@ -277,14 +292,17 @@ class TextbookAdam:
             self.w[i] = self.w[i] - self.lr * m_hat / (np.sqrt(v_hat) + self.eps)
 
 
+@pytest.mark.parametrize("optimiser", [Adam, ChunkedAdam])
 @pytest.mark.parametrize("dtype,tol", [(np.float64, TOL), (np.float32, 2e-6)])
-def test_adam_equals_the_textbook_update(rng, dtype, tol):
-    """The chunked in-place Adam over three sets (one of several chunks with a partial last one,
-    one smaller than a chunk, one frozen for the first steps and then unfrozen, so the sets' step
-    counts differ) against the textbook rule, over steps of changing gradients; half-way the
-    optimiser is rebuilt from its state_dict. In float32 the two agree to float32 rounding."""
-    from minifilm.nn import optim
-    sizes = [2 * optim.CHUNK + 123, 37, 1000]
+def test_adam_equals_the_textbook_update(rng, dtype, tol, optimiser):
+    """The package's plain Adam (nn/optim.py) and the chunked in-place one (nn/fast_optim.py)
+    over three sets (one of several chunks with a partial last one, one smaller than a chunk,
+    one frozen for the first steps and then unfrozen, so the sets' step counts differ) against
+    the textbook rule written here, over steps of changing gradients; half-way the optimiser is
+    rebuilt from its state_dict. In float32 they agree to float32 rounding."""
+    from minifilm.nn import fast_optim
+    Adam = optimiser                                      # noqa: N806
+    sizes = [2 * fast_optim.CHUNK + 123, 37, 1000]
     sets = [Parameters({"a": (n - 7,), "b": (7,)}, dtype=dtype) for n in sizes]
     for p in sets:
         p.data[...] = rng.standard_normal(p.size)

@@ -1,4 +1,4 @@
-"""Foot contacts (Sec. 4.1.2, original-pipeline.md §2) on hand-built sensor tracks."""
+"""Foot contacts (Sec. 4.1.2, docs/original-code.md §2) on hand-built sensor tracks."""
 import numpy as np
 import pytest
 

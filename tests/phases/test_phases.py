@@ -141,7 +141,7 @@ def test_butterworth_gain():
 
 
 def original_butterworth(x, a=0.0335718, b=0.0671436, c=0.0335718, d=1.4189827, e=-0.5532699):
-    """The original's filter at 60 fps / 4 Hz, written from original-pipeline.md §3.6 (its own edges)."""
+    """The original's filter at 60 fps / 4 Hz, written from docs/original-code.md §3.6 (its own edges)."""
     N = len(x)
     P = np.concatenate([[x[0], x[0]], x[:N - 1], [x[N - 1], x[N - 1]]])
     Y = np.zeros(N + 3)

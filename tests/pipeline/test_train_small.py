@@ -1,6 +1,7 @@
 """Smoke test: a miniature of the main job (``examples/train_small.py`` = ``minifilm train``: tiny
 data, one epoch) runs every step and leaves a run folder that works from any working directory."""
 import os
+import runpy
 import subprocess
 import sys
 from dataclasses import replace
@@ -89,3 +90,38 @@ def test_the_example_and_the_command_take_the_same_options(tmp_path):
                        timeout=60)
     assert a.returncode == b.returncode == 0
     assert a.stdout == b.stdout and "--quick" in a.stdout and "--data" in a.stdout
+
+
+def test_the_example_writes_the_loop_out_and_trains_exactly_as_the_command(mini_run, tmp_path, capsys):
+    """examples/train_small.py shows the training loop itself (forward, loss, backward, Adam step)
+    and calls the package for the rest: the same run folder, bit for bit the same checkpoint as
+    the main job (pipeline/train_small.py::run, the job of ``minifilm train``)."""
+    text = EXAMPLE.read_text(encoding="utf-8")
+    for step in ("model.forward(", "trainer.losses(", "model.backward(", "adam.step()"):
+        assert step in text
+    out, _ = mini_run
+    # in this process, like mini_run: BLAS's rounding depends on its thread count
+    runpy.run_path(str(EXAMPLE), run_name="example")["main"]([*MINI, "--out", str(tmp_path / "ex")])
+    printed = capsys.readouterr().out
+    mine, theirs = np.load(tmp_path / "ex" / "model.npz"), np.load(out / "model.npz")
+    assert sorted(mine.files) == sorted(theirs.files)
+    for k in theirs.files:
+        if theirs[k].dtype.kind == "f":
+            np.testing.assert_array_equal(mine[k], theirs[k], err_msg=k)
+    made = {p.relative_to(tmp_path / "ex").as_posix() for p in (tmp_path / "ex").rglob("*") if "cache" not in p.parts}
+    assert made == {p.relative_to(out).as_posix() for p in out.rglob("*") if "cache" not in p.parts}
+    for line in ("[train] ", "        1 ", "[test] MSE per style", "[generate]", "[style]", "[view]", "[done]"):
+        assert line in printed
+
+
+def test_importing_the_example_loads_no_viewer_demo_evaluation_or_scipy_signal():
+    """What the example imports before it runs: the core of the job, not the optional parts."""
+    code = ("import runpy, sys; runpy.run_path(sys.argv[1], run_name='not_main'); "
+            "print('\\n'.join(sorted(sys.modules)))")
+    proc = subprocess.run([sys.executable, "-c", code, str(EXAMPLE)], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    loaded = proc.stdout.split()
+    assert "minifilm.pipeline.train_small" in loaded and "minifilm.model.style_model" in loaded
+    bad = [m for m in loaded if m.startswith(("minifilm.viewer", "minifilm.demo", "minifilm.evaluation",
+                                              "scipy.signal", "matplotlib"))]
+    assert not bad, f"loaded before use: {bad}"

@@ -1,4 +1,4 @@
-"""Loading / writing the released network (original-pipeline §10.1) and one forward pass from
+"""Loading / writing the released network (docs/original-code.md §10.1) and one forward pass from
 the released input mean checked against NumPy written here straight from the .bin files
 (§10.2) and the sanity facts of §13.3."""
 import filecmp

@@ -1,0 +1,179 @@
+"""No reference a reader cannot follow (issue 25 §5; tests/test_docs.py checks README and docs/):
+every file path, ``path::name``, dotted ``minifilm.x.y`` name, Sphinx ``:func:`` / ``:class:`` /
+``:meth:`` name and ``§`` section cited in the repository's code, docstrings, comments and docs
+must exist in the repository.
+
+* paths: ``minifilm/…``, ``tests/…``, ``docs/…``, ``benchmarks/…``, ``examples/…``, ``scripts/…`` from
+  the repository root; a shorter one (``nn/optim.py``, ``conv.py``) relative to the citing file's
+  folder or to ``minifilm/``;
+* ``::name``: a function, class, ``Class.method`` or module-level assignment of that file;
+* ``§N.M``: a section of docs/original-code.md (``issue 24 §5`` cites an issue, not a document).
+"""
+from __future__ import annotations
+
+import ast
+import re
+import subprocess
+from functools import lru_cache
+from pathlib import Path
+
+import pytest
+
+from repo_paths import REPO_ROOT
+
+ROOTS = ("minifilm", "tests", "docs", "benchmarks", "examples", "scripts")
+SUFFIXES = (".py", ".md", ".js", ".html", ".css")
+ORIGINAL = REPO_ROOT / "docs" / "original-code.md"
+#: files of other projects cited by name: CS231n's assignment code, nanoGPT, the authors' repository
+#: (docs/original-code.md names its files)
+EXTERNAL = {"layers.py", "fast_layers.py", "layer_utils.py", "gradient_check.py", "model.py", "train.py",
+            "Bll.py", "LPN.py", "Data_Loader.py", "Normalize_Data_Subset.py"}
+PACKAGES = {p.name for p in (REPO_ROOT / "minifilm").iterdir() if p.is_dir()}
+
+PATH = re.compile(r"(?<![\w/.-])((?:[\w-]+/)*[\w-]+\.(?:py|md|png|csv|js|html|css))(?![\w])(?:::([A-Za-z_][\w.]*\w))?")
+DOTTED = re.compile(r"(?<![\w./-])(minifilm(?:\.\w+)+)")
+ROLE = re.compile(r":(?:func|class|meth):`~?([\w.]+)`")
+SECTION = re.compile(r"(issue\s+\d+\s+|issue\s+\d+,\s+)?§\s?(\d+(?:\.\d+)*)")
+
+
+def repo_files():
+    listed = subprocess.run(["git", "ls-files", "--cached", "--others", "--exclude-standard"], cwd=REPO_ROOT,
+                            capture_output=True, text=True).stdout.split()
+    files = [REPO_ROOT / f for f in listed if f.endswith(SUFFIXES) and f.split("/")[0] in ROOTS + ("README.md",)]
+    return [f for f in files if f.is_file() and "vendor" not in f.parts]
+
+
+@lru_cache(maxsize=None)
+def defined_names(path: Path) -> frozenset:
+    """Functions, classes, Class.method / Class.attribute, module-level names and imported names."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    names = set()
+    for node in tree.body:
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            names.add(node.name)
+            if isinstance(node, ast.ClassDef):
+                for sub in node.body:
+                    if isinstance(sub, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                        names.add(f"{node.name}.{sub.name}")
+                    elif isinstance(sub, (ast.AnnAssign, ast.Assign)):
+                        for t in (sub.targets if isinstance(sub, ast.Assign) else [sub.target]):
+                            if isinstance(t, ast.Name):
+                                names.add(f"{node.name}.{t.id}")
+        elif isinstance(node, (ast.Assign, ast.AnnAssign)):
+            for t in (node.targets if isinstance(node, ast.Assign) else [node.target]):
+                if isinstance(t, ast.Name):
+                    names.add(t.id)
+        elif isinstance(node, (ast.Import, ast.ImportFrom)):
+            names.update((a.asname or a.name).split(".")[0] for a in node.names)
+    return frozenset(names)
+
+
+def resolve_path(ref: str, citing: Path):
+    """The file a path reference means; None if there is none; "skip" for what is not ours to
+    check (another project's file, an output path such as runs/train_small/model.npz)."""
+    first = ref.split("/")[0]
+    if first in ROOTS or ref == "README.md":
+        return REPO_ROOT / ref if (REPO_ROOT / ref).exists() else None
+    for base in (citing.parent, REPO_ROOT / "minifilm", REPO_ROOT):
+        if (base / ref).exists():
+            return base / ref
+    if "/" in ref:
+        return None if first in PACKAGES else "skip"
+    if ref in EXTERNAL or not ref.endswith(".py"):
+        return "skip"                             # another project's file, or an output (phases.png)
+    hits = [p for root in ROOTS for p in (REPO_ROOT / root).rglob(ref)]
+    return hits[0] if hits else None
+
+
+def resolve_dotted(ref: str):
+    """'minifilm.a.b.name' -> None if it exists, else what is missing."""
+    parts = ref.split(".")
+    for i in range(len(parts), 0, -1):
+        base = REPO_ROOT.joinpath(*parts[:i])
+        module = base.with_suffix(".py") if base.with_suffix(".py").is_file() else base / "__init__.py"
+        if module.is_file():
+            rest = ".".join(parts[i:])
+            if not rest or rest in defined_names(module):
+                return None
+            return f"{module.relative_to(REPO_ROOT)} defines no {rest}"
+    return f"no module {ref}"
+
+
+@lru_cache(maxsize=None)
+def original_sections() -> frozenset:
+    text = ORIGINAL.read_text(encoding="utf-8")
+    heads = re.findall(r"(?m)^#{2,4} (\d+(?:\.\d+)*)\.? ", text)
+    items = re.findall(r"(?m)^\*\*(\d+(?:\.\d+)+) ", text)
+    return frozenset(heads + items)
+
+
+def problems_in(path: Path) -> list:
+    text = path.read_text(encoding="utf-8")
+    rel = path.relative_to(REPO_ROOT).as_posix()
+    out = []
+
+    def where(m):
+        return f"{rel}:{text.count(chr(10), 0, m.start()) + 1}"
+
+    for m in PATH.finditer(text):
+        ref, name = m.group(1), m.group(2)
+        if ref.startswith(("http", "www")) or "{" in ref or ref.endswith(".min.js"):
+            continue
+        if "no_such" in ref:                      # the negative examples of the checkers' own tests
+            continue
+        target = resolve_path(ref, path)
+        if target is None:
+            out.append(f"{where(m)}: {ref} does not exist")
+        elif target != "skip" and name and target.suffix == ".py" and name not in defined_names(target):
+            out.append(f"{where(m)}: {ref} defines no {name}")
+    if path.suffix == ".py":
+        for m in DOTTED.finditer(text):
+            if m.group(1).endswith("_") or text[max(0, m.start() - 11):m.start()] == "getLogger(\"" \
+                    or "no_such" in m.group(1):
+                continue                                 # a name pattern (expert_linear_*), a logger
+            msg = resolve_dotted(m.group(1).rstrip("."))
+            if msg:
+                out.append(f"{where(m)}: {m.group(1)}: {msg}")
+        own = defined_names(path) | {n.name for n in ast.walk(ast.parse(text)) if isinstance(n, ast.FunctionDef)}
+        for m in ROLE.finditer(text):
+            ref = m.group(1)
+            if ref.startswith("minifilm."):
+                msg = resolve_dotted(ref)
+                if msg:
+                    out.append(f"{where(m)}: {ref}: {msg}")
+            elif ref.split(".")[0] not in own and ref not in own and not ref.startswith(("np.", "numpy.")):
+                out.append(f"{where(m)}: :{ref}: is neither defined nor imported here")
+    for m in SECTION.finditer(text):
+        if m.group(1):
+            continue
+        if path == ORIGINAL or m.group(2) not in original_sections():
+            if path != ORIGINAL or m.group(2) not in original_sections():
+                out.append(f"{where(m)}: §{m.group(2)} is not a section of docs/original-code.md")
+    return out
+
+
+def test_every_reference_in_the_repository_exists():
+    files = [f for f in repo_files() if f != Path(__file__).resolve()]   # this file's text is examples
+    assert len(files) > 150 and ORIGINAL in files
+    problems = [p for f in files for p in problems_in(f)]
+    assert not problems, f"{len(problems)} references point nowhere:\n" + "\n".join(problems)
+
+
+def test_the_reference_checker_can_fail(tmp_path):
+    bad = REPO_ROOT / "tests" / "_reference_probe.py"        # read only through problems_in
+    text = ('"""See minifilm/nn/absent.py, minifilm/nn/optim.py::NoSuchName, nn/optim.py::Adam, '
+            'minifilm.nn.optim.Nope, :func:`_scratch`, §99.9, issue 24 §5 and §12.3."""\n')
+    try:
+        bad.write_text(text, encoding="utf-8")
+        found = problems_in(bad)
+    finally:
+        bad.unlink()
+    joined = "\n".join(found)
+    assert "absent.py does not exist" in joined and "defines no NoSuchName" in joined
+    assert "Nope" in joined and "_scratch" in joined and "§99.9" in joined
+    assert "Adam" not in joined and "§5" not in joined and "§12.3" not in joined and len(found) == 5
+
+
+@pytest.mark.parametrize("section", ["0.3", "1.1", "2", "3.3", "4.8", "10.2", "12.3", "12.17", "13.1"])
+def test_the_original_code_document_has_the_cited_sections(section):
+    assert section in original_sections()
