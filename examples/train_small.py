@@ -29,7 +29,7 @@ from minifilm.cli import ONE_BLAS_THREAD
 for key, value in ONE_BLAS_THREAD.items():
     os.environ.setdefault(key, value)
 
-from minifilm.cli import Parser, report_errors  # noqa: E402
+from minifilm.cli import Parser, run_command  # noqa: E402
 from minifilm.cli import train as options  # noqa: E402
 from minifilm.pipeline.train_small import finish, log_epoch, main_job, new_trainer  # noqa: E402
 from minifilm.train.trainer import EpochLosses  # noqa: E402
@@ -71,5 +71,6 @@ def main(argv=None) -> None:
         # ---- 5. results: test table, loss curve, styles.npz, generated BVH, style recognition, GIF, HTML
         finish(job, trainer)
 
+
 if __name__ == "__main__":
-    report_errors(main)      # bad input: one line "error: ..." and exit code 2, as `minifilm train`
+    run_command(main)      # bad input: one line "error: ..." and exit code 2, as `minifilm train`

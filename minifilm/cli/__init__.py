@@ -125,19 +125,24 @@ def main(argv=None) -> None:
     # Imported only when chosen: a command may need an optional extra (matplotlib, the demo's
     # server) that the others do without, and `minifilm --help` stays instant.
     module = importlib.import_module(module_name)
-    from minifilm.files import command_inputs   # here: it loads numpy, which reads the settings above
     parser = Parser(prog=f"minifilm {name}", description=module.__doc__,
                     formatter_class=argparse.RawDescriptionHelpFormatter)
     module.add_arguments(parser)
-    # SIGTERM ends a command the way Ctrl-C does, so what it was writing is cleaned up (a run
-    # being built, a temporary file) and an earlier run stays as it was; the demo sets its own
+    # parsing inside run_command too: an argument's type check may meet an OSError (a path name
+    # too long for the file system, a symlink loop) or record an input
+    run_command(lambda: module.run(parser.parse_args(argv[1:])))
+
+
+def run_command(main: Callable[[], Optional[int]]) -> None:
+    """:func:`report_errors` of ``main()`` as a command: the files it is given to read are recorded
+    while it runs, so that none of its outputs replaces one (minifilm/files/targets.py), and SIGTERM
+    ends it the way Ctrl-C does, so what it was writing is cleaned up (a run being built, a
+    temporary file) and an earlier run stays as it was (the demo sets its own handler)."""
+    from minifilm.files import command_inputs   # here: it loads numpy, which must read the BLAS settings first
     previous = _raise_on_sigterm()
     try:
-        # parsing inside report_errors too: an argument's type check may meet an OSError (a path name
-        # too long for the file system, a symlink loop); the command's inputs are recorded while it
-        # runs, so that none of its outputs replaces one (minifilm/files/targets.py)
         with command_inputs():
-            report_errors(lambda: module.run(parser.parse_args(argv[1:])))
+            report_errors(main)
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
