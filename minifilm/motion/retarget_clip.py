@@ -31,7 +31,7 @@ from minifilm.motion.retarget import world_to_local
 from minifilm.motion.retarget_feet import floor_height, plant_feet
 from minifilm.motion.retarget_pose import canonical_pose, foot_pitch_of, rest_positions, transfer_rotations
 from minifilm.motion.rig import Rig, _builtin_skeleton_for, find_roles, guess_bvh_scale
-from minifilm.phases.contacts import foot_contacts
+from minifilm.phases.contacts import DEFAULT_FILTER_SECONDS, foot_contacts
 
 __all__ = ["leg_length", "read_source", "retarget_motion", "retarget_file", "sensor_positions"]
 
@@ -72,7 +72,7 @@ def read_source(path: Union[str, os.PathLike], map_path=None, scale: Optional[fl
 
 
 def retarget_motion(source: Motion, target: Rig, source_roles: Optional[Roles] = None, plant: bool = True,
-                    blend_seconds: float = 0.1) -> Motion:
+                    blend_seconds: float = 0.1, contact_filter_seconds: float = DEFAULT_FILTER_SECONDS) -> Motion:
     """``source`` (metres) on the ``target`` rig (see the module doc).
 
     Args:
@@ -101,14 +101,16 @@ def retarget_motion(source: Motion, target: Rig, source_roles: Optional[Roles] =
     hips_path = (Ps[:, s_hips] - np.array([0.0, s_floor, 0.0])) * scale
     P = _positions(tm, world, tm.names.index(t_roles.hips), hips_path)
     # the floor: the target's toe tips rest on y = 0 where the source's rest on its floor
-    contacts = foot_contacts(sensor_positions(Ps, source, s_roles), source.fps, floor_height=s_floor)
+    contacts = foot_contacts(sensor_positions(Ps, source, s_roles), source.fps, floor_height=s_floor,
+                             filter_seconds=contact_filter_seconds)
     P[..., 1] -= _floor_offset(sensor_positions(P, tm, t_roles), contacts, source.fps)
     if plant:
         legs = [[tm.names.index(n) for n in (limb.upleg, limb.knee, limb.ankle, limb.sensor)]
                 for limb in (t_roles.right, t_roles.left)]
         hips = tm.names.index(t_roles.hips)
         body = [hips] + [j for j in range(J) if hips in _ancestor_list(tm, j)]
-        P, world = plant_feet(P, world, tm.parents, legs, contacts, source.fps, body, blend_seconds)
+        guides = (sensor_positions(Ps, source, s_roles) - np.array([0.0, s_floor, 0.0])) * scale
+        P, world = plant_feet(P, world, tm.parents, legs, contacts, guides, source.fps, body, blend_seconds)
     return _to_motion(tm, world, P, tm.names.index(t_roles.hips), source.frame_time,
                       f"{source.source} on {target.name}")
 
@@ -123,12 +125,12 @@ def _ancestor_list(motion: Motion, j: int) -> list:
 
 def _floor_offset(sensors: np.ndarray, contacts: np.ndarray, fps: float) -> float:
     """The height to take off the target so its toe tips are on y = 0 on average while the source's
-    feet are in contact ((F, 2, 3) sensors, (F, 2) contacts); without contacts, where its slow
-    toe tips rest."""
+    feet are in contact ((F, 2, 3) sensors, (F, 2) contacts); without contacts, the lower toe tip's
+    5th percentile height (a foot touches the floor at least now and then)."""
     on = contacts > 0.5
     if np.any(on):
         return float(np.median(sensors[..., 1][on]))
-    return floor_height(sensors, fps)
+    return float(np.percentile(sensors[..., 1].min(axis=1), 5))
 
 
 def _positions(tm: Motion, world: np.ndarray, hips: int, hips_path: np.ndarray) -> np.ndarray:

@@ -7,8 +7,9 @@ so they float, sink and slide by a few centimetres. Here:
    (:func:`minifilm.phases.contacts.estimate_floor_height`) is y = 0;
 2. the contacts: the source's foot contacts (:func:`minifilm.phases.contacts.foot_contacts` on its
    toe-tip sensors) say when each foot is planted. During each contact the target's toe tip is
-   pinned at one point on the floor (its mean position over the contact, at y = 0), with the pin
-   faded in and out over ``blend_seconds`` on either side; the leg reaches it with the two-bone
+   pinned at one point on the floor (the source's tip's mean position over the contact, scaled like
+   the root's path, at y = 0); for ``blend_seconds`` on either side it follows the source's tip
+   into and out of the pin; the leg reaches it with the two-bone
    IK of :func:`minifilm.motion.foot_ik.two_bone_ik` (hip fixed, thigh and shin lengths kept, knee
    in its bending plane) and the foot moves rigidly with the ankle. Where a pin is out of the leg's
    reach (the rigs' proportions differ), the whole body is first lowered just enough, smoothly.
@@ -44,26 +45,34 @@ def contact_runs(contacts: np.ndarray) -> list:
     return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
 
 
-def pin_targets(sensor: np.ndarray, contacts: np.ndarray, fps: float, blend_seconds: float = 0.1,
+def pin_targets(sensor: np.ndarray, guide: np.ndarray, contacts: np.ndarray, fps: float, blend_seconds: float = 0.1,
                 floor: float = 0.0) -> Tuple[np.ndarray, np.ndarray]:
     """Where one toe tip should be, and how much: (targets (F, 3), weights (F,) in [0, 1]).
 
-    ``sensor`` (F, 3) is the tip's position after the transfer; during each contact run the target
-    is the run's mean position on the floor, weight 1; the weight falls smoothly to 0 over
-    ``blend_seconds`` before and after the run (the nearer run wins between two)."""
+    ``sensor`` (F, 3) is the tip's position after the transfer, ``guide`` (F, 3) the source's tip
+    on the target's scale (its path scaled like the root's, floor at 0). During each contact run
+    the target is one point: the guide's mean over the run, on the floor. For ``blend_seconds``
+    before and after it the tip follows the guide, offset so that it meets the pin (the offset
+    fading smoothly), and over the next ``blend_seconds`` the weight falls smoothly to 0 (the nearer
+    run wins between two): the tip lands and takes off as the source's does, so the contacts found
+    on the result agree with the source's."""
     F = len(sensor)
     targets = sensor.copy()
     weights = np.zeros(F)
     blend = max(1, int(round(blend_seconds * fps)))
     for start, stop in contact_runs(contacts):
-        pin = sensor[start:stop].mean(axis=0)
+        pin = guide[start:stop].mean(axis=0)
         pin[1] = floor
-        lo, hi = max(0, start - blend), min(F, stop + blend)
+        lo, hi = max(0, start - 2 * blend), min(F, stop + 2 * blend)
         k = np.arange(lo, hi)
         dist = np.where(k < start, start - k, np.where(k >= stop, k - stop + 1, 0))
-        w = 0.5 + 0.5 * np.cos(np.pi * np.clip(dist / (blend + 1), 0, 1))      # 1 inside, smooth to 0
+        # the offset onto the pin fades over the first `blend` frames out, the weight over the next
+        offset = 0.5 + 0.5 * np.cos(np.pi * np.clip(dist / (blend + 1), 0, 1))
+        w = 0.5 + 0.5 * np.cos(np.pi * np.clip((dist - blend) / (blend + 1), 0, 1))
+        edge = np.where(k < start, start, stop - 1)
+        want = np.where((dist == 0)[:, None], pin, guide[k] + offset[:, None] * (pin - guide[edge]))
         better = w > weights[lo:hi]
-        targets[lo:hi][better] = pin
+        targets[lo:hi][better] = want[better]
         weights[lo:hi] = np.maximum(weights[lo:hi], w)
     return targets, weights
 
@@ -94,7 +103,7 @@ def hips_drop(P: np.ndarray, legs: Sequence[Sequence[int]], wants: Sequence[np.n
 
 
 def plant_feet(positions: np.ndarray, world: np.ndarray, parents: np.ndarray, legs: Sequence[Sequence[int]],
-               contacts: np.ndarray, fps: float, body: Sequence[int], blend_seconds: float = 0.1
+               contacts: np.ndarray, guides: np.ndarray, fps: float, body: Sequence[int], blend_seconds: float = 0.1
                ) -> Tuple[np.ndarray, np.ndarray]:
     """Pin each leg's sensor to the floor during its contacts (module doc, steps 2-3).
 
@@ -105,6 +114,7 @@ def plant_feet(positions: np.ndarray, world: np.ndarray, parents: np.ndarray, le
         legs:      per leg, joint indices (upper leg, knee, ankle, sensor); the sensor is rigid
                    with the ankle (a toe tip, or the toe joint).
         contacts:  (F, len(legs)) 0/1 source contacts, in the order of ``legs``.
+        guides:    (F, len(legs), 3) the source's toe tips on the target's scale (:func:`pin_targets`).
         body:      the joints that move with the hips (the hips and everything below them).
     Returns:
         new (positions, world): the body lowered where a pinned foot could not be reached
@@ -112,7 +122,8 @@ def plant_feet(positions: np.ndarray, world: np.ndarray, parents: np.ndarray, le
         world rotations of the upper legs and knees turn to match, those below the ankle are kept.
     """
     P, R = positions.copy(), world.copy()
-    pins = [pin_targets(P[:, leg[3]], c, fps, blend_seconds) for leg, c in zip(legs, np.asarray(contacts).T)]
+    pins = [pin_targets(P[:, leg[3]], guides[:, i], c, fps, blend_seconds)
+            for i, (leg, c) in enumerate(zip(legs, np.asarray(contacts).T))]
     wants = [P[:, leg[2]] + (t - P[:, leg[3]]) for leg, (t, _) in zip(legs, pins)]   # ankle where the sensor is pinned
     drop = hips_drop(P, legs, wants, [w for _, w in pins], fps)
     P[:, list(body), 1] -= drop[:, None]
