@@ -29,7 +29,8 @@ from minifilm.motion.joint_map import SIDES, RigError, Roles
 from minifilm.motion.motion import Motion
 from minifilm.motion.retarget import world_to_local
 from minifilm.motion.retarget_feet import floor_height, plant_feet
-from minifilm.motion.retarget_pose import canonical_pose, foot_pitch_of, rest_positions, transfer_rotations
+from minifilm.motion.retarget_pose import (canonical_pose, foot_pitch_of, match_chords, rest_positions,
+                                           transfer_rotations)
 from minifilm.motion.rig import Rig, _builtin_skeleton_for, find_roles, guess_bvh_scale
 from minifilm.phases.contacts import DEFAULT_FILTER_SECONDS, foot_contacts
 
@@ -94,6 +95,12 @@ def retarget_motion(source: Motion, target: Rig, source_roles: Optional[Roles] =
     t_pitch = target.foot_pitch if target.foot_pitch is not None else foot_pitch_of(tm, t_roles)
     world = transfer_rotations(Rs, source, s_roles, canonical_pose(source, s_roles, foot_pitch_of(source, s_roles)),
                                tm, t_roles, canonical_pose(tm, t_roles, t_pitch))
+    # the spine's and the neck's chords point as the source's (chains of other lengths bend otherwise)
+    si, ti = source.names.index, tm.names.index
+    world = match_chords(world, tm, [[ti(n) for n in (t_roles.hips,) + t_roles.spine],
+                                     [ti(n) for n in (t_roles.chest,) + t_roles.neck]],
+                         [Ps[:, si(s_roles.chest)] - Ps[:, si(s_roles.hips)],
+                          Ps[:, si(s_roles.head)] - Ps[:, si(s_roles.chest)]])
     # the root's path: the source's hips above its floor, scaled by the ratio of leg lengths
     scale = leg_length(tm, t_roles) / leg_length(source, s_roles)
     s_floor = floor_height(sensor_positions(Ps, source, s_roles), source.fps)

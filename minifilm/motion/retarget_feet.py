@@ -51,26 +51,25 @@ def pin_targets(sensor: np.ndarray, guide: np.ndarray, contacts: np.ndarray, fps
 
     ``sensor`` (F, 3) is the tip's position after the transfer, ``guide`` (F, 3) the source's tip
     on the target's scale (its path scaled like the root's, floor at 0). During each contact run
-    the target is one point: the guide's mean over the run, on the floor. For ``blend_seconds``
-    before and after it the tip follows the guide, offset so that it meets the pin (the offset
-    fading smoothly), and over the next ``blend_seconds`` the weight falls smoothly to 0 (the nearer
-    run wins between two): the tip lands and takes off as the source's does, so the contacts found
-    on the result agree with the source's."""
+    the target is one point: the tip's own mean position over the run, on the floor. For
+    ``blend_seconds`` before and after it the tip moves from the pin as the guide moves from its
+    position at the run's edge, and over the next ``blend_seconds`` the weight falls smoothly to 0
+    (the nearer run wins between two): the tip lands and takes off as the source's does, so the
+    contacts found on the result agree with the source's."""
     F = len(sensor)
     targets = sensor.copy()
     weights = np.zeros(F)
     blend = max(1, int(round(blend_seconds * fps)))
     for start, stop in contact_runs(contacts):
-        pin = guide[start:stop].mean(axis=0)
+        pin = sensor[start:stop].mean(axis=0)
         pin[1] = floor
         lo, hi = max(0, start - 2 * blend), min(F, stop + 2 * blend)
         k = np.arange(lo, hi)
         dist = np.where(k < start, start - k, np.where(k >= stop, k - stop + 1, 0))
-        # the offset onto the pin fades over the first `blend` frames out, the weight over the next
-        offset = 0.5 + 0.5 * np.cos(np.pi * np.clip(dist / (blend + 1), 0, 1))
+        # out of the pin the tip moves as the source's does; the weight fades after `blend` frames
         w = 0.5 + 0.5 * np.cos(np.pi * np.clip((dist - blend) / (blend + 1), 0, 1))
         edge = np.where(k < start, start, stop - 1)
-        want = np.where((dist == 0)[:, None], pin, guide[k] + offset[:, None] * (pin - guide[edge]))
+        want = np.where((dist == 0)[:, None], pin, pin + guide[k] - guide[edge])
         better = w > weights[lo:hi]
         targets[lo:hi][better] = want[better]
         weights[lo:hi] = np.maximum(weights[lo:hi], w)
@@ -78,7 +77,7 @@ def pin_targets(sensor: np.ndarray, guide: np.ndarray, contacts: np.ndarray, fps
 
 
 def hips_drop(P: np.ndarray, legs: Sequence[Sequence[int]], wants: Sequence[np.ndarray], weights: Sequence[np.ndarray],
-              fps: float, smooth_seconds: float = 0.1, reach: float = 0.995) -> np.ndarray:
+              fps: float, smooth_seconds: float = 0.1, reach: float = 0.999) -> np.ndarray:
     """(F,) how far (metres) to lower the body so that every pinned foot can be reached.
 
     A pinned ankle farther from its hip than ``reach`` times the leg's length (proportions differ:

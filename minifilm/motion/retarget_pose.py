@@ -26,7 +26,8 @@ chains differ:
 * a target collar the source lacks follows the chest; a target toe the source lacks follows the
   ankle; any other joint without a role (CMU's ``LHipJoint``, fingers) follows its parent.
 
-Bone lengths are the target's own: FK of the target gives its joint positions.
+Last, the chains' chords (hips -> chest, chest -> head) are turned onto the source's
+(:func:`match_chords`). Bone lengths are the target's own: FK of the target gives its joint positions.
 """
 from __future__ import annotations
 
@@ -39,7 +40,7 @@ from minifilm.motion.kinematics import forward_kinematics, matrix_to_quat, quat_
 from minifilm.motion.motion import Motion
 from minifilm.motion.skeleton_fit import rotation_between
 
-__all__ = ["canonical_pose", "rest_foot_pitch", "motion_foot_pitch", "rest_positions", "bone_directions", "transfer_rotations", "UP", "LEFT", "FORWARD"]
+__all__ = ["canonical_pose", "match_chords", "rest_foot_pitch", "motion_foot_pitch", "rest_positions", "bone_directions", "transfer_rotations", "UP", "LEFT", "FORWARD"]
 
 UP, LEFT, FORWARD = np.array([0.0, 1.0, 0.0]), np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
 
@@ -253,3 +254,45 @@ def _ancestors(motion: Motion, j: int) -> set:
         out.add(a)
         a = int(motion.parents[a])
     return out
+
+
+def _world_positions(motion: Motion, world: np.ndarray) -> np.ndarray:
+    """(F, J, 3) joint positions from world rotations and rest offsets, the root at the origin."""
+    F, J = world.shape[:2]
+    P = np.zeros((F, J, 3))
+    for j in range(J):
+        p = int(motion.parents[j])
+        if p >= 0:
+            P[:, j] = P[:, p] + (world[:, p] @ motion.offsets[j][:, None])[..., 0]
+    return P
+
+
+def match_chords(world: np.ndarray, target: Motion, chains, directions) -> np.ndarray:
+    """Turn each chain's inner joints so its end lies in the wanted direction from its start.
+
+    A spine of 2 joints spread over 4 bends a little differently from its source, so the chest
+    (and the head over the neck) would drift from where the source's hips -> chest direction puts
+    it. Per chain ``[c0, c1, ..., cn]`` (joint indices, n >= 2) and frame, the part from c1 to cn
+    is turned rigidly about c1 by the smallest rotation that puts cn on the ray from c0 along the
+    wanted direction (F, 3): the world bone direction of the mapped bone c0 -> cn is copied. The
+    end joint and everything beyond it keep their world rotations. Returns the new world rotations.
+    """
+    world = world.copy()
+    for chain, d in zip(chains, directions):
+        if len(chain) < 3:
+            continue
+        P = _world_positions(target, world)
+        c0, c1, cn = chain[0], chain[1], chain[-1]
+        d = d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-12)
+        v = P[:, cn] - P[:, c1]
+        a = P[:, c0] - P[:, c1]
+        b = np.sum(d * a, axis=-1)
+        c = np.sum(a * a, axis=-1) - np.sum(v * v, axis=-1)
+        disc = b * b - c
+        ok = disc >= 0
+        t = -b + np.sqrt(np.maximum(disc, 0.0))
+        goal = P[:, c0] + t[:, None] * d - P[:, c1]
+        S = rotation_between(v, np.where(ok[:, None], goal, v))
+        for j in chain[1:-1]:
+            world[:, j] = S @ world[:, j]
+    return world
