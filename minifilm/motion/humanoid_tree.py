@@ -150,8 +150,10 @@ def assemble(tree: PosedTree, method: str, hips: int, neck: Optional[int], head:
     for side in ("left", "right"):
         for role in ARM_ROLES + LEG_ROLES:
             kw[f"{side}_{role}"] = limbs[side][role]
+    sites = [c for c in tree.children[head] if tree.site[c] and not tree.children[c]]
+    head_top = max(sites, key=tree.length) if sites else None
     h = Humanoid(names=tree.names, method=method, root=root, hips=hips, spine=tuple(chest_path),
-                 neck=neck, head=head, **kw)
+                 neck=neck, head=head, head_top=head_top, **kw)
     _check_plausible(tree, h)
     return h
 
