@@ -31,7 +31,7 @@ from minifilm.motion.retarget import world_to_local
 from minifilm.motion.retarget_feet import floor_height, plant_feet
 from minifilm.motion.retarget_pose import (canonical_pose, foot_pitch_of, match_chords, rest_positions,
                                            transfer_rotations)
-from minifilm.motion.rig import Rig, _builtin_skeleton_for, find_roles, guess_bvh_scale
+from minifilm.motion.rig import Rig, _builtin_skeleton_for, file_unit, find_roles
 from minifilm.phases.contacts import DEFAULT_FILTER_SECONDS, foot_contacts
 
 __all__ = ["leg_length", "read_source", "retarget_motion", "retarget_file", "sensor_positions"]
@@ -59,13 +59,13 @@ def sensor_positions(positions: np.ndarray, motion: Motion, roles: Roles) -> np.
 
 def read_source(path: Union[str, os.PathLike], map_path=None, scale: Optional[float] = None):
     """(motion in metres, roles) of a BVH file of any humanoid rig: the unit is a built-in
-    skeleton's, else ``scale``, else guessed from the legs (:func:`~minifilm.motion.rig.guess_bvh_scale`)."""
+    skeleton's, else ``scale``, else found from the legs (:func:`~minifilm.motion.rig.file_unit`)."""
     path = note_input(Path(path))
     if scale is None:
         raw = read_bvh(path, scale=1.0)
         skeleton = _builtin_skeleton_for(raw)
         roles = find_roles(raw, map_path)
-        scale = skeleton.bvh_scale if skeleton is not None else guess_bvh_scale(raw, roles)
+        scale = skeleton.bvh_scale if skeleton is not None else file_unit(raw, roles)
         m = read_bvh(path, scale=scale)
         return m, roles
     m = read_bvh(path, scale=scale)

@@ -293,6 +293,8 @@ def match_chords(world: np.ndarray, target: Motion, chains, directions) -> np.nd
         t = -b + np.sqrt(np.maximum(disc, 0.0))
         goal = P[:, c0] + t[:, None] * d - P[:, c1]
         S = rotation_between(v, np.where(ok[:, None], goal, v))
-        for j in chain[1:-1]:
+        j = int(target.parents[cn])            # every joint from c1 up to cn's parent, roles or not
+        while j >= 0 and j != c0:
             world[:, j] = S @ world[:, j]
+            j = int(target.parents[j])
     return world

@@ -25,7 +25,7 @@ from minifilm.motion.joint_map import BUILTIN_ROLES, RigError, Roles, roles_from
 from minifilm.motion.motion import Motion
 from minifilm.motion.skeletons import BUILTIN_SKELETONS, Skeleton
 
-__all__ = ["Rig", "load_rig", "builtin_rig", "find_roles", "guess_bvh_scale", "BUILTIN_RIGS"]
+__all__ = ["Rig", "load_rig", "builtin_rig", "find_roles", "file_unit", "BUILTIN_RIGS"]
 
 BUILTIN_RIGS = ("100style", "bandai", "cmu")
 
@@ -87,27 +87,12 @@ BANDAI_FOOT_PITCH = float(np.radians(39.6))
 
 
 def find_roles(motion: Motion, map_path: Union[str, os.PathLike, None] = None) -> Roles:
-    """The roles of ``motion``'s joints: from the JSON map at ``map_path`` if given, else the first
-    built-in rig whose names it has, else what :mod:`minifilm.motion.humanoid` finds by name and
-    structure. RigError naming what could not be found."""
+    """The roles of ``motion``'s joints: from the JSON map at ``map_path`` if given, else from the
+    humanoid parts :mod:`minifilm.motion.humanoid` finds by name and structure (on the motion's
+    first frame). RigError naming what could not be found."""
     if map_path is not None:
         mapping = read_json(note_input(Path(map_path)), "joint map", error=RigError)
         return roles_from_mapping(mapping, motion, where=f"joint map {map_path} for {motion.source}")
-    names = set(motion.names)
-    for roles in BUILTIN_ROLES.values():
-        if set(roles.names()) <= names:
-            return roles
-    return _recognise(motion)
-
-
-def _recognise(motion: Motion) -> Roles:
-    """Roles by name conventions and structure (minifilm.motion.humanoid); RigError otherwise."""
-    try:
-        from minifilm.motion import humanoid  # noqa: F401  (the rig helper's recogniser)
-    except ImportError:
-        raise RigError(f"{motion.source}: not one of the built-in rigs ({', '.join(BUILTIN_ROLES)}) and no "
-                       "joint map given; name its joints' roles with --map FILE.json "
-                       "(docs/retargeting.md)") from None
     from minifilm.motion.retarget_roles import roles_from_humanoid
     return roles_from_humanoid(motion)
 
@@ -117,31 +102,26 @@ def _builtin_skeleton_for(motion: Motion) -> Optional[Skeleton]:
     return max(fitting, key=lambda s: s.n_joints) if fitting else None
 
 
-#: candidate BVH length units -> metres: metres, centimetres, millimetres, inches, the CMU ASF unit
-_UNITS = (1.0, 0.01, 0.001, 0.0254, 0.0254 / 0.45)
+def file_unit(motion_in_file_units: Motion, roles: Roles) -> float:
+    """Metres per unit of a file read with scale 1: a built-in skeleton's, else the common unit
+    that makes the body 1.4-2.1 m tall (:func:`minifilm.motion.body_size.body_unit`)."""
+    from minifilm.motion.body_size import body_unit
+    from minifilm.motion.humanoid import HumanoidError, find_humanoid
+    try:
+        h = find_humanoid(motion_in_file_units)
+    except HumanoidError:       # roles from a map on a rig humanoid.py does not recognise: go by the legs
+        return _unit_from_legs(motion_in_file_units, roles)
+    return body_unit(motion_in_file_units, h).metres_per_unit
 
 
-def guess_bvh_scale(motion_in_file_units: Motion, roles: Roles) -> float:
-    """The length unit (-> metres) that gives the rig legs closest to 0.85 m (thigh + shin), among
-    metres, centimetres, millimetres, inches and the CMU unit. ``motion_in_file_units`` is read
-    with scale 1."""
-    legs = []
-    for side in ("left", "right"):
-        limb = roles.limb(side)
-        P = _rest_positions(motion_in_file_units)
-        i = [motion_in_file_units.names.index(n) for n in (limb.upleg, limb.knee, limb.ankle)]
-        legs.append(np.linalg.norm(P[i[1]] - P[i[0]]) + np.linalg.norm(P[i[2]] - P[i[1]]))
-    leg = float(np.mean(legs))
-    if not leg > 0:
-        raise RigError(f"{motion_in_file_units.source}: its legs have no length at rest")
-    return min(_UNITS, key=lambda u: abs(np.log(leg * u / 0.85)))
-
-
-def _rest_positions(motion: Motion) -> np.ndarray:
-    from minifilm.motion.kinematics import forward_kinematics
-    J = motion.n_joints
-    P, _ = forward_kinematics(np.broadcast_to(np.eye(3), (1, J, 3, 3)), motion.offsets[None], motion.parents)
-    return P[0]
+def _unit_from_legs(motion: Motion, roles: Roles) -> float:
+    from minifilm.motion.body_size import KNOWN_UNITS, LEG_FRACTION, STATURE_RANGE, TYPICAL_STATURE
+    from minifilm.motion.retarget_clip import leg_length
+    stature = leg_length(motion, roles) / LEG_FRACTION
+    for _, unit in KNOWN_UNITS:
+        if STATURE_RANGE[0] <= stature * unit <= STATURE_RANGE[1]:
+            return unit
+    return TYPICAL_STATURE / stature
 
 
 def load_rig(target: Union[str, os.PathLike], map_path: Union[str, os.PathLike, None] = None,
@@ -172,7 +152,7 @@ def load_rig(target: Union[str, os.PathLike], map_path: Union[str, os.PathLike, 
     skeleton = _builtin_skeleton_for(raw)
     roles = find_roles(raw, map_path)
     if scale is None:
-        scale = skeleton.bvh_scale if skeleton is not None else guess_bvh_scale(raw, roles)
+        scale = skeleton.bvh_scale if skeleton is not None else file_unit(raw, roles)
     m = read_bvh(path, scale=scale)
     from minifilm.motion.retarget_pose import foot_pitch_of
     return Rig(path.stem, _rest(m, str(path)), roles, float(scale), skeleton, foot_pitch_of(m, roles))
