@@ -29,7 +29,7 @@ from minifilm.motion.joint_map import SIDES, RigError, Roles
 from minifilm.motion.motion import Motion
 from minifilm.motion.retarget import world_to_local
 from minifilm.motion.retarget_feet import floor_height, plant_feet
-from minifilm.motion.retarget_pose import (canonical_pose, foot_pitch_of, match_chords, rest_positions,
+from minifilm.motion.retarget_pose import (canonical_pose, foot_shape_of, match_chords, place_feet, rest_positions,
                                            transfer_rotations)
 from minifilm.motion.rig import Rig, _builtin_skeleton_for, file_unit, find_roles
 from minifilm.phases.contacts import DEFAULT_FILTER_SECONDS, foot_contacts
@@ -92,9 +92,11 @@ def retarget_motion(source: Motion, target: Rig, source_roles: Optional[Roles] =
     if F < 1:
         raise RigError(f"{source.source}: no frames to retarget")
     Ps, Rs = source.world()
-    t_pitch = target.foot_pitch if target.foot_pitch is not None else foot_pitch_of(tm, t_roles)
-    world = transfer_rotations(Rs, source, s_roles, canonical_pose(source, s_roles, foot_pitch_of(source, s_roles)),
-                               tm, t_roles, canonical_pose(tm, t_roles, t_pitch))
+    t_shape = target.foot_shape if target.foot_shape is not None else foot_shape_of(tm, t_roles)
+    s_shape = foot_shape_of(source, s_roles)
+    world = transfer_rotations(Rs, source, s_roles, canonical_pose(source, s_roles, s_shape[0]),
+                               tm, t_roles, canonical_pose(tm, t_roles, t_shape[0]))
+    world = place_feet(world, tm, t_roles, t_shape, source, s_roles, s_shape)
     # the spine's and the neck's chords point as the source's (chains of other lengths bend otherwise)
     si, ti = source.names.index, tm.names.index
     world = match_chords(world, tm, [[ti(n) for n in (t_roles.hips,) + t_roles.spine],

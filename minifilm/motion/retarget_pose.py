@@ -40,7 +40,7 @@ from minifilm.motion.kinematics import forward_kinematics, matrix_to_quat, quat_
 from minifilm.motion.motion import Motion
 from minifilm.motion.skeleton_fit import rotation_between
 
-__all__ = ["canonical_pose", "match_chords", "rest_foot_pitch", "motion_foot_pitch", "rest_positions", "bone_directions", "transfer_rotations", "UP", "LEFT", "FORWARD"]
+__all__ = ["canonical_pose", "foot_shape_of", "place_feet", "rest_toe_bend", "match_chords", "rest_foot_pitch", "motion_foot_pitch", "rest_positions", "bone_directions", "transfer_rotations", "UP", "LEFT", "FORWARD"]
 
 UP, LEFT, FORWARD = np.array([0.0, 1.0, 0.0]), np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
 
@@ -124,15 +124,57 @@ DEFAULT_FOOT_PITCH = float(np.radians(25.0))
 
 
 def foot_pitch_of(motion: Motion, roles: Roles) -> float:
-    """The flat-foot pitch of a rig (radians): its rest pose's when that is a standing pose, else
-    measured from the motion's foot contacts, else DEFAULT_FOOT_PITCH."""
+    """The flat-foot pitch of a rig (radians): :func:`foot_shape_of`'s first value."""
+    return foot_shape_of(motion, roles)[0]
+
+
+def foot_shape_of(motion: Motion, roles: Roles) -> Tuple[float, float]:
+    """(pitch, toe bend) of a rig's foot flat on the floor, radians: from its rest pose when that is
+    a standing pose; else measured on the motion's flattest contact frames
+    (:func:`motion_foot_pitch`, :func:`motion_toe_bend`); else DEFAULT_FOOT_PITCH and no bend."""
     pitch = rest_foot_pitch(motion, roles)
-    if pitch is None and motion.n_frames > 1:
+    if pitch is not None:
+        return pitch, rest_toe_bend(motion, roles)
+    if motion.n_frames > 1:
         from minifilm.motion.retarget_clip import sensor_positions
         from minifilm.phases.contacts import foot_contacts
         P, _ = motion.world()
-        pitch = motion_foot_pitch(motion, roles, foot_contacts(sensor_positions(P, motion, roles), motion.fps))
-    return DEFAULT_FOOT_PITCH if pitch is None else pitch
+        contacts = foot_contacts(sensor_positions(P, motion, roles), motion.fps)
+        pitch = motion_foot_pitch(motion, roles, contacts)
+        if pitch is not None:
+            return pitch, motion_toe_bend(motion, roles, contacts, pitch)
+    return DEFAULT_FOOT_PITCH, 0.0
+
+
+def motion_toe_bend(motion: Motion, roles: Roles, contacts: np.ndarray, flat_pitch: float) -> float:
+    """How much less the toe points down than the foot (radians) on the contact frames whose foot
+    pitch is within 3 degrees of the flat-foot pitch; 0 without such frames or a toe joint."""
+    bends = []
+    for k, side in enumerate(("right", "left")):
+        limb = roles.limb(side)
+        if limb.toe is None:
+            continue
+        fs, ts = _foot_and_toe(motion, limb)
+        keep = (contacts[:, k] > 0.5) & (np.abs(_pitch(fs) - flat_pitch) < np.radians(3.0))
+        bends.append(_pitch(fs[keep]) - _pitch(ts[keep]))
+    bends = np.concatenate(bends) if bends else np.zeros(0)
+    return float(np.median(bends)) if len(bends) else 0.0
+
+
+def _foot_and_toe(motion: Motion, limb) -> Tuple[np.ndarray, np.ndarray]:
+    """World directions (F, 3) of a limb's foot bone (ankle -> toe) and toe bone (toe -> tip; for a
+    tip of zero length, the foot's direction carried by the toe joint's rotation)."""
+    P, R = motion.world()
+    i = {n: j for j, n in enumerate(motion.names)}
+    end = limb.toe or limb.toe_end
+    fs = P[:, i[end]] - P[:, i[limb.ankle]]
+    if limb.toe and limb.toe_end and np.linalg.norm(motion.offsets[i[limb.toe_end]]) > 1e-9:
+        ts = P[:, i[limb.toe_end]] - P[:, i[limb.toe]]
+    elif limb.toe:
+        ts = (R[:, i[limb.toe]] @ np.swapaxes(R[:, i[limb.ankle]], -1, -2) @ fs[..., None])[..., 0]
+    else:
+        ts = fs
+    return fs, ts
 
 
 def canonical_pose(motion: Motion, roles: Roles, foot_pitch: float = 0.0) -> np.ndarray:
@@ -298,3 +340,97 @@ def match_chords(world: np.ndarray, target: Motion, chains, directions) -> np.nd
             world[:, j] = S @ world[:, j]
             j = int(target.parents[j])
     return world
+
+
+# ----------------------------------------------------------------------------------------------
+# Feet: pitch and toe bend in world space
+# ----------------------------------------------------------------------------------------------
+
+def _pitch(d: np.ndarray) -> np.ndarray:
+    """Angle (radians) by which directions (..., 3) point below the horizontal."""
+    return np.arctan2(-d[..., 1], np.hypot(d[..., 0], d[..., 2]))
+
+
+def _with_pitch(d: np.ndarray, pitch: np.ndarray, fallback: np.ndarray) -> np.ndarray:
+    """Unit directions with the heading of ``d`` (or of ``fallback`` where d is nearly vertical)
+    and the given pitch below the horizontal."""
+    h = d * np.array([1.0, 0.0, 1.0])
+    n = np.linalg.norm(h, axis=-1, keepdims=True)
+    hf = fallback * np.array([1.0, 0.0, 1.0])
+    h = np.where(n > 1e-3, h, hf)
+    h = h / np.maximum(np.linalg.norm(h, axis=-1, keepdims=True), 1e-12)
+    return np.cos(pitch)[..., None] * h - np.sin(pitch)[..., None] * UP
+
+
+def rest_toe_bend(motion: Motion, roles: Roles) -> float:
+    """How much (radians) the toe bone points less far down than the foot bone at rest (100STYLE:
+    its toe tip is pitched 15 degrees, its foot 27: 0.21); 0 for a rig without a toe bone. Taken
+    from the zero pose when it is a standing pose, else the unsigned angle between the two bones."""
+    P0 = rest_positions(motion)
+    idx = {n: i for i, n in enumerate(motion.names)}
+    bends = []
+    for side in SIDES:
+        limb = roles.limb(side)
+        if not (limb.toe and limb.toe_end):
+            return 0.0
+        foot = P0[idx[limb.toe]] - P0[idx[limb.ankle]]
+        toe = P0[idx[limb.toe_end]] - P0[idx[limb.toe]]
+        if np.linalg.norm(toe) < 1e-9 or np.linalg.norm(foot) < 1e-9:
+            return 0.0
+        if rest_foot_pitch(motion, roles) is not None:
+            bends.append(_pitch(foot) - _pitch(toe))
+        else:
+            bends.append(np.arccos(np.clip(foot @ toe / np.linalg.norm(foot) / np.linalg.norm(toe), -1, 1)))
+    return float(np.mean(bends))
+
+
+def place_feet(world: np.ndarray, target: Motion, t_roles: Roles, t_shape: Tuple[float, float],
+               source: Motion, s_roles: Roles, s_shape: Tuple[float, float]) -> np.ndarray:
+    """Aim each target foot and toe from the source's, in world space (returns new world rotations).
+
+    A rig's zero pose fixes a bone's direction but not its twist, and the Bandai rig's legs are
+    turned half way round to stand in the canonical pose, so an offset in pitch carried through
+    the canonical frames can come out sideways or upside down. The feet are therefore aimed here:
+    the foot (ankle -> toe) keeps the source foot's heading and its pitch shifted by the rigs'
+    flat-foot difference (``*_shape`` = (flat-foot pitch, toe bend), :func:`foot_shape_of`: a flat
+    foot stays flat), and the toe (toe -> tip) is bent relative to the foot as much more than its
+    flat-foot bend as the source's toe is. Each is turned by the smallest rotation, so its twist
+    stays as the transfer set it."""
+    world = world.copy()
+    ti = {n: i for i, n in enumerate(target.names)}
+    (t_pitch, t_bend0), (s_pitch, s_bend0) = t_shape, s_shape
+    for side in SIDES:
+        s, t = s_roles.limb(side), t_roles.limb(side)
+        t_end = t.toe or t.toe_end
+        if (s.toe or s.toe_end) is None or t_end is None:
+            continue
+        fs, ts = _foot_and_toe(source, s)
+        a = ti[t.ankle]
+        local_foot = _local_offset(target, ti[t_end], a)
+        if np.linalg.norm(local_foot) < 1e-9:
+            continue
+        ft_now = (world[:, a] @ local_foot[:, None])[..., 0]
+        ft = _with_pitch(fs, _pitch(fs) + (t_pitch - s_pitch), ft_now)
+        world[:, a] = rotation_between(ft_now, ft) @ world[:, a]
+        if not (t.toe and t.toe_end):
+            continue
+        toe = ti[t.toe]
+        local_toe = _local_offset(target, ti[t.toe_end], toe)
+        if np.linalg.norm(local_toe) < 1e-9:       # a toe tip of zero length (Bandai): nothing to aim
+            continue
+        bend = (_pitch(fs) - _pitch(ts)) - s_bend0
+        tt_now = (world[:, toe] @ local_toe[:, None])[..., 0]
+        tt = _with_pitch(ts, _pitch(ft) - t_bend0 - bend, ft)
+        world[:, toe] = rotation_between(tt_now, tt) @ world[:, toe]
+    return world
+
+
+def _local_offset(motion: Motion, end: int, joint: int) -> np.ndarray:
+    """The rest vector from ``joint`` to its descendant ``end`` in ``joint``'s frame (the joints
+    between at rest)."""
+    v = np.zeros(3)
+    j = end
+    while j != joint:
+        v = motion.offsets[j] + v
+        j = int(motion.parents[j])
+    return v

@@ -15,7 +15,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Optional, Union
+from typing import Optional, Tuple, Union
 
 import numpy as np
 
@@ -40,15 +40,15 @@ class Rig:
         roles:     the rig's roles.
         bvh_scale: BVH units -> metres of the rig's files (0.01 for centimetres).
         skeleton:  the built-in Skeleton description whose joints the rig has (None if none fits).
-        foot_pitch: radians by which its feet point down when flat on the floor (None: from its
-                   rest pose, see :func:`minifilm.motion.retarget_pose.rest_foot_pitch`).
+        foot_shape: (pitch, toe bend) of its foot flat on the floor, radians (None: from its rest
+                   pose, see :func:`minifilm.motion.retarget_pose.foot_shape_of`).
     """
     name: str
     template: Motion
     roles: Roles
     bvh_scale: float
     skeleton: Optional[Skeleton] = None
-    foot_pitch: Optional[float] = None
+    foot_shape: Optional[Tuple[float, float]] = None
 
 
 def _rest(motion: Motion, name: str) -> Motion:
@@ -76,14 +76,15 @@ def builtin_rig(name: str) -> Rig:
     else:
         raise RigError(f"unknown rig {name!r}; the built-in rigs are {', '.join(BUILTIN_RIGS)} "
                        "(or give a run folder or a BVH file)")
-    pitch = BANDAI_FOOT_PITCH if name == "bandai" else None
-    return Rig(name, _rest(template, name), BUILTIN_ROLES[name], scale, builtin_skeleton(name), pitch)
+    shape = BANDAI_FOOT_SHAPE if name == "bandai" else None
+    return Rig(name, _rest(template, name), BUILTIN_ROLES[name], scale, builtin_skeleton(name), shape)
 
 
-#: The Bandai rig's zero pose is no standing pose (every bone along x), so its flat foot's pitch is
+#: The Bandai rig's zero pose is no standing pose (every bone along x), so its flat foot is
 #: measured: the 10th percentile of the ankle -> toe pitch over the toe's contact frames is 39.6
-#: degrees in every shared Bandai walk (retarget_pose.motion_foot_pitch).
-BANDAI_FOOT_PITCH = float(np.radians(39.6))
+#: degrees in every shared Bandai walk (retarget_pose.motion_foot_pitch); its toe tip has no
+#: length, so no toe bend is aimed on it.
+BANDAI_FOOT_SHAPE = (float(np.radians(39.6)), 0.0)
 
 
 def find_roles(motion: Motion, map_path: Union[str, os.PathLike, None] = None) -> Roles:
@@ -143,8 +144,8 @@ def load_rig(target: Union[str, os.PathLike], map_path: Union[str, os.PathLike, 
         template = run.template()
         roles = find_roles(template, map_path)
         skeleton = _builtin_skeleton_for(template)
-        pitch = BANDAI_FOOT_PITCH if skeleton is not None and skeleton.name == "bandai" else None
-        return Rig(str(path), _rest(template, str(path)), roles, run.bvh_scale, skeleton, pitch)
+        shape = BANDAI_FOOT_SHAPE if skeleton is not None and skeleton.name == "bandai" else None
+        return Rig(str(path), _rest(template, str(path)), roles, run.bvh_scale, skeleton, shape)
     if not path.exists():
         raise RigError(f"{text}: no such rig; give a built-in rig ({', '.join(BUILTIN_RIGS)}), a run folder "
                        "or a BVH file")
@@ -154,5 +155,5 @@ def load_rig(target: Union[str, os.PathLike], map_path: Union[str, os.PathLike, 
     if scale is None:
         scale = skeleton.bvh_scale if skeleton is not None else file_unit(raw, roles)
     m = read_bvh(path, scale=scale)
-    from minifilm.motion.retarget_pose import foot_pitch_of
-    return Rig(path.stem, _rest(m, str(path)), roles, float(scale), skeleton, foot_pitch_of(m, roles))
+    from minifilm.motion.retarget_pose import foot_shape_of
+    return Rig(path.stem, _rest(m, str(path)), roles, float(scale), skeleton, foot_shape_of(m, roles))
