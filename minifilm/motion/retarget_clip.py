@@ -37,16 +37,22 @@ from minifilm.phases.contacts import DEFAULT_FILTER_SECONDS, foot_contacts
 __all__ = ["leg_length", "read_source", "retarget_motion", "retarget_file", "sensor_positions"]
 
 
-def leg_length(motion: Motion, roles: Roles) -> float:
-    """Mean of the two legs' thigh + shin lengths at rest, metres."""
-    P0 = rest_positions(motion)
+def leg_length(motion: Motion, roles: Roles, foot_pitch: Optional[float] = None) -> float:
+    """The legs' length as the hips' height above the floor standing straight (metres): the rig in
+    its canonical pose (legs straight down, feet flat at ``foot_pitch``, default the rig's own),
+    from the hips down to the lowest point of either foot. Thigh + shin alone would leave out the
+    pelvis and the ankle's height, which differ between rigs (the Bandai ankle stands 7 cm above
+    the floor, 100STYLE's 11 cm) and would put one character's feet through the floor."""
+    pitch = foot_shape_of(motion, roles)[0] if foot_pitch is None else foot_pitch
+    C = canonical_pose(motion, roles, pitch)
+    P = np.zeros((motion.n_joints, 3))
+    for j in range(motion.n_joints):
+        p = int(motion.parents[j])
+        if p >= 0:
+            P[j] = P[p] + C[p] @ motion.offsets[j]
     idx = {n: i for i, n in enumerate(motion.names)}
-    out = []
-    for side in SIDES:
-        limb = roles.limb(side)
-        u, k, a = (P0[idx[n]] for n in (limb.upleg, limb.knee, limb.ankle))
-        out.append(np.linalg.norm(k - u) + np.linalg.norm(a - k))
-    length = float(np.mean(out))
+    feet = [idx[n] for side in SIDES for n in roles.limb(side).leg()]
+    length = float(P[idx[roles.hips], 1] - P[feet, 1].min())
     if not length > 1e-6:
         raise RigError(f"{motion.source}: its legs have no length at rest")
     return length
@@ -104,7 +110,7 @@ def retarget_motion(source: Motion, target: Rig, source_roles: Optional[Roles] =
                          [Ps[:, si(s_roles.chest)] - Ps[:, si(s_roles.hips)],
                           Ps[:, si(s_roles.head)] - Ps[:, si(s_roles.chest)]])
     # the root's path: the source's hips above its floor, scaled by the ratio of leg lengths
-    scale = leg_length(tm, t_roles) / leg_length(source, s_roles)
+    scale = leg_length(tm, t_roles, t_shape[0]) / leg_length(source, s_roles, s_shape[0])
     s_floor = floor_height(sensor_positions(Ps, source, s_roles), source.fps)
     s_hips = source.names.index(s_roles.hips)
     hips_path = (Ps[:, s_hips] - np.array([0.0, s_floor, 0.0])) * scale

@@ -130,11 +130,16 @@ def foot_pitch_of(motion: Motion, roles: Roles) -> float:
 
 def foot_shape_of(motion: Motion, roles: Roles) -> Tuple[float, float]:
     """(pitch, toe bend) of a rig's foot flat on the floor, radians: from its rest pose when that is
-    a standing pose; else measured on the motion's flattest contact frames
+    a standing pose; the measured constant of the built-in Bandai rig (rig.BANDAI_FOOT_SHAPE) on its
+    files; else measured on the motion's flattest contact frames
     (:func:`motion_foot_pitch`, :func:`motion_toe_bend`); else DEFAULT_FOOT_PITCH and no bend."""
     pitch = rest_foot_pitch(motion, roles)
     if pitch is not None:
         return pitch, rest_toe_bend(motion, roles)
+    from minifilm.motion.rig import BANDAI_FOOT_SHAPE, _builtin_skeleton_for
+    skeleton = _builtin_skeleton_for(motion)
+    if skeleton is not None and skeleton.name == "bandai":     # the same value for every Bandai clip
+        return BANDAI_FOOT_SHAPE
     if motion.n_frames > 1:
         from minifilm.motion.retarget_clip import sensor_positions
         from minifilm.phases.contacts import foot_contacts
