@@ -8,7 +8,7 @@ import numpy as np
 
 from minifilm.motion.humanoid_parts import ARM_ROLES, LEG_ROLES, Humanoid, HumanoidError
 
-__all__ = ["PosedTree", "leg_from_chain", "arm_from_chain", "lowest_leaf", "farthest_leaf", "assemble"]
+__all__ = ["PosedTree", "leg_from_chain", "arm_from_chain", "farthest_leaf", "assemble"]
 
 
 class PosedTree:
@@ -117,11 +117,6 @@ def arm_from_chain(tree: PosedTree, chain: List[int], side: str) -> Dict[str, Op
     # joints sitting on the upper arm's joint are not a collar; the collar is the joint above it
     collar = chain[shoulder_at - 1] if shoulder_at >= 1 else None
     return dict(collar=collar, shoulder=chain[shoulder_at], elbow=chain[wrist_at - 1], wrist=chain[wrist_at])
-
-
-def lowest_leaf(tree: PosedTree, j: int) -> int:
-    leaves = [k for k in tree.subtree(j) if not tree.children[k]]
-    return min(leaves, key=lambda k: (tree.P[k, 1], -len(tree.path(j, k)) if k != j else 0))
 
 
 def farthest_leaf(tree: PosedTree, top: int, j: int) -> int:
