@@ -124,7 +124,9 @@ def retarget_motion(source: Motion, target: Rig, source_roles: Optional[Roles] =
                 for limb in (t_roles.right, t_roles.left)]
         hips = tm.names.index(t_roles.hips)
         body = [hips] + [j for j in range(J) if hips in _ancestor_list(tm, j)]
-        guides = (sensor_positions(Ps, source, s_roles) - np.array([0.0, s_floor, 0.0])) * scale
+        # unscaled: near a contact the tip moves at the source tip's own speed, so that a touch-down
+        # just under the contact speed threshold stays under it on a longer-legged target
+        guides = sensor_positions(Ps, source, s_roles) - np.array([0.0, s_floor, 0.0])
         P, world = plant_feet(P, world, tm.parents, legs, contacts, guides, source.fps, body, blend_seconds)
     return _to_motion(tm, world, P, tm.names.index(t_roles.hips), source.frame_time,
                       f"{source.source} on {target.name}")

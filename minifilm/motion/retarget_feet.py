@@ -50,7 +50,7 @@ def pin_targets(sensor: np.ndarray, guide: np.ndarray, contacts: np.ndarray, fps
     """Where one toe tip should be, and how much: (targets (F, 3), weights (F,) in [0, 1]).
 
     ``sensor`` (F, 3) is the tip's position after the transfer, ``guide`` (F, 3) the source's tip
-    on the target's scale (its path scaled like the root's, floor at 0). During each contact run
+    (floor at 0; not scaled, so that the tip moves at the source tip's speed). During each contact run
     the target is one point: the tip's own mean position over the run, on the floor. For
     ``blend_seconds`` before and after it the tip moves from the pin as the guide moves from its
     position at the run's edge, and over the next ``blend_seconds`` the weight falls smoothly to 0
@@ -113,7 +113,7 @@ def plant_feet(positions: np.ndarray, world: np.ndarray, parents: np.ndarray, le
         legs:      per leg, joint indices (upper leg, knee, ankle, sensor); the sensor is rigid
                    with the ankle (a toe tip, or the toe joint).
         contacts:  (F, len(legs)) 0/1 source contacts, in the order of ``legs``.
-        guides:    (F, len(legs), 3) the source's toe tips on the target's scale (:func:`pin_targets`).
+        guides:    (F, len(legs), 3) the source's toe tips (:func:`pin_targets`).
         body:      the joints that move with the hips (the hips and everything below them).
     Returns:
         new (positions, world): the body lowered where a pinned foot could not be reached
