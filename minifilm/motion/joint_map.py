@@ -103,10 +103,11 @@ class Roles:
             out += list(self.limb(side).arm()) + list(self.limb(side).leg())
         return tuple(out)
 
-    def check(self, motion) -> "Roles":
+    def check(self, motion, where: str = "") -> "Roles":
         """Self, after checking that every named joint exists in ``motion`` and that the chains
-        are chains (each joint below the previous one); RigError naming what is wrong."""
-        where = motion.source
+        are chains (each joint below the previous one); RigError naming what is wrong (and
+        ``where`` the roles came from, e.g. a map file)."""
+        where = where or motion.source
         missing = [n for n in self.names() if n not in motion.names]
         if missing:
             raise RigError(f"{where}: the joint map names joints the file does not have: {missing} "
@@ -222,7 +223,7 @@ def roles_from_mapping(mapping, motion, where: str = "joint map") -> Roles:
     roles = Roles(name(mapping["hips"], "hips"), names(mapping["spine"], "spine"), names(mapping["neck"], "neck"),
                   limbs["left"], limbs["right"], head_end=None if head_end is None else name(head_end, "head_end"),
                   source=where)
-    return roles.check(motion)
+    return roles.check(motion, where)
 
 
 def chain_overlaps(source_lengths: Sequence[float], target_lengths: Sequence[float]) -> np.ndarray:

@@ -252,3 +252,16 @@ def test_retarget_command_refuses_a_non_humanoid_in_one_line(tmp_path, joints):
     assert not (tmp_path / "out" / "animal.bvh").exists()
     r = run_cli("retarget", path, "--to", "nowhere", "--out", tmp_path / "out")
     assert r.returncode == 2 and "nowhere: no such rig" in r.stderr
+
+
+def test_retarget_command_refuses_a_map_naming_missing_joints(shared_data, tmp_path):
+    r = BUILTIN_ROLES["cmu"]
+    limb = lambda lb: {k: getattr(lb, k) for k in ("shoulder", "elbow", "wrist", "upleg", "knee", "ankle")}
+    mapping = {"hips": r.hips, "spine": list(r.spine), "neck": list(r.neck), "left": limb(r.left),
+               "right": dict(limb(r.right), ankle="RightAnkle")}
+    map_path = tmp_path / "map.json"
+    map_path.write_text(json.dumps(mapping))
+    out = run_cli("retarget", shared_data / "bvh" / "xia" / "old_13_000.bvh", "--to", "100style",
+                  "--out", tmp_path / "out", "--map", map_path)
+    assert out.returncode == 2 and out.stderr.count("\n") == 1, out.stderr
+    assert "names joints the file does not have: ['RightAnkle']" in out.stderr and str(map_path) in out.stderr
