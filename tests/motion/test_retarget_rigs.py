@@ -265,3 +265,14 @@ def test_retarget_command_refuses_a_map_naming_missing_joints(shared_data, tmp_p
                   "--out", tmp_path / "out", "--map", map_path)
     assert out.returncode == 2 and out.stderr.count("\n") == 1, out.stderr
     assert "names joints the file does not have: ['RightAnkle']" in out.stderr and str(map_path) in out.stderr
+
+
+def test_view_on_draws_a_file_on_the_standard_character(shared_data, tmp_path):
+    """minifilm view --on 100style: the Bandai walk drawn on the 100STYLE rig, titled so."""
+    from minifilm.motion.retarget_files import tracks_on
+    track, = tracks_on([shared_data / "bvh" / "bandai1" / "dataset-1_walk_normal_001.bvh"], "100style")
+    assert track.name == "dataset-1_walk_normal_001 on 100style"
+    assert track.positions.shape[1] == 28 and track.contacts is not None      # the 100STYLE joints, contacts found
+    r = run_cli("view", shared_data / "bvh" / "xia" / "old_13_000.bvh", "--on", "100style", "--gif",
+                tmp_path / "on.gif", "--every", "8")
+    assert r.returncode == 0 and (tmp_path / "on.gif").stat().st_size > 0, r.stderr
