@@ -17,7 +17,7 @@ import numpy as np
 
 from minifilm.cli.args import input_path, png_path, seconds_at_least
 from minifilm.files import check_writable
-from minifilm.phases.any_rig import load_for_phases
+from minifilm.phases.any_rig import HumanoidRig, load_for_phases
 from minifilm.phases.label import label
 from minifilm.phases.local_phases import LocalPhases
 from minifilm.viewer.deps import check_output_tools
@@ -64,7 +64,8 @@ def run(args) -> int:
     ph = labels.phases
     view = LocalPhases(*(None if a is None else a[keep] for a in
                          (ph.phase, ph.amplitude, ph.source, ph.fit, ph.frequency)))
-    title = f"{Path(args.bvh).name}: {motion.n_frames} frames at {motion.fps:.0f} fps, skeleton {skeleton.name}"
+    rig = skeleton.name if isinstance(skeleton, HumanoidRig) else f"skeleton {skeleton.name}"
+    title = f"{Path(args.bvh).name}: {motion.n_frames} frames at {motion.fps:.0f} fps, {rig}"
     plot_phases(t[keep], view, labels.contacts[keep], labels.sources, out, title)
     print(f"wrote {out}")
     if args.animation:
