@@ -24,6 +24,7 @@ from typing import Optional, Sequence, Tuple
 
 import numpy as np
 
+from minifilm.motion.humanoid import Humanoid
 from minifilm.motion.motion import Motion
 from minifilm.phases.any_rig import HumanoidRig, humanoid_rig
 from minifilm.phases.contacts import foot_contacts, humanoid_contacts
@@ -60,14 +61,15 @@ def label(motion: Motion, skeleton=None, style: Optional[str] = None,
           sources: Optional[Sequence[str]] = None, **fit_options) -> Labels:
     """Contacts and local phases of ``motion`` on ``skeleton``.
 
-    ``skeleton``: a built-in Skeleton, a HumanoidRig, or None for ``humanoid_rig(motion)``
-    (HumanoidError when ``motion`` is not a humanoid). ``style`` picks the phase sources (see
-    ``default_sources``) unless ``sources`` names them; ``fit_options`` go to the sinusoid fit.
+    ``skeleton``: a built-in Skeleton, a HumanoidRig, a Humanoid found on ``motion``, or None for
+    ``humanoid_rig(motion)`` (HumanoidError when ``motion`` is not a humanoid). ``style`` picks the
+    phase sources (see ``default_sources``) unless ``sources`` names them; ``fit_options`` go to
+    the sinusoid fit.
     Contacts use the skeleton's two toe-tip sensors with the floor height estimated from the file:
     the paper's thresholds on a built-in Skeleton, ``humanoid_contacts``' on a HumanoidRig.
     """
-    if skeleton is None:
-        skeleton = humanoid_rig(motion)
+    if skeleton is None or isinstance(skeleton, Humanoid):
+        skeleton = humanoid_rig(motion, skeleton)
     if isinstance(skeleton, HumanoidRig):
         contacts, _ = humanoid_contacts(motion, skeleton.humanoid)
     else:

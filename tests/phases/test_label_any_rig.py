@@ -94,6 +94,7 @@ def test_a_scrambled_rig_is_labelled_from_its_structure(shared_data, rel):
     got = label(scrambled_motion)                             # skeleton=None: found in the motion
     np.testing.assert_array_equal(got.contacts, labels.contacts)
     np.testing.assert_array_equal(got.vectors, labels.vectors)
+    np.testing.assert_array_equal(label(scrambled_motion, rig_s.humanoid).vectors, labels.vectors)
 
 
 def test_the_cmu_conversion_layout(shared_data, tmp_path):
