@@ -18,8 +18,8 @@ import * as THREE from 'three';
 import { CONTACT_COLOUR } from 'minifilm-scene';
 
 const UP = new THREE.Vector3(0, 1, 0);
-// Radii as fractions of the body size (a 1.7 m person: torso 10 cm, thigh 6.8 cm, head 10.5 cm).
-const RADIUS = { torso: 0.058, hips: 0.064, pelvis: 0.048, neck: 0.027, head: 0.062, leg: 0.040, arm: 0.027,
+// Radii as fractions of the body size (a 1.7 m person: torso 11 cm, thigh 6.8 cm, head 10.5 cm).
+const RADIUS = { torso: 0.064, hips: 0.066, pelvis: 0.048, neck: 0.027, head: 0.062, leg: 0.040, arm: 0.027,
                  shoulder: 0.030 };
 const TAPER = { leg: 0.8, arm: 0.86 };   // each segment down a limb is this much thinner than the last
 
