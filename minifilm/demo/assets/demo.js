@@ -607,14 +607,17 @@ Object.assign(demo, {
   record,                                 // () -> seq of the record message (null if one is on its way)
   search: text => { $('search').value = text; return search(); },   // -> the style names left
   mixText,                                // ({name: weight}) -> "Neutral 60 % + Old 40 %"
-  // The trail: points drawn (its drawRange) and whether the camera sees its bounding sphere.
+  // The trail as drawn: its drawRange count, those points (x, y, z flat), whether three.js may cull
+  // it, whether the camera sees its bounding sphere and whether that sphere holds the newest point.
   trail() {
     const g = trail.geometry;
     if (!g.boundingSphere) g.computeBoundingSphere();
     const frustum = new THREE.Frustum().setFromProjectionMatrix(new THREE.Matrix4().multiplyMatrices(
       stage.camera.projectionMatrix, stage.camera.matrixWorldInverse));
-    return { count: g.drawRange.count, points: trailPoints.length / 3, culled: trail.frustumCulled,
-             inView: frustum.intersectsSphere(g.boundingSphere), last: trailPoints.slice(-3) };
+    const last = new THREE.Vector3().fromArray(g.attributes.position.array, Math.max(0, 3 * g.drawRange.count - 3));
+    return { count: g.drawRange.count, points: [...g.attributes.position.array.slice(0, 3 * g.drawRange.count)],
+             culled: trail.frustumCulled,
+             inView: frustum.intersectsSphere(g.boundingSphere), boundsHoldLast: g.boundingSphere.distanceToPoint(last) < 1e-4 };
   },
   // Meshes in the scene now drawn, by kind: {body, sticks} (the mannequin's, the skeleton's).
   visibleMeshes: () => ({ body: body.all.filter(m => m.visible).length,
