@@ -623,8 +623,17 @@ Object.assign(demo, {
   visibleMeshes: () => ({ body: body.all.filter(m => m.visible).length,
                           sticks: [...actor.joints, ...actor.bones.map(b => b[0])].filter(m => m.visible).length }),
   label: () => (label ? { text: label.userData.text, position: label.position.toArray() } : null),
-  // ms between the last drawn frames (requestAnimationFrame), the page's own frame time.
-  drawIntervals: () => drawTimes.slice(1).map((t, i) => t - drawTimes[i]),
+  // ms between the last drawn frames (requestAnimationFrame; those drawn after performance.now()
+  // ``since``), the page's own frame time.
+  drawIntervals: (since = -Infinity) => drawTimes.slice(1).map((t, i) => [t, t - drawTimes[i]]).filter(([t]) => t > since)
+    .map(([, d]) => d),
+  // What three.js drew in the last frame: triangles, draw calls, meshes shown.
+  renderInfo() {
+    let meshes = 0;
+    stage.scene.traverseVisible(o => { if (o.isMesh) meshes++; });
+    const r = stage.renderer.info.render;
+    return { triangles: r.triangles, calls: r.calls, meshes };
+  },
   // Joint positions the page shows now ((J, 3), metres, world).
   shownJoints: () => actor.joints.map(m => [m.position.x, m.position.y, m.position.z]),
   // The orbit camera now: azimuth (radians about +y) and the point it looks at.

@@ -42,9 +42,9 @@ function shadowTexture() {
 }
 
 export function mannequinKit(size) {
-  const limb = new THREE.CylinderGeometry(1, 1, 1, 14, 1, true);
+  const limb = new THREE.CylinderGeometry(1, 1, 1, 12, 1, true);
   limb.translate(0, 0.5, 0);                  // spans y in [0, 1]: scaled to the bone, from the parent
-  const ball = new THREE.SphereGeometry(1, 18, 12);
+  const ball = new THREE.SphereGeometry(1, 14, 10);   // software WebGL pays for every triangle
   const blob = new THREE.PlaneGeometry(1, 1);
   blob.rotateX(-Math.PI / 2);                 // lies on the floor
   const shadowMap = shadowTexture();
