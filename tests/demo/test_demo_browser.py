@@ -328,10 +328,12 @@ def test_the_picker_and_the_label_show_the_mix_after_a_blend(page):
 def test_the_search_box_filters_the_styles_and_names_the_held_out_ones(page, released):
     assert page.js("minifilmDemo.search('zomb')") == ["Zombie"]
     assert page.js("document.getElementById('found').textContent") == "1 of 100 styles"
-    # the five fine-tuned ids are found by the held-out styles' names, and say what they are
-    assert page.js("minifilmDemo.search('skip')") == ["095", "096", "097", "098", "099"]
+    # the five fine-tuned ids say what they are, and are found by it
+    assert page.js("minifilmDemo.search('held-out')") == ["095", "096", "097", "098", "099"]
     shown = page.js("[...document.querySelectorAll('#style option')].filter(o => !o.hidden).map(o => o.textContent)")
-    assert shown == [f"{i} (fine-tuned, held-out)" for i in ("095", "096", "097", "098", "099")]
+    names = ["Roadrunner", "ShieldedLeft", "Skip", "Star", "WildArms"]
+    assert shown == [f"09{5 + i} (probably {n}, held-out)" for i, n in enumerate(names)]
+    assert page.js("minifilmDemo.search('skip')") == ["097"]
     page.page.fill("#search", "arms above")
     page.page.press("#search", "Enter")                                  # Enter picks the first one left
     page.wait("minifilmDemo.frame.target.ArmsAboveHead === 1")

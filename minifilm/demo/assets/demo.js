@@ -21,10 +21,14 @@ const $ = id => document.getElementById(id);
 const DEADZONE = 0.15;       // gamepad sticks rest a little off zero
 const CHASE_SECONDS = 0.5;   // the camera swings behind the heading over about this long
 const NONE = '\u2014';       // a read-out with no data yet
-// The released network's styles 095-099 were fine-tuned on the five styles held out of training;
-// which id is which is not documented (docs/original-code.md, the data folder's README).
-const HELD_OUT_IDS = ['095', '096', '097', '098', '099'];
-const HELD_OUT_NAMES = 'Roadrunner, ShieldedLeft, Skip, Star, WildArms';
+// The released network's styles 095-099 were fine-tuned on the five styles held out of training
+// (Roadrunner, ShieldedLeft, Skip, Star, WildArms); which id is which is not documented
+// (docs/original-code.md, the data folder's README). Alphabetical, as 000-094 are, is the guess
+// shown ("probably"): it agrees with how the three most distinctive ones move when walked with the
+// demo's character (097's hips bounce most, 098 holds arms and feet widest, 099's hands move
+// fastest), and nothing measured contradicts it for 095 and 096.
+const HELD_OUT = { '095': 'Roadrunner', '096': 'ShieldedLeft', '097': 'Skip', '098': 'Star', '099': 'WildArms' };
+const HELD_OUT_IDS = Object.keys(HELD_OUT);
 
 const demo = {
   ready: false, connected: false, closed: false, hello: null, frame: null, frames: 0,
@@ -122,10 +126,10 @@ function setup(h) {
   heldOut = new Set(h.styles.length === 100 && HELD_OUT_IDS.every(n => h.styles.includes(n)) ? HELD_OUT_IDS : []);
   for (const id of ['style', 'corner0', 'corner1', 'corner2']) {
     const heldOutGroup = document.createElement('optgroup');
-    heldOutGroup.label = `fine-tuned on the held-out ${HELD_OUT_NAMES} (which is which is not documented)`;
+    heldOutGroup.label = 'fine-tuned on the 5 held-out styles (which is which: a guess, not documented)';
     for (const name of h.styles) {
       const option = new Option(displayName(name), name);
-      option.dataset.search = (heldOut.has(name) ? `${name} held-out fine-tuned ${HELD_OUT_NAMES}` : name).toLowerCase();
+      option.dataset.search = (heldOut.has(name) ? `${name} ${HELD_OUT[name]} held-out fine-tuned` : name).toLowerCase();
       (heldOut.has(name) ? heldOutGroup : $(id)).appendChild(option);
     }
     if (heldOutGroup.children.length) $(id).appendChild(heldOutGroup);
@@ -216,7 +220,7 @@ for (const id of ['body', 'sticks']) $(id).addEventListener('change', e => { sho
 
 // A style as the user knows it: the held-out ids say what they are.
 function displayName(name) {
-  return heldOut.has(name) ? `${name} (fine-tuned, held-out)` : name;
+  return heldOut.has(name) ? `${name} (probably ${HELD_OUT[name]}, held-out)` : name;
 }
 
 // A mix as a user reads it: "Neutral 60 % + Old 40 %", or just the name of a single style.
