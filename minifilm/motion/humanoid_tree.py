@@ -8,7 +8,7 @@ import numpy as np
 
 from minifilm.motion.humanoid_parts import ARM_ROLES, LEG_ROLES, Humanoid, HumanoidError
 
-__all__ = ["PosedTree", "leg_from_chain", "arm_from_chain", "lowest_leaf", "farthest_leaf", "assemble"]
+__all__ = ["PosedTree", "leg_from_chain", "arm_from_chain", "farthest_leaf", "assemble"]
 
 
 class PosedTree:
@@ -119,11 +119,6 @@ def arm_from_chain(tree: PosedTree, chain: List[int], side: str) -> Dict[str, Op
     return dict(collar=collar, shoulder=chain[shoulder_at], elbow=chain[wrist_at - 1], wrist=chain[wrist_at])
 
 
-def lowest_leaf(tree: PosedTree, j: int) -> int:
-    leaves = [k for k in tree.subtree(j) if not tree.children[k]]
-    return min(leaves, key=lambda k: (tree.P[k, 1], -len(tree.path(j, k)) if k != j else 0))
-
-
 def farthest_leaf(tree: PosedTree, top: int, j: int) -> int:
     """The leaf of ``j``'s subtree farthest (along its bones) from ``top``: a hand's longest finger."""
     best, best_d = j, -1.0
@@ -150,8 +145,10 @@ def assemble(tree: PosedTree, method: str, hips: int, neck: Optional[int], head:
     for side in ("left", "right"):
         for role in ARM_ROLES + LEG_ROLES:
             kw[f"{side}_{role}"] = limbs[side][role]
+    sites = [c for c in tree.children[head] if tree.site[c] and not tree.children[c]]
+    head_top = max(sites, key=tree.length) if sites else None
     h = Humanoid(names=tree.names, method=method, root=root, hips=hips, spine=tuple(chest_path),
-                 neck=neck, head=head, **kw)
+                 neck=neck, head=head, head_top=head_top, **kw)
     _check_plausible(tree, h)
     return h
 

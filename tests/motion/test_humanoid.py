@@ -161,3 +161,18 @@ def test_nan_positions_are_refused():
     m.translations[1, 1, 0] = np.nan
     with pytest.raises(HumanoidError, match="not finite"):
         find_humanoid(m)
+
+
+@pytest.mark.parametrize("pelvis_apart", [False, True])
+@pytest.mark.parametrize("arms", ["T", "down"])
+def test_a_hand_built_human_by_structure(pelvis_apart, arms):
+    from humanoid_rigs import stick_human
+    m = stick_human(pelvis_apart=pelvis_apart, arms=arms)
+    h = find_humanoid(m)
+    assert h.method == "structure"                      # names that say nothing: arm_l0, leg_r2, ...
+    _check(h, dict(hips="root", neck="neck", head="head", head_top="headtop",
+                   left_collar="arm_l0", left_shoulder="arm_l1", left_elbow="arm_l2", left_wrist="arm_l3",
+                   right_collar="arm_r0", right_wrist="arm_r3",
+                   left_hip="leg_l0", left_knee="leg_l1", left_ankle="leg_l2", left_toe="leg_l3",
+                   left_toe_tip="leg_l4", right_hip="leg_r0", right_ankle="leg_r2", right_toe_tip="leg_r4"))
+    assert [m.names[j] for j in h.spine] == ["spine", "chest"]
