@@ -110,7 +110,7 @@ function setup(h) {
   stage.scene.add(group);
   const colour = COLOURS[(h.id - 1) % COLOURS.length];
   actor = skeletonKit(SIZE).build(group, h.parents, colour);
-  body = mannequinKit(SIZE).build(group, h.parents, colour);
+  body = mannequinKit(SIZE).build(group, h.parents, colour, h.joints);
   showBody();
   const geometry = new THREE.BufferGeometry();
   geometry.setAttribute('position', new THREE.BufferAttribute(new Float32Array(3 * TRAIL), 3));

@@ -4,15 +4,17 @@
 // meshes hold the joint positions), so both drawings always show the same pose.
 //
 //   mannequinKit(size)                 shared geometries and the shadow texture
-//   kit.build(group, parents, colour)  one body's meshes inside ``group`` (hidden until posed)
+//   kit.build(group, parents, colour, names)  one body's meshes inside ``group`` (hidden until posed)
 //   poseMannequin(body, sk, contacts)  limbs, head and shadow from skeleton ``sk``'s joints;
 //                                      ``contacts``: joint indices to draw in the contact colour
 //
 // Which bone is torso, neck, head, arm or leg comes from the hierarchy and the first pose, not from
 // joint names, so any humanoid rig gets a body: the spine is the chain from the root that always
-// climbs to the highest child; its last joint carries the head; the joint where most branches leave
-// the spine is the chest (bones above it are the neck); a branch leaving at or below the root is a
-// leg, one leaving higher up an arm. A limb's segments get thinner away from the body.
+// climbs to the highest child; the head sits on the spine joint named "head" if there is one (a
+// rig may go on above it to an end site or the eyes: those bones are inside the head), else on its
+// last joint; the joint where most branches leave the spine is the chest (bones above it are the
+// neck); a branch leaving at or below the root is a leg, one leaving higher up an arm. A limb's
+// segments get thinner away from the body.
 // Everything is in metres, y up; ``size`` (the body's height) scales every radius.
 import * as THREE from 'three';
 import { CONTACT_COLOUR } from 'minifilm-scene';
@@ -50,7 +52,7 @@ export function mannequinKit(size) {
   const shadowMap = shadowTexture();
   const contactMaterial = new THREE.MeshStandardMaterial({ color: CONTACT_COLOUR, roughness: 0.5 });
 
-  function build(group, parents, colour) {
+  function build(group, parents, colour, names = []) {
     const skin = new THREE.MeshStandardMaterial({ color: lighter(colour, 0.45), roughness: 0.62, metalness: 0.0 });
     const joint = new THREE.MeshStandardMaterial({ color: lighter(colour, 0.15), roughness: 0.55, metalness: 0.0 });
     const children = parents.map(() => []);
@@ -66,7 +68,7 @@ export function mannequinKit(size) {
     shadow.renderOrder = -1;                   // under the character, over the floor
     const all = [...limbs.map(l => l.mesh), ...balls, head, shadow];
     for (const m of all) { m.visible = false; group.add(m); }
-    return { parents, children, limbs, balls, head, shadow, all, joint, contactMaterial, shaped: false,
+    return { parents, names, children, limbs, balls, head, shadow, all, joint, contactMaterial, shaped: false,
              ballRadius: [], headJoint: -1, neckJoint: -1, visible: true, size };
   }
 
@@ -85,18 +87,25 @@ function shape(body, positions) {
     spine.push(j);
   }
   const onSpine = new Set(spine);
-  // the chest: the spine joint (root excluded) where most branches leave; the neck is above it
+  // the head: on the spine joint named so, else the spine's last; what is above it (an end site,
+  // the eyes) is inside the head and gets no limb or ball of its own
+  const named = spine.findIndex((j, k) => k > 0 && /head/i.test(body.names[j] || '') && !/site|end/i.test(body.names[j]));
+  const headAt = named > 0 ? named : spine.length - 1;
+  const inHead = new Set();
+  const within = j => { inHead.add(j); children[j].forEach(within); };
+  children[spine[headAt]].forEach(within);
+  // the chest: the spine joint below the head (root excluded) where most branches leave; the neck is above it
   let chest = -1;
-  for (const j of spine.slice(1, -1)) if (chest < 0 || children[j].length > children[chest].length) chest = j;
+  for (const j of spine.slice(1, headAt)) if (chest < 0 || children[j].length > children[chest].length) chest = j;
   const chestAt = chest < 0 ? spine.length : spine.indexOf(chest);
   const radius = new Array(J).fill(0);         // of the bone ending at joint j
   spine.forEach((j, k) => { if (k > 0) radius[j] = (k <= chestAt ? RADIUS.torso : RADIUS.neck) * s; });
-  // the limbs: depth-first from every branch that leaves the spine
+  // the limbs: depth-first from every branch that leaves the spine below the head
   const visit = (j, r, taper) => {
     radius[j] = r;
     for (const c of children[j]) visit(c, r * taper, taper);
   };
-  for (const j of spine) {
+  for (const j of spine.slice(0, headAt)) {
     for (const c of children[j]) {
       if (onSpine.has(c)) continue;
       const leg = positions[c].y <= positions[root].y + 0.02 * s;
@@ -109,13 +118,14 @@ function shape(body, positions) {
       }
     }
   }
+  for (const j of inHead) radius[j] = 0;
   for (const l of body.limbs) l.r = radius[l.j];
   // a ball at every joint as thick as the thickest bone there: the limbs' rounded ends
   body.ballRadius = Array.from({ length: J }, (_, j) =>
-    Math.max(radius[j], ...children[j].map(c => radius[c]), 0.012 * s));
+    (inHead.has(j) ? 0 : Math.max(radius[j], ...children[j].map(c => radius[c]), 0.012 * s)));
   body.ballRadius[root] = Math.max(body.ballRadius[root], RADIUS.hips * s);
-  body.headJoint = spine[spine.length - 1];
-  body.neckJoint = spine.length > 1 ? spine[spine.length - 2] : -1;
+  body.headJoint = spine[headAt];
+  body.neckJoint = headAt > 0 ? spine[headAt - 1] : -1;
   body.ballRadius[body.headJoint] = RADIUS.neck * s;
   body.shaped = true;
 }
@@ -136,13 +146,14 @@ export function poseMannequin(body, sk, contacts = []) {
     const from = P[l.p];
     tmp.subVectors(P[l.j], from);
     const length = tmp.length();
-    l.mesh.visible = length > 1e-4 * s;
+    l.mesh.visible = length > 1e-4 * s && l.r > 0;
     if (!l.mesh.visible) continue;
     l.mesh.position.copy(from);
     l.mesh.quaternion.setFromUnitVectors(UP, tmp.divideScalar(length));
     l.mesh.scale.set(l.r, length, l.r);
   }
   body.balls.forEach((b, j) => {
+    b.visible = body.ballRadius[j] > 0;
     b.position.copy(P[j]);
     b.scale.setScalar(body.ballRadius[j]);
     b.material = body.joint;

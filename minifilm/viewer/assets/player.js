@@ -92,7 +92,7 @@ const actors = CHARS.map((c, i) => {
   group.position.set(c.offset[0], c.offset[1], c.offset[2]);
   scene.add(group);
   const sk = kit.build(group, c.parents, colour);
-  const body = bodyKit.build(group, c.parents, colour);
+  const body = bodyKit.build(group, c.parents, colour, c.jointNames);
   const trailGeometry = new THREE.BufferGeometry();
   const trail = new Float32Array(c.trailPos);
   for (let f = 0; f < c.nFrames; f++) trail[3 * f + 1] += 0.003 * SIZE;  // above the grid
