@@ -7,20 +7,25 @@
 2. The page's record button: every frame a page's character shows is kept for the last
    ``MAX_RECORD_SECONDS`` (:class:`FrameHistory`, filled by the server after each frame), and the
    page's ``{"type": "record", "seconds": s, "gif": true}`` is answered by :func:`answer_record`
-   with ``{"type": "recording", "seconds", "frames", "fps", "bvh": text, "gif": base64 or null,
-   "note"}``: the last ``s`` seconds as BVH on the source skeleton (the joints' predicted
-   positions and axes put back on it as ``minifilm generate`` does), plus a GIF when matplotlib and
-   Pillow are installed on the server (else ``gif`` is null and ``note`` says why).
+   with ``{"type": "recording", "seq", "seconds", "frames", "fps", "bvh": text, "gif": bool}``:
+   the last ``s`` seconds as BVH on the source skeleton (the joints' predicted positions and axes
+   put back on it as ``minifilm generate`` does), at once; then, when a GIF was asked for,
+   ``{"type": "recordingGif", "seq", "gif": base64 or null, "note"}``: that BVH drawn by
+   ``minifilm view`` in a process of its own (tens of seconds on a busy machine) when matplotlib
+   and Pillow are installed on the server, else null and the note says why.
 """
 from __future__ import annotations
 
 import base64
 import math
+import os
+import subprocess
+import sys
 import tempfile
 import threading
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -103,6 +108,7 @@ MAX_RECORD_SECONDS = 30.0
 #: A root moving further than this in one frame is a reset: the history starts again there.
 JUMP_METRES = 1.0
 GIF_FPS = 15.0
+GIF_TIMEOUT = 180.0      # seconds the GIF may take before the page gets the BVH alone
 
 
 @dataclass(frozen=True)
@@ -164,38 +170,58 @@ def bvh_scale(source: DemoSource) -> float:
     return 0.01
 
 
-def answer_record(source: DemoSource, history: FrameHistory, message: RecordMessage, title: str = "demo") -> str:
-    """The ``recording`` message for ``message`` (or an ``error`` one naming what went wrong);
-    never raises: it runs beside the server for one page. Slow (BVH fit, GIF drawing): call it off
-    the event loop."""
+def answer_record(source: DemoSource, history: FrameHistory, message: RecordMessage, title: str = "demo",
+                  send: Callable[[str], None] = None) -> List[str]:
+    """The answers to ``message``: the ``recording`` message (or an ``error`` one naming what went
+    wrong), then ``recordingGif`` if a GIF was asked for. Each is handed to ``send`` as soon as it
+    is ready (if given) and all are returned. Never raises: it runs beside the server for one page.
+    Slow (the BVH fit, the GIF): call it off the event loop."""
     from minifilm.motion.bvh_write import format_bvh
+    out = []
+
+    def answer(text: str) -> None:
+        out.append(text)
+        if send is not None:
+            send(text)
     try:
         P, F, U, C = history.last(message.seconds)
         if len(P) < 2:
-            return error("record: nothing to record yet (the character has shown fewer than two frames)", message.seq)
+            answer(error("record: nothing to record yet (the character has shown fewer than two frames)", message.seq))
+            return out
         bvh = format_bvh(recording_motion(source, P, F, U), scale=bvh_scale(source))
-        gif, note = None, ""
+        answer(encode({"type": "recording", "seq": message.seq, "seconds": round(len(P) / source.fps, 4),
+                       "frames": len(P), "fps": source.fps, "bvh": bvh, "gif": message.gif}))
         if message.gif:
-            gif, note = _gif(source, P, C, title)
-        return encode({"type": "recording", "seq": message.seq, "seconds": round(len(P) / source.fps, 4),
-                       "frames": len(P), "fps": source.fps, "bvh": bvh, "gif": gif, "note": note})
+            gif, note = _gif(bvh, source.fps, title)
+            answer(encode({"type": "recordingGif", "seq": message.seq, "gif": gif, "note": note}))
     except Exception as e:  # noqa: BLE001 - a failed recording is the page's error, never the server's
-        return error(f"record: failed ({type(e).__name__}: {e})", message.seq)
+        answer(error(f"record: failed ({type(e).__name__}: {e})", message.seq))
+    return out
 
 
-def _gif(source: DemoSource, P: np.ndarray, C: np.ndarray, title: str) -> Tuple[Optional[str], str]:
-    """(base64 GIF, "") or (None, why not)."""
+def _gif(bvh: str, fps: float, title: str) -> Tuple[Optional[str], str]:
+    """(base64 GIF of the recorded BVH, "") or (None, why not). Drawn by ``minifilm view`` in a
+    process of its own at a lower priority: drawn in the server's process, a 10 s GIF held the
+    interpreter lock for most of 18 s and the frame loop fell to 39 frames a second."""
     from minifilm.viewer.deps import check_output_tools
     with tempfile.TemporaryDirectory(prefix="minifilm-record-") as folder:
-        path = Path(folder) / "recording.gif"
+        path, source_bvh = Path(folder) / "recording.gif", Path(folder) / f"{_file_name(title)}.bvh"
         try:
             check_output_tools(path, "gif")
         except ImportError as e:
             return None, f"BVH only: no GIF without matplotlib and Pillow on the server ({e})"
-        toes = source.contact_joints()
-        track = Track(title, P, list(source.layout.parents), source.fps,
-                      contacts=np.clip(C, 0.0, 1.0) if toes else None, contact_joints=toes or None,
-                      joint_names=list(source.layout.joint_names))
-        every = max(1, int(math.floor(source.fps / GIF_FPS)))
-        write_gif(track, path, every=every, size=(240, 300))
+        source_bvh.write_text(bvh, encoding="utf-8")
+        every = max(1, int(math.floor(fps / GIF_FPS)))
+        lower = (lambda: os.nice(10)) if hasattr(os, "nice") else None
+        done = subprocess.run([sys.executable, "-m", "minifilm", "view", str(source_bvh), "--gif", str(path),
+                               "--every", str(every), "--size", "220", "280"],
+                              capture_output=True, text=True, timeout=GIF_TIMEOUT, preexec_fn=lower)
+        if done.returncode != 0 or not path.is_file():
+            why = (done.stderr.strip().splitlines() or ["no message"])[-1]
+            return None, f"BVH only: the GIF could not be made ({why[:200]})"
         return base64.b64encode(path.read_bytes()).decode("ascii"), ""
+
+
+def _file_name(title: str) -> str:
+    name = "".join(c if c.isalnum() else "_" for c in title).strip("_")[:40]
+    return name or "recording"

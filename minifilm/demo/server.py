@@ -233,11 +233,16 @@ class DemoServer:
             return
         history.busy = True
 
-        def done(future) -> None:
+        def send(text: str) -> None:          # from the executor's thread, as each answer is ready
+            try:
+                loop.call_soon_threadsafe(outbox.put, text, False)
+            except RuntimeError:              # the event loop has closed: the server is stopping
+                pass
+
+        def done(_) -> None:
             history.busy = False
-            if not future.cancelled():
-                outbox.put(future.result(), False)
-        loop.run_in_executor(None, answer_record, self.source, history, message, self.source.name).add_done_callback(done)
+        loop.run_in_executor(None, answer_record, self.source, history, message, self.source.name,
+                             send).add_done_callback(done)
 
     async def _send(self, ws, outbox: Outbox) -> None:
         _, ConnectionClosed, _, _ = self.modules

@@ -81,8 +81,10 @@ def stepped(tiny_source):
 def test_the_recording_is_a_bvh_of_the_frames_shown(stepped, tmp_path):
     source, history, shown = stepped
     n = int(round(1.0 * source.fps))
-    reply = json.loads(answer_record(source, history, RecordMessage(1.0, gif=False, seq=7)))
-    assert reply["type"] == "recording" and reply["seq"] == 7 and reply["frames"] == n and reply["gif"] is None
+    answers = answer_record(source, history, RecordMessage(1.0, gif=False, seq=7))
+    assert len(answers) == 1
+    reply = json.loads(answers[0])
+    assert reply["type"] == "recording" and reply["seq"] == 7 and reply["frames"] == n and reply["gif"] is False
     path = tmp_path / "recording.bvh"
     path.write_text(reply["bvh"])
     motion = read_bvh(path, scale=bvh_scale(source))
@@ -102,12 +104,29 @@ def test_no_gif_without_the_drawing_tools_says_so(stepped, monkeypatch):
     def missing(path, kind):
         raise ImportError("matplotlib is not installed")
     monkeypatch.setattr("minifilm.viewer.deps.check_output_tools", missing)
-    reply = json.loads(answer_record(source, history, RecordMessage(0.5, gif=True)))
-    assert reply["type"] == "recording" and reply["gif"] is None and reply["bvh"].startswith("HIERARCHY")
-    assert "BVH only" in reply["note"] and "matplotlib" in reply["note"]
+    sent = []
+    bvh, gif = answer_record(source, history, RecordMessage(0.5, gif=True, seq=4), send=sent.append)
+    assert sent == [bvh, gif]                                   # each handed on as it was ready
+    bvh, gif = json.loads(bvh), json.loads(gif)
+    assert bvh["type"] == "recording" and bvh["gif"] is True and bvh["bvh"].startswith("HIERARCHY")
+    assert gif["type"] == "recordingGif" and gif["seq"] == 4 and gif["gif"] is None
+    assert "BVH only" in gif["note"] and "matplotlib" in gif["note"]
 
 
 def test_too_little_to_record_is_an_error_not_a_crash(tiny_source):
     history = FrameHistory(tiny_source.layout.n_joints, tiny_source.fps)
-    reply = json.loads(answer_record(tiny_source, history, RecordMessage(5.0, seq=2)))
+    [reply] = [json.loads(m) for m in answer_record(tiny_source, history, RecordMessage(5.0, gif=True, seq=2))]
     assert reply["type"] == "error" and reply["seq"] == 2 and "nothing to record" in reply["message"]
+
+
+def test_the_gif_is_drawn_from_the_recorded_bvh(stepped):
+    pytest.importorskip("matplotlib", reason="the GIF needs matplotlib")
+    Image = pytest.importorskip("PIL.Image", reason="the GIF needs Pillow")
+    import base64
+    import io
+    source, history, _ = stepped
+    reply = json.loads(answer_record(source, history, RecordMessage(1.0, gif=True))[1])
+    assert reply["type"] == "recordingGif" and reply["note"] == "", reply.get("note")
+    gif = Image.open(io.BytesIO(base64.b64decode(reply["gif"])))
+    every = int(source.fps // 15)
+    assert gif.format == "GIF" and gif.n_frames == -(-int(round(source.fps)) // every)   # 1 s at about 15 fps

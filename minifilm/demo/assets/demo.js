@@ -4,7 +4,7 @@
 // /ws, gets a "hello" (skeleton, styles, settings), then a "frame" every 1/60 s, and sends
 // "input" whenever what is held changes (keys or gamepad), "style" for the picker and the blend
 // triangle, "settings" for the toggles, "record" for the record button (answered with
-// "recording": BVH text and maybe a GIF, which the page downloads; protocol:
+// "recording" (BVH text, which the page downloads) and "recordingGif" (a GIF to save, or why not); protocol:
 // minifilm/demo/protocol.py and record.py). The drawing is the motion player's: scene.js (stage,
 // floor, sticks, labels) and mannequin.js (the shaded body, on by default). For tests and scripts
 // the page exposes window.minifilmDemo (see the end of this file).
@@ -77,6 +77,7 @@ ws.addEventListener('message', e => {
   if (m.type === 'frame') onFrame(m);
   else if (m.type === 'hello') setup(m);
   else if (m.type === 'recording') onRecording(m);
+  else if (m.type === 'recordingGif') onRecordingGif(m);
   else if (m.type === 'error') {
     demo.errors.push(m); toast('refused: ' + m.message, 'error');
     if (m.seq !== null && m.seq === recordPending) { recordPending = null; $('recordStatus').textContent = m.message; }
@@ -183,8 +184,7 @@ function pose() {
   const toes = demo.hello.contactJoints.filter((j, k) => f.contacts[k] >= 0.5);
   toes.forEach(j => highlightJoint(actor, j));
   poseMannequin(body, actor, toes);
-  const text = mixText(f.weights);
-  if (!label || label.userData.text !== text) setLabel(text);
+  if (!label) setLabel(mixText(f.weights));   // its text follows the mix in readouts(), 10 times a second
   label.position.set(f.root[0], top + 0.12 * SIZE, f.root[1]);
   // The trail's points change every frame, and three.js culls a line by its bounding sphere, which
   // it computes once (at the first draw, around the origin) and never again: without this the
@@ -249,6 +249,8 @@ function readouts() {
   $('fps').textContent = demo.framesPerSecond === null ? NONE : `${demo.framesPerSecond} / s`;
   $('latency').textContent = demo.latencyMs === null ? NONE : `${demo.latencyMs.toFixed(0)} ms`;
   showPicked(f.target);
+  const text = mixText(f.weights);
+  if (!label || label.userData.text !== text) setLabel(text);
   const mix = Object.entries(f.weights).sort((a, b) => b[1] - a[1]).map(([n, w]) => `${displayName(n)} ${w.toFixed(2)}`);
   const target = mixText(f.target);
   const arrived = Object.keys(f.target).length === Object.keys(f.weights).length &&
@@ -537,20 +539,31 @@ function onRecording(m) {
   const stamp = new Date().toISOString().slice(0, 19).replace(/[:T]/g, '-');
   const name = `minifilm-${style}-${stamp}`;
   demo.lastRecording = { seq: m.seq, frames: m.frames, seconds: m.seconds, fps: m.fps, bvh: m.bvh,
-                         gif: m.gif !== null, note: m.note, name };
+                         gif: m.gif ? 'coming' : null, note: '', name };
   demo.recordings.push(name);
   download(m.bvh, name + '.bvh', 'text/plain');
+  $('recordStatus').textContent = `saved ${name}.bvh (${m.frames} frames, ${m.seconds.toFixed(1)} s)` +
+    (m.gif ? ' \u00b7 making the GIF\u2026' : '');
+}
+
+// The GIF comes later (drawn on the server in a process of its own): a link to save it, or why not.
+function onRecordingGif(m) {
+  const rec = demo.lastRecording;
+  if (!rec || rec.seq !== m.seq) return;
   const status = $('recordStatus');
-  status.textContent = `saved ${name}.bvh (${m.frames} frames, ${m.seconds.toFixed(1)} s)`;
+  status.textContent = status.textContent.replace(' \u00b7 making the GIF\u2026', '');
+  rec.note = m.note;
   if (m.gif !== null) {
     const bytes = Uint8Array.from(atob(m.gif), c => c.charCodeAt(0));
+    rec.gif = bytes.length;
     const a = document.createElement('a');
     a.href = URL.createObjectURL(new Blob([bytes], { type: 'image/gif' }));
-    a.download = name + '.gif';
-    a.textContent = ` \u00b7 GIF (${Math.round(bytes.length / 1024)} KB)`;
-    status.appendChild(a);
-  } else if (m.note) {
-    status.appendChild(document.createTextNode(` \u00b7 ${m.note}`));
+    a.download = rec.name + '.gif';
+    a.textContent = `GIF (${Math.round(bytes.length / 1024)} KB)`;
+    status.append(' \u00b7 ', a);
+  } else {
+    rec.gif = null;
+    status.append(` \u00b7 ${m.note}`);
   }
 }
 
