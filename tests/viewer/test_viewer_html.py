@@ -156,8 +156,8 @@ def test_the_mannequin_is_drawn_by_default_and_the_sticks_are_a_toggle(scene):
     n = len(page.js("minifilmPlayer.characters"))
     meshes = page.js("minifilmPlayer.visibleMeshes()")
     # per character up to a limb per bone (J - 1) and a ball per joint (J) (none for joints inside
-    # the head: an end site above it, the eyes), a head and a shadow
-    assert joints + 2 * n <= meshes["body"] <= 2 * joints + n and meshes["sticks"] == 0, meshes
+    # the head: an end site above it, the eyes), a head, a nose and a shadow
+    assert joints + 3 * n <= meshes["body"] <= 2 * joints + 2 * n and meshes["sticks"] == 0, meshes
     body = page.canvas()
     page.page.keyboard.press("KeyB")                   # body off: the sticks take its place
     assert page.js("minifilmPlayer.visibleMeshes()") == {"body": 0, "sticks": 2 * joints - n}

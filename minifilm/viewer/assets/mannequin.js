@@ -13,8 +13,8 @@
 // climbs to the highest child; the head sits on the spine joint named "head" if there is one (a
 // rig may go on above it to an end site or the eyes: those bones are inside the head), else on its
 // last joint; the joint where most branches leave the spine is the chest (bones above it are the
-// neck); a branch leaving at or below the root is a leg, one leaving higher up an arm. A limb's
-// segments get thinner away from the body.
+// neck); a branch that reaches down to the lower half of the hips' height is a leg, any other an
+// arm. A limb's segments get thinner away from the body.
 // Everything is in metres, y up; ``size`` (the body's height) scales every radius.
 import * as THREE from 'three';
 import { CONTACT_COLOUR } from 'minifilm-scene';
@@ -63,12 +63,13 @@ export function mannequinKit(size) {
       if (parents[j] >= 0) limbs.push({ mesh: new THREE.Mesh(limb, skin), j, p: parents[j], r: 0 });
     }
     const head = new THREE.Mesh(ball, skin);
+    const nose = new THREE.Mesh(ball, joint);  // which way the face looks: front and back differ
     const shadow = new THREE.Mesh(blob, new THREE.MeshBasicMaterial({ map: shadowMap, transparent: true,
                                                                       depthWrite: false, toneMapped: false }));
     shadow.renderOrder = -1;                   // under the character, over the floor
-    const all = [...limbs.map(l => l.mesh), ...balls, head, shadow];
+    const all = [...limbs.map(l => l.mesh), ...balls, head, nose, shadow];
     for (const m of all) { m.visible = false; group.add(m); }
-    return { parents, names, children, limbs, balls, head, shadow, all, joint, contactMaterial, shaped: false,
+    return { parents, names, children, limbs, balls, head, nose, shadow, all, toes: [], joint, contactMaterial, shaped: false,
              ballRadius: [], headJoint: -1, neckJoint: -1, visible: true, size };
   }
 
@@ -105,11 +106,17 @@ function shape(body, positions) {
     radius[j] = r;
     for (const c of children[j]) visit(c, r * taper, taper);
   };
+  // a leg reaches down to the lower half of the hips' height (a hanging hand stays near the hips)
+  const lowest = Math.min(...positions.map(p => p.y));
+  const reach = j => Math.min(positions[j].y, ...children[j].map(reach));
   for (const j of spine.slice(0, headAt)) {
     for (const c of children[j]) {
       if (onSpine.has(c)) continue;
-      const leg = positions[c].y <= positions[root].y + 0.02 * s;
+      const leg = reach(c) - lowest < 0.5 * (positions[root].y - lowest);
       if (leg) {
+        let tip = c;                                                    // the foot's last joint points forward
+        while (children[tip].length) tip = children[tip][0];
+        if (parents[tip] !== j) body.toes.push(tip);
         radius[c] = j === root ? RADIUS.pelvis * s : RADIUS.leg * s;   // the hip joint's offset from the root
         for (const g of children[c]) visit(g, RADIUS.leg * s, TAPER.leg);
       } else {
@@ -130,7 +137,7 @@ function shape(body, positions) {
   body.shaped = true;
 }
 
-const tmp = new THREE.Vector3(), centre = new THREE.Vector3();
+const tmp = new THREE.Vector3(), centre = new THREE.Vector3(), facing = new THREE.Vector3();
 
 export function setMannequinVisible(body, on) {
   body.visible = on;
@@ -169,6 +176,15 @@ export function poseMannequin(body, sk, contacts = []) {
   body.head.position.copy(P[h]).addScaledVector(tmp, 0.75 * r);
   body.head.quaternion.setFromUnitVectors(UP, tmp);
   body.head.scale.set(0.86 * r, r, 0.92 * r);
+  // the nose: in front of the head, the way the feet point (the last bone of each leg)
+  facing.set(0, 0, 0);
+  for (const t of body.toes) facing.add(tmp.subVectors(P[t], P[body.parents[t]]).setY(0));
+  body.nose.visible = body.visible && facing.lengthSq() > 1e-8;
+  if (body.nose.visible) {
+    body.nose.position.copy(body.head.position).addScaledVector(facing.normalize(), 0.95 * r);
+    body.nose.position.y -= 0.1 * r;
+    body.nose.scale.set(0.24 * r, 0.24 * r, 0.24 * r);
+  }
   // the shadow: under the body's middle, as wide as the body spreads, fainter as it leaves the floor
   centre.set(0, 0, 0);
   let low = Infinity;
