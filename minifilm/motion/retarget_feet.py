@@ -70,6 +70,10 @@ def pin_targets(sensor: np.ndarray, guide: np.ndarray, contacts: np.ndarray, fps
         w = 0.5 + 0.5 * np.cos(np.pi * np.clip((dist - blend) / (blend + 1), 0, 1))
         edge = np.where(k < start, start, stop - 1)
         want = np.where((dist == 0)[:, None], pin, pin + guide[k] - guide[edge])
+        # out of the run, the height is the source tip's own height above its floor: the pin's
+        # height plus the guide's rise from the run's edge would sit up to a centimetre lower than
+        # the source's tip, and count as a contact where a slow pivoting source tip does not
+        want[:, 1] = np.where(dist == 0, floor, floor + guide[k, 1])
         better = w > weights[lo:hi]
         targets[lo:hi][better] = want[better]
         weights[lo:hi] = np.maximum(weights[lo:hi], w)
