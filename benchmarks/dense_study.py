@@ -91,8 +91,6 @@ def main():
     a.work.mkdir(parents=True, exist_ok=True)
     report = {"load_start": os.getloadavg()[0]}
     trained_files = read_manifest(a.trained / "manifest.csv")
-    held_files = read_manifest(a.held / "manifest.csv")
-    held = sorted({f.style for f in held_files})
     run_dir = a.work / "run"
 
     s = replace(Settings(), epochs=a.epochs, generate_seconds=a.generate_seconds, seed=0)
@@ -106,6 +104,8 @@ def main():
     report["train_recognition"] = result["recognition"]
     print(f"[study] training: {report['train_seconds']:.0f} s ({load()})", flush=True)
 
+    held_files = read_manifest(a.held / "manifest.csv")     # read now: it may be written while training runs
+    held = sorted({f.style for f in held_files})
     run = RunFolder.load(run_dir)
     trained = [n for n in run.styles().names]
     films_before = {n: run.styles()[n].copy() for n in trained}

@@ -190,3 +190,20 @@ def test_bad_requests_are_one_line(made, tmp_path):
     proc = minifilm("dataset", "--from-released", params, "--out", mine, "--styles", "Neutral",
                     "--seconds-per-style", 1, "--no-label-check")
     assert proc.returncode == 2 and (mine / "notes.txt").read_text() == "keep me"
+
+
+def test_batched_calibration_equals_one_style_at_a_time(shared_data):
+    from minifilm.features.layout import FeatureLayout
+    from minifilm.motion.skeletons import STYLE100
+    from minifilm.pipeline.from_released import calibrate_styles
+    from minifilm.runtime.calibration import calibrate_speed
+    from minifilm.runtime.controller import Controller
+    from minifilm.runtime.released import load_released
+    rel = load_released(shared_data / "released-lpn")
+    ctrl = Controller(rel.network, FeatureLayout.for_skeleton(STYLE100))
+    films = np.stack([rel.styles[s] for s in STYLES])
+    together = calibrate_styles(ctrl, films, (1.0, 3.0), (0.0, 180.0), seconds=3.0, batch=3)  # batches cut a style
+    for film, cal in zip(films, together):
+        alone = calibrate_speed(ctrl, film, commands=(1.0, 3.0), directions=(0.0, 180.0), seconds=3.0, settle=1.5)
+        np.testing.assert_allclose(cal.achieved, alone.achieved, rtol=1e-3)
+        assert cal.achieved[0, -1] > cal.achieved[0, 1] > 0.3        # a faster command goes faster
