@@ -111,6 +111,9 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--perplexity", type=float, default=30.0)
     ap.add_argument("--iters", type=int, default=1000)
+    ap.add_argument("--cache", type=Path, help="data set cache folder (default: build without caching)")
+    ap.add_argument("--split", choices=("segments", "files"), default="segments",
+                    help="how the data set is split (its training clips are embedded)")
     ap.add_argument("--png", type=Path, help="draw the embeddings (needs matplotlib)")
     ap.add_argument("--json", type=Path, help="write the silhouettes as JSON")
     a = ap.parse_args(argv)
@@ -123,8 +126,8 @@ def main(argv=None) -> int:
     model, stats = run.model_and_stats()
     trained = a.trained or [n for n in run.styles().names if n not in a.held][:15]
     clip_seconds = model.config.clip_frames / run.fps
-    ds = build_dataset(a.data, cache_dir=None, progress=False, clip_seconds=clip_seconds,
-                       clip_stride_seconds=clip_seconds / 2, seed=a.seed)
+    ds = build_dataset(a.data, cache_dir=a.cache, progress=False, clip_seconds=clip_seconds,
+                       clip_stride_seconds=clip_seconds / 2, seed=a.seed, split_unit=a.split)
     names = list(trained) + list(a.held)
     missing = [n for n in names if n not in ds.styles]
     if missing:
