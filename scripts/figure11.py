@@ -8,7 +8,8 @@ The paper (Sec. 5.3.2, Figure 11) embeds the FiLM vectors Ψ(clip) of 50 clips p
 Ψ has never seen falls among the others, and after fine-tuning Ψ on a short clip of it, its clips
 form a cluster of their own. Here, for the run's trained styles (``--trained``, default: the first
 15 of the run) and each held-out style: up to ``--clips-per-style`` clips of each from ``--data``
-(a data set holding every style, e.g. ``minifilm dataset --from-released``), coded by
+(a data set holding every style, e.g. ``minifilm dataset --from-released``; clips of all its splits),
+coded by
 
 * *before*: the run's Ψ as trained;
 * *after*: the Ψ fine-tuned on that held-out style (``RUN/model-<NAME>.npz``, written by
@@ -132,10 +133,14 @@ def main(argv=None) -> int:
     missing = [n for n in names if n not in ds.styles]
     if missing:
         raise SystemExit(f"error: {a.data} has no style {missing}; its styles: {ds.styles}")
-    idx = pick_clips(ds.train.clip_style, [ds.styles.index(n) for n in names], a.clips_per_style)
-    clips = stats.normalize_clip(ds.train.clips[idx], ds.layout.x_joints).astype(np.float32)
+    # the clips of every split: Ψ is only read here, and a data set of short files has few training clips
+    splits = [ds.split(n) for n in ("train", "val", "test")]
+    all_clips = np.concatenate([sp.clips for sp in splits])
+    all_style = np.concatenate([sp.clip_style for sp in splits])
+    idx = pick_clips(all_style, [ds.styles.index(n) for n in names], a.clips_per_style)
+    clips = stats.normalize_clip(all_clips[idx], ds.layout.x_joints).astype(np.float32)
     order = {ds.styles.index(n): k for k, n in enumerate(names)}
-    labels = np.array([order[s] for s in ds.train.clip_style[idx]])
+    labels = np.array([order[s] for s in all_style[idx]])
     held_ids = [names.index(h) for h in a.held]
 
     before = held_silhouettes(film_codes(model, clips), labels, held_ids, a.seed, a.perplexity, a.iters)
