@@ -86,12 +86,14 @@ def draw(panels, labels, names, held, path: Path) -> None:
     plt = pyplot()
     fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 4.2), squeeze=False)
     cmap = plt.get_cmap("tab20")
+    dark = ["black", "crimson", "navy", "darkgreen", "darkorange", "purple"]     # the held-out styles
+    held_colour = {h: dark[i % len(dark)] for i, h in enumerate(n for n in names if n in held)}
     for ax, (title, Y) in zip(axes[0], panels):
         for k, name in enumerate(names):
             m = labels == k
             big = name in held
-            ax.scatter(Y[m, 0], Y[m, 1], s=30 if big else 8, marker="*" if big else "o",
-                       color="black" if big else cmap(k % 20), label=name if big else None,
+            ax.scatter(Y[m, 0], Y[m, 1], s=40 if big else 8, marker="*" if big else "o",
+                       color=held_colour[name] if big else cmap(k % 20), label=name if big else None,
                        alpha=1.0 if big else 0.6)
         ax.set_title(title, fontsize=9)
         ax.set_xticks([])
