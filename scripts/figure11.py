@@ -111,7 +111,9 @@ def main(argv=None) -> int:
     ap.add_argument("--held", nargs="+", required=True, help="held-out style names (fine-tuned into the run)")
     ap.add_argument("--trained", nargs="+", help="trained styles to show (default: the run's first 15)")
     ap.add_argument("--clips-per-style", type=int, default=50)
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=int, default=0, help="the data set's split seed")
+    ap.add_argument("--tsne-seeds", type=int, nargs="+", default=[0],
+                    help="t-SNE seeds: the 2-D silhouettes are reported per seed (few points make them noisy)")
     ap.add_argument("--perplexity", type=float, default=30.0)
     ap.add_argument("--iters", type=int, default=1000)
     ap.add_argument("--cache", type=Path, help="data set cache folder (default: build without caching)")
@@ -145,19 +147,20 @@ def main(argv=None) -> int:
     labels = np.array([order[s] for s in all_style[idx]])
     held_ids = [names.index(h) for h in a.held]
 
-    before = held_silhouettes(film_codes(model, clips), labels, held_ids, a.seed, a.perplexity, a.iters)
-    after = {}
-    for h, k in zip(a.held, held_ids):
-        tuned = _tuned_model(a.run / f"model-{h}.npz")
-        after[k] = held_silhouettes(film_codes(tuned, clips), labels, [k], a.seed, a.perplexity, a.iters)
-    rows = compare(before, after, held_ids)
+    codes_before = film_codes(model, clips)
+    codes_after = {k: film_codes(_tuned_model(a.run / f"model-{h}.npz"), clips) for h, k in zip(a.held, held_ids)}
     print(f"{len(names)} styles x up to {a.clips_per_style} clips ({len(idx)} codes); t-SNE perplexity "
           f"{a.perplexity:g}, {a.iters} iterations")
-    print("| held-out style | silhouette 2-D before | after | full space before | after | higher after |")
-    print("|---|---|---|---|---|---|")
-    for r in rows:
-        print(f"| {names[r['style']]} | {r['before_2d']:.2f} | {r['after_2d']:.2f} | {r['before_full']:.2f} | "
-              f"{r['after_full']:.2f} | {'yes' if r['higher'] else 'NO'} |")
+    print("| held-out style | t-SNE seed | silhouette 2-D before | after | full space before | after | higher after |")
+    print("|---|---|---|---|---|---|---|")
+    rows = []
+    for ts in a.tsne_seeds:
+        before = held_silhouettes(codes_before, labels, held_ids, ts, a.perplexity, a.iters)
+        after = {k: held_silhouettes(c, labels, [k], ts, a.perplexity, a.iters) for k, c in codes_after.items()}
+        for r in compare(before, after, held_ids):
+            rows.append(dict(r, tsne_seed=ts))
+            print(f"| {names[r['style']]} | {ts} | {r['before_2d']:.2f} | {r['after_2d']:.2f} | "
+                  f"{r['before_full']:.2f} | {r['after_full']:.2f} | {'yes' if r['higher'] else 'NO'} |")
     if a.json:
         from minifilm.files import atomic_write_text
         atomic_write_text(a.json, json.dumps([dict(r, style=names[r["style"]]) for r in rows], indent=1))
