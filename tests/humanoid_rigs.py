@@ -69,14 +69,15 @@ def without(motion: Motion, drop) -> Motion:
 
 def posed(names, parents, offsets, frames: int = 4, fps: float = 30.0, source: str = "<built>") -> Motion:
     """A motion holding the rest pose given by ``offsets`` (metres, y up) for ``frames`` frames,
-    the root walking slowly along +z."""
+    the root walking slowly along +z; joints without children are End Sites (no channels)."""
     J = len(names)
     offsets = np.asarray(offsets, dtype=np.float64)
     R = np.broadcast_to(np.eye(3), (frames, J, 3, 3)).copy()
     T = np.broadcast_to(offsets, (frames, J, 3)).copy()
     T[:, 0, 2] += np.arange(frames) * 0.02
+    has_child = set(int(p) for p in parents if p >= 0)
     channels = [("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")] + \
-        [("Zrotation", "Xrotation", "Yrotation")] * (J - 1)
+        [("Zrotation", "Xrotation", "Yrotation") if j in has_child else () for j in range(1, J)]  # leaves: End Sites
     return Motion(list(names), np.asarray(parents), offsets, channels, R, T, 1.0 / fps, source)
 
 
@@ -110,3 +111,36 @@ def single_chain(n: int = 8) -> Motion:
     """A snake: ``n`` joints in one line going up."""
     return posed([f"seg{i}" for i in range(n)], list(range(-1, n - 1)), [(0, 0.2 if i else 1.0, 0) for i in range(n)],
                  source="<chain>")
+
+
+def stick_human(pelvis_apart: bool = False, arms: str = "T") -> Motion:
+    """A 1.75 m person built by hand (metres, facing +z, left = +x), names neutral (``j0``, ...).
+
+    pelvis_apart: the legs hang off a ``pelvis`` joint beside the spine (both children of the
+    root) instead of off the root itself. arms: "T" (straight out) or "down" (hanging)."""
+    rows = [("root", -1, (0, 0.95, 0))]
+    leg_top = 0
+    if pelvis_apart:
+        rows.append(("pelvis", 0, (0, -0.02, 0)))
+        leg_top = 1
+    spine = len(rows)
+    rows += [("spine", 0, (0, 0.12, 0)), ("chest", spine, (0, 0.25, 0)), ("neck", spine + 1, (0, 0.15, 0)),
+             ("head", spine + 2, (0, 0.1, 0.02)), ("headtop", spine + 3, (0, 0.18, 0))]
+    names = {"arm_l": None, "arm_r": None}
+    for side, x in (("l", 1.0), ("r", -1.0)):
+        top = len(rows)
+        if arms == "T":
+            segs = [(0.03 * x, 0.12, 0), (0.15 * x, 0, 0), (0.28 * x, 0, 0), (0.25 * x, 0, 0), (0.08 * x, 0, 0)]
+        else:
+            segs = [(0.03 * x, 0.12, 0), (0.15 * x, 0, 0), (0.02 * x, -0.28, 0), (0, -0.25, 0.03), (0, -0.08, 0)]
+        parent = spine + 1
+        for k, off in enumerate(segs):
+            rows.append((f"arm_{side}{k}", parent if k == 0 else top + k - 1, off))
+        names[f"arm_{side}"] = top
+    for side, x in (("l", 1.0), ("r", -1.0)):
+        top = len(rows)
+        segs = [(0.09 * x, -0.03, 0), (0, -0.43, 0.02), (0, -0.42, -0.02), (0, -0.06, 0.14), (0, -0.01, 0.05)]
+        for k, off in enumerate(segs):
+            rows.append((f"leg_{side}{k}", leg_top if k == 0 else top + k - 1, off))
+    names_, parents, offsets = zip(*rows)
+    return posed(names_, parents, offsets, frames=6, source="<stick human>")

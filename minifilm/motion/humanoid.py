@@ -9,10 +9,11 @@ every part below. Two ways are tried, in order:
    (``mixamorig:``), ``joint_`` and ``Bip01`` prefixes are ignored; parts by their usual names
    (``UpLeg``/``UpperLeg``/``Thigh``/``Hip``, ``Leg``/``Knee``/``Shin``, ``Foot``/``Ankle``, ...).
 2. **Structure** (:func:`humanoid_by_structure`), when the names do not give every part: from the
-   first frame's pose (y up), the hips are the first joint (from the root) below which two chains
-   go down and one goes up; the legs are the two lowest chains from the hips, the head the upward
-   continuation, the arms the two long side chains off the spine. Left and right come from the
-   facing (the feet point forward): left is ``up x forward``.
+   pose (y up), the feet are the two lowest ends of the hierarchy (median over the clip) that lie
+   far apart along the bones, the hips where their chains meet (or the first joint above that with
+   a chain going up); the legs run from the hips to the feet, the head is the upward
+   continuation, the arms the two long side chains off the spine (first frame). Left and right
+   come from the facing (toes point forward, bent knees bulge forward): left is ``up x forward``.
 
 Within a leg, the thigh and shin are the two consecutive bones with the largest summed length,
 and the foot is what lies below the ankle; within an arm, the wrist is the first joint that

@@ -38,6 +38,7 @@ class Humanoid:
         {left,right}_hip:      the upper leg's joint (the hip), ``_knee``, ``_ankle`` (foot).
         {left,right}_toe:      the toe joint (the ankle's child: a toe joint or the foot's End Site).
         {left,right}_toe_tip:  the end of the foot chain (the contact sensor; may be the toe itself).
+        head_top:     the head's End Site (the top of the head in rigs that model it), else None.
     """
 
     names: Tuple[str, ...]
@@ -65,6 +66,7 @@ class Humanoid:
     right_ankle: int
     right_toe: int
     right_toe_tip: int
+    head_top: Optional[int] = None
 
     @property
     def chest(self) -> int:

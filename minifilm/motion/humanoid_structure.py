@@ -7,8 +7,7 @@ from typing import List, Tuple
 import numpy as np
 
 from minifilm.motion.humanoid_parts import Humanoid, HumanoidError
-from minifilm.motion.humanoid_tree import (PosedTree, arm_from_chain, assemble, farthest_leaf, leg_from_chain,
-                                           lowest_leaf)
+from minifilm.motion.humanoid_tree import PosedTree, arm_from_chain, assemble, farthest_leaf, leg_from_chain
 
 __all__ = ["humanoid_by_structure"]
 
@@ -19,31 +18,20 @@ def humanoid_by_structure(motion) -> Humanoid:
     HumanoidError naming the first part that could not be found."""
     tree = PosedTree(motion)
     H = tree.height
-    # hips: walking down from the root, the first joint with two branches reaching down and one up
-    j, hips = int(np.nonzero(tree.parents < 0)[0][0]), None
-    seen = 0
-    while hips is None and seen < len(tree.names):
-        seen += 1
-        kids = tree.real_children(j)
-        if not kids:
-            break
-        lows = [min(tree.P[k, 1] for k in tree.subtree(c)) for c in kids]
-        highs = [max(tree.P[k, 1] for k in tree.subtree(c)) for c in kids]
-        down = [c for c, lo in zip(kids, lows) if lo < tree.P[j, 1] - 0.25 * H]
-        up = [c for c, hi in zip(kids, highs) if hi > tree.P[j, 1] + 0.2 * H]
-        if len(down) >= 2 and up:
-            hips = j
-            break
-        j = max(kids, key=lambda c: len(tree.subtree(c)))
-    if hips is None:
-        raise HumanoidError("by structure: no joint has two chains going down (legs) and one going up "
-                            "(the spine), so no hips were found")
-    kids = tree.real_children(hips)
-    leg_tops = sorted(kids, key=lambda c: min(tree.P[k, 1] for k in tree.subtree(c)))[:2]
-    torso = max((c for c in kids if c not in leg_tops), key=lambda c: max(tree.P[k, 1] for k in tree.subtree(c)))
+    # the feet: the two lowest ends of the hierarchy that are far apart along the bones; the hips:
+    # where their chains meet, or the first joint above that with a chain going up (the spine)
+    foot_a, foot_b = _two_feet(tree)
+    hips = _meeting_point(tree, foot_a, foot_b)
+    while not _up_branches(tree, hips, (foot_a, foot_b)):
+        if tree.parents[hips] < 0:
+            raise HumanoidError(f"by structure: nothing goes up from where the legs ending at "
+                                f"{tree.names[foot_a]!r} and {tree.names[foot_b]!r} meet: no spine, so no hips")
+        hips = int(tree.parents[hips])
+    torso = max(_up_branches(tree, hips, (foot_a, foot_b)), key=lambda c: tree.P[_highest(tree, c), 1])
+    leg_chains = [tree.path(hips, foot_a), tree.path(hips, foot_b)]
 
     # the spine: up from the hips while the chain does not branch into long side chains
-    leg_len = np.mean([tree.P[hips, 1] - min(tree.P[k, 1] for k in tree.subtree(c)) for c in leg_tops])
+    leg_len = np.mean([tree.P[hips, 1] - tree.P[f, 1] for f in (foot_a, foot_b)])
     path = [torso]
     side_chains: List[Tuple[int, int]] = []          # (branch joint, first joint of the side chain)
     while True:
@@ -77,8 +65,12 @@ def humanoid_by_structure(motion) -> Humanoid:
     neck = head_path[0] if len(head_path) > 1 else None
 
     # arms and legs, then left and right from the facing
-    arms = [arm_from_chain(tree, tree.path(b, farthest_leaf(tree, b, c)), "an") for b, c in side_chains]
-    legs = [leg_from_chain(tree, tree.path(hips, lowest_leaf(tree, c)), "a") for c in leg_tops]
+    try:
+        arms = [arm_from_chain(tree, tree.path(b, farthest_leaf(tree, b, c)), f"the arm from {tree.names[c]!r}")
+                for b, c in side_chains]
+        legs = [leg_from_chain(tree, chain, f"the leg to {tree.names[chain[-1]]!r}") for chain in leg_chains]
+    except HumanoidError as e:
+        raise HumanoidError(f"by structure: {e}") from None
     if _first_leg_is_left(tree, legs) is False:
         legs = legs[::-1]
     # the arm on the left leg's side is the left arm (side = direction from the right hip to the left)
@@ -104,6 +96,50 @@ def _first_leg_is_left(tree: PosedTree, legs) -> bool:
         raise HumanoidError("by structure: the feet do not point anywhere (no toe in front of the ankles, "
                             "no bent knee), so left and right are unknown")
     return vote > 0
+
+
+def _two_feet(tree: PosedTree) -> Tuple[int, int]:
+    """The lowest end of the hierarchy (median height over the clip) and the lowest end at least
+    half the body's height away from it along the bones (so not a heel of the same foot)."""
+    leaves = [j for j in range(len(tree.names)) if not tree.children[j]]
+    height = np.median(tree.P_all[:, leaves, 1], axis=0)
+    order = [leaves[i] for i in np.argsort(height, kind="stable")]
+    if order:
+        a = order[0]
+        for b in order[1:]:
+            if _bone_distance(tree, a, b) >= 0.5 * tree.height:
+                return a, b
+    raise HumanoidError("by structure: no joint has two chains going down (legs) far apart: "
+                        "no two feet were found")
+
+
+def _meeting_point(tree: PosedTree, a: int, b: int) -> int:
+    """The nearest joint that is an ancestor of both ``a`` and ``b``."""
+    above_a = {a}
+    while tree.parents[a] >= 0:
+        a = int(tree.parents[a])
+        above_a.add(a)
+    while b not in above_a:
+        b = int(tree.parents[b])
+    return b
+
+
+def _bone_distance(tree: PosedTree, a: int, b: int) -> float:
+    """Length along the bones from leaf ``a`` to leaf ``b`` (through where their chains meet)."""
+    m = _meeting_point(tree, a, b)
+    return sum(sum(tree.length(k) for k in tree.path(m, x)) for x in (a, b) if x != m)
+
+
+def _up_branches(tree: PosedTree, j: int, feet) -> List[int]:
+    """Children of ``j`` (through zero-length helpers) that hold neither foot and reach well above it."""
+    out = []
+    for c in tree.real_children(j):
+        below = tree.subtree(c)
+        if any(f in below for f in feet):
+            continue
+        if max(tree.P[k, 1] for k in below) > tree.P[j, 1] + 0.2 * tree.height:
+            out.append(c)
+    return out
 
 
 def _reach(tree: PosedTree, top: int, c: int) -> float:
