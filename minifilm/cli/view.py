@@ -4,6 +4,7 @@
     minifilm view walk.bvh --html walk.html                  # 3-D player: orbit, play/pause/scrub/speed
     minifilm view runs/train_small/generated/*.bvh --gif styles.gif --html styles.html --seconds 6
     minifilm view walk.bvh --out walk.mp4                    # --out: the format its extension names
+    minifilm view bandai_walk.bvh --on 100style --gif on_100style.gif   # any humanoid on the standard character
 
 Each file is one character, titled with its name (shortened to fit its panel) and drawn from its
 own hierarchy at its true size: the unit comes from the skeleton, else from the body's height
@@ -58,6 +59,8 @@ def add_arguments(ap) -> None:
                     help="pixels per character panel in the GIF / MP4 (default 240 300)")
     ap.add_argument("--no-contacts", action="store_true", help="do not highlight the foot contacts")
     ap.add_argument("--no-trail", action="store_true", help="do not draw the root's trail")
+    ap.add_argument("--on", metavar="TARGET", help="draw every file retargeted onto this rig: 100style (the "
+                    "standard character), bandai, cmu, a run folder or a BVH file (docs/retargeting.md)")
 
 
 def run(args) -> int:
@@ -74,12 +77,16 @@ def run(args) -> int:
         if getattr(args, kind) is not None:
             check_writable(getattr(args, kind), flags[kind])
             check_output_tools(getattr(args, kind), kind)
-    tracks = []
-    for f in args.files:
-        track, unit = track_and_unit(f)
-        if "skeleton's unit" not in unit.how:   # said when the unit was inferred, not known
-            print(f"{f}: {unit.how}")
-        tracks.append(track)
+    if args.on is not None:        # minimal hook for issue 27 (retarget's module draws nothing itself)
+        from minifilm.motion.retarget_files import tracks_on
+        tracks = tracks_on(args.files, args.on)
+    else:
+        tracks = []
+        for f in args.files:
+            track, unit = track_and_unit(f)
+            if "skeleton's unit" not in unit.how:   # said when the unit was inferred, not known
+                print(f"{f}: {unit.how}")
+            tracks.append(track)
     if args.no_contacts:
         for t in tracks:
             t.contacts = t.contact_joints = None

@@ -87,6 +87,7 @@ class Settings:
     split: str = "auto"
     mirror: bool = False                 # also train on the left/right mirror of every file
     fps: Optional[float] = None          # your own data: resample every file to this rate (None: as recorded)
+    rig: Optional[str] = None            # your own data: retarget every file onto this rig first (docs/retargeting.md)
 
     def quick(self) -> "Settings":
         """A much smaller run of every step (seconds instead of minutes)."""
@@ -218,6 +219,10 @@ def prepare_data(s: Settings, data: Optional[Path], out: Path):
         phase_accuracy(clips)
     t0 = time.perf_counter()
     extra = {} if not own_data else data_settings(data, s)
+    if own_data and s.rig is not None:      # a folder of mixed rigs: every file onto one rig first
+        from minifilm.motion.retarget_files import retarget_files
+        from minifilm.motion.rig import load_rig
+        data = retarget_files(resolve_files(data), load_rig(s.rig), out / "data", log)
     ds = build_dataset(data, cache_dir=out / "cache", progress=True, clip_seconds=s.clip_seconds,
                        clip_stride_seconds=s.clip_seconds / 2, seed=s.seed, **extra)
     log(f"[dataset] built in {time.perf_counter() - t0:.1f} s")
