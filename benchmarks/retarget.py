@@ -34,8 +34,8 @@ import numpy as np
 from minifilm.evaluation.retargeting import (bone_direction_errors, contact_agreement, round_trip_errors, skating,
                                              standing_height)
 from minifilm.motion.bvh_write import write_bvh
-from minifilm.motion.retarget_clip import read_source, retarget_motion
-from minifilm.motion.rig import load_rig
+from minifilm.rigs import read_source, retarget_motion
+from minifilm.pipeline.run_rig import load_target as load_rig
 from minifilm.motion.skeletons import STYLE100
 from minifilm.phases.label import label
 

@@ -17,6 +17,9 @@ from pathlib import Path
 from minifilm.cli.args import in_range, input_path, output_folder
 from minifilm.errors import InputError
 from minifilm.files import check_writable, child_path
+from minifilm.motion.bvh_write import write_bvh
+from minifilm.pipeline.run_rig import load_target
+from minifilm.rigs import read_source, retarget_motion
 
 HELP = "put motion of any humanoid rig onto another rig (100style, bandai, cmu, a run, a BVH)"
 
@@ -35,11 +38,7 @@ def add_arguments(ap) -> None:
 
 
 def run(args) -> int:
-    from minifilm.motion.retarget_clip import read_source, retarget_motion
-    from minifilm.motion.bvh_write import write_bvh
-    from minifilm.motion.rig import load_rig
-
-    target = load_rig(args.to, args.to_map)
+    target = load_target(args.to, args.to_map)
     stems = [Path(f).stem for f in args.files]
     twice = sorted({s for s in stems if stems.count(s) > 1})
     if twice:

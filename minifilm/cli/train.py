@@ -15,6 +15,7 @@ from dataclasses import replace
 from minifilm.cli.args import in_range, input_path, output_folder, positive
 from minifilm.errors import InputError
 from minifilm.pipeline.train_small import Settings
+from minifilm.pipeline.run_rig import load_target
 from minifilm.pipeline.train_small import run as run_job
 
 HELP = "the main job: synthetic or your data -> trained model -> generated motion"
@@ -85,7 +86,6 @@ def check_options(args) -> None:
 def run(args) -> int:
     check_options(args)
     if args.rig is not None:       # a wrong target is one line now, not after the data set step
-        from minifilm.motion.rig import load_rig
-        load_rig(args.rig)
+        load_target(args.rig)
     run_job(settings(args), args.data)
     return 0

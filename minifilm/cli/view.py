@@ -15,12 +15,17 @@ disk (three.js is inlined). Without --out, --gif, --mp4 or --html: --html view.h
 from __future__ import annotations
 
 import argparse
+import tempfile
+from typing import Sequence
 from pathlib import Path
 
 from minifilm.cli.args import in_range, input_path, positive
 from minifilm.errors import InputError
 from minifilm.files import check_writable
-from minifilm.viewer.builders import track_and_unit
+from minifilm.motion.bvh_write import write_bvh
+from minifilm.pipeline.run_rig import load_target
+from minifilm.rigs import read_source, retarget_motion
+from minifilm.viewer.builders import track_and_unit, track_with_contacts
 from minifilm.viewer.deps import check_output_tools
 from minifilm.viewer.gif import write_gif
 from minifilm.viewer.html import write_html
@@ -78,7 +83,6 @@ def run(args) -> int:
             check_writable(getattr(args, kind), flags[kind])
             check_output_tools(getattr(args, kind), kind)
     if args.on is not None:        # minimal hook for issue 27 (retarget's module draws nothing itself)
-        from minifilm.motion.retarget_files import tracks_on
         tracks = tracks_on(args.files, args.on)
     else:
         tracks = []
@@ -102,3 +106,18 @@ def run(args) -> int:
         write_mp4(tracks, args.mp4, **kw)
         print(f"wrote {args.mp4}")
     return 0
+
+
+def tracks_on(paths: Sequence, target) -> list:
+    """Viewer tracks of BVH files retargeted onto ``target`` (``minifilm view --on``): each file is
+    put on the rig, written to a temporary folder and read back as the viewer reads any file
+    (true size, contacts), titled '<name> on <rig>'."""
+    rig = load_target(target)
+    tracks = []
+    with tempfile.TemporaryDirectory(prefix="minifilm-view-") as tmp:
+        for i, path in enumerate(paths):
+            motion, roles = read_source(path)
+            out = Path(tmp) / f"{i}.bvh"
+            write_bvh(retarget_motion(motion, rig, roles), out, scale=rig.bvh_scale)
+            tracks.append(track_with_contacts(out, name=f"{Path(path).stem} on {Path(rig.name).name}"))
+    return tracks

@@ -14,7 +14,7 @@ Blender we need the local rotation of every joint of the *source* skeleton, in i
    position, every other joint keeps its rest offset (so bone lengths are exactly the skeleton's).
 
 Joints of the source skeleton that were not exported (End Sites, dropped bones) keep their rest
-offset and the identity local rotation.
+offset and the identity local rotation. Retargeting between different rigs is minifilm/rigs/.
 """
 from __future__ import annotations
 
@@ -97,16 +97,3 @@ def retarget(positions: np.ndarray, rotations: np.ndarray, skeleton: Motion, joi
     translations[:, body.root] = P[:, 0] - body.above_root
     return Motion(list(skeleton.names), skeleton.parents.copy(), body.offsets.copy(), list(skeleton.channels), local,
                   translations, skeleton.frame_time if frame_time is None else frame_time, source)
-
-
-# Retargeting between rigs (docs/retargeting.md) lives in its own modules; its entry points are
-# re-exported here so that ``minifilm.motion.retarget`` is where a user finds both.
-def __getattr__(name):
-    lazy = {"load_rig": "minifilm.motion.rig", "builtin_rig": "minifilm.motion.rig", "Rig": "minifilm.motion.rig",
-            "find_roles": "minifilm.motion.rig", "retarget_motion": "minifilm.motion.retarget_clip",
-            "retarget_file": "minifilm.motion.retarget_clip", "read_source": "minifilm.motion.retarget_clip",
-            "RigError": "minifilm.motion.joint_map", "Roles": "minifilm.motion.joint_map"}
-    if name in lazy:
-        import importlib
-        return getattr(importlib.import_module(lazy[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

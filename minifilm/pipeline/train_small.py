@@ -44,7 +44,9 @@ from minifilm.model.style_model import StyleModel
 from minifilm.motion.bvh import bvh_duration, read_bvh
 from minifilm.motion.skeletons import STYLE100, builtin_skeleton
 from minifilm.phases.label import label
+from minifilm.rigs.batch import retarget_files
 from minifilm.pipeline.run_folder import RunFolder, is_run_entry
+from minifilm.pipeline.run_rig import load_target
 from minifilm.pipeline.results import (generate_per_style, save_loss_curve, show_styles,  # noqa: F401
                                        style_library, style_recognition, test_table)
 from minifilm.runtime.controller import start_from_dataset
@@ -220,9 +222,7 @@ def prepare_data(s: Settings, data: Optional[Path], out: Path):
     t0 = time.perf_counter()
     extra = {} if not own_data else data_settings(data, s)
     if own_data and s.rig is not None:      # a folder of mixed rigs: every file onto one rig first
-        from minifilm.motion.retarget_files import retarget_files
-        from minifilm.motion.rig import load_rig
-        data = retarget_files(resolve_files(data), load_rig(s.rig), out / "data", log)
+        data = retarget_files(resolve_files(data), load_target(s.rig), out / "data", log)
     ds = build_dataset(data, cache_dir=out / "cache", progress=True, clip_seconds=s.clip_seconds,
                        clip_stride_seconds=s.clip_seconds / 2, seed=s.seed, **extra)
     log(f"[dataset] built in {time.perf_counter() - t0:.1f} s")

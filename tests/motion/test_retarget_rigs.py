@@ -10,9 +10,9 @@ import pytest
 from minifilm.evaluation.retargeting import (bone_direction_errors, contact_agreement, round_trip_errors, skating,
                                              standing_height)
 from minifilm.motion.bvh import parse_bvh, read_bvh
-from minifilm.motion.joint_map import BUILTIN_ROLES, RigError, chain_overlaps, roles_from_mapping
-from minifilm.motion.retarget import load_rig, read_source, retarget_motion
-from minifilm.motion.retarget_pose import UP, canonical_pose, rest_positions
+from minifilm.rigs.joint_map import BUILTIN_ROLES, RigError, chain_overlaps, roles_from_mapping
+from minifilm.rigs import load_rig, read_source, retarget_motion
+from minifilm.rigs.pose import UP, canonical_pose, rest_positions
 from minifilm.motion.skeletons import STYLE100
 from minifilm.phases.label import label
 from minifilm.synthetic.generator import generate_style
@@ -269,7 +269,7 @@ def test_retarget_command_refuses_a_map_naming_missing_joints(shared_data, tmp_p
 
 def test_view_on_draws_a_file_on_the_standard_character(shared_data, tmp_path):
     """minifilm view --on 100style: the Bandai walk drawn on the 100STYLE rig, titled so."""
-    from minifilm.motion.retarget_files import tracks_on
+    from minifilm.cli.view import tracks_on
     track, = tracks_on([shared_data / "bvh" / "bandai1" / "dataset-1_walk_normal_001.bvh"], "100style")
     assert track.name == "dataset-1_walk_normal_001 on 100style"
     assert track.positions.shape[1] == 28 and track.contacts is not None      # the 100STYLE joints, contacts found

@@ -1,16 +1,16 @@
 """Retarget a clip from one humanoid rig onto another (docs/retargeting.md).
 
-    from minifilm.motion.retarget import load_rig, read_source, retarget_motion
+    from minifilm.rigs import load_rig, read_source, retarget_motion
     from minifilm.motion.bvh_write import write_bvh
 
     target = load_rig("100style")
     motion = retarget_motion(read_source("walk_bandai.bvh"), target)
     write_bvh(motion, "walk_100style.bvh", scale=target.bvh_scale)
 
-The steps: roles of both rigs (:mod:`~minifilm.motion.joint_map`), the pose transfer on world bone
-directions from canonical rest poses (:mod:`~minifilm.motion.retarget_pose`), the root's path
+The steps: roles of both rigs (:mod:`~minifilm.rigs.joint_map`), the pose transfer on world bone
+directions from canonical rest poses (:mod:`~minifilm.rigs.pose`), the root's path
 scaled by the ratio of leg lengths, then the floor and the planted feet
-(:mod:`~minifilm.motion.retarget_feet`). The result is a Motion on the target's hierarchy with its
+(:mod:`~minifilm.rigs.feet`). The result is a Motion on the target's hierarchy with its
 channels (so ``write_bvh`` writes it in the target's channel order; pass the rig's ``bvh_scale``
 for its units), at the source's frame rate.
 """
@@ -25,51 +25,26 @@ import numpy as np
 from minifilm.files import note_input
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.bvh_write import write_bvh
-from minifilm.motion.joint_map import SIDES, RigError, Roles
+from minifilm.rigs.builtin_rigs import builtin_skeleton_for
+from minifilm.rigs.joint_map import RigError, Roles, sensor_positions
+from minifilm.rigs.proportions import foot_shape_of, leg_length
 from minifilm.motion.motion import Motion
 from minifilm.motion.retarget import world_to_local
-from minifilm.motion.retarget_feet import floor_height, plant_feet
-from minifilm.motion.retarget_pose import (canonical_pose, foot_shape_of, match_chords, place_feet, rest_positions,
-                                           transfer_rotations)
-from minifilm.motion.rig import Rig, _builtin_skeleton_for, file_unit, find_roles
+from minifilm.rigs.feet import floor_height, plant_feet
+from minifilm.rigs.pose import canonical_pose, match_chords, place_feet, rest_positions, transfer_rotations
+from minifilm.rigs.rig import Rig, file_unit, find_roles
 from minifilm.phases.contacts import DEFAULT_FILTER_SECONDS, foot_contacts
 
-__all__ = ["leg_length", "read_source", "retarget_motion", "retarget_file", "sensor_positions"]
-
-
-def leg_length(motion: Motion, roles: Roles, foot_pitch: Optional[float] = None) -> float:
-    """The legs' length as the hips' height above the floor standing straight (metres): the rig in
-    its canonical pose (legs straight down, feet flat at ``foot_pitch``, default the rig's own),
-    from the hips down to the lowest point of either foot. Thigh + shin alone would leave out the
-    pelvis and the ankle's height, which differ between rigs (the Bandai ankle stands 7 cm above
-    the floor, 100STYLE's 11 cm) and would put one character's feet through the floor."""
-    pitch = foot_shape_of(motion, roles)[0] if foot_pitch is None else foot_pitch
-    C = canonical_pose(motion, roles, pitch)
-    P = np.zeros((motion.n_joints, 3))
-    for j in range(motion.n_joints):
-        p = int(motion.parents[j])
-        if p >= 0:
-            P[j] = P[p] + C[p] @ motion.offsets[j]
-    idx = {n: i for i, n in enumerate(motion.names)}
-    feet = [idx[n] for side in SIDES for n in roles.limb(side).leg()]
-    length = float(P[idx[roles.hips], 1] - P[feet, 1].min())
-    if not length > 1e-6:
-        raise RigError(f"{motion.source}: its legs have no length at rest")
-    return length
-
-
-def sensor_positions(positions: np.ndarray, motion: Motion, roles: Roles) -> np.ndarray:
-    """(F, 2, 3) world positions of the toe-tip contact sensors, [right, left] (as Skeleton.contact_bones)."""
-    return positions[:, [motion.names.index(roles.right.sensor), motion.names.index(roles.left.sensor)]]
+__all__ = ["read_source", "retarget_motion", "retarget_file"]
 
 
 def read_source(path: Union[str, os.PathLike], map_path=None, scale: Optional[float] = None):
     """(motion in metres, roles) of a BVH file of any humanoid rig: the unit is a built-in
-    skeleton's, else ``scale``, else found from the legs (:func:`~minifilm.motion.rig.file_unit`)."""
+    skeleton's, else ``scale``, else found from the legs (:func:`~minifilm.rigs.rig.file_unit`)."""
     path = note_input(Path(path))
     if scale is None:
         raw = read_bvh(path, scale=1.0)
-        skeleton = _builtin_skeleton_for(raw)
+        skeleton = builtin_skeleton_for(raw)
         roles = find_roles(raw, map_path)
         scale = skeleton.bvh_scale if skeleton is not None else file_unit(raw, roles)
         m = read_bvh(path, scale=scale)
@@ -84,8 +59,8 @@ def retarget_motion(source: Motion, target: Rig, source_roles: Optional[Roles] =
 
     Args:
         source:        a Motion of any humanoid rig, metres.
-        target:        the rig to put it on (:func:`minifilm.motion.rig.load_rig`).
-        source_roles:  the source's roles (default: :func:`~minifilm.motion.rig.find_roles`).
+        target:        the rig to put it on (:func:`minifilm.rigs.rig.load_rig`).
+        source_roles:  the source's roles (default: :func:`~minifilm.rigs.rig.find_roles`).
         plant:         pin the feet during the source's contacts (off: only the floor is fixed).
         blend_seconds: how long a pin fades in and out.
     Returns:

@@ -258,3 +258,8 @@ def chain_overlaps(source_lengths: Sequence[float], target_lengths: Sequence[flo
             W[t, s] = max(0.0, min(b, es[s + 1]) - max(a, es[s])) / (b - a)
         W[t] /= W[t].sum()
     return W
+
+
+def sensor_positions(positions: np.ndarray, motion, roles: Roles) -> np.ndarray:
+    """(F, 2, 3) world positions of the toe-tip contact sensors, [right, left] (as Skeleton.contact_bones)."""
+    return positions[:, [motion.names.index(roles.right.sensor), motion.names.index(roles.left.sensor)]]

@@ -1,13 +1,13 @@
 """Roles for retargeting from the humanoid parts that :mod:`minifilm.motion.humanoid` finds.
 
 humanoid.py recognises a skeleton (by names, else by structure) and names its parts as joint
-indices; retargeting (:mod:`minifilm.motion.joint_map`) names them as joint names, with the neck
+indices; retargeting (:mod:`minifilm.rigs.joint_map`) names them as joint names, with the neck
 as a chain up to the head and the hand's end where the wrist has a single child.
 """
 from __future__ import annotations
 
 from minifilm.motion.humanoid import Humanoid, HumanoidError, find_humanoid
-from minifilm.motion.joint_map import Limb, RigError, Roles
+from minifilm.rigs.joint_map import Limb, RigError, Roles
 
 __all__ = ["roles_from_humanoid", "roles_of"]
 

@@ -19,7 +19,7 @@ chains differ:
 
 * spine and neck chains of different lengths: the target joints between hips and chest (and
   between chest and head) take the source bones' D averaged over the part of the chain they
-  cover, by normalised arc length (:func:`~minifilm.motion.joint_map.chain_overlaps`);
+  cover, by normalised arc length (:func:`~minifilm.rigs.joint_map.chain_overlaps`);
 * the feet are not flattened: each rig's canonical foot points down by the pitch its foot has
   when flat on the floor (its rest pose's, or measured from its motion when the rest pose is not
   a standing pose), and the toes keep their rest bend;
@@ -35,12 +35,13 @@ from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
-from minifilm.motion.joint_map import SIDES, RigError, Roles, chain_overlaps
+from minifilm.rigs.joint_map import SIDES, RigError, Roles, chain_overlaps
 from minifilm.motion.kinematics import forward_kinematics, matrix_to_quat, quat_to_matrix
 from minifilm.motion.motion import Motion
 from minifilm.motion.skeleton_fit import rotation_between
 
-__all__ = ["canonical_pose", "foot_shape_of", "place_feet", "rest_toe_bend", "match_chords", "rest_foot_pitch", "motion_foot_pitch", "rest_positions", "bone_directions", "transfer_rotations", "UP", "LEFT", "FORWARD"]
+__all__ = ["canonical_pose", "place_feet", "match_chords", "rest_positions", "bone_directions", "transfer_rotations",
+           "pitch_below_horizontal", "foot_and_toe_directions", "UP", "LEFT", "FORWARD"]
 
 UP, LEFT, FORWARD = np.array([0.0, 1.0, 0.0]), np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
 
@@ -76,97 +77,7 @@ def bone_directions(roles: Roles) -> List[Tuple[str, str, np.ndarray]]:
     return bones
 
 
-def rest_foot_pitch(motion: Motion, roles: Roles) -> Optional[float]:
-    """The angle (radians) by which the feet point down at rest, when the zero pose is a standing
-    pose (both legs within 30 degrees of straight down from the hips, taking the hips -> chest
-    direction as up); None when it is not (the Bandai rig's zero pose has its legs along x)."""
-    P0 = rest_positions(motion)
-    idx = {n: i for i, n in enumerate(motion.names)}
-    up = P0[idx[roles.chest]] - P0[idx[roles.hips]]
-    up = up / max(np.linalg.norm(up), 1e-12)
-    pitches = []
-    for side in SIDES:
-        limb = roles.limb(side)
-        leg = P0[idx[limb.ankle]] - P0[idx[limb.upleg]]
-        if np.dot(leg, -up) < np.cos(np.radians(30.0)) * np.linalg.norm(leg):
-            return None
-        end = limb.toe or limb.toe_end
-        if end is None:
-            return 0.0
-        foot = P0[idx[end]] - P0[idx[limb.ankle]]
-        if np.linalg.norm(foot) < 1e-9:
-            return 0.0
-        pitches.append(np.arcsin(np.clip(-np.dot(foot, up) / np.linalg.norm(foot), -1.0, 1.0)))
-    return float(np.mean(pitches))
-
-
-def motion_foot_pitch(motion: Motion, roles: Roles, contacts: np.ndarray) -> Optional[float]:
-    """The feet's pitch (radians) when flat on the floor, from a motion: the 10th percentile, over
-    the frames a foot is in contact ((F, 2) contacts, [right, left]), of the angle by which the
-    ankle -> toe bone points below the horizontal (a toe in contact with its heel raised points
-    further down, so a low percentile). None without contacts or a foot bone."""
-    P, _ = motion.world()
-    out = []
-    for k, side in enumerate(("right", "left")):
-        limb = roles.limb(side)
-        end = limb.toe or limb.toe_end
-        on = contacts[:, k] > 0.5
-        if end is None or not np.any(on):
-            continue
-        d = P[on, motion.names.index(end)] - P[on, motion.names.index(limb.ankle)]
-        out.append(np.arctan2(-d[:, 1], np.hypot(d[:, 0], d[:, 2])))
-    return float(np.percentile(np.concatenate(out), 10)) if out else None
-
-
-#: the flat-foot pitch assumed for a rig whose zero pose is not a standing pose and whose motion
-#: shows no contacts (between CMU's 10 and Bandai's 40 degrees)
-DEFAULT_FOOT_PITCH = float(np.radians(25.0))
-
-
-def foot_pitch_of(motion: Motion, roles: Roles) -> float:
-    """The flat-foot pitch of a rig (radians): :func:`foot_shape_of`'s first value."""
-    return foot_shape_of(motion, roles)[0]
-
-
-def foot_shape_of(motion: Motion, roles: Roles) -> Tuple[float, float]:
-    """(pitch, toe bend) of a rig's foot flat on the floor, radians: from its rest pose when that is
-    a standing pose; the measured constant of the built-in Bandai rig (rig.BANDAI_FOOT_SHAPE) on its
-    files; else measured on the motion's flattest contact frames
-    (:func:`motion_foot_pitch`, :func:`motion_toe_bend`); else DEFAULT_FOOT_PITCH and no bend."""
-    pitch = rest_foot_pitch(motion, roles)
-    if pitch is not None:
-        return pitch, rest_toe_bend(motion, roles)
-    from minifilm.motion.rig import BANDAI_FOOT_SHAPE, _builtin_skeleton_for
-    skeleton = _builtin_skeleton_for(motion)
-    if skeleton is not None and skeleton.name == "bandai":     # the same value for every Bandai clip
-        return BANDAI_FOOT_SHAPE
-    if motion.n_frames > 1:
-        from minifilm.motion.retarget_clip import sensor_positions
-        from minifilm.phases.contacts import foot_contacts
-        P, _ = motion.world()
-        contacts = foot_contacts(sensor_positions(P, motion, roles), motion.fps)
-        pitch = motion_foot_pitch(motion, roles, contacts)
-        if pitch is not None:
-            return pitch, motion_toe_bend(motion, roles, contacts, pitch)
-    return DEFAULT_FOOT_PITCH, 0.0
-
-
-def motion_toe_bend(motion: Motion, roles: Roles, contacts: np.ndarray, flat_pitch: float) -> float:
-    """How much less the toe points down than the foot (radians) on the contact frames whose foot
-    pitch is within 3 degrees of the flat-foot pitch; 0 without such frames or a toe joint."""
-    bends = []
-    for k, side in enumerate(("right", "left")):
-        limb = roles.limb(side)
-        if limb.toe is None:
-            continue
-        fs, ts = _foot_and_toe(motion, limb)
-        keep = (contacts[:, k] > 0.5) & (np.abs(_pitch(fs) - flat_pitch) < np.radians(3.0))
-        bends.append(_pitch(fs[keep]) - _pitch(ts[keep]))
-    bends = np.concatenate(bends) if bends else np.zeros(0)
-    return float(np.median(bends)) if len(bends) else 0.0
-
-
-def _foot_and_toe(motion: Motion, limb) -> Tuple[np.ndarray, np.ndarray]:
+def foot_and_toe_directions(motion: Motion, limb) -> Tuple[np.ndarray, np.ndarray]:
     """World directions (F, 3) of a limb's foot bone (ankle -> toe) and toe bone (toe -> tip; for a
     tip of zero length, the foot's direction carried by the toe joint's rotation)."""
     P, R = motion.world()
@@ -351,7 +262,7 @@ def match_chords(world: np.ndarray, target: Motion, chains, directions) -> np.nd
 # Feet: pitch and toe bend in world space
 # ----------------------------------------------------------------------------------------------
 
-def _pitch(d: np.ndarray) -> np.ndarray:
+def pitch_below_horizontal(d: np.ndarray) -> np.ndarray:
     """Angle (radians) by which directions (..., 3) point below the horizontal."""
     return np.arctan2(-d[..., 1], np.hypot(d[..., 0], d[..., 2]))
 
@@ -367,28 +278,6 @@ def _with_pitch(d: np.ndarray, pitch: np.ndarray, fallback: np.ndarray) -> np.nd
     return np.cos(pitch)[..., None] * h - np.sin(pitch)[..., None] * UP
 
 
-def rest_toe_bend(motion: Motion, roles: Roles) -> float:
-    """How much (radians) the toe bone points less far down than the foot bone at rest (100STYLE:
-    its toe tip is pitched 15 degrees, its foot 27: 0.21); 0 for a rig without a toe bone. Taken
-    from the zero pose when it is a standing pose, else the unsigned angle between the two bones."""
-    P0 = rest_positions(motion)
-    idx = {n: i for i, n in enumerate(motion.names)}
-    bends = []
-    for side in SIDES:
-        limb = roles.limb(side)
-        if not (limb.toe and limb.toe_end):
-            return 0.0
-        foot = P0[idx[limb.toe]] - P0[idx[limb.ankle]]
-        toe = P0[idx[limb.toe_end]] - P0[idx[limb.toe]]
-        if np.linalg.norm(toe) < 1e-9 or np.linalg.norm(foot) < 1e-9:
-            return 0.0
-        if rest_foot_pitch(motion, roles) is not None:
-            bends.append(_pitch(foot) - _pitch(toe))
-        else:
-            bends.append(np.arccos(np.clip(foot @ toe / np.linalg.norm(foot) / np.linalg.norm(toe), -1, 1)))
-    return float(np.mean(bends))
-
-
 def place_feet(world: np.ndarray, target: Motion, t_roles: Roles, t_shape: Tuple[float, float],
                source: Motion, s_roles: Roles, s_shape: Tuple[float, float]) -> np.ndarray:
     """Aim each target foot and toe from the source's, in world space (returns new world rotations).
@@ -397,7 +286,7 @@ def place_feet(world: np.ndarray, target: Motion, t_roles: Roles, t_shape: Tuple
     turned half way round to stand in the canonical pose, so an offset in pitch carried through
     the canonical frames can come out sideways or upside down. The feet are therefore aimed here:
     the foot (ankle -> toe) keeps the source foot's heading and its pitch shifted by the rigs'
-    flat-foot difference (``*_shape`` = (flat-foot pitch, toe bend), :func:`foot_shape_of`: a flat
+    flat-foot difference (``*_shape`` = (flat-foot pitch, toe bend), :func:`minifilm.rigs.proportions.foot_shape_of`: a flat
     foot stays flat), and the toe (toe -> tip) is bent relative to the foot as much more than its
     flat-foot bend as the source's toe is. Each is turned by the smallest rotation, so its twist
     stays as the transfer set it."""
@@ -409,13 +298,13 @@ def place_feet(world: np.ndarray, target: Motion, t_roles: Roles, t_shape: Tuple
         t_end = t.toe or t.toe_end
         if (s.toe or s.toe_end) is None or t_end is None:
             continue
-        fs, ts = _foot_and_toe(source, s)
+        fs, ts = foot_and_toe_directions(source, s)
         a = ti[t.ankle]
         local_foot = _local_offset(target, ti[t_end], a)
         if np.linalg.norm(local_foot) < 1e-9:
             continue
         ft_now = (world[:, a] @ local_foot[:, None])[..., 0]
-        ft = _with_pitch(fs, _pitch(fs) + (t_pitch - s_pitch), ft_now)
+        ft = _with_pitch(fs, pitch_below_horizontal(fs) + (t_pitch - s_pitch), ft_now)
         world[:, a] = rotation_between(ft_now, ft) @ world[:, a]
         if not (t.toe and t.toe_end):
             continue
@@ -423,9 +312,9 @@ def place_feet(world: np.ndarray, target: Motion, t_roles: Roles, t_shape: Tuple
         local_toe = _local_offset(target, ti[t.toe_end], toe)
         if np.linalg.norm(local_toe) < 1e-9:       # a toe tip of zero length (Bandai): nothing to aim
             continue
-        bend = (_pitch(fs) - _pitch(ts)) - s_bend0
+        bend = (pitch_below_horizontal(fs) - pitch_below_horizontal(ts)) - s_bend0
         tt_now = (world[:, toe] @ local_toe[:, None])[..., 0]
-        tt = _with_pitch(ts, _pitch(ft) - t_bend0 - bend, ft)
+        tt = _with_pitch(ts, pitch_below_horizontal(ft) - t_bend0 - bend, ft)
         world[:, toe] = rotation_between(tt_now, tt) @ world[:, toe]
     return world
 
