@@ -27,3 +27,15 @@ def sum_to_shape(grad: np.ndarray, shape: tuple) -> np.ndarray:
         if n == 1 and grad.shape[axis] != 1:
             grad = grad.sum(axis=axis, keepdims=True)
     return grad
+
+
+def check_conv1d_inputs(x, W, b) -> None:
+    """A ValueError naming what is wrong with conv1d's x (B, T, C), W (k, C, F) with k odd, b (F,)
+    (the plain and the fast convolution check their inputs alike)."""
+    k, C, F = W.shape
+    require(k % 2 == 1, f"conv1d_forward: kernel size must be odd for 'same' padding, W is {W.shape}")
+    require(x.ndim == 3 and x.shape[2] == C,
+            f"conv1d_forward: x is {x.shape}, expected (B, T, {C}) to match W {W.shape}")
+    require(b.shape == (F,), f"conv1d_forward: b is {b.shape}, expected ({F},)")
+    require(x.shape[0] > 0 and x.shape[1] > 0,
+            f"conv1d_forward: x is {x.shape}: a batch of 0 clips or clips of 0 frames")

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from minifilm.nn.checks import require, require_grad_shape
+from minifilm.nn.checks import check_conv1d_inputs, require, require_grad_shape
 
 
 def im2col(x: np.ndarray, k: int) -> np.ndarray:
@@ -30,12 +30,7 @@ def conv1d_forward(x: np.ndarray, W: np.ndarray, b: np.ndarray):
     x: (B, T, C) channels-last; W: (k, C, F) with k odd; b: (F,) -> y: (B, T, F).
     """
     k, C, F = W.shape
-    require(k % 2 == 1, f"conv1d_forward: kernel size must be odd for 'same' padding, W is {W.shape}")
-    require(x.ndim == 3 and x.shape[2] == C,
-            f"conv1d_forward: x is {x.shape}, expected (B, T, {C}) to match W {W.shape}")
-    require(b.shape == (F,), f"conv1d_forward: b is {b.shape}, expected ({F},)")
-    require(x.shape[0] > 0 and x.shape[1] > 0,
-            f"conv1d_forward: x is {x.shape}: a batch of 0 clips or clips of 0 frames")
+    check_conv1d_inputs(x, W, b)
     B, T, _ = x.shape
     x = np.asarray(x, dtype=np.result_type(x, W))
     cols = im2col(x, k)                                           # (B*T, k*C)

@@ -20,7 +20,7 @@ import numpy as np
 import scipy.fft
 from numpy.lib.stride_tricks import sliding_window_view
 
-from minifilm.nn.checks import require, require_grad_shape
+from minifilm.nn.checks import check_conv1d_inputs, require, require_grad_shape
 from minifilm.nn.scratch import scratch
 
 
@@ -146,12 +146,7 @@ def conv1d_fast_forward(x: np.ndarray, W: np.ndarray, b: np.ndarray, work: dict 
     the same one. ``work``: the layer's workspace (see :func:`~minifilm.nn.scratch.scratch`).
     """
     k, C, F = W.shape
-    require(k % 2 == 1, f"conv1d_forward: kernel size must be odd for 'same' padding, W is {W.shape}")
-    require(x.ndim == 3 and x.shape[2] == C,
-            f"conv1d_forward: x is {x.shape}, expected (B, T, {C}) to match W {W.shape}")
-    require(b.shape == (F,), f"conv1d_forward: b is {b.shape}, expected ({F},)")
-    require(x.shape[0] > 0 and x.shape[1] > 0,
-            f"conv1d_forward: x is {x.shape}: a batch of 0 clips or clips of 0 frames")
+    check_conv1d_inputs(x, W, b)
     require(method in ("auto", "im2col", "fft"),
             f"conv1d_forward: method must be 'auto', 'im2col' or 'fft', got {method!r}")
     B, T, _ = x.shape
