@@ -14,6 +14,10 @@ stick moves, right stick turns, right trigger runs; pick a style, or blend three
 toggle foot locking and the skeleton fit. Each open page gets its own character (up to
 --max-characters); closing the page frees it. Ctrl-C stops the server.
 
+The page is served within a few seconds: the released network's speed calibration (per style)
+is measured in the background, printed here as it goes, and kept in the user's cache folder
+($XDG_CACHE_HOME/minifilm, or ~/.cache/minifilm; MINIFILM_CACHE overrides it) for the next start.
+
 Needs the websockets package: pip install 'minifilm[demo]'.
 """
 from __future__ import annotations
@@ -22,6 +26,7 @@ import sys
 from pathlib import Path
 
 from minifilm.cli.args import in_range, input_path
+from minifilm.demo.calibration_cache import CalibrationCache
 from minifilm.demo.character import DemoSettings
 from minifilm.demo.record import record_gif
 from minifilm.demo.hosts import check_name, is_loopback
@@ -71,9 +76,12 @@ def run(args) -> int:
         path = record_gif(source, settings, args.record, seconds=args.record_seconds)
         print(f"recorded {args.record_seconds:g} s of {settings.style} -> {path}")
         return 0
+    cache = None
+    if source.calibrate and source.params is not None:
+        cache = CalibrationCache(source.params)
     try:
         server = DemoServer(source, settings, host=host, port=args.port, max_characters=args.max_characters,
-                            allow_hosts=allow)
+                            allow_hosts=allow, calibration_cache=cache)
     except ImportError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

@@ -83,6 +83,23 @@ def url_host(bound: str) -> str:
     return f"[{ip}]" if ip.version == 6 else str(ip)
 
 
+#: The released network's styles 095-099 were fine-tuned on the five styles held out of training
+#: (docs/original-code.md §8.1; which number is which style is not documented).
+HELD_OUT_IDS = ("095", "096", "097", "098", "099")
+HELD_OUT_STYLES = ("Roadrunner", "ShieldedLeft", "Skip", "Star", "WildArms")
+
+
+def held_out(names) -> dict:
+    """For the page: the styles fine-tuned on held-out data, and what is known of them ({} when
+    the source has none)."""
+    ids = [n for n in HELD_OUT_IDS if n in names]
+    if len(ids) != len(HELD_OUT_IDS):
+        return {}
+    return {"ids": ids, "styles": list(HELD_OUT_STYLES),
+            "note": "fine-tuned on the five styles held out of training (" + ", ".join(HELD_OUT_STYLES)
+                    + "); which number is which style is not documented"}
+
+
 def _local_address(connection) -> str:
     """The address a connection arrived at ("" when unknown)."""
     try:
@@ -128,7 +145,8 @@ class DemoServer:
     """
 
     def __init__(self, source: DemoSource, settings: DemoSettings, host: str = "127.0.0.1", port: int = 8765,
-                 max_characters: int = 4, background_calibration: bool = True, allow_hosts=()):
+                 max_characters: int = 4, background_calibration: bool = True, allow_hosts=(),
+                 calibration_cache=None):
         if settings.style not in source.library:
             raise ValueError(f"--style {settings.style!r} is not one of the {len(source.library)} styles: "
                              f"{', '.join(source.library.names)}")
@@ -136,7 +154,8 @@ class DemoServer:
         host = check_bind_host(host)
         self.source, self.settings, self.host, self.port = source, settings, host, int(port)
         self.hosts = HostAllowList(host, allow_hosts)
-        self.calibrations = Calibrations(source, first=[settings.style], background=background_calibration)
+        self.calibrations = Calibrations(source, first=[settings.style], background=background_calibration,
+                                         cache=calibration_cache)
         self.stage = Stage(lambda ident: Character(ident, source, self.calibrations, settings), source.fps,
                            max_characters)
         self.site = Site(f"minifilm demo: {source.name}")
@@ -202,6 +221,8 @@ class DemoServer:
             "speeds": {"walk": self.settings.walk_speed, "run": self.settings.run_speed},
             "turnRate": self.settings.turn_rate_deg, "calibrate": self.calibrations.enabled,
             "limits": {"maxMessageBytes": MAX_MESSAGE_BYTES, "maxCharacters": self.stage.max_characters},
+            "heldOut": held_out(self.source.library.names),
+            "calibration": self.calibrations.progress(),
         })
 
     async def _connection(self, ws) -> None:
@@ -227,7 +248,7 @@ class DemoServer:
         outbox.put(self.hello(character), False)
         # frames over this page's budget never get here (budget.py); it is told once a second
         ws.on_over_budget = lambda text: outbox.put(error(text), False)
-        sender = asyncio.create_task(self._send(ws, outbox))
+        sender = asyncio.create_task(self._send(ws, outbox, character.sent))
         try:
             async for data in ws:
                 try:
@@ -245,12 +266,14 @@ class DemoServer:
             self.stage.leave(character)
             sender.cancel()
 
-    async def _send(self, ws, outbox: Outbox) -> None:
+    async def _send(self, ws, outbox: Outbox, sent=None) -> None:
         ConnectionClosed = self.modules[1]
         try:
             while True:
                 for text in await outbox.take():
                     await ws.send(text)
+                    if sent is not None and text.startswith('{"type":"frame"'):
+                        sent.tick()     # the frame rate the page is told is what was sent
         except ConnectionClosed:
             pass
 
