@@ -3,16 +3,21 @@
     minifilm view walk.bvh run.bvh --gif walks.gif          # characters side by side, no ffmpeg needed
     minifilm view walk.bvh --html walk.html                  # 3-D player: orbit, play/pause/scrub/speed
     minifilm view runs/train_small/generated/*.bvh --gif styles.gif --html styles.html --seconds 6
+    minifilm view walk.bvh --out walk.mp4                    # --out: the format its extension names
 
-Each file is one character, titled with its name and drawn from its own hierarchy; on a built-in
-skeleton (100STYLE, Bandai Namco, CMU) the foot contacts are highlighted. The HTML page opens
-offline from disk (three.js is inlined). Without --gif, --mp4 or --html: --html view.html.
+Each file is one character, titled with its name (shortened to fit its panel) and drawn from its
+own hierarchy at its true size: the unit comes from the skeleton, else from the body's height
+(minifilm/motion/body_size.py). On any humanoid skeleton, found by its joint names or its shape
+(minifilm/motion/humanoid.py), the foot contacts are highlighted. The HTML page opens offline from
+disk (three.js is inlined). Without --out, --gif, --mp4 or --html: --html view.html.
 """
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
 from minifilm.cli.args import in_range, input_path, positive
+from minifilm.errors import InputError
 from minifilm.files import check_writable
 from minifilm.viewer.builders import track_with_contacts
 from minifilm.viewer.deps import check_output_tools
@@ -22,9 +27,26 @@ from minifilm.viewer.mp4 import write_mp4
 
 HELP = "show BVH files as an animated GIF and an offline 3-D HTML player"
 
+#: --out's extensions and the output each names
+OUTPUT_KINDS = {".gif": "gif", ".mp4": "mp4", ".html": "html", ".htm": "html"}
+
+
+def output_path(text: str):
+    """(kind, path) of an --out argument, the kind named by its extension; an argparse error for
+    any other extension (found now, before any file is read)."""
+    p = Path(text)
+    kind = OUTPUT_KINDS.get(p.suffix.lower())
+    if kind is None:
+        shown = f"'{p.suffix}'" if p.suffix else "no extension"
+        raise argparse.ArgumentTypeError(f"{text} has {shown}; --out writes the format its extension names: "
+                                         ".gif (animated GIF), .mp4 (video, needs ffmpeg) or .html (3-D player)")
+    return kind, p
+
 
 def add_arguments(ap) -> None:
     ap.add_argument("files", nargs="+", type=input_path, help="BVH files, one character each")
+    ap.add_argument("--out", type=output_path, action="append", default=[], metavar="FILE",
+                    help="file to write, its format named by its extension: .gif, .mp4 or .html (repeatable)")
     ap.add_argument("--gif", type=Path, help="animated GIF to write")
     ap.add_argument("--mp4", type=Path, help="MP4 to write (needs ffmpeg on the PATH)")
     ap.add_argument("--html", type=Path, help="self-contained HTML player to write")
@@ -39,11 +61,18 @@ def add_arguments(ap) -> None:
 
 
 def run(args) -> int:
+    flags = {kind: f"--{kind}" for kind in ("gif", "mp4", "html")}
+    for kind, path in args.out:               # --out x.gif is --gif x.gif; one file per format
+        if getattr(args, kind) is not None:
+            raise InputError(f"two {kind.upper()} outputs given ({getattr(args, kind)} and {path}); "
+                             f"give one (--out {path} or --{kind} {path})")
+        setattr(args, kind, path)
+        flags[kind] = "--out"
     if args.gif is None and args.mp4 is None and args.html is None:
         args.html = Path("view.html")
     for kind in ("gif", "mp4", "html"):  # every output checked before the first one is written
         if getattr(args, kind) is not None:
-            check_writable(getattr(args, kind), f"--{kind}")
+            check_writable(getattr(args, kind), flags[kind])
             check_output_tools(getattr(args, kind), kind)
     tracks = [track_with_contacts(f) for f in args.files]
     if args.no_contacts:

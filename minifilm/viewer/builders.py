@@ -2,16 +2,15 @@
 
 ``tracks.py`` knows only joint positions and a hierarchy; these builders add what the viewer can
 show beyond them: the names of generated characters, and foot contacts (highlighted toes) from
-the network's predicted contacts or, for a BVH file on a built-in skeleton, from the labelling.
+the network's predicted contacts or, for a humanoid BVH file, from its toe tips (Sec. 4.1.2).
 """
 from __future__ import annotations
 
 import os
 from typing import List, Optional, Sequence, Union
 
-from minifilm.motion.bvh import read_bvh
-from minifilm.motion.skeletons import detect_skeleton
-from minifilm.phases.contacts import foot_contacts
+from minifilm.motion.body_size import read_in_metres
+from minifilm.phases.contacts import humanoid_contacts
 from minifilm.runtime.rollout import Rollout
 from minifilm.viewer.tracks import Track, track_from_motion
 
@@ -47,17 +46,13 @@ def tracks_from_rollout(rollout: Rollout, parents: Sequence[int], names: Optiona
 
 
 def track_with_contacts(path: Union[str, os.PathLike], name: Optional[str] = None) -> Track:
-    """A BVH file as a Track, in metres, with its foot contacts marked when its skeleton is one of
-    the built-ins (detected from the joint names; otherwise no contacts, scale 0.01)."""
-    try:
-        skeleton = detect_skeleton(read_bvh(path, scale=1.0))
-    except ValueError:
-        skeleton = None
-    if skeleton is None:
-        return track_from_motion(read_bvh(path, scale=0.01), name=name)
-    motion = read_bvh(path, scale=skeleton.bvh_scale)
-    sensors = skeleton.contact_indices(motion)
-    positions, _ = motion.world()
-    contacts = foot_contacts(positions[:, sensors], motion.fps) if motion.n_frames >= 2 else None
-    return track_from_motion(motion, name=name, contacts=contacts,
-                             contact_joints=None if contacts is None else list(sensors))
+    """A BVH file as a Track at its true size, with its foot contacts marked.
+
+    The unit comes from the skeleton or the body's height, and the feet from the joint names or
+    the hierarchy (minifilm/motion/body_size.py, humanoid.py); a skeleton that is not a humanoid
+    is drawn in centimetres without contacts."""
+    motion, humanoid, _ = read_in_metres(path)
+    if humanoid is None or motion.n_frames < 2:
+        return track_from_motion(motion, name=name)
+    contacts, sensors = humanoid_contacts(motion, humanoid)
+    return track_from_motion(motion, name=name, contacts=contacts, contact_joints=list(sensors))

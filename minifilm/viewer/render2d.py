@@ -13,7 +13,7 @@ draws 2-D lines. The numbers drawn are kept (``drawn``, ``pixels``, ``cameras``)
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import List, Sequence, Tuple
 
@@ -22,6 +22,7 @@ import numpy as np
 from minifilm.viewer.deps import require
 from minifilm.viewer.projection import Camera, depth_of, follow_cameras, grid_step, heading_of, project
 from minifilm.viewer.timeline import Schedule
+from minifilm.viewer.titles import fit_title
 from minifilm.viewer.tracks import Track
 
 __all__ = ["PanelRenderer", "Rendering", "COLOURS"]
@@ -33,6 +34,8 @@ GRID_COLOUR = "#c8c8c8"
 # Bones further from the camera are blended towards white by up to this much (a depth cue that
 # tells the near leg from the far one in a single-colour skeleton).
 FAR_FADE = 0.55
+#: a title may use this fraction of its panel's width (the rest is margin from its neighbours)
+TITLE_WIDTH = 0.94
 GRID_RADIUS = 2.2  # floor drawn within this many body sizes of the camera target
 
 
@@ -48,6 +51,7 @@ class Rendering:
         drawn:   per track, (N, J, 2) screen points of the joints (``project(positions, camera)``).
         pixels:  per track, (N, J, 2) the same points in image pixels (x right, y down).
         cameras: per track, N ``Camera`` objects.
+        titles:  per track, (shown title, (x0, y0, x1, y1) its drawn box in image pixels, y down).
     """
 
     path: Path
@@ -57,6 +61,7 @@ class Rendering:
     drawn: List[np.ndarray]
     pixels: List[np.ndarray]
     cameras: List[List[Camera]]
+    titles: List[Tuple[str, Tuple[float, float, float, float]]] = field(default_factory=list)
 
     @property
     def n_frames(self) -> int:
@@ -123,7 +128,7 @@ class PanelRenderer:
         return Rendering(path=Path(path), size=(self.width, self.height), fps=self.schedule.fps,
                          frames=self.schedule.frames.copy(),
                          drawn=[np.stack(d) for d in self.drawn], pixels=[np.stack(p) for p in self.pixels],
-                         cameras=self.cameras)
+                         cameras=self.cameras, titles=[self._title_box(p["title"]) for p in self.panels])
 
     # -- figure construction --------------------------------------------------------------------
 
@@ -146,11 +151,12 @@ class PanelRenderer:
                        markeredgecolor=CONTACT_EDGE, markeredgewidth=1.0, zorder=4)
         for artist in (grid, trail, bones, marks):
             ax.add_artist(artist) if isinstance(artist, Line2D) else ax.add_collection(artist)
-        ax.text(0.5, 0.975, self.tracks[i].name, transform=ax.transAxes, ha="center", va="top",
-                fontsize=11, fontweight="bold", color=colour, zorder=5)
+        title = ax.text(0.5, 0.975, self.tracks[i].name, transform=ax.transAxes, ha="center", va="top",
+                        fontsize=11, fontweight="bold", color=colour, zorder=5)
+        fit_title(title, self.canvas.get_renderer(), max_width=TITLE_WIDTH * w)
         label = ax.text(0.03, 0.02, "", transform=ax.transAxes, ha="left", va="bottom",
                         fontsize=7.5, color="#555555", zorder=5)
-        return dict(ax=ax, grid=grid, trail=trail, bones=bones, marks=marks, label=label,
+        return dict(ax=ax, grid=grid, trail=trail, bones=bones, marks=marks, label=label, title=title,
                     rgb=_rgb(colour))
 
     def _separators(self, w: int, h: int) -> None:
@@ -187,6 +193,10 @@ class PanelRenderer:
             # The output clock makes every frame differ, even once all tracks hold their last frame:
             # Pillow merges identical GIF frames, which would change the frame count.
             panel["label"].set_text(f"{k / self.schedule.fps:5.2f} s   frame {f + 1}/{track.n_frames}")
+
+    def _title_box(self, title) -> Tuple[str, Tuple[float, float, float, float]]:
+        box = title.get_window_extent(renderer=self.canvas.get_renderer())
+        return title.get_text(), (float(box.x0), self.height - float(box.y1), float(box.x1), self.height - float(box.y0))
 
     def _to_pixels(self, ax, xy: np.ndarray) -> np.ndarray:
         disp = ax.transData.transform(xy)  # display units: pixels from the bottom-left corner

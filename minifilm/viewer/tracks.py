@@ -15,6 +15,7 @@ from typing import List, Optional, Sequence, Union
 
 import numpy as np
 
+from minifilm.motion.body_size import read_in_metres
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.motion import Motion
 
@@ -241,15 +242,18 @@ def track_from_motion(motion: Motion, name: Optional[str] = None,
                  joint_names=[names[j] for j in keep])
 
 
-def track_from_bvh(path: Union[str, os.PathLike], name: Optional[str] = None, scale: float = 0.01,
+def track_from_bvh(path: Union[str, os.PathLike], name: Optional[str] = None, scale: Optional[float] = None,
                    **kwargs) -> Track:
-    """Read a BVH file (``read_bvh(path, scale)``, metres) and build its ``Track``.
+    """Read a BVH file in metres and build its ``Track``.
+
+    ``scale``: metres per file unit; default: the skeleton's or the body's own
+    (minifilm/motion/body_size.py: a humanoid is drawn at its true size; other rigs in centimetres).
 
     ``kwargs`` go to ``track_from_motion`` (``joints``, ``contacts``, ``contact_joints``, ``trail``).
     Raises OSError when the file cannot be read and ``BVHError`` (a ValueError naming the file and
     line) when it is not a valid BVH file.
     """
-    motion = read_bvh(path, scale=scale)
+    motion = read_in_metres(path)[0] if scale is None else read_bvh(path, scale=scale)
     return track_from_motion(motion, name=name, **kwargs)
 
 

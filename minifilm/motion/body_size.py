@@ -1,0 +1,134 @@
+"""A file's length unit (metres per file unit) and a body's standing height.
+
+A BVH file does not say its unit. When its joint names are one of the built-in skeletons
+(minifilm/motion/skeletons.py) the unit is that skeleton's ``bvh_scale``. Otherwise it is inferred
+from the body: the thigh and shin together are about 0.49 of a standing adult's height
+(Drillis & Contini 1966: 0.245 + 0.246), and a standing human is 1.4-2.1 m tall, so
+
+    stature (file units) = (thigh + shin) / 0.49
+
+and the unit is the common one (millimetre, centimetre, inch, CMU ASF unit, decimetre, foot, metre)
+that puts the stature within 1.4-2.1 m (at most one does: neighbouring units differ by more than
+2.1 / 1.4). A body that fits none is scaled to a typical 1.7 m, and ``BodyUnit.how`` says so.
+Bone lengths do not change with the pose, so this holds for a file that starts crouching or mid-run.
+
+``standing_height`` measures what the viewer shows: the head's top above the floor over the first
+second (tests check it is 1.4-2.1 m on every real file).
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from typing import Optional, Tuple, Union
+
+import numpy as np
+
+from minifilm.motion.bvh import read_bvh
+from minifilm.motion.humanoid import Humanoid, HumanoidError, find_humanoid
+from minifilm.motion.motion import Motion
+from minifilm.motion.skeletons import detect_skeleton
+
+__all__ = ["BodyUnit", "KNOWN_UNITS", "STATURE_RANGE", "LEG_FRACTION", "body_unit", "leg_length", "scaled",
+           "standing_height", "read_in_metres"]
+
+#: (name, metres per unit) of the units motion capture files are written in
+KNOWN_UNITS: Tuple[Tuple[str, float], ...] = (
+    ("millimetres", 0.001), ("centimetres", 0.01), ("inches", 0.0254), ("CMU ASF units (inches / 0.45)", 0.0254 / 0.45),
+    ("decimetres", 0.1), ("feet", 0.3048), ("metres", 1.0))
+#: a standing human's height, metres
+STATURE_RANGE = (1.4, 2.1)
+TYPICAL_STATURE = 1.7
+#: thigh + shin as a fraction of the standing height (Drillis & Contini 1966)
+LEG_FRACTION = 0.49
+#: the top of the head above a head joint that has no head-top End Site, as a fraction of the leg
+#: (thigh + shin): head joints sit near the skull's base, about 0.1 of the height below its top
+HEAD_ABOVE_JOINT = 0.2
+
+
+@dataclass(frozen=True)
+class BodyUnit:
+    """metres_per_unit: multiply the file's lengths by it; stature: the body's standing height in
+    metres estimated from its legs; how: where the unit came from, for messages."""
+
+    metres_per_unit: float
+    stature: float
+    how: str
+
+
+def leg_length(motion: Motion, h: Humanoid) -> float:
+    """Thigh + shin (hip to knee to ankle), averaged over both legs, in the motion's units."""
+    P = np.asarray(motion.world()[0][0])                                         # (J, 3) first frame
+    total = 0.0
+    for side in ("left", "right"):
+        hip, knee, ankle = (getattr(h, f"{side}_{r}") for r in ("hip", "knee", "ankle"))
+        total += np.linalg.norm(P[knee] - P[hip]) + np.linalg.norm(P[ankle] - P[knee])
+    return float(total / 2)
+
+
+def body_unit(motion: Motion, humanoid: Optional[Humanoid] = None) -> BodyUnit:
+    """The unit of ``motion`` (read with scale 1: file units). From the built-in skeleton its names
+    fit, else from its height (module docstring). HumanoidError when it is not a humanoid."""
+    h = humanoid if humanoid is not None else find_humanoid(motion)
+    stature_units = leg_length(motion, h) / LEG_FRACTION
+    try:
+        skeleton = detect_skeleton(motion)
+    except ValueError:
+        skeleton = None
+    if skeleton is not None:
+        s = skeleton.bvh_scale
+        return BodyUnit(s, stature_units * s, f"the {skeleton.name!r} skeleton's unit ({s:g} m)")
+    lo, hi = STATURE_RANGE
+    for name, s in KNOWN_UNITS:
+        if lo <= stature_units * s <= hi:
+            return BodyUnit(s, stature_units * s,
+                            f"{name}: a {stature_units * s:.2f} m tall body (from its legs)")
+    s = TYPICAL_STATURE / max(stature_units, 1e-12)
+    return BodyUnit(s, TYPICAL_STATURE, f"no common unit gives a {lo}-{hi} m body; scaled to {TYPICAL_STATURE} m")
+
+
+def read_in_metres(path: Union[str, os.PathLike]) -> Tuple[Motion, Optional[Humanoid], BodyUnit]:
+    """Read a BVH file in metres: (motion, its humanoid parts or None, the unit used).
+
+    The unit is :func:`body_unit`'s for a humanoid. A skeleton that is not a humanoid (no height
+    to go by) is read in centimetres, the commonest unit, and ``BodyUnit.how`` says why.
+    BVHError / OSError as ``read_bvh``."""
+    raw = read_bvh(path, scale=1.0)
+    try:
+        h = find_humanoid(raw)
+    except HumanoidError as e:
+        return scaled(raw, 0.01), None, BodyUnit(0.01, float("nan"), f"centimetres assumed: {e}")
+    unit = body_unit(raw, h)
+    return scaled(raw, unit.metres_per_unit), h, unit
+
+
+def scaled(motion: Motion, metres_per_unit: float) -> Motion:
+    """``motion`` with every length multiplied by ``metres_per_unit`` (a new Motion)."""
+    return Motion(list(motion.names), motion.parents.copy(), motion.offsets * metres_per_unit,
+                  list(motion.channels), motion.rotations.copy(), motion.translations * metres_per_unit,
+                  motion.frame_time, motion.source)
+
+
+def standing_height(positions, h: Humanoid, fps: float, seconds: float = 1.0) -> float:
+    """The head's top above the floor: its 95th percentile over the first ``seconds``, metres if
+    ``positions`` are (the tallest the body stands there, so a crouch or a runner's lean early on
+    counts little).
+
+    positions (F, J, 3), y up, joints as in the motion ``h`` was found on. The floor is the 2nd
+    percentile over the clip of the lowest toe tip or ankle (where the feet rest; not each frame's
+    lowest foot, which is in the air while running). The head's top is its End Site when it has a
+    long one (a modelled head top, as in 100STYLE), else the head joint plus HEAD_ABOVE_JOINT of
+    the leg (thigh + shin)."""
+    P = np.asarray(positions, dtype=np.float64)
+    feet = [h.left_toe_tip, h.right_toe_tip, h.left_ankle, h.right_ankle]
+    floor = float(np.percentile(P[:, feet, 1].min(axis=1), 2))
+    P = P[:max(1, min(P.shape[0], int(round(seconds * fps))))]
+    leg = np.mean([np.linalg.norm(P[:, getattr(h, f"{s}_knee")] - P[:, getattr(h, f"{s}_hip")], axis=-1)
+                   + np.linalg.norm(P[:, getattr(h, f"{s}_ankle")] - P[:, getattr(h, f"{s}_knee")], axis=-1)
+                   for s in ("left", "right")], axis=0)                               # (n,)
+    head = P[:, h.head, 1]
+    top = head + HEAD_ABOVE_JOINT * leg
+    if h.head_top is not None:
+        site_length = np.linalg.norm(P[:, h.head_top] - P[:, h.head], axis=-1)
+        if np.median(site_length) >= 0.5 * HEAD_ABOVE_JOINT * np.median(leg):
+            top = np.maximum(head, P[:, h.head_top, 1])
+    return float(np.percentile(top, 95) - floor)
