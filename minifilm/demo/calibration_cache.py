@@ -77,10 +77,17 @@ class CalibrationCache:
     are measured. ``path`` is None when there is no folder to key by (a trained run: nothing cached)."""
 
     def __init__(self, folder, where: Optional[Path] = None):
-        self.path: Optional[Path] = None
-        if folder is not None:
-            self.path = (where or cache_folder()) / f"calibration-{network_key(folder)}.json"
+        self.folder, self.where = folder, where
+        self._path: Optional[Path] = None
         self.entries: Dict[str, dict] = {}
+
+    @property
+    def path(self) -> Optional[Path]:
+        """The cache file (its name hashes the network's files: computed on first use, a quarter
+        of a second for the released network's 20 MB, off the start-up's way)."""
+        if self._path is None and self.folder is not None:
+            self._path = (self.where or cache_folder()) / f"calibration-{network_key(self.folder)}.json"
+        return self._path
 
     def load(self) -> Dict[str, SpeedCalibration]:
         """The calibrations in the cache file ({} when there is none, or it is unreadable: then

@@ -71,19 +71,39 @@ class Calibrations:
         self._started: Dict[str, float] = {}
         if not self.enabled:
             return
-        if cache is not None:
-            self._cal.update(cache.load())
-        if self._cal:
-            self.fallback = self._cal.get(first[0]) if first and first[0] in self._cal else next(iter(self._cal.values()))
         if self._background:
-            self.request(first)
-        else:
-            for name in first:
-                if name not in self._cal:
-                    self._cal[name] = measure(source, name)
-                    self._store(name, self._cal[name])
-            if first and self.fallback is None:
-                self.fallback = self._cal[first[0]]
+            # the cache is read (its name hashes the network's files) and the start style asked
+            # for on a thread of their own: the server starts serving meanwhile
+            self.requested = len(first)      # counted until the cache says what is left
+            threading.Thread(target=self._start, args=(list(first),), name="minifilm-demo-calibrate",
+                             daemon=True).start()
+            return
+        self._load_cache(first)
+        for name in first:          # measured here and now (tests, --record)
+            if name not in self._cal:
+                self._cal[name] = measure(source, name)
+                self._store(name, self._cal[name])
+        if first and self.fallback is None:
+            self.fallback = self._cal[first[0]]
+
+    def _load_cache(self, first) -> None:
+        if self.cache is not None:
+            cached = self.cache.load()
+            with self._lock:
+                self._cal.update(cached)
+                self._memo.clear()
+        with self._lock:
+            if self._cal and self.fallback is None:
+                self.fallback = self._cal.get(first[0]) if first and first[0] in self._cal \
+                    else next(iter(self._cal.values()))
+
+    def _start(self, first) -> None:
+        try:
+            self._load_cache(first)
+        finally:
+            with self._lock:
+                self.requested -= len(first)
+        self.request(first)
 
     def progress(self) -> dict:
         """What the pages are told: ``state`` ("off", "measuring" or "done"), styles measured of

@@ -265,7 +265,9 @@ class Controller:
         if self.stand is not None:      # standing.py: a zero command stops and stands
             still = self.stand.still(target_velocity)
             st.future_pos = self.stand.pin_future(st.future_pos, still)
-            idle = self.stand.idle(target_velocity, target_facing, st.facing)
+            previous = st.target_facing if st.target_facing is not None else target_facing
+            idle = self.stand.idle(target_velocity, target_facing, previous)
+            st.target_facing = np.array(target_facing, dtype=np.float64)
             seconds = st.idle_seconds if st.idle_seconds is not None else np.zeros(len(still))
             st.idle_seconds = np.where(still, seconds + 1.0 / self.fps, 0.0)
         x = self.build_input()

@@ -22,9 +22,10 @@ So while the commanded velocity is zero, :class:`StandStill`:
 - fades the network's remaining root displacement out over ``settle`` seconds (smoothstep), moving
   the predicted body with it, so the root history becomes still and the network sees a still past
   (turning on the spot needs no travel either);
-- and, once the facing is also where it is asked to be (turning on the spot is stepping, not
+- and, while the target facing is not being turned either (turning on the spot is stepping, not
   standing), decays the phase amplitudes with time constant ``phase_tau`` seconds, towards the
-  standing phases of the data.
+  standing phases of the data. (Judged by the target, not by the facing reached: some styles
+  drift their facing while standing, and would otherwise never count as idle.)
 
 None of this happens while anything is held; the paper's loop is unchanged then. ``Controller(...,
 stand=None)`` turns it off (the runtime as the authors' demo had it).
@@ -37,8 +38,9 @@ import numpy as np
 
 #: below this commanded speed (m/s) the command is "stand"
 STILL_SPEED = 1e-6
-#: the facing counts as reached within this angle (degrees); beyond it the character turns on the spot
-FACING_REACHED_DEG = 10.0
+#: a target facing that moved more than this (degrees) since the last frame is being turned by the
+#: user: the character turns on the spot (stepping), it does not stand
+TURNING_DEG = 0.05
 
 
 @dataclass(frozen=True)
@@ -64,13 +66,13 @@ class StandStill:
         return np.linalg.norm(np.asarray(target_velocity, dtype=np.float64), axis=-1) < STILL_SPEED
 
     @staticmethod
-    def idle(target_velocity: np.ndarray, target_facing: np.ndarray, facing: np.ndarray) -> np.ndarray:
-        """(B,) True where nothing is asked: no movement, and facing where asked (within
-        ``FACING_REACHED_DEG``)."""
+    def idle(target_velocity: np.ndarray, target_facing: np.ndarray, previous_target: np.ndarray) -> np.ndarray:
+        """(B,) True where nothing is asked: no movement, and the target facing where it was last
+        frame (within ``TURNING_DEG``: the user is not turning the character on the spot)."""
         tf = np.asarray(target_facing, dtype=np.float64)
-        f = np.asarray(facing, dtype=np.float64)
+        f = np.asarray(previous_target, dtype=np.float64)
         cos = np.sum(tf * f, axis=-1) / np.maximum(np.linalg.norm(tf, axis=-1) * np.linalg.norm(f, axis=-1), 1e-9)
-        return StandStill.still(target_velocity) & (cos >= np.cos(np.radians(FACING_REACHED_DEG)))
+        return StandStill.still(target_velocity) & (cos >= np.cos(np.radians(TURNING_DEG)))
 
     @staticmethod
     def pin_future(future_pos: np.ndarray, still: np.ndarray) -> np.ndarray:

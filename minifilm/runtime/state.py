@@ -47,6 +47,7 @@ class CharacterState:
     out_fwd: np.ndarray
     out_up: np.ndarray
     idle_seconds: Optional[np.ndarray] = None    # (B,) how long nothing has been asked (standing.py)
+    target_facing: Optional[np.ndarray] = None   # (B, 2) the last frame's target facing (standing.py)
 
     @property
     def batch(self) -> int:

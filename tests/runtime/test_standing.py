@@ -29,10 +29,10 @@ def test_only_still_rows_get_their_future_pinned_to_the_root():
 
 def test_turning_on_the_spot_is_not_idle_and_moving_is_not_still():
     v = np.array([[0.0, 0.0], [0.0, 0.0], [0.0, 1.0]])
-    target = np.array([[0.0, 1.0], [1.0, 0.0], [0.0, 1.0]])
-    facing = np.array([[0.0, 1.0], [0.0, 1.0], [0.0, 1.0]])
+    target = np.array([[0.0, 1.0], [np.sin(0.01), np.cos(0.01)], [0.0, 1.0]])   # row 1: being turned
+    previous = np.array([[0.0, 1.0], [0.0, 1.0], [0.0, 1.0]])
     assert StandStill.still(v).tolist() == [True, True, False]
-    assert StandStill.idle(v, target, facing).tolist() == [True, False, False]
+    assert StandStill.idle(v, target, previous).tolist() == [True, False, False]
     f = StandStill(phase_tau=0.1).phase_factor(np.array([True, False]), 1 / 60)
     assert f[0] == pytest.approx(np.exp(-1 / 6)) and f[1] == 1.0
 
