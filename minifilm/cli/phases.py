@@ -3,8 +3,10 @@
     minifilm phases FILE.bvh [--out phases.png] [--skeleton NAME] [--style NAME]
                              [--start SECONDS] [--stop SECONDS] [--animation walk.gif]
 
-``--skeleton`` is one of the built-ins (100style, bandai, cmu, cmu-mb); by default it is detected
-from the joint names. ``--style LeftHop`` / ``RightHop`` switches the lifted foot to the
+Any humanoid BVH file: a built-in skeleton (100style, bandai, cmu, cmu-mb) is detected from the
+joint names (or named with ``--skeleton``) and labelled as always; any other humanoid is labelled
+on its hips, wrists and toes found by names or structure, in the unit its legs give
+(minifilm/phases/any_rig.py). ``--style LeftHop`` / ``RightHop`` switches the lifted foot to the
 contact-free source.
 """
 from __future__ import annotations
@@ -15,8 +17,7 @@ import numpy as np
 
 from minifilm.cli.args import input_path, png_path, seconds_at_least
 from minifilm.files import check_writable
-from minifilm.motion.bvh import read_bvh
-from minifilm.motion.skeletons import builtin_skeleton, detect_skeleton
+from minifilm.phases.any_rig import HumanoidRig, load_for_phases
 from minifilm.phases.label import label
 from minifilm.phases.local_phases import LocalPhases
 from minifilm.viewer.deps import check_output_tools
@@ -30,7 +31,8 @@ HELP = "draw a BVH file's contacts and local phases (Figure 4)"
 def add_arguments(parser) -> None:
     parser.add_argument("bvh", type=input_path, help="the BVH file")
     parser.add_argument("--out", type=png_path, default=Path("phases.png"), help="PNG to write (default phases.png)")
-    parser.add_argument("--skeleton", default=None, help="built-in skeleton name (default: detected)")
+    parser.add_argument("--skeleton", default=None, help="built-in skeleton name (default: detected; "
+                        "any other humanoid is found by its names or structure)")
     parser.add_argument("--style", default=None, help="style name, e.g. LeftHop (chooses the sources)")
     parser.add_argument("--start", type=seconds_at_least(0.0), default=0.0, help="first second to draw")
     parser.add_argument("--stop", type=seconds_at_least(0.0), default=None, help="last second to draw")
@@ -39,12 +41,10 @@ def add_arguments(parser) -> None:
 
 
 def load(path, skeleton_name=None):
-    """Read ``path`` in metres with its skeleton (named, or detected from the joint names)."""
-    if skeleton_name:
-        skeleton = builtin_skeleton(skeleton_name)
-    else:
-        skeleton = detect_skeleton(read_bvh(path, scale=1.0))
-    return read_bvh(path, scale=skeleton.bvh_scale), skeleton
+    """Read ``path`` in metres with its rig: the built-in skeleton named or detected from the joint
+    names, else its humanoid parts (HumanoidError when it has none)."""
+    motion, rig, _ = load_for_phases(path, skeleton_name)
+    return motion, rig
 
 
 def run(args) -> int:
@@ -53,7 +53,9 @@ def run(args) -> int:
     if args.animation:
         check_writable(args.animation, "--animation")
         check_output_tools(args.animation, "gif")
-    motion, skeleton = load(args.bvh, args.skeleton)
+    motion, skeleton, unit = load_for_phases(args.bvh, args.skeleton)
+    if unit is not None:
+        print(f"{Path(args.bvh).name}: {skeleton.name}; unit {unit.how}")
     labels = label(motion, skeleton, args.style)
     t = np.arange(motion.n_frames) / motion.fps
     keep = (t >= args.start) & (t <= (args.stop if args.stop is not None else t[-1]))
@@ -62,7 +64,8 @@ def run(args) -> int:
     ph = labels.phases
     view = LocalPhases(*(None if a is None else a[keep] for a in
                          (ph.phase, ph.amplitude, ph.source, ph.fit, ph.frequency)))
-    title = f"{Path(args.bvh).name}: {motion.n_frames} frames at {motion.fps:.0f} fps, skeleton {skeleton.name}"
+    rig = skeleton.name if isinstance(skeleton, HumanoidRig) else f"skeleton {skeleton.name}"
+    title = f"{Path(args.bvh).name}: {motion.n_frames} frames at {motion.fps:.0f} fps, {rig}"
     plot_phases(t[keep], view, labels.contacts[keep], labels.sources, out, title)
     print(f"wrote {out}")
     if args.animation:

@@ -19,7 +19,7 @@ from pathlib import Path
 from minifilm.cli.args import in_range, input_path, positive
 from minifilm.errors import InputError
 from minifilm.files import check_writable
-from minifilm.viewer.builders import track_with_contacts
+from minifilm.viewer.builders import track_and_unit
 from minifilm.viewer.deps import check_output_tools
 from minifilm.viewer.gif import write_gif
 from minifilm.viewer.html import write_html
@@ -74,7 +74,12 @@ def run(args) -> int:
         if getattr(args, kind) is not None:
             check_writable(getattr(args, kind), flags[kind])
             check_output_tools(getattr(args, kind), kind)
-    tracks = [track_with_contacts(f) for f in args.files]
+    tracks = []
+    for f in args.files:
+        track, unit = track_and_unit(f)
+        if "skeleton's unit" not in unit.how:   # said when the unit was inferred, not known
+            print(f"{f}: {unit.how}")
+        tracks.append(track)
     if args.no_contacts:
         for t in tracks:
             t.contacts = t.contact_joints = None

@@ -102,10 +102,17 @@ def read_in_metres(path: Union[str, os.PathLike]) -> Tuple[Motion, Optional[Huma
 
 
 def scaled(motion: Motion, metres_per_unit: float) -> Motion:
-    """``motion`` with every length multiplied by ``metres_per_unit`` (a new Motion)."""
-    return Motion(list(motion.names), motion.parents.copy(), motion.offsets * metres_per_unit,
-                  list(motion.channels), motion.rotations.copy(), motion.translations * metres_per_unit,
-                  motion.frame_time, motion.source)
+    """``motion`` with every length multiplied by ``metres_per_unit`` (a new Motion).
+
+    Forward kinematics is linear in the lengths, so world positions already computed for
+    ``motion`` are scaled rather than computed again (the rotations are the same)."""
+    out = Motion(list(motion.names), motion.parents.copy(), motion.offsets * metres_per_unit,
+                 list(motion.channels), motion.rotations.copy(), motion.translations * metres_per_unit,
+                 motion.frame_time, motion.source)
+    if motion._fk_cache is not None:
+        positions, rotations = motion._fk_cache
+        out._fk_cache = (positions * metres_per_unit, rotations)
+    return out
 
 
 def standing_height(positions, h: Humanoid, fps: float, seconds: float = 1.0) -> float:

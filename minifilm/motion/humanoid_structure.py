@@ -65,8 +65,12 @@ def humanoid_by_structure(motion) -> Humanoid:
     neck = head_path[0] if len(head_path) > 1 else None
 
     # arms and legs, then left and right from the facing
-    arms = [arm_from_chain(tree, tree.path(b, farthest_leaf(tree, b, c)), "an") for b, c in side_chains]
-    legs = [leg_from_chain(tree, chain, "a") for chain in leg_chains]
+    try:
+        arms = [arm_from_chain(tree, tree.path(b, farthest_leaf(tree, b, c)), f"the arm from {tree.names[c]!r}")
+                for b, c in side_chains]
+        legs = [leg_from_chain(tree, chain, f"the leg to {tree.names[chain[-1]]!r}") for chain in leg_chains]
+    except HumanoidError as e:
+        raise HumanoidError(f"by structure: {e}") from None
     if _first_leg_is_left(tree, legs) is False:
         legs = legs[::-1]
     # the arm on the left leg's side is the left arm (side = direction from the right hip to the left)

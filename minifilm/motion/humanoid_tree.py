@@ -77,26 +77,26 @@ class PosedTree:
         return out
 
 
-def leg_from_chain(tree: PosedTree, chain: List[int], side: str) -> Dict[str, int]:
+def leg_from_chain(tree: PosedTree, chain: List[int], what: str) -> Dict[str, int]:
     """Leg roles from the joints below the hips down to the foot's end (``chain``, top to bottom).
 
     The thigh and shin are the two consecutive bones of largest summed length; the foot is what
     lies below the ankle (no joint below it: a rig without feet)."""
     lengths = [tree.length(j) for j in chain]            # bone ending at chain[i]
     if len(chain) < 3:
-        raise HumanoidError(f"the {side} leg has {len(chain)} joints below the hips "
+        raise HumanoidError(f"{what} has {len(chain)} joints below the hips "
                             f"({[tree.names[j] for j in chain]}); a leg needs a hip, knee and ankle")
     best = max(range(1, len(chain) - 1), key=lambda i: lengths[i] + lengths[i + 1])
     hip, knee, ankle = chain[best - 1], chain[best], chain[best + 1]
     below = chain[best + 2:]
     if not below:
-        raise HumanoidError(f"the {side} leg ends at its ankle {tree.names[ankle]!r}: no foot (no joint "
+        raise HumanoidError(f"{what} ends at its ankle {tree.names[ankle]!r}: no foot (no joint "
                             "below the ankle), so foot contacts cannot be found")
     toe = next((j for j in below if tree.length(j) > 1e-6 * tree.size), below[0])
     return dict(hip=hip, knee=knee, ankle=ankle, toe=toe, toe_tip=chain[-1])
 
 
-def arm_from_chain(tree: PosedTree, chain: List[int], side: str) -> Dict[str, Optional[int]]:
+def arm_from_chain(tree: PosedTree, chain: List[int], what: str) -> Dict[str, Optional[int]]:
     """Arm roles from the joints below the spine out to the hand's end (``chain``, top to bottom).
 
     The wrist is the first joint that branches (into fingers) or whose only child is the chain's
@@ -108,7 +108,7 @@ def arm_from_chain(tree: PosedTree, chain: List[int], side: str) -> Dict[str, Op
             break
     if wrist_at is None:
         if len(chain) < 3:
-            raise HumanoidError(f"the {side} arm has {len(chain)} joints ({[tree.names[j] for j in chain]}); "
+            raise HumanoidError(f"{what} has {len(chain)} joints ({[tree.names[j] for j in chain]}); "
                                 "an arm needs a shoulder, elbow and wrist")
         lengths = [tree.length(j) for j in chain]
         best = max(range(1, len(chain) - 1), key=lambda i: lengths[i] + lengths[i + 1])
@@ -136,7 +136,7 @@ def assemble(tree: PosedTree, method: str, hips: int, neck: Optional[int], head:
     """Assemble the Humanoid and check it is plausible (raises HumanoidError otherwise)."""
     top = neck if neck is not None else head
     if not tree.is_ancestor(hips, top):
-        raise HumanoidError(f"the head {tree.names[head]!r} is not below the hips {tree.names[hips]!r}")
+        raise HumanoidError(f"by {method}: the head {tree.names[head]!r} is not below the hips {tree.names[hips]!r}")
     chest_path = tree.path(hips, top)[:-1]
     root = hips
     while tree.parents[root] >= 0:
@@ -176,4 +176,4 @@ def _check_plausible(tree: PosedTree, h: Humanoid) -> None:
         if above(h.hips, ankle) < 0.4 * leg:
             problems.append(f"the {side} ankle {tree.names[ankle]!r} is not below the hips")
     if problems:
-        raise HumanoidError("; ".join(problems))
+        raise HumanoidError(f"by {h.method}: " + "; ".join(problems))

@@ -7,14 +7,14 @@ the network's predicted contacts or, for a humanoid BVH file, from its toe tips 
 from __future__ import annotations
 
 import os
-from typing import List, Optional, Sequence, Union
+from typing import List, Optional, Sequence, Tuple, Union
 
-from minifilm.motion.body_size import read_in_metres
+from minifilm.motion.body_size import BodyUnit, read_in_metres
 from minifilm.phases.contacts import humanoid_contacts
 from minifilm.runtime.rollout import Rollout
 from minifilm.viewer.tracks import Track, track_from_motion
 
-__all__ = ["tracks_from_rollout", "track_with_contacts"]
+__all__ = ["tracks_from_rollout", "track_with_contacts", "track_and_unit"]
 
 
 def tracks_from_rollout(rollout: Rollout, parents: Sequence[int], names: Optional[Sequence[str]] = None,
@@ -51,8 +51,13 @@ def track_with_contacts(path: Union[str, os.PathLike], name: Optional[str] = Non
     The unit comes from the skeleton or the body's height, and the feet from the joint names or
     the hierarchy (minifilm/motion/body_size.py, humanoid.py); a skeleton that is not a humanoid
     is drawn in centimetres without contacts."""
-    motion, humanoid, _ = read_in_metres(path)
+    return track_and_unit(path, name)[0]
+
+
+def track_and_unit(path: Union[str, os.PathLike], name: Optional[str] = None) -> Tuple[Track, BodyUnit]:
+    """``track_with_contacts(path, name)`` and the unit it was read in (``BodyUnit.how`` says why)."""
+    motion, humanoid, unit = read_in_metres(path)
     if humanoid is None or motion.n_frames < 2:
-        return track_from_motion(motion, name=name)
+        return track_from_motion(motion, name=name), unit
     contacts, sensors = humanoid_contacts(motion, humanoid)
-    return track_from_motion(motion, name=name, contacts=contacts, contact_joints=list(sensors))
+    return track_from_motion(motion, name=name, contacts=contacts, contact_joints=list(sensors)), unit

@@ -18,7 +18,7 @@ def text_width(text_artist, renderer) -> float:
     return float(text_artist.get_window_extent(renderer=renderer).width)
 
 
-def fit_title(text_artist, renderer, max_width: float, min_size: float = 7.0) -> str:
+def fit_title(text_artist, renderer, max_width: float, min_size: float = 8.0) -> str:
     """Shrink ``text_artist`` (a matplotlib Text) to at most ``max_width`` pixels; returns the shown text.
 
     The font size goes down by half points to ``min_size``; if the text is still too wide,

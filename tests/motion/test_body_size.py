@@ -81,3 +81,12 @@ def test_standing_height_reads_a_head_top_site_when_there_is_one(shared_data):
     from dataclasses import replace
     assert standing_height(P, replace(h, head_top=None), m.fps) == pytest.approx(standing_height(P, h, m.fps),
                                                                                   abs=0.1)
+
+
+def test_scaling_reuses_the_forward_kinematics_exactly(shared_data):
+    raw = read_bvh(shared_data / "bvh/xia/neutral_01_000.bvh", scale=1.0)
+    raw.world()                                              # computed once, in file units
+    fast = scaled(raw, 0.0254 / 0.45)
+    slow = read_bvh(shared_data / "bvh/xia/neutral_01_000.bvh", scale=0.0254 / 0.45)
+    np.testing.assert_allclose(fast.world()[0], slow.world()[0], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(fast.world()[1], slow.world()[1], rtol=0, atol=1e-12)

@@ -176,3 +176,43 @@ def test_a_hand_built_human_by_structure(pelvis_apart, arms):
                    left_hip="leg_l0", left_knee="leg_l1", left_ankle="leg_l2", left_toe="leg_l3",
                    left_toe_tip="leg_l4", right_hip="leg_r0", right_ankle="leg_r2", right_toe_tip="leg_r4"))
     assert [m.names[j] for j in h.spine] == ["spine", "chest"]
+
+
+_STICK_PARTS = {"root": "hips", "spine": "spine", "chest": "chest", "neck": "neck", "head": "head",
+                "arm_{s}0": "collar", "arm_{s}1": "upper arm", "arm_{s}2": "forearm", "arm_{s}3": "hand",
+                "leg_{s}0": "thigh", "leg_{s}1": "shin", "leg_{s}2": "foot", "leg_{s}3": "toe"}
+CONVENTIONS = {   # part -> name, with {S} the side as the convention writes it
+    "3ds Max biped": dict(sides=("L", "R"), hips="Bip01 Pelvis", spine="Bip01 Spine", chest="Bip01 Spine1",
+                          neck="Bip01 Neck", head="Bip01 Head", collar="Bip01 {S} Clavicle",
+                          **{"upper arm": "Bip01 {S} UpperArm", "forearm": "Bip01 {S} Forearm", "hand": "Bip01 {S} Hand",
+                             "thigh": "Bip01 {S} Thigh", "shin": "Bip01 {S} Calf", "foot": "Bip01 {S} Foot",
+                             "toe": "Bip01 {S} Toe0"}),
+    "Blender": dict(sides=("L", "R"), hips="pelvis", spine="spine", chest="spine.001", neck="neck", head="head",
+                    collar="shoulder.{S}", **{"upper arm": "upper_arm.{S}", "forearm": "forearm.{S}", "hand": "hand.{S}",
+                                              "thigh": "thigh.{S}", "shin": "shin.{S}", "foot": "foot.{S}",
+                                              "toe": "toe.{S}"}),
+    "Mixamo": dict(sides=("Left", "Right"), hips="mixamorig:Hips", spine="mixamorig:Spine", chest="mixamorig:Spine1",
+                   neck="mixamorig:Neck", head="mixamorig:Head", collar="mixamorig:{S}Shoulder",
+                   **{"upper arm": "mixamorig:{S}Arm", "forearm": "mixamorig:{S}ForeArm", "hand": "mixamorig:{S}Hand",
+                      "thigh": "mixamorig:{S}UpLeg", "shin": "mixamorig:{S}Leg", "foot": "mixamorig:{S}Foot",
+                      "toe": "mixamorig:{S}ToeBase"}),
+    "snake_case": dict(sides=("l", "r"), hips="joint_pelvis", spine="joint_spine_01", chest="joint_spine_02",
+                       neck="joint_neck", head="joint_head", collar="joint_{S}_clavicle",
+                       **{"upper arm": "joint_{S}_upperarm", "forearm": "joint_{S}_lowerarm", "hand": "joint_{S}_hand",
+                          "thigh": "joint_{S}_thigh", "shin": "joint_{S}_calf", "foot": "joint_{S}_foot",
+                          "toe": "joint_{S}_ball"}),
+}
+
+
+@pytest.mark.parametrize("convention", sorted(CONVENTIONS))
+def test_naming_conventions_on_a_hand_built_human(convention):
+    from humanoid_rigs import stick_human
+    m = stick_human(arms="down")
+    c = CONVENTIONS[convention]
+    mapping = {}
+    for generic, part in _STICK_PARTS.items():
+        for s, S in zip(("l", "r"), c["sides"]):
+            mapping[generic.format(s=s)] = c[part].format(S=S)
+    h = humanoid_by_names(renamed(m, mapping))
+    assert h.method == "names"
+    assert h.roles() == humanoid_by_structure(m).roles()          # the same joints as its shape says

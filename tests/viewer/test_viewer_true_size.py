@@ -114,3 +114,11 @@ def test_view_out_mp4_without_ffmpeg_says_so(shared_data, tmp_path):
     proc = minifilm("view", shared_data / "bvh/cmu/08_01_trimmed.bvh", "--out", tmp_path / "a.mp4", env=env)
     assert proc.returncode == 2 and "ffmpeg" in proc.stderr and "a.mp4" in proc.stderr
     assert not (tmp_path / "a.mp4").exists()
+
+
+def test_view_says_which_unit_it_inferred(shared_data, tmp_path):
+    renamed = renamed_bvh(shared_data / "bvh/xia/neutral_01_000.bvh", tmp_path / "renamed.bvh", CMU_CONVERSION_FROM_XIA)
+    proc = minifilm("view", renamed, shared_data / "bvh/xia/neutral_01_000.bvh", "--out", tmp_path / "v.html")
+    assert proc.returncode == 0, proc.stderr
+    notes = [line for line in proc.stdout.splitlines() if "from its legs" in line]
+    assert len(notes) == 1 and "renamed.bvh" in notes[0] and "CMU ASF units" in notes[0]   # known: no note
