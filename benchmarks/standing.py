@@ -8,8 +8,10 @@ All styles at once (one batch), as the demo runs them (the fitted pose fed back,
 locking): walk forwards for --walk seconds (command 2 m/s, uncalibrated: about 0.6 m/s for
 Neutral), then nothing for --idle seconds. Reported per style: the walking speed, the root speed
 over the second after the stop, and over the rest of the idle time (mean and the largest over any
-quarter second), and the contact changes (either foot crossing 0.5) in that rest. A style
-"stands" when the largest quarter-second speed is under 0.05 m/s and no contact changes.
+quarter second), the contact changes (either foot crossing 0.5) and the toes' mean speed in that
+rest. A style "stands" when the largest quarter-second speed is under 0.05 m/s and no contact
+changes. (A style whose contacts hover about 0.5 with still toes counts as not standing; one whose
+toes move at 0.2 m/s is shuffling its feet on the spot.)
 """
 from __future__ import annotations
 
@@ -46,6 +48,8 @@ def measure(src, styles, walk: float, idle: float, stand):
     r = ctrl.run(scripts, n, np.stack([src.library[s] for s in styles]))
     w0, w1, settled = int(0.5 * fps), int(walk * fps), int((walk + 1.0) * fps)
     q = int(round(0.25 * fps))
+    names = list(src.layout.joint_names)
+    toe_joints = [names.index("RightToe"), names.index("LeftToe")]
     rows = []
     for b, name in enumerate(styles):
         root = r.root_positions[b]
@@ -53,8 +57,10 @@ def measure(src, styles, walk: float, idle: float, stand):
         rest = root[settled:]
         quarter = np.linalg.norm(rest[q:] - rest[:-q], axis=1) / (q / fps)
         changes = int(np.abs(np.diff((r.contacts[b, settled:] > 0.5).astype(int), axis=0)).sum())
+        toes = r.positions[b, settled:][:, toe_joints]                       # (F, 2, 3)
+        toe = float((np.linalg.norm(np.diff(toes, axis=0), axis=-1) * fps).mean())
         rows.append(dict(style=name, walk=speed[w0:w1].mean(), stop=speed[w1:settled].mean(),
-                         idle=speed[settled:].mean(), quarter=quarter.max(), changes=changes))
+                         idle=speed[settled:].mean(), quarter=quarter.max(), changes=changes, toe=toe))
     return rows
 
 
@@ -75,13 +81,14 @@ def main(argv=None) -> int:
     took = time.perf_counter() - t0
     print(f"# standing: {len(styles)} styles, walk {args.walk:g} s then idle {args.idle:g} s; "
           f"stand-still {'off' if args.off else 'on'}; {took:.0f} s; load {os.getloadavg()[0]:.1f}")
-    print(f"{'style':14s} {'walk m/s':>8s} {'1st s':>7s} {'idle':>7s} {'max 0.25s':>9s} {'changes':>7s}  stands")
+    print(f"{'style':14s} {'walk m/s':>8s} {'1st s':>7s} {'idle':>7s} {'max 0.25s':>9s} {'changes':>7s} "
+          f"{'toes m/s':>8s}  stands")
     standing = []
     for row in rows:
         ok = row["quarter"] < STAND_SPEED and row["changes"] == 0
         standing.append(ok)
         print(f"{row['style']:14s} {row['walk']:8.2f} {row['stop']:7.3f} {row['idle']:7.3f} {row['quarter']:9.3f} "
-              f"{row['changes']:7d}  {'yes' if ok else 'NO'}")
+              f"{row['changes']:7d} {row['toe']:8.3f}  {'yes' if ok else 'NO'}")
     quarters = np.array([r["quarter"] for r in rows])
     print(f"# {sum(standing)} of {len(rows)} styles stand (max quarter-second speed < {STAND_SPEED} m/s and no "
           f"contact change); median idle speed {np.median([r['idle'] for r in rows]):.3f} m/s, "
