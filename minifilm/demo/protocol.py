@@ -14,6 +14,8 @@ One WebSocket per page; every message is one JSON object in a text frame. Page -
     {"type": "settings", "footLock": true, "fit": false}    either or both
     {"type": "reset"}                                       back to the origin
     {"type": "ping", "t": 12.5}                             answered with {"type": "pong", "t": 12.5}
+    {"type": "record", "seconds": 10, "gif": true}          the last seconds as BVH (and GIF), answered
+                                                            with "recording" (see minifilm/demo/record.py)
 
 Server -> page: ``hello`` (once, what the page needs to draw), ``frame`` (every frame), ``error``
 (a message was refused and dropped; names why), ``notice`` (something happened, e.g. the character
@@ -92,6 +94,7 @@ _FIELDS = {
     "settings": (set(), {"footLock", "fit"}),
     "reset": (set(), set()),
     "ping": ({"t"}, set()),
+    "record": ({"seconds"}, {"gif"}),       # handled by minifilm/demo/record.py
 }
 
 
@@ -137,6 +140,10 @@ def parse_message(data: Union[str, bytes], styles: Collection[str]) -> Message:
             return SettingsMessage(_flag(obj, "footLock"), _flag(obj, "fit"), seq)
         if kind == "reset":
             return ResetMessage(seq)
+        if kind == "record":
+            from minifilm.demo.record import MAX_RECORD_SECONDS, RecordMessage   # record.py imports this module
+            return RecordMessage(_number(obj["seconds"], "seconds", 0.1, MAX_RECORD_SECONDS),
+                                 bool(_flag(obj, "gif")), seq)
         return PingMessage(_number(obj["t"], "t", -1e15, 1e15), seq)
     except ProtocolError as e:
         raise ProtocolError(f"{kind}: {e}", seq) from None

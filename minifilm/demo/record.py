@@ -1,20 +1,37 @@
-"""A demo session recorded on the server side: the frames a character makes for scripted input.
+"""Recording the demo: a scripted session on the server side, and the page's "record" button.
 
-The same :class:`~minifilm.demo.character.Character` the server steps, fed the messages a page
-would send at given times (no network, no browser), so a recording shows exactly what the demo
-does. ``minifilm demo --record FILE.gif`` writes one with :func:`minifilm.viewer.write_gif`
-(the README's GIF).
+1. :func:`record_session` / :func:`record_gif`: the same :class:`~minifilm.demo.character.Character`
+   the server steps, fed the messages a page would send at given times (no network, no browser),
+   so a recording shows exactly what the demo does. ``minifilm demo --record FILE.gif`` writes one
+   with :func:`minifilm.viewer.write_gif` (the README's GIF).
+2. The page's record button: every frame a page's character shows is kept for the last
+   ``MAX_RECORD_SECONDS`` (:class:`FrameHistory`, filled by the server after each frame), and the
+   page's ``{"type": "record", "seconds": s, "gif": true}`` is answered by :func:`answer_record`
+   with ``{"type": "recording", "seq", "seconds", "frames", "fps", "bvh": text, "gif": bool}``:
+   the last ``s`` seconds as BVH on the source skeleton (the joints' predicted positions and axes
+   put back on it as ``minifilm generate`` does), at once; then, when a GIF was asked for,
+   ``{"type": "recordingGif", "seq", "gif": base64 or null, "note"}``: that BVH drawn by
+   ``minifilm view`` in a process of its own (tens of seconds on a busy machine) when matplotlib
+   and Pillow are installed on the server, else null and the note says why.
 """
 from __future__ import annotations
 
+import base64
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import threading
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Dict, List, Sequence, Tuple
+from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
 from minifilm.demo.calibrations import Calibrations
 from minifilm.demo.character import Character, DemoSettings
-from minifilm.demo.protocol import InputMessage, StyleMessage
+from minifilm.demo.protocol import InputMessage, StyleMessage, encode, error
 from minifilm.demo.source import DemoSource
 from minifilm.viewer import Track, write_gif
 
@@ -80,3 +97,131 @@ def record_gif(source: DemoSource, settings: DemoSettings, path, seconds: float 
                   trail=trail, root=J, joint_names=list(source.layout.joint_names) + ["(camera)"])
     write_gif(track, path, fps=fps, size=size)
     return Path(path)
+
+
+# ---------------------------------------------------------------------------------------------
+# The page's record button
+# ---------------------------------------------------------------------------------------------
+
+#: The longest stretch a page may ask for, seconds (and how much every character keeps).
+MAX_RECORD_SECONDS = 30.0
+#: A root moving further than this in one frame is a reset: the history starts again there.
+JUMP_METRES = 1.0
+GIF_FPS = 15.0
+GIF_TIMEOUT = 180.0      # seconds the GIF may take before the page gets the BVH alone
+
+
+@dataclass(frozen=True)
+class RecordMessage:
+    """The page asks for its character's last ``seconds`` as BVH (and GIF if ``gif``)."""
+
+    seconds: float
+    gif: bool = False
+    seq: Optional[int] = None
+
+
+class FrameHistory:
+    """The last ``seconds`` of one character's shown frames (a ring buffer): world joint positions,
+    forward and up axes (F, J, 3) and foot contacts (F, 2). :meth:`capture` runs on the frame
+    loop's thread after each frame, :meth:`last` on any other."""
+
+    def __init__(self, n_joints: int, fps: float, seconds: float = MAX_RECORD_SECONDS):
+        self.fps, self.size = float(fps), max(2, int(round(seconds * fps)))
+        self.pos, self.fwd, self.up = (np.zeros((self.size, n_joints, 3)) for _ in range(3))
+        self.contacts = np.zeros((self.size, 2))
+        self.count = 0
+        self.busy = False               # a recording is being made for this page
+        self._root = None
+        self._lock = threading.Lock()
+
+    def capture(self, state) -> None:
+        """Keep character 0 of a Controller state (``out_pos``, ``out_fwd``, ``out_up``, ``contacts``, ``root``)."""
+        root = np.asarray(state.root[0], dtype=np.float64)
+        with self._lock:
+            if self._root is not None and not np.hypot(*(root - self._root)) <= JUMP_METRES:
+                self.count = 0          # reset (or a NaN the guard will undo): nothing before it is kept
+            self._root = root.copy()
+            i = self.count % self.size
+            self.pos[i], self.fwd[i], self.up[i] = state.out_pos[0], state.out_fwd[0], state.out_up[0]
+            self.contacts[i] = state.contacts[0]
+            self.count += 1
+
+    def last(self, seconds: float) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Copies, oldest first, of the last ``seconds`` (or as many frames as there are)."""
+        with self._lock:
+            n = min(self.count, self.size, max(1, int(round(seconds * self.fps))))
+            idx = np.arange(self.count - n, self.count) % self.size
+            return self.pos[idx].copy(), self.fwd[idx].copy(), self.up[idx].copy(), self.contacts[idx].copy()
+
+
+def recording_motion(source: DemoSource, positions: np.ndarray, forward: np.ndarray, up: np.ndarray):
+    """The frames (F, J, 3) as a Motion on the source skeleton, as ``minifilm generate`` writes it."""
+    from minifilm.motion.retarget import axes_to_rotation, retarget
+    from minifilm.runtime.controller import root_joint_indices
+    joints = root_joint_indices(source.layout, source.skeleton)
+    return retarget(positions, axes_to_rotation(forward, up), source.skeleton, joints, frame_time=1.0 / source.fps)
+
+
+def bvh_scale(source: DemoSource) -> float:
+    """Metres per BVH unit of the source's skeleton: the released network's 100STYLE skeleton, else cm."""
+    if source.params is not None:
+        from minifilm.motion.skeletons import STYLE100
+        return STYLE100.bvh_scale
+    return 0.01
+
+
+def answer_record(source: DemoSource, history: FrameHistory, message: RecordMessage, title: str = "demo",
+                  send: Callable[[str], None] = None) -> List[str]:
+    """The answers to ``message``: the ``recording`` message (or an ``error`` one naming what went
+    wrong), then ``recordingGif`` if a GIF was asked for. Each is handed to ``send`` as soon as it
+    is ready (if given) and all are returned. Never raises: it runs beside the server for one page.
+    Slow (the BVH fit, the GIF): call it off the event loop."""
+    from minifilm.motion.bvh_write import format_bvh
+    out = []
+
+    def answer(text: str) -> None:
+        out.append(text)
+        if send is not None:
+            send(text)
+    try:
+        P, F, U, C = history.last(message.seconds)
+        if len(P) < 2:
+            answer(error("record: nothing to record yet (the character has shown fewer than two frames)", message.seq))
+            return out
+        bvh = format_bvh(recording_motion(source, P, F, U), scale=bvh_scale(source))
+        answer(encode({"type": "recording", "seq": message.seq, "seconds": round(len(P) / source.fps, 4),
+                       "frames": len(P), "fps": source.fps, "bvh": bvh, "gif": message.gif}))
+        if message.gif:
+            gif, note = _gif(bvh, source.fps, title)
+            answer(encode({"type": "recordingGif", "seq": message.seq, "gif": gif, "note": note}))
+    except Exception as e:  # noqa: BLE001 - a failed recording is the page's error, never the server's
+        answer(error(f"record: failed ({type(e).__name__}: {e})", message.seq))
+    return out
+
+
+def _gif(bvh: str, fps: float, title: str) -> Tuple[Optional[str], str]:
+    """(base64 GIF of the recorded BVH, "") or (None, why not). Drawn by ``minifilm view`` in a
+    process of its own at a lower priority: drawn in the server's process, a 10 s GIF held the
+    interpreter lock for most of 18 s and the frame loop fell to 39 frames a second."""
+    from minifilm.viewer.deps import check_output_tools
+    with tempfile.TemporaryDirectory(prefix="minifilm-record-") as folder:
+        path, source_bvh = Path(folder) / "recording.gif", Path(folder) / f"{_file_name(title)}.bvh"
+        try:
+            check_output_tools(path, "gif")
+        except ImportError as e:
+            return None, f"BVH only: no GIF without matplotlib and Pillow on the server ({e})"
+        source_bvh.write_text(bvh, encoding="utf-8")
+        every = max(1, int(math.floor(fps / GIF_FPS)))
+        lower = (lambda: os.nice(10)) if hasattr(os, "nice") else None
+        done = subprocess.run([sys.executable, "-m", "minifilm", "view", str(source_bvh), "--gif", str(path),
+                               "--every", str(every), "--size", "220", "280"],
+                              capture_output=True, text=True, timeout=GIF_TIMEOUT, preexec_fn=lower)
+        if done.returncode != 0 or not path.is_file():
+            why = (done.stderr.strip().splitlines() or ["no message"])[-1]
+            return None, f"BVH only: the GIF could not be made ({why[:200]})"
+        return base64.b64encode(path.read_bytes()).decode("ascii"), ""
+
+
+def _file_name(title: str) -> str:
+    name = "".join(c if c.isalnum() else "_" for c in title).strip("_")[:40]
+    return name or "recording"

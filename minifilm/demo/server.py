@@ -39,6 +39,7 @@ from minifilm.demo.character import Character, DemoSettings
 from minifilm.demo.hosts import HostAllowList, is_loopback, is_unspecified, parse_ip  # noqa: F401 (is_loopback: cli)
 from minifilm.demo.protocol import (MAX_MESSAGE_BYTES, PROTOCOL_VERSION, TRANSPORT_MAX_BYTES, PingMessage,
                                     ProtocolError, encode, error, parse_message, pong, refused)
+from minifilm.demo.record import FrameHistory, RecordMessage, answer_record
 from minifilm.demo.site import Site
 from minifilm.demo.source import DemoSource
 from minifilm.demo.stage import Stage, StageFull
@@ -229,8 +230,11 @@ class DemoServer:
         ConnectionClosed = self.modules[1]
         loop = asyncio.get_running_loop()
         outbox = Outbox()
+        history, joined = FrameHistory(self.source.layout.n_joints, self.source.fps), []
 
         def deliver(text: str, is_frame: bool) -> None:      # called by the frame loop's thread
+            if is_frame and joined:
+                history.capture(joined[0].ctrl.state)         # for the page's record button (record.py)
             try:
                 loop.call_soon_threadsafe(outbox.put, text, is_frame)
             except RuntimeError:      # the event loop has closed: the server is stopping
@@ -245,6 +249,7 @@ class DemoServer:
             except ConnectionClosed:
                 pass
             return
+        joined.append(character)
         outbox.put(self.hello(character), False)
         # frames over this page's budget never get here (budget.py); it is told once a second
         ws.on_over_budget = lambda text: outbox.put(error(text), False)
@@ -258,6 +263,8 @@ class DemoServer:
                     continue
                 if isinstance(message, PingMessage):
                     outbox.put(pong(message.t, message.seq), False)
+                elif isinstance(message, RecordMessage):
+                    self._record(loop, outbox, history, message)
                 else:
                     character.submit(message)
         except ConnectionClosed:
@@ -265,6 +272,24 @@ class DemoServer:
         finally:
             self.stage.leave(character)
             sender.cancel()
+
+    def _record(self, loop, outbox: Outbox, history: FrameHistory, message: RecordMessage) -> None:
+        """Answer a record message off the event loop (record.py), one at a time per page."""
+        if history.busy:
+            outbox.put(error("record: the last recording is still being made", message.seq), False)
+            return
+        history.busy = True
+
+        def send(text: str) -> None:          # from the executor's thread, as each answer is ready
+            try:
+                loop.call_soon_threadsafe(outbox.put, text, False)
+            except RuntimeError:              # the event loop has closed: the server is stopping
+                pass
+
+        def done(_) -> None:
+            history.busy = False
+        loop.run_in_executor(None, answer_record, self.source, history, message, self.source.name,
+                             send).add_done_callback(done)
 
     async def _send(self, ws, outbox: Outbox, sent=None) -> None:
         ConnectionClosed = self.modules[1]

@@ -3,8 +3,8 @@
 Only the exact paths of ``Site.files`` exist; every other path is 404, so no request can reach
 any other file (``/../``, ``%2e%2e``, absolute paths, backslashes are just unknown paths). The
 page is ``assets/demo.html``; its scripts are ``assets/demo.js`` (the page's own logic) and the
-viewer's ``scene.js`` (stage, floor, skeletons, orbit camera: the motion player's code, shared)
-and vendored three.js, found through an import map. Every response forbids anything from
+viewer's ``scene.js`` (stage, floor, skeletons, orbit camera: the motion player's code, shared),
+its ``mannequin.js`` (the shaded body) and vendored three.js, found through an import map. Every response forbids anything from
 elsewhere (``Content-Security-Policy``: scripts, styles and connections from this server only;
 the inline import map is allowed by its hash), so the page makes no request off this machine.
 """
@@ -16,11 +16,12 @@ import json
 from pathlib import Path
 from typing import Dict, Optional, Tuple
 
-from minifilm.viewer.html import SCENE_JS, THREE_JS, THREE_VERSION
+from minifilm.viewer.html import MANNEQUIN_JS, SCENE_JS, THREE_JS, THREE_VERSION
 
 HERE = Path(__file__).resolve().parent / "assets"
 
-IMPORT_MAP = json.dumps({"imports": {"three": "/three.module.min.js", "minifilm-scene": "/scene.js"}})
+IMPORT_MAP = json.dumps({"imports": {"three": "/three.module.min.js", "minifilm-scene": "/scene.js",
+                                     "minifilm-mannequin": "/mannequin.js"}})
 
 
 def _escape(text: str) -> str:
@@ -44,6 +45,7 @@ class Site:
             "/demo.js": ((HERE / "demo.js").read_bytes(), js),
             "/demo.css": ((HERE / "demo.css").read_bytes(), css),
             "/scene.js": (SCENE_JS.read_bytes(), js),
+            "/mannequin.js": (MANNEQUIN_JS.read_bytes(), js),
             "/three.module.min.js": (THREE_JS.read_bytes(), js),
         }
 

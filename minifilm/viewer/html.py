@@ -7,7 +7,9 @@ The page is ``assets/player.html`` with five things inlined:
   on a page opened with ``file://``: no server, no CDN, no network request. (An inline module
   cannot import a file by name, and a ``file://`` page may not fetch its neighbours.)
 - ``assets/scene.js`` (stage, floor, skeletons, labels, orbit camera; shared with the live demo
-  of ``minifilm.demo``, which serves it as a file) the same way, as the entry ``"minifilm-scene"``.
+  of ``minifilm.demo``, which serves it as a file) the same way, as the entry ``"minifilm-scene"``,
+  and ``assets/mannequin.js`` (the shaded body drawn over the skeleton, also shared with the demo)
+  as ``"minifilm-mannequin"``.
 - ``assets/player.js`` (the player) and ``assets/player.css``.
 - The motion data as JSON (``encode.py``: float32 roots + int16 offsets in base64).
 
@@ -36,6 +38,7 @@ __all__ = ["write_html", "page_html", "lane_offsets"]
 HERE = Path(__file__).resolve().parent
 THREE_JS = HERE / "vendor" / "three.module.min.js"
 SCENE_JS = HERE / "assets" / "scene.js"
+MANNEQUIN_JS = HERE / "assets" / "mannequin.js"
 THREE_VERSION = "0.170.0"
 
 
@@ -68,6 +71,7 @@ def page_html(tracks: List[Track], title: str = "minifilm motion") -> str:
         "CSS": _asset("player.css"),
         "THREE": base64.b64encode(THREE_JS.read_bytes()).decode("ascii"),
         "SCENE": base64.b64encode(SCENE_JS.read_bytes()).decode("ascii"),
+        "MANNEQUIN": base64.b64encode(MANNEQUIN_JS.read_bytes()).decode("ascii"),
         "DATA": _json_for_script(data),
         "JS": _asset("player.js"),
         "THREE_VERSION": THREE_VERSION,

@@ -10,6 +10,7 @@ reach the server; closing the tab frees the character for another page. The moti
 the authors' released network (a miniature model trained in a second does not follow commands);
 without it the page is served from a miniature run folder and they skip.
 """
+import importlib.util
 import io
 import time
 
@@ -111,7 +112,8 @@ def test_page_loads_without_errors_and_requests_nothing_off_this_machine(page, s
     assert page.requests[0] == local and page.sockets == [f"ws://127.0.0.1:{server.port}/ws"]
     hello = page.js("minifilmDemo.hello")
     assert len(hello["styles"]) == (100 if HAS_RELEASED else 2) and hello["fps"] == pytest.approx(60, rel=1e-6)
-    assert page.js("document.getElementById('style').options.length") == len(hello["styles"])
+    # every style, plus the entry that shows a blend (empty value, hidden until there is one)
+    assert page.js("[...document.getElementById('style').options].filter(o => o.value).length") == len(hello["styles"])
     image = np.array(Image.open(io.BytesIO(page.page.locator("#view canvas").screenshot())).convert("RGB")).astype(int)
     assert ((image.max(axis=-1) - image.min(axis=-1)) > 60).sum() > 300     # the coloured skeleton is drawn
     assert page.errors() == []
@@ -247,3 +249,153 @@ def test_closing_the_tab_frees_its_character(browser, server):
     finally:
         for c in others:
             c.close()
+
+
+# ---- the page as a user reads it (issue 26) --------------------------------------------------
+
+DASH = "\u2014"
+
+
+def readouts(page) -> dict:
+    return page.js("Object.fromEntries([...document.querySelectorAll('#readouts td')].map(t => [t.id, t.textContent]))")
+
+
+def test_read_outs_show_a_dash_until_they_have_data(page):
+    # no key pressed yet: the page has sent nothing, so there is no input -> motion time to show
+    settle(page, 1.5)
+    assert page.js("minifilmDemo.sent") == 0 and page.js("minifilmDemo.latencyMs") is None
+    values = readouts(page)
+    assert values["latency"] == DASH, values
+    assert values["fps"].endswith(" / s") and values["commanded"].endswith(" m/s"), values
+    page.hold("KeyW", 0.5)
+    page.wait(f"document.getElementById('latency').textContent !== '{DASH}'")
+    assert readouts(page)["latency"].endswith(" ms") and page.js("minifilmDemo.latencyMs") > 0
+
+
+def test_the_trail_stays_drawn_after_ten_seconds_of_walking(page, released):
+    page.hold("KeyW", 10.0)
+    trail = page.js("minifilmDemo.trail()")
+    points = np.array(trail["points"]).reshape(-1, 3)
+    assert trail["count"] == len(points) >= 200                       # drawn: the whole kept path
+    assert np.hypot(*(points[-1, [0, 2]] - points[0, [0, 2]])) > 4.0   # and it reaches far from the start
+    # three.js draws the line only if its bounds are in view (or it is never culled)
+    assert trail["inView"] and (trail["boundsHoldLast"] or not trail["culled"]), trail
+    assert page.errors() == []
+
+
+def test_back_to_the_start_leaves_no_stray_segment(page, released):
+    page.hold("KeyW", 3.0)
+    page.page.click("#reset")
+    page.wait("minifilmDemo.frame.ack !== null && Math.hypot(...minifilmDemo.frame.root) < 0.3")
+    settle(page, 0.5)
+    points = np.array(page.js("minifilmDemo.trail()")["points"]).reshape(-1, 3)[:, [0, 2]]
+    steps = np.hypot(*np.diff(points, axis=0).T)
+    assert len(points) > 5 and np.hypot(*points[0]) < 0.3, points[:3]   # the path starts again at the start
+    assert steps.max() < 0.2, steps.max()                                # no line back from where it was
+
+
+def test_the_mannequin_draws_and_the_sticks_are_a_toggle(page):
+    meshes = page.js("minifilmDemo.visibleMeshes()")
+    J = len(page.js("minifilmDemo.hello.parents"))
+    assert meshes["body"] >= 2 * J and meshes["sticks"] == 0, meshes  # limbs, joints, head, shadow
+    page.page.keyboard.press("KeyK")                                    # sticks on, over the body
+    page.wait("minifilmDemo.visibleMeshes().sticks > 0")
+    page.page.keyboard.press("KeyB")                                    # body off: sticks only
+    page.wait("minifilmDemo.visibleMeshes().body === 0")
+    page.page.uncheck("#sticks")                                        # neither: the sticks stay
+    assert page.js("minifilmDemo.visibleMeshes().sticks") == 2 * J - 1
+    page.page.check("#body")
+    image = np.array(Image.open(io.BytesIO(page.page.locator("#view canvas").screenshot())).convert("RGB")).astype(int)
+    assert ((image.max(axis=-1) - image.min(axis=-1)) > 40).sum() > 1000   # a shaded body, not thin lines
+    assert page.errors() == []
+
+
+def test_the_picker_and_the_label_show_the_mix_after_a_blend(page):
+    names = page.js("minifilmDemo.hello.styles")
+    a, b, c = (["Neutral", "Old", "Zombie"] if "Old" in names else (names * 3)[:3])
+    assert page.js("minifilmDemo.label().text") == page.js("Object.keys(minifilmDemo.frame.target)[0]")
+    page.js(f"minifilmDemo.setCorners(['{a}', '{b}', '{c}'])")
+    page.js("minifilmDemo.setBlend([0.6, 0.4, 0])")
+    expected = f"{a} 60 % + {b} 40 %" if a != b else a
+    page.wait(f"document.getElementById('style').selectedOptions[0].textContent === '{expected}'", timeout=30)
+    # once the 1 s transition is over (longer in wall time when a busy machine slows the frame loop)
+    page.wait(f"minifilmDemo.label().text === '{expected}'", timeout=30)
+    label, root = page.js("minifilmDemo.label().position"), page.frame()["root"]
+    assert abs(label[0] - root[0]) < 0.3 and abs(label[2] - root[1]) < 0.3 and label[1] > 1.2   # above the head
+    page.page.select_option("#style", c)                                  # one style again
+    page.wait(f"document.getElementById('style').selectedOptions[0].textContent === '{c}'", timeout=30)
+
+
+def test_the_search_box_filters_the_styles_and_names_the_held_out_ones(page, released):
+    assert page.js("minifilmDemo.search('zomb')") == ["Zombie"]
+    assert page.js("document.getElementById('found').textContent") == "1 of 100 styles"
+    # the five fine-tuned ids say what they are, and are found by it
+    assert page.js("minifilmDemo.search('held-out')") == ["095", "096", "097", "098", "099"]
+    shown = page.js("[...document.querySelectorAll('#style option')].filter(o => !o.hidden).map(o => o.textContent)")
+    names = ["Roadrunner", "ShieldedLeft", "Skip", "Star", "WildArms"]
+    assert shown == [f"09{5 + i} (probably {n}, held-out)" for i, n in enumerate(names)]
+    assert page.js("minifilmDemo.search('skip')") == ["097"]
+    page.page.fill("#search", "arms above")
+    page.page.press("#search", "Enter")                                  # Enter picks the first one left
+    page.wait("minifilmDemo.frame.target.ArmsAboveHead === 1")
+    page.page.fill("#search", "")
+    page.page.dispatch_event("#search", "input")
+    assert page.js("[...document.querySelectorAll('#style option')].filter(o => !o.hidden).length") == 100
+
+
+def test_the_camera_switch_moves_the_camera(page):
+    def seen_from():
+        """(mode, cosine of the camera's bearing from the character with its heading, camera position)"""
+        cam = page.js("minifilmDemo.camera()")
+        offset = np.subtract(cam["position"], cam["target"])[[0, 2]]
+        return cam["mode"], offset @ np.array(page.frame()["heading"]) / np.hypot(*offset), cam["position"]
+
+    def until(check, timeout=20.0):      # the camera swings over about a second of drawn frames
+        for _ in range(int(timeout / 0.1)):
+            seen = seen_from()
+            if check(*seen):
+                return seen
+            page.page.wait_for_timeout(100)
+        raise AssertionError(f"camera not there within {timeout} s: {seen}")
+
+    until(lambda mode, along, _: mode == "follow" and along < -0.5)                  # behind the character
+    page.page.keyboard.press("Digit2")
+    _, _, front = until(lambda mode, along, _: mode == "front" and along > 0.9)        # in front of it
+    page.page.click("#cam-side")
+    _, _, side = until(lambda mode, along, _: mode == "side" and abs(along) < 0.2)     # beside it
+    assert np.linalg.norm(np.subtract(front, side)) > 1.0
+    page.page.keyboard.press("KeyP")                                     # pause: the picture stops
+    assert page.js("minifilmDemo.paused") is True
+    shown = page.js("minifilmDemo.shownJoints()")
+    settle(page, 0.5)
+    assert page.js("minifilmDemo.shownJoints()") == shown
+    page.page.keyboard.press("KeyP")
+    assert page.js("minifilmDemo.paused") is False and page.errors() == []
+
+
+def test_record_downloads_a_bvh_that_minifilm_reads_back(page, tmp_path):
+    from minifilm.motion.bvh import read_bvh
+    page.wait("minifilmDemo.frame.n > 330", timeout=60)                 # the character has shown over 5 s
+    page.page.select_option("#recordSeconds", "5")
+    with page.page.expect_download(timeout=120000) as download:
+        page.page.click("#record")
+    path = tmp_path / download.value.suggested_filename
+    download.value.save_as(path)
+    assert path.suffix == ".bvh" and path.name.startswith("minifilm-")
+    motion = read_bvh(path)
+    assert motion.n_frames == 300 and motion.frame_time == pytest.approx(1 / 60, rel=1e-4)
+    P, _ = motion.world()
+    height = P[:, :, 1].max(axis=1) - P[:, :, 1].min(axis=1)            # whatever the file's unit
+    assert np.all(height > 0) and height.std() / height.mean() < 0.2   # one upright body all along
+    rec = page.js("minifilmDemo.lastRecording")
+    assert rec["frames"] == 300 and rec["seconds"] == pytest.approx(5.0)
+    assert "saved" in page.js("document.getElementById('recordStatus').textContent")
+    # then the GIF (drawn on the server in a process of its own), or a note saying why there is none
+    page.wait("minifilmDemo.lastRecording.gif !== 'coming'", timeout=240)
+    rec = page.js("minifilmDemo.lastRecording")
+    has_gif_tools = all(importlib.util.find_spec(m) is not None for m in ("PIL", "matplotlib"))
+    if has_gif_tools:
+        assert rec["gif"] > 1000 and page.js("document.querySelector('#recordStatus a').download") == rec["name"] + ".gif"
+    else:
+        assert rec["gif"] is None and "BVH only" in rec["note"]
+    assert page.errors() == []

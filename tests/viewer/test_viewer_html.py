@@ -144,3 +144,30 @@ def test_contacts_toggle_recolours_the_feet(scene):
         rgb = im.astype(int)
         return ((rgb[..., 0] > 180) & (rgb[..., 1] > 140) & (rgb[..., 2] < 80)).sum()
     assert yellow(on) > 10 and yellow(off) == 0
+
+
+def test_the_mannequin_is_drawn_by_default_and_the_sticks_are_a_toggle(scene):
+    """The shaded body (mannequin.js): limbs, joints, head and shadow per character, no console
+    error; K shows the sticks, B hides the body, and the picture changes with each."""
+    page = scene["page"]
+    page.js("minifilmPlayer.pause()")
+    page.js("minifilmPlayer.setFrame(120)")
+    joints = sum(c["nJoints"] for c in page.js("minifilmPlayer.characters"))
+    n = len(page.js("minifilmPlayer.characters"))
+    meshes = page.js("minifilmPlayer.visibleMeshes()")
+    # per character up to a limb per bone (J - 1) and a ball per joint (J) (none for joints inside
+    # the head: an end site above it, the eyes), a head, a nose and a shadow
+    assert joints + 3 * n <= meshes["body"] <= 2 * joints + 2 * n and meshes["sticks"] == 0, meshes
+    body = page.canvas()
+    page.page.keyboard.press("KeyB")                   # body off: the sticks take its place
+    assert page.js("minifilmPlayer.visibleMeshes()") == {"body": 0, "sticks": 2 * joints - n}
+    sticks = page.canvas()
+    page.page.keyboard.press("KeyK")                   # sticks on as well: nothing left off...
+    page.page.keyboard.press("KeyB")                   # ...body back, sticks kept
+    assert page.js("minifilmPlayer.visibleMeshes()") == {"body": meshes["body"], "sticks": 2 * joints - n}
+    page.js("minifilmPlayer.setToggle('sticks', false)")
+    # a body covers more of the picture than sticks do
+    background = np.array([0xf4, 0xf5, 0xf7])
+    covered = lambda im: (np.abs(im.astype(int) - background).max(axis=-1) > 40).sum()  # noqa: E731
+    assert covered(body) > 1.5 * covered(sticks), (covered(body), covered(sticks))
+    assert page.errors() == []

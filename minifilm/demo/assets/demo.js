@@ -3,20 +3,37 @@
 // The character's state lives on the server (minifilm/demo/): this page opens one WebSocket at
 // /ws, gets a "hello" (skeleton, styles, settings), then a "frame" every 1/60 s, and sends
 // "input" whenever what is held changes (keys or gamepad), "style" for the picker and the blend
-// triangle, "settings" for the toggles (protocol: minifilm/demo/protocol.py). The drawing is the
-// motion player's (scene.js). For tests and scripts the page exposes window.minifilmDemo (see
-// the end of this file).
+// triangle, "settings" for the toggles, "record" for the record button (answered with
+// "recording" (BVH text, which the page downloads) and "recordingGif" (a GIF to save, or why not); protocol:
+// minifilm/demo/protocol.py and record.py). The drawing is the motion player's: scene.js (stage,
+// floor, sticks, labels) and mannequin.js (the shaded body, on by default). For tests and scripts
+// the page exposes window.minifilmDemo (see the end of this file).
+//
+// What the page shows is only what it has: read-outs say "—" until their first value, the
+// input -> motion time is measured only for the user's own input messages, and frames received is
+// the number that arrived in the last second.
 import * as THREE from 'three';
-import { COLOURS, addFloor, createStage, highlightJoint, orbitControls, placeCamera, poseSkeleton,
-         skeletonKit } from 'minifilm-scene';
+import { COLOURS, addFloor, createStage, highlightJoint, makeLabel, orbitControls, placeCamera, poseSkeleton,
+         setSkeletonVisible, skeletonKit } from 'minifilm-scene';
+import { mannequinKit, poseMannequin, setMannequinVisible } from 'minifilm-mannequin';
 
 const $ = id => document.getElementById(id);
 const DEADZONE = 0.15;       // gamepad sticks rest a little off zero
 const CHASE_SECONDS = 0.5;   // the camera swings behind the heading over about this long
+const NONE = '\u2014';       // a read-out with no data yet
+// The released network's styles 095-099 were fine-tuned on the five styles held out of training
+// (Roadrunner, ShieldedLeft, Skip, Star, WildArms); which id is which is not documented
+// (docs/original-code.md, the data folder's README). Alphabetical, as 000-094 are, is the guess
+// shown ("probably"): it agrees with how the three most distinctive ones move when walked with the
+// demo's character (097's hips bounce most, 098 holds arms and feet widest, 099's hands move
+// fastest), and nothing measured contradicts it for 095 and 096.
+const HELD_OUT = { '095': 'Roadrunner', '096': 'ShieldedLeft', '097': 'Skip', '098': 'Star', '099': 'WildArms' };
+const HELD_OUT_IDS = Object.keys(HELD_OUT);
 
 const demo = {
   ready: false, connected: false, closed: false, hello: null, frame: null, frames: 0,
-  refused: null, errors: [], notices: [], latencyMs: null, sent: 0,
+  refused: null, errors: [], notices: [], latencyMs: null, sent: 0, paused: false, cameraMode: 'follow',
+  recordings: [], lastRecording: null,
 };
 window.minifilmDemo = demo;
 
@@ -59,7 +76,12 @@ ws.addEventListener('message', e => {
   const m = JSON.parse(e.data);
   if (m.type === 'frame') onFrame(m);
   else if (m.type === 'hello') setup(m);
-  else if (m.type === 'error') { demo.errors.push(m); toast('refused: ' + m.message, 'error'); }
+  else if (m.type === 'recording') onRecording(m);
+  else if (m.type === 'recordingGif') onRecordingGif(m);
+  else if (m.type === 'error') {
+    demo.errors.push(m); toast('refused: ' + m.message, 'error');
+    if (m.seq !== null && m.seq === recordPending) { recordPending = null; $('recordStatus').textContent = m.message; }
+  }
   else if (m.type === 'notice') { demo.notices.push(m); toast(m.message, 'notice'); }
   else if (m.type === 'refused') {
     demo.refused = m.message;
@@ -73,7 +95,8 @@ ws.addEventListener('message', e => {
 // Scene (built on hello, when the skeleton is known)
 // ---------------------------------------------------------------------------------------------
 
-let stage = null, actor = null, floor = null, trail = null, arrow = null, SIZE = 1.7;
+let stage = null, actor = null, body = null, label = null, floor = null, trail = null, arrow = null, SIZE = 1.7;
+let heldOut = new Set();
 const orbit = { target: new THREE.Vector3(0, 0.9, 0), radius: 5, azimuth: Math.PI + 0.5, elevation: 0.3 };
 const chase = { offset: 0.5, set: Math.PI + 0.5 };   // azimuth offset from behind the heading
 const TRAIL = 600;                                    // the root's last 10 s at 60 fps
@@ -86,7 +109,10 @@ function setup(h) {
   floor = addFloor(stage.scene, SIZE, 60, 0.5);
   const group = new THREE.Group();
   stage.scene.add(group);
-  actor = skeletonKit(SIZE).build(group, h.parents, COLOURS[(h.id - 1) % COLOURS.length]);
+  const colour = COLOURS[(h.id - 1) % COLOURS.length];
+  actor = skeletonKit(SIZE).build(group, h.parents, colour);
+  body = mannequinKit(SIZE).build(group, h.parents, colour, h.joints);
+  showBody();
   const geometry = new THREE.BufferGeometry();
   geometry.setAttribute('position', new THREE.BufferAttribute(new Float32Array(3 * TRAIL), 3));
   trail = new THREE.Line(geometry, new THREE.LineBasicMaterial({ color: 0x8890a0 }));
@@ -94,15 +120,24 @@ function setup(h) {
   arrow = new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 1, 0x2ca02c, 0.15, 0.08);
   stage.scene.add(arrow);
   orbit.radius = 3.2 * SIZE;
-  orbitControls(stage.renderer.domElement, orbit, stage.camera, SIZE, () => { $('follow').checked = false; });
+  orbitControls(stage.renderer.domElement, orbit, stage.camera, SIZE, () => setCamera('free'));
   window.addEventListener('resize', stage.resize);
   stage.resize();
 
+  heldOut = new Set(h.styles.length === 100 && HELD_OUT_IDS.every(n => h.styles.includes(n)) ? HELD_OUT_IDS : []);
   for (const id of ['style', 'corner0', 'corner1', 'corner2']) {
-    for (const name of h.styles) $(id).add(new Option(name, name));
+    const heldOutGroup = document.createElement('optgroup');
+    heldOutGroup.label = 'fine-tuned on the 5 held-out styles (which is which: a guess, not documented)';
+    for (const name of h.styles) {
+      const option = new Option(displayName(name), name);
+      option.dataset.search = (heldOut.has(name) ? `${name} ${HELD_OUT[name]} held-out fine-tuned` : name).toLowerCase();
+      (heldOut.has(name) ? heldOutGroup : $(id)).appendChild(option);
+    }
+    if (heldOutGroup.children.length) $(id).appendChild(heldOutGroup);
   }
   const start = Object.keys(h.style)[0];
   $('style').value = start;
+  search();
   const others = h.styles.filter(n => n !== start);
   [start, others[0] || start, others[1] || start].forEach((n, i) => { $('corner' + i).value = n; });
   $('footLock').checked = h.settings.footLock;
@@ -114,36 +149,51 @@ function setup(h) {
 function onFrame(f) {
   demo.frame = f;
   demo.frames++;
+  const now = performance.now();
   if (f.ack !== null && sentAt.size) {
     for (const [s, at] of sentAt) {
       if (s <= f.ack) {
-        // the first frame made with this message: the time from input to motion
-        if (s === f.ack) demo.latencyMs = performance.now() - at;
+        // the first frame made with this input: the time from the user's input to motion
+        if (s === f.ack && inputSeqs.has(s)) demo.latencyMs = now - at;
         sentAt.delete(s);
+        inputSeqs.delete(s);
       }
     }
   }
   frameTimes.push(f.frameMs);
   if (frameTimes.length > 60) frameTimes.shift();
-  arrivals.push(performance.now());
-  if (arrivals.length > 61) arrivals.shift();
+  if (firstArrival === null) firstArrival = now;
+  arrivals.push(now);
+  while (arrivals[0] < now - 1000) arrivals.shift();
+  // "back to the start": the path so far ends with the first frame made after the reset (until
+  // then the frames in flight still continue it), so no line joins the old place to the start
+  if (resetSeq !== null && f.ack !== null && f.ack >= resetSeq) { trailPoints.length = 0; resetSeq = null; }
+  const n = trailPoints.length;
+  if (n && Math.hypot(f.root[0] - trailPoints[n - 3], f.root[1] - trailPoints[n - 1]) > 1.0) trailPoints.length = 0;
   trailPoints.push(f.root[0], 0.003 * SIZE, f.root[1]);
   if (trailPoints.length > 3 * TRAIL) trailPoints.splice(0, 3);
   fresh = true;
 }
 
-let fresh = false;
-const frameTimes = [], arrivals = [];
+let fresh = false, firstArrival = null, resetSeq = null;
+const frameTimes = [], arrivals = [], inputSeqs = new Set();
 
 function pose() {
   const f = demo.frame, p = f.positions;
-  poseSkeleton(actor, (j, out) => out.set(p[3 * j], p[3 * j + 1], p[3 * j + 2]));
-  const toes = demo.hello.contactJoints;
-  toes.forEach((j, k) => { if (f.contacts[k] >= 0.5) highlightJoint(actor, j); });
+  const top = poseSkeleton(actor, (j, out) => out.set(p[3 * j], p[3 * j + 1], p[3 * j + 2]));
+  const toes = demo.hello.contactJoints.filter((j, k) => f.contacts[k] >= 0.5);
+  toes.forEach(j => highlightJoint(actor, j));
+  poseMannequin(body, actor, toes);
+  if (!label) setLabel(mixText(f.weights));   // its text follows the mix in readouts(), 10 times a second
+  label.position.set(f.root[0], top + 0.12 * SIZE, f.root[1]);
+  // The trail's points change every frame, and three.js culls a line by its bounding sphere, which
+  // it computes once (at the first draw, around the origin) and never again: without this the
+  // line vanished once the character had walked a few metres away from where it started.
   const a = trail.geometry.attributes.position;
   a.array.set(trailPoints);
   a.needsUpdate = true;
   trail.geometry.setDrawRange(0, trailPoints.length / 3);
+  trail.geometry.computeBoundingSphere();
   const v = f.velocity, speed = Math.hypot(v[0], v[1]);
   arrow.visible = speed > 1e-3;
   if (arrow.visible) {
@@ -151,6 +201,33 @@ function pose() {
     arrow.setDirection(new THREE.Vector3(v[0] / speed, 0, v[1] / speed));
     arrow.setLength(0.25 + 0.35 * speed, 0.15, 0.08);
   }
+}
+
+function setLabel(text) {
+  if (label) { stage.scene.remove(label); label.material.map.dispose(); label.material.dispose(); }
+  label = makeLabel(text, COLOURS[(demo.hello.id - 1) % COLOURS.length]);
+  label.userData.text = text;
+  stage.scene.add(label);
+}
+
+// The body (mannequin) and the sticks: each on or off; with neither the sticks are shown.
+function showBody() {
+  if (!body) return;
+  setMannequinVisible(body, $('body').checked);
+  setSkeletonVisible(actor, $('sticks').checked || !$('body').checked);
+}
+for (const id of ['body', 'sticks']) $(id).addEventListener('change', e => { showBody(); e.target.blur(); });
+
+// A style as the user knows it: the held-out ids say what they are.
+function displayName(name) {
+  return heldOut.has(name) ? `${name} (probably ${HELD_OUT[name]}, held-out)` : name;
+}
+
+// A mix as a user reads it: "Neutral 60 % + Old 40 %", or just the name of a single style.
+function mixText(weights) {
+  const parts = Object.entries(weights).filter(([, w]) => w >= 0.005).sort((a, b) => b[1] - a[1]);
+  if (parts.length <= 1) return parts.length ? displayName(parts[0][0]) : '';
+  return parts.map(([n, w]) => `${displayName(n)} ${Math.round(100 * w)} %`).join(' + ');
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -165,12 +242,20 @@ function readouts() {
   $('commanded').textContent = `${f.commanded.toFixed(2)} m/s`;
   $('actual').textContent = `${f.speed.toFixed(2)} m/s`;
   $('frametime').textContent = `${median(frameTimes).toFixed(2)} ms`;   // median of the last 60
-  const span = (arrivals[arrivals.length - 1] - arrivals[0]) / 1000;
-  $('fps').textContent = arrivals.length > 1 ? `${((arrivals.length - 1) / span).toFixed(1)} / s` : '-';
-  $('latency').textContent = demo.latencyMs === null ? '-' : `${demo.latencyMs.toFixed(0)} ms`;
-  const mix = Object.entries(f.weights).sort((a, b) => b[1] - a[1]).map(([n, w]) => `${n} ${w.toFixed(2)}`);
-  const target = Object.keys(f.target).join(' + ');
-  $('mix').textContent = `now ${mix.join(' · ')}` + (mix.length > 1 || !(target in f.weights) ? ` → ${target}` : '') +
+  // frames that arrived in the last second, once the page has been receiving for a second
+  const now = performance.now();
+  while (arrivals.length && arrivals[0] < now - 1000) arrivals.shift();
+  demo.framesPerSecond = now - firstArrival >= 1000 ? arrivals.length : null;
+  $('fps').textContent = demo.framesPerSecond === null ? NONE : `${demo.framesPerSecond} / s`;
+  $('latency').textContent = demo.latencyMs === null ? NONE : `${demo.latencyMs.toFixed(0)} ms`;
+  showPicked(f.target);
+  const text = mixText(f.weights);
+  if (!label || label.userData.text !== text) setLabel(text);
+  const mix = Object.entries(f.weights).sort((a, b) => b[1] - a[1]).map(([n, w]) => `${displayName(n)} ${w.toFixed(2)}`);
+  const target = mixText(f.target);
+  const arrived = Object.keys(f.target).length === Object.keys(f.weights).length &&
+    Object.entries(f.target).every(([n, w]) => Math.abs((f.weights[n] ?? -1) - w) < 0.005);
+  $('mix').textContent = `now ${mix.join(' · ')}` + (arrived ? '' : ` → ${target}`) +
     (f.calibrated ? '' : ' (speed calibration on its way)');
   for (let k = 0; k < 4; k++) dial(k, f.phases[2 * k], f.phases[2 * k + 1]);
 }
@@ -201,14 +286,26 @@ const COLOURS_CSS = ['#1f77b4', '#d62728', '#2ca02c', '#9467bd'];
 const held = new Set();
 const KEYS = new Set(['KeyW', 'KeyA', 'KeyS', 'KeyD', 'KeyQ', 'KeyE', 'ArrowUp', 'ArrowDown', 'ArrowLeft',
                       'ArrowRight', 'ShiftLeft', 'ShiftRight']);
-let lastInput = '';
+// Nothing held is what the server starts with: nothing is sent until the user holds something.
+let lastInput = JSON.stringify({ type: 'input', move: [0, 0], turn: 0, speed: 0 });
 
 function typing(e) {
   const t = e.target;
-  return t && (t.tagName === 'SELECT' || (t.tagName === 'INPUT' && t.type === 'text'));
+  return t && (t.tagName === 'SELECT' || (t.tagName === 'INPUT' && (t.type === 'text' || t.type === 'search')));
 }
 
+// Keys that are not movement: camera, pause, body, sticks, record.
+const COMMANDS = {
+  Digit1: () => setCamera('follow'), Digit2: () => setCamera('front'), Digit3: () => setCamera('side'),
+  KeyP: () => setPaused(!demo.paused), KeyR: () => record(),
+  KeyB: () => { $('body').checked = !$('body').checked; showBody(); },
+  KeyK: () => { $('sticks').checked = !$('sticks').checked; showBody(); },
+};
+
 window.addEventListener('keydown', e => {
+  if (COMMANDS[e.code] && !typing(e) && !e.repeat && !e.ctrlKey && !e.metaKey && !e.altKey) {
+    e.preventDefault(); COMMANDS[e.code](); return;
+  }
   if (!KEYS.has(e.code) || typing(e)) return;
   e.preventDefault();
   held.add(e.code);
@@ -256,7 +353,8 @@ function sendInput() {
   const input = currentInput();
   const key = JSON.stringify(input);
   if (key === lastInput) return;
-  if (send(input) !== null) lastInput = key;   // not yet connected: try again next frame
+  const s = send(input);
+  if (s !== null) { lastInput = key; inputSeqs.add(s); }   // not yet connected: try again next frame
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -270,7 +368,45 @@ function setStyle(name) {
   $('style').value = name;
   return send({ type: 'style', weights: { [name]: 1 }, seconds: transition() });
 }
-$('style').addEventListener('change', e => { setStyle(e.target.value); e.target.blur(); });
+$('style').addEventListener('change', e => { if (e.target.value) setStyle(e.target.value); e.target.blur(); });
+
+// The picker shows where the style is going: one style, or the blend ("Neutral 60 % + Old 40 %")
+// as a first entry that cannot be picked. Not while the user has the list open.
+function showPicked(target) {
+  const select = $('style'), names = Object.keys(target);
+  if (document.activeElement === select) return;
+  const mix = $('mixOption');
+  if (names.length === 1) {
+    mix.hidden = true;
+    if (select.value !== names[0]) select.value = names[0];
+  } else {
+    mix.textContent = mixText(target);
+    mix.hidden = false;
+    select.value = '';
+  }
+}
+
+// The search box keeps the styles whose name (or, for the held-out ids, what is known of them)
+// contains what is typed; Enter picks the first one left.
+function search() {
+  const words = $('search').value.trim().toLowerCase().split(/\s+/).filter(Boolean);
+  const options = [...$('style').querySelectorAll('option')].filter(o => o.id !== 'mixOption');
+  let shown = 0;
+  for (const o of options) {
+    o.hidden = !words.every(w => o.dataset.search.includes(w));
+    if (!o.hidden) shown++;
+  }
+  for (const g of $('style').querySelectorAll('optgroup')) g.hidden = ![...g.children].some(o => !o.hidden);
+  $('found').textContent = words.length ? (shown ? `${shown} of ${options.length} styles` : 'no style matches') : '';
+  return options.filter(o => !o.hidden).map(o => o.value);
+}
+$('search').addEventListener('input', search);
+$('search').addEventListener('keydown', e => {
+  if (e.key === 'Enter') {
+    const found = search();
+    if (found.length) { setStyle(found[0]); e.target.blur(); }
+  } else if (e.key === 'Escape') { e.target.value = ''; search(); e.target.blur(); }
+});
 
 const tri = $('triangle');
 const corners = () => {
@@ -336,7 +472,100 @@ drawTriangle();
 for (const name of ['footLock', 'fit']) {
   $(name).addEventListener('change', e => { send({ type: 'settings', [name]: e.target.checked }); e.target.blur(); });
 }
-$('reset').addEventListener('click', e => { send({ type: 'reset' }); trailPoints.length = 0; e.target.blur(); });
+$('reset').addEventListener('click', e => {
+  const s = send({ type: 'reset' });
+  if (s !== null) resetSeq = s;           // the trail starts again with the first frame after it (onFrame)
+  e.target.blur();
+});
+
+// ---------------------------------------------------------------------------------------------
+// Camera modes (follow: behind the heading; front; side; free: after a pan), pause
+// ---------------------------------------------------------------------------------------------
+
+// offset of the camera's azimuth from behind the heading, and its elevation (radians)
+const CAMERA = { follow: { offset: 0.5, elevation: 0.3 }, front: { offset: -Math.PI, elevation: 0.1 },
+                 side: { offset: -Math.PI / 2, elevation: 0.1 } };
+
+function setCamera(mode) {
+  demo.cameraMode = mode;
+  if (CAMERA[mode]) {
+    chase.offset = CAMERA[mode].offset;
+    orbit.elevation = CAMERA[mode].elevation;
+  }
+  for (const b of document.querySelectorAll('button.camera')) b.classList.toggle('on', b.dataset.mode === mode);
+}
+for (const b of document.querySelectorAll('button.camera')) {
+  b.addEventListener('click', e => { setCamera(b.dataset.mode); e.target.blur(); });
+}
+
+// Pause freezes the picture (the camera still orbits); the character goes on on the server.
+function setPaused(on) {
+  demo.paused = on;
+  $('pause').textContent = on ? 'resume' : 'pause';
+  $('pause').classList.toggle('on', on);
+}
+$('pause').addEventListener('click', e => { setPaused(!demo.paused); e.target.blur(); });
+
+// ---------------------------------------------------------------------------------------------
+// Record: the server keeps each character's last 30 s; the page asks for the last few seconds and
+// downloads the BVH it answers with (and offers the GIF when the server could make one)
+// ---------------------------------------------------------------------------------------------
+
+let recordPending = null;
+
+function record() {
+  if (recordPending !== null || !demo.ready) return null;
+  const seconds = Number($('recordSeconds').value);
+  const s = send({ type: 'record', seconds, gif: true });
+  if (s === null) return null;
+  recordPending = s;
+  $('recordStatus').textContent = `making the last ${seconds} s\u2026`;
+  return s;
+}
+$('record').addEventListener('click', e => { record(); e.target.blur(); });
+
+function download(data, name, type) {
+  const url = URL.createObjectURL(new Blob([data], { type }));
+  const a = document.createElement('a');
+  a.href = url; a.download = name;
+  document.body.appendChild(a); a.click(); a.remove();
+  setTimeout(() => URL.revokeObjectURL(url), 60000);
+  return url;
+}
+
+function onRecording(m) {
+  if (m.seq === recordPending) recordPending = null;
+  const style = demo.frame ? mixText(demo.frame.weights).replace(/[^A-Za-z0-9]+/g, '-').replace(/^-|-$/g, '') : 'demo';
+  const stamp = new Date().toISOString().slice(0, 19).replace(/[:T]/g, '-');
+  const name = `minifilm-${style}-${stamp}`;
+  demo.lastRecording = { seq: m.seq, frames: m.frames, seconds: m.seconds, fps: m.fps, bvh: m.bvh,
+                         gif: m.gif ? 'coming' : null, note: '', name };
+  demo.recordings.push(name);
+  download(m.bvh, name + '.bvh', 'text/plain');
+  $('recordStatus').textContent = `saved ${name}.bvh (${m.frames} frames, ${m.seconds.toFixed(1)} s)` +
+    (m.gif ? ' \u00b7 making the GIF\u2026' : '');
+}
+
+// The GIF comes later (drawn on the server in a process of its own): a link to save it, or why not.
+function onRecordingGif(m) {
+  const rec = demo.lastRecording;
+  if (!rec || rec.seq !== m.seq) return;
+  const status = $('recordStatus');
+  status.textContent = status.textContent.replace(' \u00b7 making the GIF\u2026', '');
+  rec.note = m.note;
+  if (m.gif !== null) {
+    const bytes = Uint8Array.from(atob(m.gif), c => c.charCodeAt(0));
+    rec.gif = bytes.length;
+    const a = document.createElement('a');
+    a.href = URL.createObjectURL(new Blob([bytes], { type: 'image/gif' }));
+    a.download = rec.name + '.gif';
+    a.textContent = `GIF (${Math.round(bytes.length / 1024)} KB)`;
+    status.append(' \u00b7 ', a);
+  } else {
+    rec.gif = null;
+    status.append(` \u00b7 ${m.note}`);
+  }
+}
 
 // ---------------------------------------------------------------------------------------------
 // Main loop: poll the gamepad, pose the newest frame, chase it with the camera, draw
@@ -349,12 +578,12 @@ function tick(now) {
   const dt = last === null ? 0 : Math.min((now - last) / 1000, 0.1);
   last = now;
   sendInput();   // picks up the gamepad; keys are sent as they change
-  if (demo.frame && fresh) {
+  if (demo.frame && fresh && !demo.paused) {
     pose();
     fresh = false;
-    if (now - lastReadout > 100) { readouts(); lastReadout = now; }
   }
-  if (demo.frame && $('follow').checked) {
+  if (demo.frame && now - lastReadout > 100) { readouts(); lastReadout = now; }
+  if (demo.frame && CAMERA[demo.cameraMode] && !demo.paused) {
     const f = demo.frame, k = dt > 0 ? 1 - Math.exp(-dt / 0.15) : 1;
     orbit.target.lerp(new THREE.Vector3(f.root[0], 0.5 * SIZE, f.root[1]), k);
     // behind the heading, plus whatever the user dragged the camera round by
@@ -368,8 +597,11 @@ function tick(now) {
   floor.grid.position.set(floor.ground.position.x, floor.grid.position.y, floor.ground.position.z);
   placeCamera(stage.camera, orbit);
   stage.renderer.render(stage.scene, stage.camera);
+  drawTimes.push(now);
+  if (drawTimes.length > 1200) drawTimes.shift();
   requestAnimationFrame(tick);
 }
+const drawTimes = [];   // requestAnimationFrame times of the last 1200 drawn frames (the page's own cost)
 
 // ---------------------------------------------------------------------------------------------
 // Public handle for tests and scripts (window.minifilmDemo): ready, connected, hello, frame (the
@@ -387,8 +619,41 @@ Object.assign(demo, {
     return [r.left + p[0] * r.width / tri.width, r.top + p[1] * r.height / tri.height];
   },
   setToggle(name, on) { $(name).checked = on; $(name).dispatchEvent(new Event('change')); },
+  setCamera,                              // ('follow' | 'front' | 'side' | 'free')
+  setPaused,                              // (bool)
+  record,                                 // () -> seq of the record message (null if one is on its way)
+  search: text => { $('search').value = text; return search(); },   // -> the style names left
+  mixText,                                // ({name: weight}) -> "Neutral 60 % + Old 40 %"
+  // The trail as drawn: its drawRange count, those points (x, y, z flat), whether three.js may cull
+  // it, whether the camera sees its bounding sphere and whether that sphere holds the newest point.
+  trail() {
+    const g = trail.geometry;
+    if (!g.boundingSphere) g.computeBoundingSphere();
+    const frustum = new THREE.Frustum().setFromProjectionMatrix(new THREE.Matrix4().multiplyMatrices(
+      stage.camera.projectionMatrix, stage.camera.matrixWorldInverse));
+    const last = new THREE.Vector3().fromArray(g.attributes.position.array, Math.max(0, 3 * g.drawRange.count - 3));
+    return { count: g.drawRange.count, points: [...g.attributes.position.array.slice(0, 3 * g.drawRange.count)],
+             culled: trail.frustumCulled,
+             inView: frustum.intersectsSphere(g.boundingSphere), boundsHoldLast: g.boundingSphere.distanceToPoint(last) < 1e-4 };
+  },
+  // Meshes in the scene now drawn, by kind: {body, sticks} (the mannequin's, the skeleton's).
+  visibleMeshes: () => ({ body: body.all.filter(m => m.visible).length,
+                          sticks: [...actor.joints, ...actor.bones.map(b => b[0])].filter(m => m.visible).length }),
+  label: () => (label ? { text: label.userData.text, position: label.position.toArray() } : null),
+  // ms between the last drawn frames (requestAnimationFrame; those drawn after performance.now()
+  // ``since``), the page's own frame time.
+  drawIntervals: (since = -Infinity) => drawTimes.slice(1).map((t, i) => [t, t - drawTimes[i]]).filter(([t]) => t > since)
+    .map(([, d]) => d),
+  // What three.js drew in the last frame: triangles, draw calls, meshes shown.
+  renderInfo() {
+    let meshes = 0;
+    stage.scene.traverseVisible(o => { if (o.isMesh) meshes++; });
+    const r = stage.renderer.info.render;
+    return { triangles: r.triangles, calls: r.calls, meshes };
+  },
   // Joint positions the page shows now ((J, 3), metres, world).
   shownJoints: () => actor.joints.map(m => [m.position.x, m.position.y, m.position.z]),
   // The orbit camera now: azimuth (radians about +y) and the point it looks at.
-  camera: () => ({ azimuth: orbit.azimuth, target: orbit.target.toArray() }),
+  camera: () => ({ azimuth: orbit.azimuth, target: orbit.target.toArray(), position: stage.camera.position.toArray(),
+                   mode: demo.cameraMode }),
 });

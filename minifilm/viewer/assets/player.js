@@ -5,13 +5,16 @@
 // axes of the BVH forward kinematics. Each character is drawn inside a THREE.Group moved by its
 // lane offset, so a joint mesh's local position is exactly the decoded BVH position.
 //
-// The three.js pieces (stage, floor, skeletons, labels, orbit camera) are scene.js, shared with the
-// live demo; html.py inlines it as the import-map entry 'minifilm-scene'.
+// The three.js pieces (stage, floor, skeletons, labels, orbit camera) are scene.js, and the shaded
+// body drawn over each skeleton (on by default; the sticks are a toggle) is mannequin.js, both
+// shared with the live demo; html.py inlines them as the import-map entries 'minifilm-scene' and
+// 'minifilm-mannequin'.
 //
 // For tests and scripts the page exposes window.minifilmPlayer (see the end of this file).
 import * as THREE from 'three';
 import { COLOURS, addFloor, createStage, highlightJoint, makeLabel, orbitControls, placeCamera,
-         poseSkeleton, skeletonKit } from 'minifilm-scene';
+         poseSkeleton, setSkeletonVisible, skeletonKit } from 'minifilm-scene';
+import { mannequinKit, poseMannequin, setMannequinVisible } from 'minifilm-mannequin';
 
 const DATA = JSON.parse(document.getElementById('minifilm-data').textContent);
 const SIZE = DATA.size;                      // body size, metres: scales radii, camera, labels
@@ -81,6 +84,7 @@ const { renderer, scene, camera } = stage;
 })();
 
 const kit = skeletonKit(SIZE);
+const bodyKit = mannequinKit(SIZE);
 
 const actors = CHARS.map((c, i) => {
   const colour = COLOURS[i % COLOURS.length];
@@ -88,6 +92,7 @@ const actors = CHARS.map((c, i) => {
   group.position.set(c.offset[0], c.offset[1], c.offset[2]);
   scene.add(group);
   const sk = kit.build(group, c.parents, colour);
+  const body = bodyKit.build(group, c.parents, colour, c.jointNames);
   const trailGeometry = new THREE.BufferGeometry();
   const trail = new Float32Array(c.trailPos);
   for (let f = 0; f < c.nFrames; f++) trail[3 * f + 1] += 0.003 * SIZE;  // above the grid
@@ -96,27 +101,33 @@ const actors = CHARS.map((c, i) => {
   group.add(trailLine);
   const label = makeLabel(c.name, colour);
   group.add(label);
-  return { c, sk, group, joints: sk.joints, trailLine, label, frame: -1 };
+  return { c, sk, body, group, joints: sk.joints, trailLine, label, frame: -1 };
 });
 
 // ---------------------------------------------------------------------------------------------
 // Pose update
 // ---------------------------------------------------------------------------------------------
 
-const toggles = { contacts: true, trail: true, labels: true };
+const toggles = { body: true, sticks: false, contacts: true, trail: true, labels: true };
 
 function pose(a) {
   const c = a.c, f = charFrame(c);
   a.frame = f;
   const top = poseSkeleton(a.sk, (j, out) => jointPosition(c, f, j, out));
+  const touching = [];
   if (toggles.contacts && c.contactVal) {
     const C = c.contactJoints.length;
     for (let k = 0; k < C; k++) {
       if (c.contactVal[f * C + k] >= 128) {  // 0.5 of 255, the GIF's threshold
         highlightJoint(a.sk, c.contactJoints[k]);
+        touching.push(c.contactJoints[k]);
       }
     }
   }
+  // the sticks and the body are each shown or not; the sticks are always posed (the body reads them)
+  setSkeletonVisible(a.sk, toggles.sticks || !toggles.body);
+  setMannequinVisible(a.body, toggles.body);
+  poseMannequin(a.body, a.sk, touching);
   a.trailLine.visible = toggles.trail;
   a.trailLine.geometry.setDrawRange(0, f + 1);
   const root = a.joints[c.rootJoint].position;
@@ -193,6 +204,10 @@ for (const name of Object.keys(toggles)) {
 window.addEventListener('keydown', e => {
   if (e.target.tagName === 'SELECT' || (e.target.tagName === 'INPUT' && e.target.type !== 'range')) return;
   if (e.code === 'Space') { e.preventDefault(); setPlaying(!clock.playing); }
+  if (e.code === 'KeyB' || e.code === 'KeyK') {
+    const name = e.code === 'KeyB' ? 'body' : 'sticks';
+    window.minifilmPlayer.setToggle(name, !toggles[name]);
+  }
   if (e.code === 'ArrowRight' || e.code === 'ArrowLeft') {
     e.preventDefault(); setPlaying(false);
     setFrame((globalFrame() + (e.code === 'ArrowRight' ? 1 : N_FRAMES - 1)) % N_FRAMES);
@@ -262,6 +277,11 @@ window.minifilmPlayer = {
   // The same in the scene's world coordinates (lane offset included).
   shownWorldJoints: i => actors[i].joints.map(m => m.getWorldPosition(new THREE.Vector3()).toArray()),
   setToggle(name, on) { document.getElementById(name).checked = on; toggles[name] = on; refresh(); draw(0); },
+  // Meshes in the scene now drawn, by kind: {body, sticks} (the mannequin's, the skeletons').
+  visibleMeshes: () => ({
+    body: actors.reduce((n, a) => n + a.body.all.filter(m => m.visible).length, 0),
+    sticks: actors.reduce((n, a) => n + [...a.sk.joints, ...a.sk.bones.map(b => b[0])].filter(m => m.visible).length, 0),
+  }),
   setFollow(value) { ui.follow.value = String(value); draw(0); },
 };
 

@@ -5,6 +5,7 @@
 //   addFloor(scene, size, span, grid)     ground plane and grid (span metres, cells of grid metres)
 //   skeletonKit(size)                      shared geometries; kit.build(group, parents, colour)
 //   poseSkeleton(sk, setJoint)             joint spheres and bone cylinders from joint positions
+//   setSkeletonVisible(sk, on)             sticks shown or hidden (the mannequin, mannequin.js, reads them)
 //   makeLabel(text, colour)                a name sprite of constant size on screen
 //   orbitControls(el, orbit, camera, size, onPan) and placeCamera(camera, orbit)
 //
@@ -130,6 +131,12 @@ export function poseSkeleton(sk, setJoint) {
     mesh.scale.set(1, Math.max(length, 1e-9), 1);
   }
   return top;
+}
+
+// Show or hide a skeleton's sticks (its joints keep being posed: other drawings read them).
+export function setSkeletonVisible(sk, on) {
+  for (const m of sk.joints) m.visible = on;
+  for (const [m] of sk.bones) m.visible = on;
 }
 
 // Mark joint j as in contact (yellow and larger) until the next poseSkeleton.
