@@ -85,11 +85,12 @@ class Character:
         self.frame_no, self.ack = 0, None
         self.failures = 0
         self.step_ms = 0.0           # the Controller's own time for the last frame
-        self.commanded = 0.0             # m/s, what the character is asked to do (after scaling)
-        self.requested = 0.0             # m/s, what the held keys ask for
+        self.commanded = 0.0             # m/s, what the held keys ask for
+        self.reachable = 0.0             # m/s, that scaled to what the style can do (the character is steered at it)
         self.max_speed: Optional[float] = None    # m/s, the fastest the mix goes this way (calibration)
         self.speed_note: Optional[str] = None
         self.velocity = np.zeros(2)
+        self.steered = np.zeros(2)       # m/s, the velocity the character is steered at (reachable)
         self.sent = RateCounter()        # frames the server actually sent to the page (server.py ticks it)
         self.input_ms: Optional[float] = None     # input -> frame latency of the last held-input change
         self._input_at: Optional[Tuple[int, float]] = None
@@ -149,11 +150,11 @@ class Character:
         while self.pending:
             self._apply(self.pending.popleft())
         notices = []
-        facing, velocity, self.requested = self.steering.advance(self.dt)
+        facing, velocity, self.commanded = self.steering.advance(self.dt)
+        self.velocity = velocity
         film = self.mix.advance(self.dt)
         weights = self.mix.weights
-        velocity = self._reachable(velocity, facing, weights)
-        self.velocity = velocity
+        velocity = self.steered = self._reachable(velocity, facing, weights)
         pressed = self._input_at
         if pressed is not None and self.ack is not None and self.ack >= pressed[0]:
             self.input_ms, self._input_at = 1e3 * (time.monotonic() - pressed[1]), None
@@ -178,9 +179,9 @@ class Character:
 
     def _reachable(self, velocity: np.ndarray, facing: np.ndarray, weights) -> np.ndarray:
         """The held velocity, scaled down to ``REACHABLE`` of the fastest the mix was measured to go
-        in that direction (when known); sets ``commanded``, ``max_speed`` and ``speed_note``."""
+        in that direction (when known); sets ``reachable``, ``max_speed`` and ``speed_note``."""
         speed = float(math.hypot(velocity[0], velocity[1]))
-        self.commanded, self.speed_note = speed, None
+        self.reachable, self.speed_note = speed, None
         if speed < 1e-9:
             return velocity
         cos = float(velocity @ facing) / max(speed, 1e-9)
@@ -189,11 +190,11 @@ class Character:
         self.max_speed = top
         if top is None or speed <= REACHABLE * top:
             return velocity
-        self.commanded = REACHABLE * top
+        self.reachable = REACHABLE * top
         name = " + ".join(n for n, w in sorted(weights.items(), key=lambda nw: -nw[1]) if w > 0.01)
         self.speed_note = (f"{name} goes at most {top:.2f} m/s this way (its speed calibration): "
-                           f"the {speed:.2f} m/s asked for is scaled to {self.commanded:.2f}")
-        return velocity * (self.commanded / speed)
+                           f"the {speed:.2f} m/s asked for is scaled to {self.reachable:.2f}")
+        return velocity * (self.reachable / speed)
 
     def _check(self) -> Optional[str]:
         st = self.ctrl.state
@@ -226,9 +227,9 @@ class Character:
         """What the page draws: joint positions (J*3, metres, world, y up), contacts [right, left],
         phases (8: amplitude * (sin, cos) for left hand, right hand, left foot, right foot), root
         and facing (x, z), the heading steered, the commanded velocity and speed (m/s, before
-        calibration; ``requested`` is what the keys ask, ``commanded`` that scaled to what the mix
-        can reach, ``maxSpeed`` the fastest it was measured to go that way and ``speedNote`` says
-        so when the command was scaled), the measured speed (``speed``: the character's own root
+        calibration: what the keys ask), ``reachable`` (that speed scaled to what the mix can do,
+        the speed the character is steered at), ``maxSpeed`` (the fastest the mix was measured to
+        go that way) and ``speedNote`` (says so when the command was scaled), the measured speed (``speed``: the character's own root
         over the last quarter second), ``sentFps`` (frames the server actually sent this page in
         the last second; None during the first), ``inputMs`` (from the server receiving the last
         input message to the frame that applied it; None before any), ``calibration`` (the speed
@@ -250,7 +251,7 @@ class Character:
         sent = self.sent.rate()
         frame.update({
             "commanded": round(self.commanded, 4), "speed": round(self.actual_speed(), 4),
-            "requested": round(self.requested, 4),
+            "reachable": round(self.reachable, 4),
             "maxSpeed": None if self.max_speed is None else round(self.max_speed, 3), "speedNote": self.speed_note,
             "sentFps": sent, "inputMs": None if self.input_ms is None else round(self.input_ms, 1),
             "calibration": self.calibrations.progress(),

@@ -122,14 +122,15 @@ def test_a_run_beyond_the_style_is_scaled_to_what_it_can_do_and_said(released_so
     c = Character(1, released_source, cal, DemoSettings(style="Neutral"))
     c.submit(InputMessage((0.0, 1.0), 0.0, 1.0, seq=7))          # Shift+W: 2.8 m/s asked
     frame, _ = c.step()
-    assert frame["requested"] == pytest.approx(2.8)
-    assert frame["maxSpeed"] == pytest.approx(1.8) and frame["commanded"] == pytest.approx(REACHABLE * 1.8)
+    assert frame["commanded"] == pytest.approx(2.8)
+    assert frame["maxSpeed"] == pytest.approx(1.8) and frame["reachable"] == pytest.approx(REACHABLE * 1.8)
     assert "1.80 m/s" in frame["speedNote"] and "Neutral" in frame["speedNote"]
-    assert math.hypot(*frame["velocity"]) == pytest.approx(REACHABLE * 1.8, abs=1e-3)
+    assert math.hypot(*frame["velocity"]) == pytest.approx(2.8, abs=1e-3)      # what was asked
+    assert math.hypot(*c.steered) == pytest.approx(REACHABLE * 1.8)             # what it was steered at
     assert frame["inputMs"] is not None and frame["inputMs"] >= 0
     c.submit(InputMessage((0.0, 1.0), 0.0, 0.0, seq=8))          # a walk it can do: as asked
     frame, _ = c.step()
-    assert frame["commanded"] == pytest.approx(1.3) and frame["speedNote"] is None
+    assert frame["reachable"] == pytest.approx(1.3) and frame["speedNote"] is None
 
 
 def test_readouts_have_no_value_before_they_have_data(tiny_source):
