@@ -4,11 +4,14 @@
     python benchmarks/kernels.py --threads 1     # one BLAS thread (the reliable figures here)
     python benchmarks/kernels.py --only conv     # or --only adam
 
-Convolution: both methods of ``functional.conv1d_forward`` / ``conv1d_backward`` at the sizes of
+Convolution: both methods of ``fast_conv.conv1d_fast_forward`` / ``conv1d_fast_backward`` (what
+training runs) at the sizes of
 train_small's Ψ (clip 120 x 300, 32 filters of width 9) and of the paper's (240 x 300, 256
 filters of width 25), for several batch sizes (clips per step), each layer with its own workspace
 as in Ψ; the first layer skips dx as in training. "im2col" is the method the kit had before the
-FFT path (unchanged), so its column is the "before"; "auto" says which one the kit now chooses.
+FFT path (unchanged), so its column is the "before"; "auto" says which one the kit now chooses;
+"plain" is the reader's pair of minifilm/nn/conv.py (np.pad + stacked taps, fresh arrays), for
+comparison (issue 25).
 
 Adam: one ``Adam.step`` over train_small's three parameter sets (707,420 numbers) and over the
 paper's (44,150,520), hot (the numbers still in the cache from the previous step) and cold (a
@@ -32,8 +35,7 @@ from minifilm.model.style_model import parameter_counts  # noqa: E402
 from minifilm.nn import fast_optim as optim  # noqa: E402  (the chunked Adam and its CHUNK)
 from minifilm.nn.fast_optim import ChunkedAdam as Adam  # noqa: E402  (what training uses)
 from minifilm.nn.params import Parameters  # noqa: E402
-from minifilm.nn import conv  # noqa: E402
-from minifilm.nn import functional as F  # noqa: E402
+from minifilm.nn import conv, fast_conv  # noqa: E402  (the plain convolution, the one training runs)
 
 # (label, T, C, F, k, need_dx)
 CONV_LAYERS = {
@@ -77,16 +79,21 @@ def conv_rows(model, batches, rng):
                 work = {}
 
                 def step():
-                    _, cache = F.conv1d_forward(x, W, b, work=work, method=method)
-                    F.conv1d_backward(dout, cache, need_dx=need_dx)
+                    _, cache = fast_conv.conv1d_fast_forward(x, W, b, work=work, method=method)
+                    fast_conv.conv1d_fast_backward(dout, cache, need_dx=need_dx)
                 row[method] = timed(step, repeat)
-            row["im2col ms"], row["fft ms"] = fmt(row["im2col"]), fmt(row["fft"])
+
+            def plain():
+                _, cache = conv.conv1d_forward(x, W, b)
+                conv.conv1d_backward(dout, cache, need_dx=need_dx)
+            row["plain"] = timed(plain, repeat)
+            row["im2col ms"], row["fft ms"], row["plain ms"] = fmt(row["im2col"]), fmt(row["fft"]), fmt(row["plain"])
             row["fft/im2col"] = row["fft"][0] / row["im2col"][0]
-            row["auto"] = conv._conv1d_method(B, T, C, Fo, k)
+            row["auto"] = fast_conv._conv1d_method(B, T, C, Fo, k)
             row["GFLOP (im2col)"] = flops / 1e9
             rows.append(row)
-            print(f"  ... {model} {label} batch {B}: im2col {row['im2col ms']}, fft {row['fft ms']}",
-                  flush=True)
+            print(f"  ... {model} {label} batch {B}: im2col {row['im2col ms']}, fft {row['fft ms']}, "
+                  f"plain {row['plain ms']}", flush=True)
     return rows
 
 
@@ -173,7 +180,8 @@ def main():
     if args.only in (None, "conv"):
         rows = conv_rows("train_small", args.batch_small, rng) + conv_rows("paper", args.batch_paper, rng)
         print("\nconv1d forward + backward (the first layer without dx), one workspace per layer:")
-        table(rows, ["model", "layer", "batch", "GFLOP (im2col)", "im2col ms", "fft ms", "fft/im2col", "auto"])
+        table(rows, ["model", "layer", "batch", "GFLOP (im2col)", "im2col ms", "fft ms", "fft/im2col", "auto",
+                     "plain ms"])
     if args.only in (None, "adam"):
         rows = adam_rows(rng)
         print("\nAdam.step, float32 (hot: numbers cached from the last step; cold: 64 MB written in between):")

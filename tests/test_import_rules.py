@@ -29,6 +29,7 @@ ALLOWED = {
     "motion": {"errors", "files"},
     "phases": {"errors", "motion", "files"},
     "features": {"errors", "motion", "files"},
+    "rigs": {"errors", "motion", "phases", "synthetic", "files"},
     "synthetic": {"errors", "motion", "files"},
     "dataset": {"errors", "motion", "phases", "features", "files"},
     "model": {"nn"},
@@ -37,15 +38,16 @@ ALLOWED = {
     "viewer": {"errors", "motion", "phases", "features", "runtime", "dataset", "files"},
     "baselines": {"errors", "model", "nn", "dataset", "features", "runtime", "files"},
     "evaluation": {"errors", "baselines", "model", "nn", "dataset", "features", "motion", "phases", "synthetic", "train",
-                   "runtime", "viewer", "files"},
+                   "runtime", "viewer", "files", "rigs"},
     "pipeline": {"errors", "evaluation", "baselines", "model", "nn", "dataset", "features", "motion", "phases", "synthetic",
-                 "train", "runtime", "viewer", "files"},
+                 "train", "runtime", "viewer", "files", "rigs"},
     "demo": {"errors", "cli", "pipeline", "runtime", "viewer", "motion", "features", "dataset", "synthetic", "files"},
     "cli": {"errors", "demo", "pipeline", "evaluation", "baselines", "model", "nn", "dataset", "features", "motion",
-            "phases", "synthetic", "train", "runtime", "viewer", "files"},
+            "phases", "synthetic", "train", "runtime", "viewer", "files", "rigs"},
     "__main__": {"cli"},
 }
-CORE = {"errors", "files", "nn", "motion", "phases", "features", "synthetic", "dataset", "model", "train", "runtime", "viewer"}
+CORE = {"errors", "files", "nn", "motion", "phases", "features", "synthetic", "rigs", "dataset", "model", "train", "runtime",
+        "viewer"}
 COMPARISON = {"baselines", "evaluation"}
 
 

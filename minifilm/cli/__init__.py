@@ -6,6 +6,7 @@
     minifilm generate     generate motion with the released network or a trained run
     minifilm finetune     teach a trained run a new style from a short clip (Ψ only, Sec. 5.3.2)
     minifilm view         show BVH files: an animated GIF and an offline 3-D HTML player
+    minifilm retarget     put motion of any humanoid rig onto another rig (100STYLE, Bandai, CMU, a run)
     minifilm table2       Table 2: parameter counts and run time of the seven comparison models
     minifilm compare      Figure 10 and the style metrics: train and compare the seven models
     minifilm gradcheck    check every backward pass against numerical gradients (the table)
@@ -42,6 +43,8 @@ COMMANDS = {
     "finetune": ("minifilm.cli.finetune", "teach a trained run a new style from a short clip (Ψ only)",
                  ONE_BLAS_THREAD),
     "view": ("minifilm.cli.view", "show BVH files as an animated GIF and an offline 3-D HTML player", {}),
+    "retarget": ("minifilm.cli.retarget", "put motion of any humanoid rig onto another rig (100style, bandai, "
+                 "cmu, a run, a BVH)", {}),
     # batch-1 timing on one BLAS thread, like a game loop: a matrix-vector product gains nothing
     # from threads, and on a busy machine threaded BLAS made it ~20x slower here
     "table2": ("minifilm.cli.table2", "Table 2: parameter counts and run time of the seven models", ONE_BLAS_THREAD),

@@ -2,8 +2,9 @@
 
     minifilm finetune --run runs/train_small --name Proud proud_walk.bvh [more.bvh ...]
 
-The clips (10-30 s of walking or running in the new style, on the run's skeleton; another frame
-rate is resampled) are labelled (contacts, local phases), featurised, and Ψ is fine-tuned on them
+The clips (10-30 s of walking or running in the new style, on the run's skeleton or on any other
+humanoid rig, which is retargeted onto it and said so (docs/retargeting.md); another frame rate
+is resampled) are labelled (contacts, local phases), featurised, and Ψ is fine-tuned on them
 with Ω and Φ frozen. NAME joins the run's style library: ``minifilm generate --run RUN --style
 NAME`` then uses it like any other style, and blends work. Existing styles keep their stored FiLM
 vectors exactly; the fine-tuned checkpoint is saved as RUN/model-NAME.npz, never over model.npz.

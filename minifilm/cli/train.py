@@ -2,6 +2,7 @@
 
     minifilm train                      # synthetic data (8 styles x 6 gaits), default settings
     minifilm train --data DIR           # your own BVH files: 100STYLE or Bandai Namco naming, or a CSV manifest
+    minifilm train --data pool.csv --rig 100style --fps 60   # files of several rigs, retargeted onto one
     minifilm train --quick              # a smaller, faster run of the same steps
 
 The same job as ``python examples/train_small.py``; the steps are in minifilm/pipeline/train_small.py.
@@ -14,6 +15,7 @@ from dataclasses import replace
 from minifilm.cli.args import in_range, input_path, output_folder, positive
 from minifilm.errors import InputError
 from minifilm.pipeline.train_small import Settings
+from minifilm.pipeline.run_rig import load_target
 from minifilm.pipeline.train_small import run as run_job
 
 HELP = "the main job: synthetic or your data -> trained model -> generated motion"
@@ -42,6 +44,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--mirror", action="store_true", help="with --data: also train on every file's mirror")
     parser.add_argument("--fps", type=in_range(1.0, 1000.0), help="with --data: resample every file to this "
                         "frame rate (needed when the files were recorded at different rates)")
+    parser.add_argument("--rig", metavar="TARGET",
+                        help="with --data: retarget every file onto this rig first (100style, bandai, cmu, a run "
+                             "folder or a BVH file), so files of different skeletons make one data set")
     parser.add_argument("--clips-per-batch", type=in_range(1, 4096, int), default=d.clips_per_batch,
                         help="style clips per minibatch, shared by its samples (default "
                              f"{d.clips_per_batch}; 32 = one clip per sample, as the paper)")
@@ -50,7 +55,7 @@ def add_arguments(parser) -> None:
 def settings(args) -> Settings:
     clips = None if args.clips_per_batch is None or args.clips_per_batch >= Settings().batch_size else args.clips_per_batch
     s = Settings(seed=args.seed, out=args.out, split=args.split, mirror=args.mirror, clips_per_batch=clips,
-                 fps=args.fps)
+                 fps=args.fps, rig=args.rig)
     if args.quick:
         s = s.quick()
     changes = {"epochs": args.epochs, "seconds_per_clip": args.seconds, "generate_seconds": args.generate_seconds,
@@ -65,7 +70,8 @@ def check_options(args) -> None:
     the synthetic set's with it."""
     if args.data is None:
         given = [flag for flag, value in (("--split", args.split != "auto"), ("--mirror", args.mirror),
-                                          ("--fps", args.fps is not None)) if value]
+                                          ("--fps", args.fps is not None), ("--rig", args.rig is not None))
+                 if value]
         if given:
             raise InputError(f"{', '.join(given)}: only with --data (the synthetic set is made at 60 fps, "
                              "split 80/10/10 and not mirrored)")
@@ -79,5 +85,7 @@ def check_options(args) -> None:
 
 def run(args) -> int:
     check_options(args)
+    if args.rig is not None:       # a wrong target is one line now, not after the data set step
+        load_target(args.rig)
     run_job(settings(args), args.data)
     return 0

@@ -4,6 +4,7 @@
     minifilm view walk.bvh --html walk.html                  # 3-D player: orbit, play/pause/scrub/speed
     minifilm view runs/train_small/generated/*.bvh --gif styles.gif --html styles.html --seconds 6
     minifilm view walk.bvh --out walk.mp4                    # --out: the format its extension names
+    minifilm view bandai_walk.bvh --on 100style --gif on_100style.gif   # any humanoid on the standard character
 
 Each file is one character, titled with its name (shortened to fit its panel) and drawn from its
 own hierarchy at its true size: the unit comes from the skeleton, else from the body's height
@@ -14,12 +15,17 @@ disk (three.js is inlined). Without --out, --gif, --mp4 or --html: --html view.h
 from __future__ import annotations
 
 import argparse
+import tempfile
+from typing import Sequence
 from pathlib import Path
 
 from minifilm.cli.args import in_range, input_path, positive
 from minifilm.errors import InputError
 from minifilm.files import check_writable
-from minifilm.viewer.builders import track_and_unit
+from minifilm.motion.bvh_write import write_bvh
+from minifilm.pipeline.run_rig import load_target
+from minifilm.rigs import read_source, retarget_motion
+from minifilm.viewer.builders import track_and_unit, track_with_contacts
 from minifilm.viewer.deps import check_output_tools
 from minifilm.viewer.gif import write_gif
 from minifilm.viewer.html import write_html
@@ -58,6 +64,8 @@ def add_arguments(ap) -> None:
                     help="pixels per character panel in the GIF / MP4 (default 240 300)")
     ap.add_argument("--no-contacts", action="store_true", help="do not highlight the foot contacts")
     ap.add_argument("--no-trail", action="store_true", help="do not draw the root's trail")
+    ap.add_argument("--on", metavar="TARGET", help="draw every file retargeted onto this rig: 100style (the "
+                    "standard character), bandai, cmu, a run folder or a BVH file (docs/retargeting.md)")
 
 
 def run(args) -> int:
@@ -74,12 +82,15 @@ def run(args) -> int:
         if getattr(args, kind) is not None:
             check_writable(getattr(args, kind), flags[kind])
             check_output_tools(getattr(args, kind), kind)
-    tracks = []
-    for f in args.files:
-        track, unit = track_and_unit(f)
-        if "skeleton's unit" not in unit.how:   # said when the unit was inferred, not known
-            print(f"{f}: {unit.how}")
-        tracks.append(track)
+    if args.on is not None:        # minimal hook for issue 27 (retarget's module draws nothing itself)
+        tracks = tracks_on(args.files, args.on)
+    else:
+        tracks = []
+        for f in args.files:
+            track, unit = track_and_unit(f)
+            if "skeleton's unit" not in unit.how:   # said when the unit was inferred, not known
+                print(f"{f}: {unit.how}")
+            tracks.append(track)
     if args.no_contacts:
         for t in tracks:
             t.contacts = t.contact_joints = None
@@ -95,3 +106,18 @@ def run(args) -> int:
         write_mp4(tracks, args.mp4, **kw)
         print(f"wrote {args.mp4}")
     return 0
+
+
+def tracks_on(paths: Sequence, target) -> list:
+    """Viewer tracks of BVH files retargeted onto ``target`` (``minifilm view --on``): each file is
+    put on the rig, written to a temporary folder and read back as the viewer reads any file
+    (true size, contacts), titled '<name> on <rig>'."""
+    rig = load_target(target)
+    tracks = []
+    with tempfile.TemporaryDirectory(prefix="minifilm-view-") as tmp:
+        for i, path in enumerate(paths):
+            motion, roles = read_source(path)
+            out = Path(tmp) / f"{i}.bvh"
+            write_bvh(retarget_motion(motion, rig, roles), out, scale=rig.bvh_scale)
+            tracks.append(track_with_contacts(out, name=f"{Path(path).stem} on {Path(rig.name).name}"))
+    return tracks

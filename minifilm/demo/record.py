@@ -34,6 +34,11 @@ from minifilm.demo.character import Character, DemoSettings
 from minifilm.demo.protocol import InputMessage, StyleMessage, encode, error
 from minifilm.demo.source import DemoSource
 from minifilm.viewer import Track, write_gif
+from minifilm.motion.bvh_write import format_bvh
+from minifilm.motion.retarget import axes_to_rotation, retarget
+from minifilm.motion.skeletons import STYLE100
+from minifilm.runtime.controller import root_joint_indices
+from minifilm.viewer.deps import check_output_tools
 
 
 def tour(second_style: str) -> List[Tuple[float, object]]:
@@ -156,8 +161,6 @@ class FrameHistory:
 
 def recording_motion(source: DemoSource, positions: np.ndarray, forward: np.ndarray, up: np.ndarray):
     """The frames (F, J, 3) as a Motion on the source skeleton, as ``minifilm generate`` writes it."""
-    from minifilm.motion.retarget import axes_to_rotation, retarget
-    from minifilm.runtime.controller import root_joint_indices
     joints = root_joint_indices(source.layout, source.skeleton)
     return retarget(positions, axes_to_rotation(forward, up), source.skeleton, joints, frame_time=1.0 / source.fps)
 
@@ -165,7 +168,6 @@ def recording_motion(source: DemoSource, positions: np.ndarray, forward: np.ndar
 def bvh_scale(source: DemoSource) -> float:
     """Metres per BVH unit of the source's skeleton: the released network's 100STYLE skeleton, else cm."""
     if source.params is not None:
-        from minifilm.motion.skeletons import STYLE100
         return STYLE100.bvh_scale
     return 0.01
 
@@ -176,7 +178,6 @@ def answer_record(source: DemoSource, history: FrameHistory, message: RecordMess
     wrong), then ``recordingGif`` if a GIF was asked for. Each is handed to ``send`` as soon as it
     is ready (if given) and all are returned. Never raises: it runs beside the server for one page.
     Slow (the BVH fit, the GIF): call it off the event loop."""
-    from minifilm.motion.bvh_write import format_bvh
     out = []
 
     def answer(text: str) -> None:
@@ -203,7 +204,6 @@ def _gif(bvh: str, fps: float, title: str) -> Tuple[Optional[str], str]:
     """(base64 GIF of the recorded BVH, "") or (None, why not). Drawn by ``minifilm view`` in a
     process of its own at a lower priority: drawn in the server's process, a 10 s GIF held the
     interpreter lock for most of 18 s and the frame loop fell to 39 frames a second."""
-    from minifilm.viewer.deps import check_output_tools
     with tempfile.TemporaryDirectory(prefix="minifilm-record-") as folder:
         path, source_bvh = Path(folder) / "recording.gif", Path(folder) / f"{_file_name(title)}.bvh"
         try:

@@ -23,6 +23,7 @@ from minifilm.evaluation.gradcheck_setup import (MARGIN, PARENTS, POS_IDX, SIGMA
 from minifilm.model import blocks
 from minifilm.model.dropout import Dropout
 from minifilm.model.losses import bone_length_loss, mse_loss
+from minifilm.nn import fast_conv
 from minifilm.nn import functional as F
 from minifilm.nn.gradcheck import compare_gradients, worst_error
 
@@ -180,7 +181,8 @@ def gather(seed):
 
 
 def conv1d(seed, method="im2col"):
-    """Kernel sizes and clip lengths, channels-last, 'same' padding. A clip shorter than the
+    """Kernel sizes and clip lengths, channels-last, 'same' padding: the plain im2col pair, or
+    with ``method="fft"`` the fast pair's FFT form. A clip shorter than the
     kernel (T 3, k 7) only with im2col: the taps that never meet the clip have a gradient of
     exactly 0, which the FFT gives as ~1e-17, so the relative error would compare two kinds of
     rounding there (k 25 > T 16 still has every tap meeting some frame)."""
@@ -190,8 +192,11 @@ def conv1d(seed, method="im2col"):
     for T, k in configs:
         rng = _rng(seed, 100 * T + k)
         inputs = (rng.standard_normal((2, T, 3)), rng.standard_normal((k, 3, 4)), rng.standard_normal(4))
-        out[f"T {T}, k {k}"] = pair_result(F.conv1d_forward, F.conv1d_backward, inputs, ("x", "W", "b"), rng,
-                                           method=method)
+        if method == "im2col":      # the plain pair (minifilm/nn/conv.py)
+            out[f"T {T}, k {k}"] = pair_result(F.conv1d_forward, F.conv1d_backward, inputs, ("x", "W", "b"), rng)
+        else:                       # the fast pair forced onto its FFT form (minifilm/nn/fast_conv.py)
+            out[f"T {T}, k {k}"] = pair_result(fast_conv.conv1d_fast_forward, fast_conv.conv1d_fast_backward,
+                                               inputs, ("x", "W", "b"), rng, method=method)
     return merge(out)
 
 

@@ -48,12 +48,13 @@ from minifilm.baselines.variants import SPECS, VARIANTS
 from minifilm.evaluation import gradcheck_kit as kit
 from minifilm.evaluation import gradcheck_networks as nets
 from minifilm.evaluation.gradcheck_setup import Result, check_problem, float32_errors
-from minifilm.nn import conv
+from minifilm.nn import fast_conv
 from minifilm.nn.gradcheck import H, LIMIT, worst_error
 
 SEEDS = tuple(range(5))
 FUN, CONV, BLOCKS, LOSSES = "minifilm/nn/functional.py", "minifilm/nn/conv.py", "minifilm/model/blocks.py", \
     "minifilm/model/losses.py"
+FAST_CONV = "minifilm/nn/fast_conv.py"
 MOD, PFNN = "minifilm/baselines/style_modulation.py", "minifilm/baselines/phase_function.py"
 
 
@@ -75,14 +76,14 @@ class Case:
 
 class fft_convolutions:
     """Within this context every conv1d of Ψ takes the "fft" method (the one the paper-size Ψ
-    trains with), whatever the sizes; outside it, the usual choice (conv._conv1d_method)."""
+    trains with), whatever the sizes; outside it, the usual choice (fast_conv._conv1d_method)."""
 
     def __enter__(self):
-        self._choose = conv._conv1d_method
-        conv._conv1d_method = lambda *sizes: "fft"
+        self._choose = fast_conv._conv1d_method
+        fast_conv._conv1d_method = lambda *sizes: "fft"
 
     def __exit__(self, *exc):
-        conv._conv1d_method = self._choose
+        fast_conv._conv1d_method = self._choose
 
 
 def _with_fft(build: Callable[[int], "nets.Problem"], check: Callable) -> Callable:
@@ -119,14 +120,16 @@ def cases() -> List[Case]:
         Case("gated experts (batch 1)", K, partial(kit.expert_linear, batch=1), _pair(FUN, "expert_linear")),
         Case("gated experts (batch 4)", K, kit.expert_linear, _pair(FUN, "expert_linear")),
         Case("gather (shared clips)", K, kit.gather, _pair(FUN, "gather")),
-        Case("conv1d, im2col (k 1-7, T 3-7)", K, kit.conv1d, _pair(CONV, "conv1d") + (f"{CONV}::_im2col",)),
+        Case("conv1d, im2col (k 1-7, T 3-7)", K, kit.conv1d, _pair(CONV, "conv1d") + (f"{CONV}::im2col",)),
         Case("conv1d, FFT (k 3-25, T 6-16)", K, partial(kit.conv1d, method="fft"),
-             _pair(CONV, "conv1d") + _pair(CONV, "_conv1d_fft") + (f"{CONV}::_fft_bases",)),
+             _pair(FAST_CONV, "conv1d_fast") + _pair(FAST_CONV, "_conv1d_fft") + (f"{FAST_CONV}::_fft_bases",)),
         Case("max-pool 2 (T 6, 7)", K, kit.max_pool, _pair(CONV, "max_pool1d")),
         Case("dense block (dropout, ELU)", "block", kit.dense_block, _pair(BLOCKS, "dense")),
         Case("expert block (dropout)", "block", kit.expert_block, _pair(BLOCKS, "expert")),
         Case("Eq. 3 block (experts, LN, FiLM, ELU)", "block", kit.film_block, _pair(BLOCKS, "film_block")),
-        Case("conv block (conv1d, ReLU, max-pool)", "block", kit.conv_block, _pair(BLOCKS, "conv_block")),
+        Case("conv block (conv1d, ReLU, max-pool)", "block", kit.conv_block,       # the fast conv, as Ψ runs it
+             _pair(BLOCKS, "conv_block") + _pair(FAST_CONV, "conv1d_fast")
+             + (f"{FAST_CONV}::_im2col", f"{FAST_CONV}::_conv1d_method")),
         Case("MSE (Eq. 5)", "loss", kit.mse, (f"{LOSSES}::mse_loss",)),
         Case("bone-length loss (Eq. 6-7)", "loss", kit.bll, (f"{LOSSES}::bone_length_loss",)),
         Case("bone-length loss, |ℓ − ℓ̂| = 0", "loss", partial(kit.bll, degenerate="equal"),
@@ -151,9 +154,10 @@ def cases() -> List[Case]:
               "minifilm/model/motion_net.py::split_film")),
         Case("Ψ FiLM generator (Eq. 2)", "network", _network(nets.psi_problem),
              ("minifilm/model/film_generator.py::FilmGenerator.forward",
-              "minifilm/model/film_generator.py::FilmGenerator.backward")),
+              "minifilm/model/film_generator.py::FilmGenerator.backward",
+              "minifilm/nn/fast_linear.py::linear_fast_backward")),
         Case("Ψ, FFT convolutions", "network", _with_fft(nets.psi_problem, check_problem),
-             ("minifilm/model/film_generator.py::FilmGenerator.backward", f"{CONV}::_conv1d_fft_backward")),
+             ("minifilm/model/film_generator.py::FilmGenerator.backward", f"{FAST_CONV}::_conv1d_fft_backward")),
         Case("style model, MSE + BLL (Eq. 4-7)", "network", _network(nets.style_model_problem),
              (f"{STYLE}.forward", f"{STYLE}.backward")),
         Case("style model, shared clips", "network", _network(partial(nets.style_model_problem, form="shared-clip")),

@@ -12,6 +12,8 @@ step, so the networks read as a list of blocks and their backward passes as the 
 
 Shapes: x (B, I); W (I, O) or experts (K, I, O); α (B, K); γ, β (B, H) or (H,); clips (B, T, C).
 Dropout comes from a :class:`~minifilm.model.dropout.Dropout` of the current pass, at a named site.
+Ψ's blocks run the fast forms of the convolution and of the dense weight gradient
+(minifilm/nn/fast_conv.py, minifilm/nn/fast_linear.py), tested equal to the plain pairs.
 """
 from __future__ import annotations
 
@@ -19,6 +21,8 @@ from typing import NamedTuple, Optional
 
 from minifilm.model.dropout import Dropout
 from minifilm.nn import functional as F
+from minifilm.nn.fast_conv import conv1d_fast_backward, conv1d_fast_forward
+from minifilm.nn.fast_linear import linear_fast_backward
 
 ACTIVATIONS = {"elu": (F.elu_forward, F.elu_backward), "relu": (F.relu_forward, F.relu_backward),
                "softmax": (F.softmax_forward, F.softmax_backward)}
@@ -47,10 +51,14 @@ def dense_forward(x, W, b, activation: Optional[str] = None, drop: Optional[Drop
 
 
 def dense_backward(dout, cache: DenseCache, work: Optional[dict] = None):
-    """-> dx (B, I), dW (I, O), db (O,). ``work``: see ``functional.linear_backward``."""
+    """-> dx (B, I), dW (I, O), db (O,). With ``work`` (Ψ's dense layers) dW is computed into the
+    layer's reused buffer (:func:`~minifilm.nn.fast_linear.linear_fast_backward`)."""
     if cache.activation is not None:
         dout = ACTIVATIONS[cache.activation][1](dout, cache.act)
-    dx, dW, db = F.linear_backward(dout, cache.linear, work=work)
+    if work is None:
+        dx, dW, db = F.linear_backward(dout, cache.linear)
+    else:
+        dx, dW, db = linear_fast_backward(dout, cache.linear, work)
     return F.dropout_backward(dx, cache.drop), dW, db
 
 
@@ -115,7 +123,7 @@ class ConvBlockCache(NamedTuple):
 
 def conv_block_forward(x, W, b, work: Optional[dict] = None):
     """x (B, T, C), W (k, C, F), b (F,) -> (B, T // 2, F). ``work``: the layer's reused buffers."""
-    h, c_conv = F.conv1d_forward(x, W, b, work=work)
+    h, c_conv = conv1d_fast_forward(x, W, b, work=work)      # conv.py's conv1d, fast (fast_conv.py)
     h, c_relu = F.relu_forward(h)
     h, c_pool = F.max_pool1d_forward(h)
     return h, ConvBlockCache(c_conv, c_relu, c_pool)
@@ -125,4 +133,4 @@ def conv_block_backward(dout, cache: ConvBlockCache, need_dx: bool = True):
     """-> dx (B, T, C) (None when ``need_dx`` is False), dW (k, C, F), db (F,)."""
     dh = F.max_pool1d_backward(dout, cache.pool)
     dh = F.relu_backward(dh, cache.relu)
-    return F.conv1d_backward(dh, cache.conv, need_dx=need_dx)
+    return conv1d_fast_backward(dh, cache.conv, need_dx=need_dx)

@@ -14,7 +14,8 @@ Conventions: batch first; weights are stored ``(in, out)``, experts ``(K, in, ou
 kernels ``(k, in_channels, filters)``; sequences are channels-last ``(B, T, C)``.
 
 The convolution and max pooling of Ψ live in conv.py and are re-exported here, so every pair is
-``F.<name>`` for ``from minifilm.nn import functional as F``.
+``F.<name>`` for ``from minifilm.nn import functional as F``. These are the plain forms; what
+training runs where it differs is named in each docstring (fast_conv.py, fast_linear.py).
 """
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ import numpy as np
 
 from minifilm.nn.conv import (conv1d_backward, conv1d_forward, max_pool1d_backward,  # noqa: F401 (re-exported)
                               max_pool1d_forward)
-from minifilm.nn.scratch import require, require_grad_shape, scratch, sum_to_shape
+from minifilm.nn.checks import require, require_grad_shape, sum_to_shape
 
 
 # --------------------------------------------------------------------------------------------
@@ -41,18 +42,17 @@ def linear_forward(x: np.ndarray, W: np.ndarray, b: np.ndarray):
     return x @ W + b, (x, W)
 
 
-def linear_backward(dout: np.ndarray, cache, work: dict | None = None):
-    """Gradients of :func:`linear_forward`: dx (..., I), dW (I, O), db (O,).
+def linear_backward(dout: np.ndarray, cache):
+    """Gradients of :func:`linear_forward`: dx = dout Wᵀ (..., I), dW = xᵀ dout (I, O), db (O,).
 
-    With ``work`` (see :func:`~minifilm.nn.scratch.scratch`) dW is written into a buffer kept there: add it to your
-    gradients before the next call.
+    Ψ's dense layers run :func:`minifilm.nn.fast_linear.linear_fast_backward`, the same with dW in
+    a reused buffer.
     """
     x, W = cache
     require_grad_shape("linear_backward", dout, x.shape[:-1] + (W.shape[1],))
     x2 = x.reshape(-1, W.shape[0])       # (N, I) with N = product of the leading axes
     d2 = dout.reshape(-1, W.shape[1])    # (N, O)
-    dW = np.matmul(x2.T, d2, out=scratch(work, "dW", W.shape, np.result_type(x2, d2)))
-    return dout @ W.T, dW, d2.sum(axis=0)
+    return dout @ W.T, x2.T @ d2, d2.sum(axis=0)
 
 
 # --------------------------------------------------------------------------------------------

@@ -4,7 +4,8 @@ Pipeline per end effector b (left hand, right hand, left foot, right foot, in th
 
     source G_b(t)                    sources.py         (contacts for feet, directed PCA for hands)
       -> preprocess                  sources.py         (1 s normalisation, 4 Hz Butterworth, < 1e-3 -> 0)
-      -> sinusoid fit per frame      sinusoid_fit.py    (A sin(2π(F t − S)) + B over 0.5 s)
+      -> sinusoid fit per frame      sinusoid_fit.py    (A sin(2π(F t − S)) + B over 0.5 s; written out
+                                                          frame by frame in sinusoid_fit_plain.py)
       -> phase, amplitude            here              (§4.5-§4.6)
       -> p_i = amp · (sin 2πφ, cos 2πφ)                (Eq. 1, §4.7)
 

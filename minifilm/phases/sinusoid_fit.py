@@ -1,61 +1,20 @@
-"""Sliding-window sinusoid fit behind the local phases (Sec. 4.1.4; docs/original-code.md §4.1-§4.4).
+"""The sinusoid fit behind the local phases, vectorised: what labelling runs (Sec. 4.1.4).
 
-For every frame ``k`` of a preprocessed source signal ``v`` (F,) we fit
+The same fit as minifilm/phases/sinusoid_fit_plain.py::fit_sinusoids_plain, which a reader
+should meet first: it writes the method out frame by frame and says where and why it departs from
+the original (docs/original-code.md §4.1-§4.4). The two agree to rounding
+(tests/phases/test_sinusoid_fit_plain.py). Here every frame is fitted at once:
 
-    f_k(t) = A sin(2π(F t − S)) + B
+* frames are processed in blocks; the windows of a block are rows of (frames x samples) arrays;
+* the normal matrices of all interior windows are the same for a given frequency, so they are
+  computed once (and kept for the next sweep, with the edge blocks' own when they are small);
+  the right-hand sides of a whole block for the whole grid are one matrix product;
+* each 3x3 system is solved in closed form (adjugate inverse), elementwise over the batch;
+* infeasible grid candidates that cannot beat a feasible one are never projected (the plain fit
+  prunes the same way, so both see the same losses);
+* the bounds come from a sparse-table range minimum / maximum (:func:`range_reduce`).
 
-to the samples of a window around ``k`` and read the phase of frame ``k`` off the fitted curve.
-The window, bounds, skip rule and neighbour-agreement ("connect") terms are the original's; the
-optimiser is not.
-
-Deviation from the original (the one place this is documented)
----------------------------------------------------------------
-The original runs, per frame, a clock-seeded genetic algorithm (50 individuals, 10 generations) in
-absolute time ``t``. Its results cannot be reproduced. We minimise the *same* loss deterministically
-and for all frames at once:
-
-* **Local time.** Window ``k`` is written in ``τ = t − t_k``, i.e. ``f_k = A sin(2π(F τ − S')) + B``
-  with ``S' = S − F t_k`` (the same curve). The phase of frame ``k`` is then ``(−S') mod 1``.
-* **Linear for a fixed F.** ``A sin(2π(Fτ − S')) + B = c1 sin(2πFτ) + c2 cos(2πFτ) + B`` with
-  ``c1 = A cos 2πφ``, ``c2 = A sin 2πφ`` and ``φ = (−S') mod 1``. For a fixed frequency the weighted
-  least-squares problem is a 3x3 linear system, solved in closed form (adjugate inverse) for every
-  window and every frequency of a grid at once.
-* **Grid + refinement over F.** ``n_frequencies`` log-spaced frequencies in [0.25, 4] Hz; per frame
-  the best grid frequency is refined by parabolic interpolation of the loss in log F, re-solved at
-  the refined frequency, and kept only if it lowers the loss.
-* **Bounds (§4.2)**, with vmin/vmax taken over every sample the loss looks at (the data window
-  plus the P connect frames each side, 1 s at 60 fps) instead of the 0.5 s data window alone. With
-  the original's narrower range a noise-free 0.5 Hz sinusoid is not representable near its peaks
-  (the window then holds a quarter cycle whose range is a fraction of A, and B lies below it),
-  which biased F by 10-40 % in our tests. ``A >= 0`` holds by construction (A = |(c1, c2)|). If the
-  optimal ``B`` leaves ``[vmin, vmax]`` it is clipped and (c1, c2) re-solved with B fixed; if ``A``
-  then exceeds ``vmax − vmin`` it is scaled down to the bound (a projection, not the exact
-  constrained optimum; the frequency search then prefers frequencies whose unconstrained fit is
-  feasible). The original's bound on S is not needed: S' is only defined modulo 1.
-* **Connect terms (§4.3), Jacobi style.** Sweep 0 fits the data alone (the original starts from
-  ``Fit = 0``, which pulls every first-generation fit towards zero); each further sweep adds the
-  weighted agreement with the neighbours' fitted values ``Fit[j] = f_j(t_j)`` from the previous
-  sweep, as the original does between its 10 generations. 3 sweeps by default: more change the
-  phases by far less than their noise.
-* **Time in seconds.** The window is 0.5 s (2P+1 frames, P = round(0.25 fps)), so 30 and 120 fps
-  data are fitted over the same duration as the original's 60 fps.
-
-* **Frequency from the phase track.** A 0.5 s window pins the phase down (< 0.01 cycle median
-  error at 5 % noise from 0.5 to 3 Hz) but not the frequency below 1 Hz, where it holds less than
-  half a cycle (the Cramér-Rao bound of one 31-sample window is a relative std of 48 % at 0.5 Hz).
-  So the reported frequency of frame k is the slope of the unwrapped fitted phase over the 1 s
-  around k (least-squares line through ``phase_slope_seconds`` of phases), where every frame of
-  that second was fitted; elsewhere (ends, skipped stretches) the window's own F is kept. The
-  phases and the fit are unchanged. The frequency sets the amplitude's speed window (§4.5).
-
-Speed: the normal matrices of all interior windows are the same for a given frequency (computed
-once), the right-hand sides for the whole grid are one matrix product, and infeasible grid
-candidates that cannot beat a feasible one are never projected. See benchmarks/phases.py.
-
-Everything else follows the original: a window of ``2P+1`` frames (31 at 60 fps, 0.5 s) shifted, not
-truncated, near the ends; connect terms ``i = 1..P`` frames outside each side with weights
-``(1 − i/P)²``, left out beyond the signal; frames whose window has ``Σ|v| < 1e-3`` are skipped
-(all parameters 0). The denominator of the original's loss only rescales it and is omitted.
+Speed figures: benchmarks/phases.py and benchmarks/README.md ("Local phases").
 """
 from __future__ import annotations
 
@@ -63,37 +22,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from minifilm.phases.sinusoid_fit_plain import SinusoidFit, window_half_width
+
 __all__ = ["SinusoidFit", "fit_sinusoids", "overflow_window", "phase_slope_frequency", "range_reduce",
            "window_half_width"]
-
-
-@dataclass
-class SinusoidFit:
-    """Per-frame sinusoid parameters, all (F,) float64, in local time τ = t − t_k.
-
-    amplitude: A >= 0 (units of the signal).
-    frequency: F in Hz; 0 for skipped frames.
-    phase:     φ = (−S') mod 1 = (F t_k − S) mod 1, in [0, 1), cycles.
-    offset:    B (units of the signal).
-    fit:       f_k(t_k) = A sin 2πφ + B, the fitted curve's value at its own frame (the original's Fit).
-    skipped:   bool, frames whose window was (almost) all zeros.
-    """
-
-    amplitude: np.ndarray
-    frequency: np.ndarray
-    phase: np.ndarray
-    offset: np.ndarray
-    fit: np.ndarray
-    skipped: np.ndarray
-
-    def curve(self, k: int, t_offset: np.ndarray) -> np.ndarray:
-        """Frame k's fitted sinusoid at times ``t_k + t_offset`` (seconds)."""
-        return self.amplitude[k] * np.sin(2 * np.pi * (self.frequency[k] * t_offset + self.phase[k])) + self.offset[k]
-
-
-def window_half_width(seconds: float, fps: float) -> int:
-    """Half width P in frames of a window of ``seconds`` (2P+1 frames; 0.5 s at 60 fps -> 15)."""
-    return max(1, int(np.floor(seconds * fps / 2 + 0.5)))
 
 
 def overflow_window(k: np.ndarray, half: np.ndarray, n: int):
@@ -227,15 +159,17 @@ def _windows(frames: np.ndarray, n: int, half: int, shared: bool) -> _Windows:
     return _Windows(frames, np.clip(j, 0, n - 1), offsets, np.asarray(w_data), np.asarray(w_conn))
 
 
-def _fit_block(win: _Windows, values, prev_fit, freqs, fps, vmin, vmax, use_connect, cache):
+def _fit_block(win: _Windows, values, prev_fit, freqs, fps, vmin, vmax, use_connect, cache, name):
     """Best (c1, c2, B, F) for one block of frames: grid search, parabolic refinement, re-solve.
 
-    ``cache`` keeps the grid's basis and normal matrices between blocks and sweeps.
+    ``cache`` keeps the grid's basis and normal matrices between blocks and sweeps, under
+    (``name``, use_connect): ``name`` is "interior" for the windows every interior block shares,
+    and the block's own number for an edge block.
     """
     weights = win.w_data + (win.w_conn if use_connect else 0.0)
     targets = np.where(win.w_data > 0, values[win.index], prev_fit[win.index] if use_connect else 0.0)
     shared = win.offsets.shape[0] == 1
-    key = (shared, 0 if shared else id(win), use_connect)
+    key = (name, use_connect)
     design = cache.get(key)
     if design is None:
         design = _design(win.offsets, weights, freqs, fps)
@@ -346,10 +280,11 @@ def fit_sinusoids(signal, fps: float, window_seconds: float = 0.5, min_frequency
     c1, c2, B, F = (np.zeros(n) for _ in range(4))
     fit = np.zeros(n)
     cache = {}
+    names = [i if win.offsets.shape[0] > 1 else "interior" for i, win in enumerate(blocks)]
     for sweep in range(max(1, sweeps)):
-        for win in blocks:
+        for win, name in zip(blocks, names):
             fr = win.frames
-            out = _fit_block(win, v, fit, freqs, fps, vmin[fr], vmax[fr], sweep > 0, cache)
+            out = _fit_block(win, v, fit, freqs, fps, vmin[fr], vmax[fr], sweep > 0, cache, name)
             c1[fr], c2[fr], B[fr], F[fr] = out
         c1[skipped] = c2[skipped] = B[skipped] = F[skipped] = 0.0
         fit = c2 + B  # f_k(τ = 0): sin 0 = 0, cos 0 = 1

@@ -27,6 +27,7 @@ from minifilm.motion.skeletons import builtin_skeleton
 from minifilm.phases.label import label
 from minifilm.files import check_name, check_writable, child_path, folder_lock
 from minifilm.pipeline.run_folder import RunFolder
+from minifilm.pipeline.run_rig import retarget_onto_run
 from minifilm.train.finetune import finetune
 from minifilm.train.trainer import TrainConfig, Trainer
 
@@ -53,10 +54,8 @@ def read_clip(path, run: RunFolder, log: Callable[[str], None]) -> Motion:
     """One file on the run's skeleton, at the run's frame rate (resampled, and said so)."""
     motion = read_bvh(path, scale=run.bvh_scale)
     missing = [n for n in run.layout.joint_names if n not in motion.names]
-    if missing:
-        shown = ", ".join(motion.names[:12]) + (", ..." if len(motion.names) > 12 else "")
-        raise ValueError(f"{path}: not on the run's skeleton: {len(missing)} of the run's {run.layout.n_joints} "
-                         f"joints are not in the file ({', '.join(missing)}); the file's joints are {shown}")
+    if missing:      # another rig: retargeted onto the run's skeleton (minifilm/rigs/batch.py)
+        motion = retarget_onto_run(path, run.path, log)
     if abs(motion.fps - run.fps) > 1e-3 * run.fps:
         log(f"    {Path(path).name}: {motion.fps:g} fps resampled to the run's {run.fps:g} fps")
         motion = resample(motion, run.fps)

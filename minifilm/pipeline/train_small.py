@@ -44,7 +44,9 @@ from minifilm.model.style_model import StyleModel
 from minifilm.motion.bvh import bvh_duration, read_bvh
 from minifilm.motion.skeletons import STYLE100, builtin_skeleton
 from minifilm.phases.label import label
+from minifilm.rigs.batch import retarget_files
 from minifilm.pipeline.run_folder import RunFolder, is_run_entry
+from minifilm.pipeline.run_rig import load_target
 from minifilm.pipeline.results import (generate_per_style, save_loss_curve, show_styles,  # noqa: F401
                                        style_library, style_recognition, test_table)
 from minifilm.runtime.controller import start_from_dataset
@@ -87,6 +89,7 @@ class Settings:
     split: str = "auto"
     mirror: bool = False                 # also train on the left/right mirror of every file
     fps: Optional[float] = None          # your own data: resample every file to this rate (None: as recorded)
+    rig: Optional[str] = None            # your own data: retarget every file onto this rig first (docs/retargeting.md)
 
     def quick(self) -> "Settings":
         """A much smaller run of every step (seconds instead of minutes)."""
@@ -218,6 +221,8 @@ def prepare_data(s: Settings, data: Optional[Path], out: Path):
         phase_accuracy(clips)
     t0 = time.perf_counter()
     extra = {} if not own_data else data_settings(data, s)
+    if own_data and s.rig is not None:      # a folder of mixed rigs: every file onto one rig first
+        data = retarget_files(resolve_files(data), load_target(s.rig), out / "data", log)
     ds = build_dataset(data, cache_dir=out / "cache", progress=True, clip_seconds=s.clip_seconds,
                        clip_stride_seconds=s.clip_seconds / 2, seed=s.seed, **extra)
     log(f"[dataset] built in {time.perf_counter() - t0:.1f} s")

@@ -11,7 +11,7 @@ import sys
 import pytest
 
 from minifilm.evaluation import gradcheck_suite as suite
-from minifilm.nn import conv
+from minifilm.nn import fast_conv
 from minifilm.nn import functional as F
 from repo_paths import REPO_ROOT
 
@@ -32,7 +32,8 @@ def backward_passes():
     """Every *_backward function of the kit and the blocks, and every backward method of the
     networks and style modulations, as `path::name`."""
     out = []
-    for rel in ("minifilm/nn/functional.py", "minifilm/nn/conv.py", "minifilm/model/blocks.py"):
+    for rel in ("minifilm/nn/functional.py", "minifilm/nn/conv.py", "minifilm/nn/fast_conv.py",
+                "minifilm/nn/fast_linear.py", "minifilm/model/blocks.py"):
         tree = ast.parse((REPO_ROOT / rel).read_text(encoding="utf-8"))
         out += [f"{rel}::{n.name}" for n in tree.body if isinstance(n, ast.FunctionDef) and n.name.endswith("_backward")]
     for rel in ("minifilm/model/gating.py", "minifilm/model/motion_net.py", "minifilm/model/film_generator.py",
@@ -87,13 +88,13 @@ def test_fft_convolutions_forces_the_fft_method_and_restores_the_choice():
     """The row 'Ψ, FFT convolutions' really runs both of Ψ's convolutions in the FFT form (the
     toy sizes would pick im2col), and only there."""
     from minifilm.evaluation import gradcheck_networks as nets
-    choose = conv._conv1d_method
+    choose = fast_conv._conv1d_method
     with suite.fft_convolutions():
-        assert conv._conv1d_method(1, 9, 3, 3, 3) == "fft"
+        assert fast_conv._conv1d_method(1, 9, 3, 3, 3) == "fft"
         pr = nets.psi_problem(0)
         pr.run()
         assert [c.conv[0] for c in pr.model._caches[:2]] == ["fft", "fft"]
-    assert conv._conv1d_method is choose and choose(1, 9, 3, 3, 3) == "im2col"
+    assert fast_conv._conv1d_method is choose and choose(1, 9, 3, 3, 3) == "im2col"
     pr.run()
     assert [c.conv[0] for c in pr.model._caches[:2]] == ["im2col", "im2col"]
 

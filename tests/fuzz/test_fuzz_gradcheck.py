@@ -14,7 +14,7 @@ import gradcheck_report
 from minifilm.baselines import style_modulation as modulation
 from minifilm.evaluation import gradcheck_suite as suite
 from minifilm.model import blocks, losses
-from minifilm.nn import conv
+from minifilm.nn import conv, fast_conv, fast_linear
 from minifilm.nn import functional as F
 
 #: every network row would take ~30 s more; these cover each network class and the float32 table
@@ -39,7 +39,7 @@ def poison(value, result):
 def backward_passes():
     """Every function and method that returns a gradient: the pairs' *_backward, the losses,
     the style modulations' backward methods."""
-    found = [getattr(m, n) for m in (F, conv, blocks) for n in dir(m) if n.endswith("_backward")]
+    found = [getattr(m, n) for m in (F, conv, fast_conv, fast_linear, blocks) for n in dir(m) if n.endswith("_backward")]
     found += [losses.mse_loss, losses.bone_length_loss]
     return list({id(f): f for f in found}.values())
 

@@ -3,7 +3,17 @@
 import numpy as np
 import pytest
 
+from minifilm.nn import fast_conv
 from minifilm.nn import functional as F
+
+#: conv1d's plain pair (conv.py, re-exported by functional.py) and the fast pair's two methods
+CONV_FORMS = {
+    "plain": (F.conv1d_forward, F.conv1d_backward),
+    "fast im2col": (lambda x, W, b: fast_conv.conv1d_fast_forward(x, W, b, method="im2col"),
+                    fast_conv.conv1d_fast_backward),
+    "fast fft": (lambda x, W, b: fast_conv.conv1d_fast_forward(x, W, b, method="fft"),
+                 fast_conv.conv1d_fast_backward),
+}
 
 
 @pytest.fixture
@@ -194,16 +204,17 @@ def conv1d_loop(x, W, b):
     return y
 
 
-@pytest.mark.parametrize("method", ["im2col", "fft"])
+@pytest.mark.parametrize("form", list(CONV_FORMS))
 @pytest.mark.parametrize("k", [1, 3, 5, 7])
 @pytest.mark.parametrize("T", [4, 9, 10])   # includes T < k
-def test_conv1d_matches_loop(rng, k, T, method):
+def test_conv1d_matches_loop(rng, k, T, form):
+    forward, backward = CONV_FORMS[form]
     x, W, b = rng.standard_normal((2, T, 3)), rng.standard_normal((k, 3, 4)), rng.standard_normal(4)
-    y, cache = F.conv1d_forward(x, W, b, method=method)
+    y, cache = forward(x, W, b)
     np.testing.assert_allclose(y, conv1d_loop(x, W, b), rtol=1e-11, atol=1e-12)
     # dx by the loop definition: every output (n, t, f) sends dout * W[j, c, f] to x[n, t+j-k//2, c]
     dout = rng.standard_normal(y.shape)
-    dx, dW, db = F.conv1d_backward(dout, cache)
+    dx, dW, db = backward(dout, cache)
     dx_loop = np.zeros_like(x)
     dW_loop = np.zeros_like(W)
     for t in range(T):
@@ -217,9 +228,10 @@ def test_conv1d_matches_loop(rng, k, T, method):
     np.testing.assert_allclose(db, dout.sum(axis=(0, 1)), rtol=1e-12)
 
 
-def test_conv1d_rejects_even_kernel(rng):
+@pytest.mark.parametrize("form", list(CONV_FORMS))
+def test_conv1d_rejects_even_kernel(rng, form):
     with pytest.raises(ValueError, match="odd"):
-        F.conv1d_forward(rng.standard_normal((1, 5, 2)), rng.standard_normal((2, 2, 3)), np.zeros(3))
+        CONV_FORMS[form][0](rng.standard_normal((1, 5, 2)), rng.standard_normal((2, 2, 3)), np.zeros(3))
 
 
 @pytest.mark.parametrize("T", [6, 7])
@@ -255,8 +267,9 @@ def _float32_cases(rng):
         "expert_linear": (F.expert_linear_forward, F.expert_linear_backward, (f(3, 4), alpha, f(2, 4, 5), f(2, 5))),
         "expert_linear_b1": (F.expert_linear_forward, F.expert_linear_backward, (f(1, 4), alpha[:1], f(2, 4, 5), f(2, 5))),
         "conv1d": (F.conv1d_forward, F.conv1d_backward, (f(2, 7, 3), f(3, 3, 4), f(4))),
-        "conv1d_fft": (lambda x, W, b: F.conv1d_forward(x, W, b, method="fft"), F.conv1d_backward,
-                       (f(2, 7, 3), f(3, 3, 4), f(4))),
+        "conv1d_fast": (fast_conv.conv1d_fast_forward, fast_conv.conv1d_fast_backward, (f(2, 7, 3), f(3, 3, 4), f(4))),
+        "conv1d_fft": (lambda x, W, b: fast_conv.conv1d_fast_forward(x, W, b, method="fft"),
+                       fast_conv.conv1d_fast_backward, (f(2, 7, 3), f(3, 3, 4), f(4))),
         "max_pool1d": (F.max_pool1d_forward, F.max_pool1d_backward, (f(2, 7, 3),)),
     }
 
@@ -313,11 +326,13 @@ def test_a_batch_of_zero_is_a_named_error():
         F.gather_forward(np.ones((3, 2)), np.array([], dtype=np.int64))
     with pytest.raises(ValueError, match=r"gather_forward: index must lie in \[0, 3\), got -1..2"):
         F.gather_forward(np.ones((3, 2)), np.array([2, -1]))
-    for method in ("auto", "im2col", "fft"):
+    forwards = [F.conv1d_forward] + [lambda x, W, b, m=m: fast_conv.conv1d_fast_forward(x, W, b, method=m)
+                                     for m in ("auto", "im2col", "fft")]
+    for forward in forwards:
         with pytest.raises(ValueError, match=r"conv1d_forward: x is \(0, 5, 3\): a batch of 0 clips"):
-            F.conv1d_forward(np.ones((0, 5, 3)), np.ones((3, 3, 2)), np.zeros(2), method=method)
+            forward(np.ones((0, 5, 3)), np.ones((3, 3, 2)), np.zeros(2))
         with pytest.raises(ValueError, match=r"conv1d_forward: x is \(2, 0, 3\).*clips of 0 frames"):
-            F.conv1d_forward(np.ones((2, 0, 3)), np.ones((3, 3, 2)), np.zeros(2), method=method)
+            forward(np.ones((2, 0, 3)), np.ones((3, 3, 2)), np.zeros(2))
 
 
 @pytest.mark.parametrize("dtype", [np.int64, np.int32, np.uint8, bool])

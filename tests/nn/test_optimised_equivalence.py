@@ -11,7 +11,8 @@ import pytest
 from minifilm.nn.fast_optim import ChunkedAdam
 from minifilm.nn.optim import Adam
 from minifilm.nn.params import Parameters
-from minifilm.nn import conv
+from minifilm.nn import fast_conv
+from minifilm.nn.fast_linear import linear_fast_backward
 from minifilm.nn import functional as F
 
 TOL = 1e-10
@@ -135,17 +136,17 @@ CONV_CASES = [(3, 11, 4, 5, 5), (2, 3, 3, 2, 5), (1, 8, 6, 3, 1), (4, 16, 7, 9, 
 @pytest.mark.parametrize("B,T,C,Fo,k", CONV_CASES)
 def test_conv1d_equals_tap_loop(rng, method, B, T, C, Fo, k):
     x, W, b = rng.standard_normal((B, T, C)), rng.standard_normal((k, C, Fo)), rng.standard_normal(Fo)
-    y, cache = F.conv1d_forward(x, W, b, method=method)
+    y, cache = fast_conv.conv1d_fast_forward(x, W, b, method=method)
     assert cache[0] == method
     assert_close(y, conv_ref(x, W, b))
     dout = rng.standard_normal(y.shape)
-    dx, dW, db = F.conv1d_backward(dout, cache)
+    dx, dW, db = fast_conv.conv1d_fast_backward(dout, cache)
     rx, rW, rb = conv_ref_backward(dout, x, W)
     assert_close(dx, rx)
     assert_close(dW, rW)
     assert_close(db, rb)
     # skipping dx changes nothing else
-    none, dW2, db2 = F.conv1d_backward(dout, cache, need_dx=False)
+    none, dW2, db2 = fast_conv.conv1d_fast_backward(dout, cache, need_dx=False)
     assert none is None
     assert_close(dW2, rW)
     assert_close(db2, rb)
@@ -154,13 +155,13 @@ def test_conv1d_equals_tap_loop(rng, method, B, T, C, Fo, k):
 def test_conv1d_method_choice():
     """'auto' takes fft where it is much cheaper (the paper's Ψ and train_small's at batch 32)
     and im2col for single clips and tiny layers; an unknown method is an error."""
-    choose = conv._conv1d_method
+    choose = fast_conv._conv1d_method
     assert choose(32, 240, 300, 256, 25) == "fft" and choose(32, 120, 256, 256, 25) == "fft"
     assert choose(32, 120, 300, 32, 9) == "fft"
     assert choose(1, 120, 300, 32, 9) == "im2col" and choose(1, 240, 300, 256, 25) == "im2col"
     assert choose(32, 16, 12, 8, 5) == "im2col"
     with pytest.raises(ValueError, match="method"):
-        F.conv1d_forward(np.zeros((1, 4, 2)), np.zeros((3, 2, 2)), np.zeros(2), method="winograd")
+        fast_conv.conv1d_fast_forward(np.zeros((1, 4, 2)), np.zeros((3, 2, 2)), np.zeros(2), method="winograd")
 
 
 @pytest.mark.parametrize("method", ["im2col", "fft"])
@@ -173,15 +174,15 @@ def test_workspaces_reuse_buffers_without_changing_results(rng, method):
     work = {}
     for B, T in [(2, 9), (2, 9), (3, 9), (2, 12), (2, 9)]:
         x = rng.standard_normal((B, T, C))
-        y, cache = F.conv1d_forward(x, W, b, work=work, method=method)
+        y, cache = fast_conv.conv1d_fast_forward(x, W, b, work=work, method=method)
         dout = rng.standard_normal(y.shape)
-        got = F.conv1d_backward(dout, cache)
+        got = fast_conv.conv1d_fast_backward(dout, cache)
         assert_close(y, conv_ref(x, W, b))
         for g, r in zip(got, conv_ref_backward(dout, x, W)):
             assert_close(g, r)
     name = "cols" if method == "im2col" else "fft.H3"
     buf = work[name]
-    F.conv1d_forward(rng.standard_normal((2, 9, C)), W, b, work=work, method=method)
+    fast_conv.conv1d_fast_forward(rng.standard_normal((2, 9, C)), W, b, work=work, method=method)
     assert work[name] is buf                              # same shape: the buffer was reused
     Wl, bl = rng.standard_normal((6, 4)), rng.standard_normal(4)
     lwork = {}
@@ -189,13 +190,13 @@ def test_workspaces_reuse_buffers_without_changing_results(rng, method):
         x = rng.standard_normal((5, 6))
         _, cache = F.linear_forward(x, Wl, bl)
         dout = rng.standard_normal((5, 4))
-        assert_close(F.linear_backward(dout, cache, work=lwork)[1], x.T @ dout)
+        assert_close(linear_fast_backward(dout, cache, lwork)[1], x.T @ dout)
 
 
 @pytest.mark.parametrize("method", ["im2col", "fft"])
 def test_conv1d_float32_agrees_with_float64_reference(rng, method):
     x, W, b = rng.standard_normal((2, 20, 6)), rng.standard_normal((5, 6, 4)), rng.standard_normal(4)
-    y, _ = F.conv1d_forward(x.astype(np.float32), W.astype(np.float32), b.astype(np.float32),
+    y, _ = fast_conv.conv1d_fast_forward(x.astype(np.float32), W.astype(np.float32), b.astype(np.float32),
                             method=method)
     assert y.dtype == np.float32
     assert_close(y, conv_ref(x, W, b), tol=1e-5)
@@ -214,8 +215,8 @@ def test_conv1d_fft_float32_rounding_is_that_of_im2col(rng):
     f32 = lambda a: a.astype(np.float32)   # noqa: E731
     errors = {}
     for method in ("im2col", "fft"):
-        y, cache = F.conv1d_forward(f32(x), f32(W), f32(b), method=method)
-        got = (y,) + F.conv1d_backward(f32(dout), cache)
+        y, cache = fast_conv.conv1d_fast_forward(f32(x), f32(W), f32(b), method=method)
+        got = (y,) + fast_conv.conv1d_fast_backward(f32(dout), cache)
         assert all(g.dtype == np.float32 for g in got)
         errors[method] = [float(np.max(np.abs(g - r)) / np.max(np.abs(r))) for g, r in zip(got, ref)]
     for e_fft, e_im2col in zip(errors["fft"], errors["im2col"]):
@@ -434,7 +435,7 @@ def conv_method(request, monkeypatch):
     """Run a test with Ψ's convolutions as chosen ('auto': im2col at these tiny sizes) or forced
     onto the FFT path."""
     if request.param == "fft":
-        monkeypatch.setattr(conv, "_conv1d_method", lambda *sizes: "fft")
+        monkeypatch.setattr(fast_conv, "_conv1d_method", lambda *sizes: "fft")
     return request.param
 
 

@@ -1,0 +1,185 @@
+"""Issue 28 at small scale: train on styles the released network made, teach held-out styles to Ψ alone, and
+measure style with both measures (classifier over seeds, Fréchet rank).
+
+    minifilm dataset --from-released ../shared/data/released-lpn --out study/trained --seconds-per-style 20 \
+        --styles Aeroplane ArmsBySide ...                       # the trained styles
+    minifilm dataset --from-released ../shared/data/released-lpn --out study/held --seconds-per-style 60 \
+        --styles Chicken Proud                                  # the held-out styles
+    python benchmarks/dense_study.py --trained study/trained --held study/held --work study/work --epochs 3
+
+Steps, each timed (the load is printed beside):
+
+1. ``minifilm train``'s pipeline on the trained styles (``--epochs``, ``--quick`` for the small model);
+2. each held-out style taught from ``--clip-seconds`` of its files (FW, FR, TR1, BW, ... in that
+   order) with ``minifilm finetune``'s code (Ψ alone; Ω and Φ frozen); the trained styles' FiLM
+   vectors and one trained style's rollout compared bit for bit before and after;
+3. every style generated for ``--generate-seconds`` along a figure-eight (one batch), and measured:
+   the style classifier (minifilm/evaluation/style_classifier.py) trained on all styles' data, for
+   each of ``--seeds`` (recognition min and mean), and the Fréchet distance of the generated
+   windows to every style's real windows, with the target's rank
+   (minifilm/evaluation/style_measures.py). Reproduced = rank 1 and every seed ≥ 0.8.
+
+The real frames of a held-out style include the clip it was taught from (the data set has no other
+motion of the same paths); its other gaits are never seen by the fine-tuning.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+from dataclasses import replace
+from pathlib import Path
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+from minifilm.dataset.build import build_dataset  # noqa: E402
+from minifilm.dataset.manifest import read_manifest, write_manifest  # noqa: E402
+from minifilm.evaluation.style_classifier import (classify_rollout, cut_windows, rollout_blocks,  # noqa: E402
+                                                  split_windows, train_style_classifier)
+from minifilm.evaluation.style_measures import StyleSpace, recognition, style_report  # noqa: E402
+from minifilm.motion.bvh import bvh_duration  # noqa: E402
+from minifilm.pipeline.new_style import teach_style  # noqa: E402
+from minifilm.pipeline.run_folder import RunFolder  # noqa: E402
+from minifilm.pipeline.train_small import Settings, run as train_run  # noqa: E402
+from minifilm.runtime.control import figure_eight  # noqa: E402
+
+CLIP_ORDER = ("FW", "FR", "TR1", "BW", "SW", "BR", "SR", "ID")
+
+
+def load() -> str:
+    return f"load {os.getloadavg()[0]:.1f}"
+
+
+def clip_files(files, style: str, seconds: float):
+    """The style's files in CLIP_ORDER, up to ``seconds`` of motion in all."""
+    mine = sorted((f for f in files if f.style == style),
+                  key=lambda f: CLIP_ORDER.index(f.gait) if f.gait in CLIP_ORDER else 99)
+    chosen, total = [], 0.0
+    for f in mine:
+        d = bvh_duration(f.path)
+        if total + d > seconds + 1e-6 and chosen:
+            break
+        chosen.append(f)
+        total += d
+    return chosen, total
+
+
+def rollouts(run: RunFolder, names, seconds: float):
+    x0, p0 = run.start_states(names)
+    lib = run.styles()
+    n = int(round(seconds * run.fps))
+    return run.controller().run([figure_eight(seconds) for _ in names], n, np.stack([lib[s] for s in names]),
+                                phases=p0, start_x=x0)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--trained", type=Path, required=True, help="data set folder of the trained styles")
+    ap.add_argument("--held", type=Path, required=True, help="data set folder of the held-out styles")
+    ap.add_argument("--work", type=Path, required=True)
+    ap.add_argument("--epochs", type=int, default=3)
+    ap.add_argument("--quick", action="store_true", help="the quick (smaller) model")
+    ap.add_argument("--clip-seconds", type=float, default=30.0)
+    ap.add_argument("--steps", type=int, default=400, help="fine-tuning steps")
+    ap.add_argument("--generate-seconds", type=float, default=10.0)
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    a = ap.parse_args()
+    a.work.mkdir(parents=True, exist_ok=True)
+    report = {"load_start": os.getloadavg()[0]}
+    trained_files = read_manifest(a.trained / "manifest.csv")
+    run_dir = a.work / "run"
+
+    s = replace(Settings(), epochs=a.epochs, generate_seconds=a.generate_seconds, seed=0)
+    if a.quick:
+        s = replace(s.quick(), epochs=a.epochs, generate_seconds=a.generate_seconds)
+    s = replace(s, out=run_dir)
+    t0 = time.perf_counter()
+    result = train_run(s, a.trained / "manifest.csv")
+    report["train_seconds"] = time.perf_counter() - t0
+    report["test_mse"] = {k: v for k, v in result.items() if k != "recognition"}
+    report["train_recognition"] = result["recognition"]
+    print(f"[study] training: {report['train_seconds']:.0f} s ({load()})", flush=True)
+
+    held_files = read_manifest(a.held / "manifest.csv")     # read now: it may be written while training runs
+    held = sorted({f.style for f in held_files})
+    run = RunFolder.load(run_dir)
+    trained = [n for n in run.styles().names]
+    films_before = {n: run.styles()[n].copy() for n in trained}
+    probe = trained[0]
+    before = rollouts(run, [probe], 4.0).positions
+
+    report["finetune"] = {}
+    for h in held:
+        clip, secs = clip_files(held_files, h, a.clip_seconds)
+        t0 = time.perf_counter()
+        taught = teach_style(run_dir, h, [f.path for f in clip], steps=a.steps, log=lambda m: None)
+        took = time.perf_counter() - t0
+        report["finetune"][h] = dict(seconds=took, clip_seconds=secs, files=[Path(f.path).name for f in clip],
+                                     loss_before=taught.loss_before, loss_after=taught.loss_after,
+                                     nearest=taught.nearest)
+        print(f"[study] {h}: fine-tuned on {secs:.1f} s ({len(clip)} files) in {took:.1f} s; loss "
+              f"{taught.loss_before:.3f} -> {taught.loss_after:.3f}; nearest trained {taught.nearest} ({load()})",
+              flush=True)
+    run = RunFolder.load(run_dir)
+    same_films = all(np.array_equal(films_before[n], run.styles()[n]) for n in trained)
+    same_rollout = bool(np.array_equal(before, rollouts(run, [probe], 4.0).positions))
+    report["bit_identical"] = dict(films=same_films, rollout=same_rollout)
+    print(f"[study] trained styles bit-identical after fine-tuning: FiLM vectors {same_films}, "
+          f"rollout of {probe} {same_rollout}", flush=True)
+
+    # every style's data, for the classifier and the real windows
+    every = write_manifest(trained_files + held_files, a.work / "all.csv")
+    ds = build_dataset(every, cache_dir=a.work / "cache", progress=False, clip_seconds=s.clip_seconds,
+                       clip_stride_seconds=s.clip_seconds / 2, seed=s.seed, split_unit="files")
+    names = trained + held
+    t0 = time.perf_counter()
+    r = rollouts(run, names, a.generate_seconds)
+    print(f"[study] {len(names)} styles x {a.generate_seconds:g} s generated in {time.perf_counter() - t0:.0f} s",
+          flush=True)
+
+    probs = {}
+    for seed in a.seeds:
+        clf, info = train_style_classifier(ds, seed=seed)
+        probs[seed] = (classify_rollout(clf, ds, r, window=info["window"], stride=info["stride"]), info)
+    window, stride = probs[a.seeds[0]][1]["window"], probs[a.seeds[0]][1]["stride"]
+    real = {}
+    for split in ("train", "val", "test"):
+        w, st = split_windows(ds.split(split), ds.layout, ds.stats, window, stride)
+        for k, name in enumerate(ds.styles):
+            if np.any(st == k):
+                real.setdefault(name, []).append(w[st == k])
+    space = StyleSpace.fit({n: np.concatenate(v) for n, v in real.items()})
+    blocks = ds.stats.normalize_clip(rollout_blocks(r), ds.layout.x_joints)
+    rows = []
+    for b, name in enumerate(names):
+        target = ds.styles.index(name)
+        recs = [recognition(probs[seed][0][b], target) for seed in a.seeds]
+        rep = style_report(space, cut_windows(blocks[b], window, stride), name, recs)
+        rep["held_out"] = name in held
+        rows.append(rep)
+    report["styles"] = rows
+    tr = [x for x in rows if not x["held_out"]]
+    hd = [x for x in rows if x["held_out"]]
+    print("\n| style | held out | recognised min / mean over seeds | Fréchet rank | nearest | reproduced |")
+    print("|---|---|---|---|---|---|")
+    for x in rows:
+        c = x["classifier"]
+        print(f"| {x['target']} | {'yes' if x['held_out'] else ''} | {c['min']:.2f} / {c['mean']:.2f} | {x['rank']} | "
+              f"{x['nearest']} | {'yes' if x['reproduced'] else 'no'} |")
+    summary = dict(trained_recognised_mean=float(np.mean([x["classifier"]["mean"] for x in tr])),
+                   trained_rank1=float(np.mean([x["rank"] == 1 for x in tr])),
+                   held_reproduced=int(sum(x["reproduced"] for x in hd)), held=len(hd),
+                   classifier_heldout_acc=[probs[k][1]["heldout_acc"] for k in a.seeds], load_end=os.getloadavg()[0])
+    report["summary"] = summary
+    print(f"\n[study] trained styles: recognised {summary['trained_recognised_mean']:.2f} mean, rank 1 for "
+          f"{summary['trained_rank1']:.0%}; held-out reproduced {summary['held_reproduced']}/{len(hd)}; "
+          f"classifier held-out accuracy on real windows {summary['classifier_heldout_acc']} ({load()})")
+    (a.work / "report.json").write_text(json.dumps(report, indent=1, default=float))
+
+
+if __name__ == "__main__":
+    main()

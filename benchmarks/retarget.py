@@ -1,0 +1,135 @@
+"""Issue 27: retargeting checks on the real data, per source (figures in benchmarks/README.md).
+
+    python benchmarks/retarget.py                                   # every real file -> 100STYLE, round trips
+    python benchmarks/retarget.py --released DIR                    # + 100STYLE-rig clips (e.g. made by
+                                                                    #   minifilm generate --params ...) round trips
+    python benchmarks/retarget.py --every 10 --gifs /tmp/rt_gifs    # every 10th file; one GIF per source
+
+Per source (Bandai-1, Bandai-2, Xia, CMU), every file retargeted to the 100STYLE rig:
+  * bone directions: per mapped bone, the median over frames of the angle between source and
+    target; the table gives the median over files and the worst file, per bone;
+  * contacts: the fraction of frames on which source and target foot contacts agree (min, median);
+  * skating: target minus source mean toe-tip speed during contacts, cm/s (max over files);
+  * standing height (min, max over files), metres;
+  * phases: whether local phases could be labelled on the result (minifilm.phases.label, the
+    labelling ``minifilm phases`` draws), on every ``--phases-every``-th file.
+Round trips (mapped joints, after the leg-length scale; median and 95th percentile over frames,
+pooled over files): 100STYLE clips -> Bandai -> 100STYLE, and Bandai -> 100STYLE -> Bandai; with
+the feet planted (the whole method) and without (the pose transfer and root scaling alone).
+Timings are not measured; the load (``uptime``) is printed for the record.
+"""
+from __future__ import annotations
+
+import argparse
+import glob
+import os
+import subprocess
+import sys
+import tempfile
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from minifilm.evaluation.retargeting import (bone_direction_errors, contact_agreement, round_trip_errors, skating,
+                                             standing_height)
+from minifilm.motion.bvh_write import write_bvh
+from minifilm.rigs import read_source, retarget_motion
+from minifilm.pipeline.run_rig import load_target as load_rig
+from minifilm.motion.skeletons import STYLE100
+from minifilm.phases.label import label
+
+DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
+
+
+def sources(data: Path):
+    return {"Bandai-1": sorted(glob.glob(str(data / "bvh" / "bandai1" / "*.bvh"))),
+            "Bandai-2": sorted(glob.glob(str(data / "bandai2" / "*.bvh"))),
+            "Xia": sorted(glob.glob(str(data / "bvh" / "xia" / "*.bvh"))),
+            "CMU": sorted(glob.glob(str(data / "bvh" / "cmu" / "*.bvh")))}
+
+
+def to_100style(name, files, target, every_phases, gif_dir):
+    per_bone = defaultdict(list)
+    agree, skate, height, phases_ok, phases_tried = [], [], [], 0, 0
+    for i, path in enumerate(files):
+        m, roles = read_source(path)
+        out = retarget_motion(m, target, roles)
+        for bone, err in bone_direction_errors(m, roles, out, target.roles).items():
+            per_bone[bone.split(" ", 1)[-1]].append(float(np.median(err)))
+        agree.append(contact_agreement(m, roles, out, target.roles))
+        skate.append(skating(out, target.roles) - skating(m, roles))
+        height.append(standing_height(out, target.roles))
+        if i % every_phases == 0:
+            phases_tried += 1
+            try:
+                label(out, STYLE100)
+                phases_ok += 1
+            except ValueError as e:
+                print(f"    phases failed on {path}: {e}")
+        if gif_dir is not None and i == 0:
+            gif(path, out, target, gif_dir, name)
+    print(f"\n{name}: {len(files)} files -> 100style")
+    print(f"  contacts agree: min {min(agree):.3f}, median {np.median(agree):.3f}; files below 0.95: "
+          f"{sum(a < 0.95 for a in agree)}")
+    print(f"  skating, target - source: max {100 * max(skate):+.2f} cm/s, median {100 * np.median(skate):+.2f} cm/s")
+    print(f"  standing height: {min(height):.2f} - {max(height):.2f} m")
+    print(f"  phases labelled on {phases_ok} of {phases_tried} results")
+    print("  bone direction error, degrees (median over frames; median over files / worst file):")
+    for bone, v in per_bone.items():
+        print(f"    {bone:16s} {np.median(v):6.2f} / {max(v):6.2f}")
+
+
+def gif(path, out_motion, target, folder: Path, name: str) -> None:
+    folder.mkdir(parents=True, exist_ok=True)
+    tag = name.lower().replace("-", "")
+    retargeted = folder / f"{tag}_{Path(path).stem}_100style.bvh"
+    write_bvh(out_motion, retargeted, scale=target.bvh_scale)
+    picture = folder / f"{tag}_{Path(path).stem}.gif"
+    subprocess.run([sys.executable, "-m", "minifilm", "view", path, str(retargeted), "--gif", str(picture),
+                    "--seconds", "4"], check=True, stdout=subprocess.DEVNULL)
+    print(f"  GIF: {picture}")
+
+
+def round_trip(label_text, files, first, second, plant=True):
+    per_joint = defaultdict(list)
+    for path in files:
+        m, roles = read_source(path)
+        there = retarget_motion(m, second, roles, plant=plant)
+        back = retarget_motion(there, first, second.roles, plant=plant)
+        for joint, d in round_trip_errors(m, roles, back, first.roles).items():
+            per_joint[joint].append(d)
+    print(f"\nround trip {label_text}{'' if plant else ', feet not planted'}: {len(files)} files; "
+          "mapped joints, cm (median / 95th percentile)")
+    worst = 0.0
+    for joint, ds in per_joint.items():
+        d = np.concatenate(ds) * 100
+        worst = max(worst, np.percentile(d, 95))
+        print(f"    {joint:16s} {np.median(d):5.2f} / {np.percentile(d, 95):5.2f}")
+    print(f"  largest 95th percentile: {worst:.2f} cm")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--data", type=Path, default=DATA, help="the shared data folder")
+    ap.add_argument("--released", type=Path, help="folder of 100STYLE-rig BVH files (the released network's output)")
+    ap.add_argument("--every", type=int, default=1, help="take every n-th file of each source")
+    ap.add_argument("--phases-every", type=int, default=1, help="label phases on every n-th result")
+    ap.add_argument("--gifs", type=Path, help="write one GIF per source (original beside retargeted) here")
+    args = ap.parse_args()
+    print(f"load: {os.popen('uptime').read().strip()}")
+    target, bandai = load_rig("100style"), load_rig("bandai")
+    groups = {k: v[::args.every] for k, v in sources(args.data).items() if v}
+    for name, files in groups.items():
+        to_100style(name, files, target, args.phases_every, args.gifs)
+    for plant in (True, False):
+        if args.released is not None:
+            round_trip("100STYLE -> Bandai -> 100STYLE", sorted(glob.glob(str(args.released / "*.bvh"))), target,
+                       bandai, plant)
+        round_trip("Bandai -> 100STYLE -> Bandai", groups.get("Bandai-1", []) + groups.get("Bandai-2", []), bandai,
+                   target, plant)
+
+
+if __name__ == "__main__":
+    with tempfile.TemporaryDirectory():
+        main()

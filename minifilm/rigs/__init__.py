@@ -1,0 +1,27 @@
+"""Retargeting: any humanoid clip onto any rig (docs/retargeting.md).
+
+    from minifilm.rigs import load_rig, read_source, retarget_motion
+    target = load_rig("100style")                    # or "bandai", "cmu", a BVH file
+    motion, roles = read_source("walk_bandai.bvh")
+    result = retarget_motion(motion, target, roles)
+
+Modules, in the order the data flows through them:
+
+* joint_map.py   -- the roles of a rig's joints (hips, spine, neck, limbs), JSON maps, chain spreading
+* roles.py       -- roles from the humanoid parts minifilm/motion/humanoid.py finds
+* builtin_rigs.py -- the Bandai and CMU hierarchies (100STYLE's is minifilm/synthetic/body.py)
+* rig.py         -- a target rig: hierarchy, roles, units (``load_rig``)
+* pose.py        -- canonical rest poses and the transfer of world bone directions
+* proportions.py -- how a rig's foot lies flat; its legs' length (the root's scale)
+* feet.py        -- the floor, planted contacts, leg IK
+* clip.py        -- one clip onto a rig (``retarget_motion``)
+* batch.py       -- a data set's files onto one rig (``minifilm train --rig``)
+
+A run folder as a target, finetune clips and ``view --on`` are in minifilm/pipeline/run_rig.py.
+"""
+from minifilm.rigs.clip import read_source, retarget_file, retarget_motion
+from minifilm.rigs.joint_map import RigError, Roles
+from minifilm.rigs.rig import BUILTIN_RIGS, Rig, builtin_rig, find_roles, load_rig
+
+__all__ = ["BUILTIN_RIGS", "Rig", "RigError", "Roles", "builtin_rig", "find_roles", "load_rig", "read_source",
+           "retarget_file", "retarget_motion"]
