@@ -10,8 +10,12 @@ on this machine.
 """
 from __future__ import annotations
 
+import base64
 import inspect
 import json
+import os
+import socket
+import struct
 import time
 from typing import Callable, Optional, Union
 from urllib.parse import urlsplit
@@ -103,9 +107,6 @@ class RawWebSocket:
 
     def __init__(self, port: int, host_header: Optional[str] = None, extra_headers: str = "",
                  timeout: float = 10.0):
-        import base64
-        import os
-        import socket
         self.sock = socket.create_connection(("127.0.0.1", port), timeout=timeout)
         key = base64.b64encode(os.urandom(16)).decode("ascii")
         request = (f"GET /ws HTTP/1.1\r\nHost: {host_header or f'127.0.0.1:{port}'}\r\nUpgrade: websocket\r\n"
@@ -124,7 +125,6 @@ class RawWebSocket:
     @staticmethod
     def frame(opcode: int, payload: bytes = b"", fin: bool = True) -> bytes:
         """One masked client frame (RFC 6455 section 5.2); the mask is zero, which changes nothing."""
-        import struct
         head = bytes([(0x80 if fin else 0) | opcode])
         n = len(payload)
         if n < 126:
@@ -148,7 +148,6 @@ class RawWebSocket:
 
     def read_until_closed(self, timeout: float = 10.0) -> bytes:
         """Everything the server sends until it closes the connection (or ``timeout``)."""
-        import socket
         self.sock.settimeout(timeout)
         data, end = self.buffer, time.monotonic() + timeout
         try:
@@ -164,7 +163,6 @@ class RawWebSocket:
     @staticmethod
     def frames(data: bytes) -> list:
         """(opcode, payload) of each whole server frame (unmasked) in ``data``."""
-        import struct
         out, i = [], 0
         while i + 2 <= len(data):
             opcode, n = data[i] & 0x0F, data[i + 1] & 0x7F
