@@ -46,7 +46,7 @@ def contact_runs(contacts: np.ndarray) -> list:
 
 
 def pin_targets(sensor: np.ndarray, guide: np.ndarray, contacts: np.ndarray, fps: float, blend_seconds: float = 0.1,
-                floor: float = 0.0) -> Tuple[np.ndarray, np.ndarray]:
+                floor: float = 0.0, near_floor: float = 0.02) -> Tuple[np.ndarray, np.ndarray]:
     """Where one toe tip should be, and how much: (targets (F, 3), weights (F,) in [0, 1]).
 
     ``sensor`` (F, 3) is the tip's position after the transfer, ``guide`` (F, 3) the source's tip
@@ -54,8 +54,10 @@ def pin_targets(sensor: np.ndarray, guide: np.ndarray, contacts: np.ndarray, fps
     the target is one point: the tip's own mean position over the run, on the floor. For
     ``blend_seconds`` before and after it the tip moves from the pin as the guide moves from its
     position at the run's edge, and over the next ``blend_seconds`` the weight falls smoothly to 0
-    (the nearer run wins between two): the tip lands and takes off as the source's does, so the
-    contacts found on the result agree with the source's."""
+    (the nearer run wins between two); its height there is the guide's own (above the floor) while
+    the guide is within ``near_floor`` metres of the floor, fading to the tip's own height by twice
+    that: the tip lands and takes off as the source's does, so the contacts found on the result
+    agree with the source's."""
     F = len(sensor)
     targets = sensor.copy()
     weights = np.zeros(F)
@@ -70,6 +72,15 @@ def pin_targets(sensor: np.ndarray, guide: np.ndarray, contacts: np.ndarray, fps
         w = 0.5 + 0.5 * np.cos(np.pi * np.clip((dist - blend) / (blend + 1), 0, 1))
         edge = np.where(k < start, start, stop - 1)
         want = np.where((dist == 0)[:, None], pin, pin + guide[k] - guide[edge])
+        # out of the run, while the source's tip is near its floor (where the contact test's height
+        # threshold decides), the tip is at the source tip's own height above it: the pin's height
+        # plus the guide's rise from the run's edge sat up to a centimetre lower and counted as a
+        # contact where a slow pivoting source tip did not. Higher up it fades to the tip's own
+        # height: feet of other lengths lift their tips differently, and forcing the source's
+        # height there bends the knee by several centimetres (paid twice on a round trip).
+        own = np.clip((guide[k, 1] - near_floor) / near_floor, 0.0, 1.0)
+        height = (1.0 - own) * (floor + guide[k, 1]) + own * sensor[k, 1]
+        want[:, 1] = np.where(dist == 0, floor, height)
         better = w > weights[lo:hi]
         targets[lo:hi][better] = want[better]
         weights[lo:hi] = np.maximum(weights[lo:hi], w)

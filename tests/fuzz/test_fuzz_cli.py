@@ -100,8 +100,8 @@ OTHER = [
     ("train: out is a file", ["train", "--out", f"{R}/run.json"]),
     ("finetune: clip missing", ["finetune", "--run", R, "--name", "New", f"{T}/nope.bvh"]),
     ("finetune: clip not BVH", ["finetune", "--run", R, "--name", "New", f"{R}/run.json"]),
-    ("finetune: clip of another skeleton", ["finetune", "--run", R, "--name", "New",
-                                            "{shared}/bandai2/dataset-2_walk_normal_001.bvh"]),
+    # a clip of another humanoid rig is retargeted (issue 27); one that is no humanoid is refused
+    ("finetune: clip of a rig that is no humanoid", ["finetune", "--run", R, "--name", "New", f"{T}/chain.bvh"]),
     ("finetune: clip too short", ["finetune", "--run", R, "--name", "New", f"{T}/short.bvh"]),
     ("finetune: name exists", ["finetune", "--run", R, "--name", "Neutral", f"{R}/data/Neutral_FW.bvh"]),
     ("finetune: empty name", ["finetune", "--run", R, "--name", "", f"{R}/data/Neutral_FW.bvh"]),
@@ -158,6 +158,14 @@ def fill(args, run, tmp, shared):
     return [a.replace(R, str(run)).replace(T, str(tmp)).replace("{shared}", str(shared)) for a in args]
 
 
+#: a single chain of three bones, 200 frames: a rig with no legs, arms or head to find
+CHAIN_BVH = ("HIERARCHY\nROOT A\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation\n"
+             " JOINT B\n {\n  OFFSET 0 10 0\n  CHANNELS 3 Zrotation Xrotation Yrotation\n  JOINT C\n  {\n"
+             "   OFFSET 0 10 0\n   CHANNELS 3 Zrotation Xrotation Yrotation\n   End Site\n   {\n    OFFSET 0 10 0\n"
+             "   }\n  }\n }\n}\nMOTION\nFrames: 200\nFrame Time: 0.0166667\n"
+             + "".join(f"{0.01 * i} 90 0 0 {i % 30} 0 0 0 0 0 0 0\n" for i in range(200)))
+
+
 def invoke(argv, capsys):
     with pytest.raises(SystemExit) as exit_info:
         cli.main(argv)
@@ -170,6 +178,7 @@ def test_bad_arguments_are_one_line_and_change_nothing(run_copy, tmp_path, share
     lines = (run / "data" / "Neutral_FW.bvh").read_text().splitlines()
     frames_at = next(i for i, line in enumerate(lines) if line.startswith("Frames:"))
     (tmp_path / "short.bvh").write_text("\n".join(lines[:frames_at] + ["Frames: 5"] + lines[frames_at + 1:frames_at + 7]) + "\n")
+    (tmp_path / "chain.bvh").write_text(CHAIN_BVH)
     existing = set(tmp_path.rglob("*"))
     code, out = invoke(fill(args, run, tmp_path, shared_data), capsys)
     errors = [line for line in out.err.splitlines() if line.startswith("error:") or "minifilm: unknown" in line]

@@ -101,7 +101,10 @@ def test_round_trip_on_synthetic_motion_is_within_a_centimetre(synthetic_walk):
 # ----------------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("rel", ["bvh/bandai1/dataset-1_walk_normal_001.bvh", "bandai2/dataset-2_run_active_001.bvh",
-                                 "bvh/xia/neutral_01_000.bvh", "bvh/cmu/08_01_trimmed.bvh"])
+                                 "bvh/xia/neutral_01_000.bvh", "bvh/cmu/08_01_trimmed.bvh",
+                                 # a turn on the spot: 0.909 contact agreement before the tip took the
+                                 # source tip's height beside a contact
+                                 "bandai2/dataset-2_walk-turn-right_exhausted_009.bvh"])
 def test_real_file_onto_100style_keeps_directions_contacts_and_height(shared_data, rel):
     target = load_rig("100style")
     m, roles = read_source(shared_data / rel)
