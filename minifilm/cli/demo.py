@@ -6,10 +6,17 @@
     minifilm demo --params DIR --record demo.gif            # no server: a scripted session as a GIF
 
 Prints the URL of a page on this machine (127.0.0.1; --host opts in to another interface). On
+every interface the server answers only requests that name it (this machine's names and
+addresses, localhost, and each --allow-host NAME): a web page elsewhere cannot reach it through a
+DNS name of its own. On
 the page: W A S D or the arrows move, Q / E turn, Shift runs, nothing held stops; a gamepad's left
 stick moves, right stick turns, right trigger runs; pick a style, or blend three in the triangle;
 toggle foot locking and the skeleton fit. Each open page gets its own character (up to
 --max-characters); closing the page frees it. Ctrl-C stops the server.
+
+The page is served within a few seconds: the released network's speed calibration (per style)
+is measured in the background, printed here as it goes, and kept in the user's cache folder
+($XDG_CACHE_HOME/minifilm, or ~/.cache/minifilm; MINIFILM_CACHE overrides it) for the next start.
 
 Needs the websockets package: pip install 'minifilm[demo]'.
 """
@@ -19,9 +26,11 @@ import sys
 from pathlib import Path
 
 from minifilm.cli.args import in_range, input_path
+from minifilm.demo.calibration_cache import CalibrationCache
 from minifilm.demo.character import DemoSettings
 from minifilm.demo.record import record_gif
-from minifilm.demo.server import DemoServer, is_loopback
+from minifilm.demo.hosts import check_name, is_loopback
+from minifilm.demo.server import DemoServer, check_bind_host
 from minifilm.demo.source import DemoSource
 from minifilm.files import check_writable
 
@@ -35,6 +44,9 @@ def add_arguments(ap) -> None:
     ap.add_argument("--host", default="127.0.0.1",
                     help="interface to listen on (default 127.0.0.1, this machine only; another opens the demo "
                          "to whoever can reach that interface)")
+    ap.add_argument("--allow-host", action="append", default=[], metavar="NAME",
+                    help="another name this server may be reached by (e.g. a DNS name of this machine used by "
+                         "other machines with --host 0.0.0.0); repeatable")
     ap.add_argument("--port", type=in_range(0, 65535, int), default=8765, help="port (0: any free port)")
     ap.add_argument("--max-characters", type=in_range(1, 16, int), default=4,
                     help="pages served at once, one character each (1-16)")
@@ -51,6 +63,8 @@ def add_arguments(ap) -> None:
 
 
 def run(args) -> int:
+    host = check_bind_host(args.host)           # before loading anything: a clear error at once
+    allow = [check_name(n) for n in args.allow_host]
     if args.record is not None:
         check_writable(args.record, "--record")
     source = DemoSource.released(args.params, calibrate=not args.no_calibrate) if args.params is not None \
@@ -62,20 +76,28 @@ def run(args) -> int:
         path = record_gif(source, settings, args.record, seconds=args.record_seconds)
         print(f"recorded {args.record_seconds:g} s of {settings.style} -> {path}")
         return 0
+    cache = None
+    if source.calibrate and source.params is not None:
+        cache = CalibrationCache(source.params)
     try:
-        server = DemoServer(source, settings, host=args.host, port=args.port, max_characters=args.max_characters)
+        server = DemoServer(source, settings, host=host, port=args.port, max_characters=args.max_characters,
+                            allow_hosts=allow, calibration_cache=cache)
     except ImportError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    if not is_loopback(args.host):
-        print(f"warning: listening on {args.host}: anyone who can reach it can open the demo", file=sys.stderr)
+    if not is_loopback(host):
+        print(f"warning: listening on {host}: anyone who can reach it can open the demo", file=sys.stderr)
 
     def ready(url: str) -> None:
         print(f"minifilm demo: {source.name}, {len(source.library)} styles at {source.fps:g} fps, "
               f"up to {args.max_characters} pages\n  open {url}   (Ctrl-C stops)", flush=True)
+        if server.everywhere:
+            names = ", ".join(sorted(n for n in server.hosts.names if n not in ("localhost", host.strip("[]"))))
+            print(f"  from another machine: http://<this machine's name or address>:{server.port}/ "
+                  f"(names allowed: {names or 'none'}; add more with --allow-host NAME)", flush=True)
 
     try:
         server.run(ready)
     except OSError as e:          # the port is taken, the address is not this machine's, ...
-        raise ValueError(f"cannot listen on {args.host}:{args.port}: {e.strerror or e}") from None
+        raise ValueError(f"cannot listen on {host}:{args.port}: {e.strerror or e}") from None
     return 0

@@ -8,7 +8,7 @@
     minifilm generate --params DIR --style Old --seconds 10 --gif old.gif --html old.html
     minifilm generate --params DIR --list-styles
 
-Scripts: straight, figure8, walk_run_stop, strafe (minifilm/runtime/control.py). Every frame is put
+Scripts: straight, figure8, walk_run_stop, strafe, stop_and_go (minifilm/runtime/control.py). Every frame is put
 on the source skeleton (rigid bones aimed at the predicted joints, the demo's arm IK for the whole
 body) and the BVH is written on that skeleton in its own channel order. For the released network
 the fitted pose is fed back to the network, as the demo feeds back its post-IK pose, and the speed

@@ -2,10 +2,16 @@
 
 The released network needs one (:func:`minifilm.runtime.calibration.calibrate_speed`: commanding
 1.3 m/s makes it walk at about 0.5 m/s), and measuring one takes about 2.3 s of CPU (27 characters
-for 8 s). The start style is measured before the server starts; any other style the first time a
-page asks for it, in a worker *process* at low priority: in a thread of the server it would hold
-Python's GIL for seconds and make the frame loop wait for it (``calibration_worker.py``). Until a
-style's calibration is there, the start style's stands in for it.
+for 8 s), 20 s and more on a busy machine. So nothing is measured before the server starts (it
+serves its page within a second or two): calibrations come from the cache of earlier runs
+(``calibration_cache.py``, keyed by a hash of the network's files), and the missing ones, the
+start style first, any other style the first time a page asks for it, are measured in a worker
+*process* at low priority: in a thread of the server it would hold Python's GIL for seconds and
+make the frame loop wait for it (``calibration_worker.py``). Each one measured is printed in the
+terminal, added to the cache, and counted in :meth:`Calibrations.progress` (sent to the pages in
+every frame). Until a style's calibration is there, another style's stands in for it (the first
+one there), and before any is there the speed is commanded as asked (the network then walks
+slower than asked; the frames say ``calibrated: false``).
 
 A mix of styles is commanded with the mix of their commands, ``sum_s w_s command_s(speed)``, the
 same linear mixing the FiLM vectors get.
@@ -17,11 +23,13 @@ import math
 import multiprocessing
 import sys
 import threading
+import time
 from typing import Dict, Mapping, Optional, Sequence
 
 import numpy as np
 
 from minifilm.demo import calibration_worker
+from minifilm.demo.calibration_cache import CalibrationCache, max_speed
 from minifilm.runtime.calibration import SpeedCalibration, calibrate_speed
 from minifilm.runtime.controller import Controller
 
@@ -43,7 +51,8 @@ class Calibrations:
             first style's calibration for every other style.
     """
 
-    def __init__(self, source, first: Sequence[str] = (), background: bool = True):
+    def __init__(self, source, first: Sequence[str] = (), background: bool = True,
+                 cache: Optional[CalibrationCache] = None, log=None):
         self.source = source
         self.enabled = bool(source.calibrate)
         self._cal: Dict[str, SpeedCalibration] = {}
@@ -54,10 +63,69 @@ class Calibrations:
         self._background = background and source.params is not None
         self.fallback: Optional[SpeedCalibration] = None
         self._closed = False
-        if self.enabled:
-            for name in first:
+        self._log = log if log is not None else (lambda text: print(text, file=sys.stderr, flush=True))
+        self.cache = cache
+        self.measured = 0                   # styles measured by this server (not from the cache)
+        self.requested = 0                  # styles asked to be measured
+        self.measuring: Optional[str] = None
+        self._started: Dict[str, float] = {}
+        if not self.enabled:
+            return
+        if self._background:
+            # the cache is read (its name hashes the network's files) and the start style asked
+            # for on a thread of their own: the server starts serving meanwhile
+            self.requested = len(first)      # counted until the cache says what is left
+            threading.Thread(target=self._start, args=(list(first),), name="minifilm-demo-calibrate",
+                             daemon=True).start()
+            return
+        self._load_cache(first)
+        for name in first:          # measured here and now (tests, --record)
+            if name not in self._cal:
                 self._cal[name] = measure(source, name)
-            self.fallback = self._cal[first[0]] if first else None
+                self._store(name, self._cal[name])
+        if first and self.fallback is None:
+            self.fallback = self._cal[first[0]]
+
+    def _load_cache(self, first) -> None:
+        if self.cache is not None:
+            cached = self.cache.load()
+            with self._lock:
+                self._cal.update(cached)
+                self._memo.clear()
+        with self._lock:
+            if self._cal and self.fallback is None:
+                self.fallback = self._cal.get(first[0]) if first and first[0] in self._cal \
+                    else next(iter(self._cal.values()))
+
+    def _start(self, first) -> None:
+        try:
+            self._load_cache(first)
+        finally:
+            with self._lock:
+                self.requested -= len(first)
+        self.request(first)
+
+    def progress(self) -> dict:
+        """What the pages are told: ``state`` ("off", "measuring" or "done"), styles measured of
+        those asked for, the style being measured, and how many styles are known (cache included)."""
+        with self._lock:
+            if not self.enabled:
+                return {"state": "off"}
+            pending = self.requested - self.measured
+            return {"state": "measuring" if pending > 0 else "done", "done": self.measured,
+                    "total": self.requested, "measuring": self.measuring, "known": len(self._cal)}
+
+    def max_speed(self, weights: Mapping[str, float], direction: float = 0.0) -> Optional[float]:
+        """The fastest a mix can go in ``direction`` (degrees from the facing), m/s, from the
+        calibrations measured (the mix of its styles' fastest); None when not known yet."""
+        with self._lock:
+            tops = []
+            for name, w in weights.items():
+                cal = self._cal.get(name, self.fallback)
+                if cal is None:
+                    return None
+                tops.append(w * max_speed(cal, direction))
+        return float(sum(tops))
 
     def has(self, name: str) -> bool:
         with self._lock:
@@ -72,6 +140,7 @@ class Calibrations:
         with self._lock:
             todo = [n for n in dict.fromkeys(names) if n not in self._cal and n not in self._asked]
             self._asked.update(todo)
+            self.requested += len(todo)
         if todo:
             threading.Thread(target=self._submit, args=(todo,), name="minifilm-demo-calibrate", daemon=True).start()
 
@@ -87,18 +156,42 @@ class Calibrations:
             for name in todo:
                 future = self._pool.submit(calibration_worker.measure_style, name)
                 future.add_done_callback(lambda f, n=name: self._done(n, f))
+            if self.measuring is None and todo:
+                self.measuring = todo[0]
+                self._started[todo[0]] = time.monotonic()
+        self._log(f"minifilm demo: measuring the speed calibration of {', '.join(todo)} in the background "
+                  "(a minute or less; the page works meanwhile)")
 
     def _done(self, name: str, future) -> None:
         try:
             cal = future.result()
         except Exception as e:  # noqa: BLE001 - a failed measurement keeps the stand-in, says why
+            with self._lock:
+                self.measured += 1
+                self.measuring = None
             if not (self._closed or isinstance(e, concurrent.futures.CancelledError)):  # not when stopping
-                print(f"minifilm demo: speed calibration of {name!r} failed ({e}); "
-                      "the start style's is used for it", file=sys.stderr)
+                self._log(f"minifilm demo: speed calibration of {name!r} failed ({e}); "
+                          "another style's is used for it")
             return
         with self._lock:
             self._cal[name] = cal
+            if self.fallback is None:
+                self.fallback = cal
             self._memo.clear()
+            self.measured += 1
+            waited = time.monotonic() - self._started.pop(name, time.monotonic())
+            queued = [n for n in self._asked if n not in self._cal]
+            self.measuring = queued[0] if queued else None
+            if self.measuring is not None:
+                self._started.setdefault(self.measuring, time.monotonic())
+            done, total = self.measured, self.requested
+        self._store(name, cal)
+        self._log(f"minifilm demo: speed calibration of {name} measured ({done} of {total}"
+                  f"{f', {waited:.0f} s' if waited >= 1 else ''})")
+
+    def _store(self, name: str, cal: SpeedCalibration) -> None:
+        if self.cache is not None and not self._closed:
+            self.cache.put(name, cal)
 
     def command(self, velocity: np.ndarray, facing: np.ndarray, weights: Mapping[str, float]) -> np.ndarray:
         """The network's command (2,) for the user's target velocity (2,) m/s while facing (2,),

@@ -34,6 +34,29 @@ from minifilm.runtime.controller import Controller
 
 MAX_REACH = 20.0          # metres from the root: further means the network's output blew up
 SPEED_WINDOW = 0.25       # seconds over which the shown actual speed is measured
+#: a command is scaled to this share of the fastest the style was measured to go (its speed
+#: calibration), so what is asked can be reached (the released Neutral tops out at 1.8 m/s forwards)
+REACHABLE = 0.95
+
+
+class RateCounter:
+    """Events (frames sent to a page) in the last second; ``tick()`` from one thread, ``rate()``
+    from another (deque appends and pops are atomic in CPython)."""
+
+    def __init__(self, window: float = 1.0):
+        self.window = window
+        self.times = collections.deque(maxlen=1000)
+
+    def tick(self) -> None:
+        self.times.append(time.monotonic())
+
+    def rate(self) -> Optional[float]:
+        """Events in the last second; None until a second has passed since the first one."""
+        now = time.monotonic()
+        times = list(self.times)
+        if not times or now - times[0] < self.window:
+            return None
+        return float(sum(1 for t in times if now - t <= self.window))
 
 
 @dataclass
@@ -62,8 +85,15 @@ class Character:
         self.frame_no, self.ack = 0, None
         self.failures = 0
         self.step_ms = 0.0           # the Controller's own time for the last frame
-        self.commanded = 0.0
+        self.commanded = 0.0             # m/s, what the held keys ask for
+        self.reachable = 0.0             # m/s, that scaled to what the style can do (the character is steered at it)
+        self.max_speed: Optional[float] = None    # m/s, the fastest the mix goes this way (calibration)
+        self.speed_note: Optional[str] = None
         self.velocity = np.zeros(2)
+        self.steered = np.zeros(2)       # m/s, the velocity the character is steered at (reachable)
+        self.sent = RateCounter()        # frames the server actually sent to the page (server.py ticks it)
+        self.input_ms: Optional[float] = None     # input -> frame latency of the last held-input change
+        self._input_at: Optional[Tuple[int, float]] = None
         self._roots = collections.deque(maxlen=max(2, int(round(SPEED_WINDOW * source.fps)) + 1))
         self.set_fit(settings.fit)
         self.set_foot_lock(settings.foot_lock)
@@ -92,6 +122,8 @@ class Character:
     # ---- input ------------------------------------------------------------------------------
     def submit(self, message) -> None:
         """Queue a validated page message for the next frame (any thread)."""
+        if isinstance(message, InputMessage) and message.seq is not None:
+            self._input_at = (message.seq, time.monotonic())
         self.pending.append(message)
 
     def _apply(self, message) -> None:
@@ -122,6 +154,10 @@ class Character:
         self.velocity = velocity
         film = self.mix.advance(self.dt)
         weights = self.mix.weights
+        velocity = self.steered = self._reachable(velocity, facing, weights)
+        pressed = self._input_at
+        if pressed is not None and self.ack is not None and self.ack >= pressed[0]:
+            self.input_ms, self._input_at = 1e3 * (time.monotonic() - pressed[1]), None
         try:
             command = self.calibrations.command(velocity, facing, weights)
             t0 = time.perf_counter()
@@ -140,6 +176,25 @@ class Character:
         self.frame_no += 1
         self._roots.append(self.ctrl.state.root[0].copy())
         return self.frame_message(weights), notices
+
+    def _reachable(self, velocity: np.ndarray, facing: np.ndarray, weights) -> np.ndarray:
+        """The held velocity, scaled down to ``REACHABLE`` of the fastest the mix was measured to go
+        in that direction (when known); sets ``reachable``, ``max_speed`` and ``speed_note``."""
+        speed = float(math.hypot(velocity[0], velocity[1]))
+        self.reachable, self.speed_note = speed, None
+        if speed < 1e-9:
+            return velocity
+        cos = float(velocity @ facing) / max(speed, 1e-9)
+        direction = math.degrees(math.acos(min(1.0, max(-1.0, cos))))
+        top = self.calibrations.max_speed(weights, direction) if self.calibrations.enabled else None
+        self.max_speed = top
+        if top is None or speed <= REACHABLE * top:
+            return velocity
+        self.reachable = REACHABLE * top
+        name = " + ".join(n for n, w in sorted(weights.items(), key=lambda nw: -nw[1]) if w > 0.01)
+        self.speed_note = (f"{name} goes at most {top:.2f} m/s this way (its speed calibration): "
+                           f"the {speed:.2f} m/s asked for is scaled to {self.reachable:.2f}")
+        return velocity * (self.reachable / speed)
 
     def _check(self) -> Optional[str]:
         st = self.ctrl.state
@@ -172,7 +227,13 @@ class Character:
         """What the page draws: joint positions (J*3, metres, world, y up), contacts [right, left],
         phases (8: amplitude * (sin, cos) for left hand, right hand, left foot, right foot), root
         and facing (x, z), the heading steered, the commanded velocity and speed (m/s, before
-        calibration), the measured speed, the style mix now (``weights``, default the mix's) and
+        calibration: what the keys ask), ``reachable`` (that speed scaled to what the mix can do,
+        the speed the character is steered at), ``maxSpeed`` (the fastest the mix was measured to
+        go that way) and ``speedNote`` (says so when the command was scaled), the measured speed (``speed``: the character's own root
+        over the last quarter second), ``sentFps`` (frames the server actually sent this page in
+        the last second; None during the first), ``inputMs`` (from the server receiving the last
+        input message to the frame that applied it; None before any), ``calibration`` (the speed
+        calibration's progress, :meth:`Calibrations.progress`), the style mix now (``weights``, default the mix's) and
         its target and the fingerprint of its FiLM vector
         (:func:`~minifilm.demo.style_mix.film_digest`), the toggles, and the Controller's step
         time (ms; the stage adds ``frameMs``, the whole frame's, and ``t``)."""
@@ -187,8 +248,13 @@ class Character:
                    facing=(a + 12, a + 14), heading=(a + 14, a + 16), velocity=(a + 16, a + 18))
         frame = {"type": "frame", "n": self.frame_no, "ack": self.ack}
         frame.update({key: numbers[i:j] for key, (i, j) in cut.items()})
+        sent = self.sent.rate()
         frame.update({
             "commanded": round(self.commanded, 4), "speed": round(self.actual_speed(), 4),
+            "reachable": round(self.reachable, 4),
+            "maxSpeed": None if self.max_speed is None else round(self.max_speed, 3), "speedNote": self.speed_note,
+            "sentFps": sent, "inputMs": None if self.input_ms is None else round(self.input_ms, 1),
+            "calibration": self.calibrations.progress(),
             "weights": weights_dict(mix.items()), "target": weights_dict(self.mix.target.items()),
             "film": self.mix.digest, "footLock": self.foot_lock, "fit": self.fit, "stepMs": round(self.step_ms, 4),
             "calibrated": (not self.calibrations.enabled) or all(self.calibrations.has(n) for n in mix),

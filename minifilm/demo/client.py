@@ -10,8 +10,12 @@ on this machine.
 """
 from __future__ import annotations
 
+import base64
 import inspect
 import json
+import os
+import socket
+import struct
 import time
 from typing import Callable, Optional, Union
 from urllib.parse import urlsplit
@@ -86,6 +90,104 @@ class DemoClient:
         self._connection.__exit__(None, None, None)
 
     def __enter__(self) -> "DemoClient":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+class RawWebSocket:
+    """A WebSocket spoken by hand over a plain socket, frame by frame: what a hostile client
+    sends (ping, pong and continuation floods, odd headers) and no client library would.
+
+        raw = RawWebSocket(port)              # handshake with Host 127.0.0.1:port
+        raw.send_frame(0x9, b"x")             # a ping; opcodes: 0x0 continuation, 0x1 text,
+                                              # 0x2 binary, 0x8 close, 0x9 ping, 0xA pong
+    """
+
+    def __init__(self, port: int, host_header: Optional[str] = None, extra_headers: str = "",
+                 timeout: float = 10.0):
+        self.sock = socket.create_connection(("127.0.0.1", port), timeout=timeout)
+        key = base64.b64encode(os.urandom(16)).decode("ascii")
+        request = (f"GET /ws HTTP/1.1\r\nHost: {host_header or f'127.0.0.1:{port}'}\r\nUpgrade: websocket\r\n"
+                   f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n"
+                   f"{extra_headers}\r\n")
+        self.sock.sendall(request.encode("latin-1"))
+        head = b""
+        while b"\r\n\r\n" not in head:
+            chunk = self.sock.recv(4096)
+            if not chunk:
+                break
+            head += chunk
+        self.response, _, self.buffer = head.partition(b"\r\n\r\n")
+        self.status = int(self.response.split(b" ", 2)[1]) if self.response.startswith(b"HTTP/") else 0
+
+    @staticmethod
+    def frame(opcode: int, payload: bytes = b"", fin: bool = True) -> bytes:
+        """One masked client frame (RFC 6455 section 5.2); the mask is zero, which changes nothing."""
+        head = bytes([(0x80 if fin else 0) | opcode])
+        n = len(payload)
+        if n < 126:
+            head += bytes([0x80 | n])
+        elif n < 65536:
+            head += bytes([0x80 | 126]) + struct.pack("!H", n)
+        else:
+            head += bytes([0x80 | 127]) + struct.pack("!Q", n)
+        return head + b"\0\0\0\0" + payload
+
+    def send_frame(self, opcode: int, payload: bytes = b"", fin: bool = True) -> None:
+        self.sock.sendall(self.frame(opcode, payload, fin))
+
+    def send_raw(self, data: bytes) -> bool:
+        """Send bytes as they are; False once the server has closed the connection."""
+        try:
+            self.sock.sendall(data)
+            return True
+        except OSError:
+            return False
+
+    def read_until_closed(self, timeout: float = 10.0) -> bytes:
+        """Everything the server sends until it closes the connection (or ``timeout``)."""
+        self.sock.settimeout(timeout)
+        data, end = self.buffer, time.monotonic() + timeout
+        try:
+            while time.monotonic() < end:
+                chunk = self.sock.recv(65536)
+                if not chunk:
+                    break
+                data += chunk
+        except (socket.timeout, OSError):
+            pass
+        return data
+
+    @staticmethod
+    def frames(data: bytes) -> list:
+        """(opcode, payload) of each whole server frame (unmasked) in ``data``."""
+        out, i = [], 0
+        while i + 2 <= len(data):
+            opcode, n = data[i] & 0x0F, data[i + 1] & 0x7F
+            i += 2
+            if n == 126:
+                if i + 2 > len(data):
+                    break
+                n, i = struct.unpack("!H", data[i:i + 2])[0], i + 2
+            elif n == 127:
+                if i + 8 > len(data):
+                    break
+                n, i = struct.unpack("!Q", data[i:i + 8])[0], i + 8
+            if i + n > len(data):
+                break
+            out.append((opcode, data[i:i + n]))
+            i += n
+        return out
+
+    def close(self) -> None:
+        try:
+            self.sock.close()
+        except OSError:
+            pass
+
+    def __enter__(self) -> "RawWebSocket":
         return self
 
     def __exit__(self, *exc) -> None:

@@ -15,24 +15,28 @@ with ``error`` and dropped, and a page over its message budget (``budget.py``) i
 disconnected; one sender task sends the page its messages in order, and of the
 frames only the newest, so a slow page skips frames instead of slowing the loop.
 
-HTTP: only GET of the site's exact paths (``site.py``). Served on a loopback address, requests must
-name it in their ``Host`` header (a web page elsewhere cannot reach the server by a DNS name that
-points here), and a WebSocket opened by a browser must come from this server's own page (its
-``Origin``), so another site open in the same browser cannot drive the character.
+Every WebSocket frame a page sends, control frames included, takes from its budget before the
+transport answers it (``budget.py``).
+
+HTTP: only GET of the site's exact paths (``site.py``). On every bind address, requests must name
+this server in their ``Host`` header (``hosts.py``: a web page elsewhere cannot reach the server by
+a DNS name that points here), and a WebSocket opened by a browser must come from this server's own
+page (its ``Origin``), so another site open in the same browser cannot drive the character. A
+request with no Host, two Host or two Origin headers is answered 400.
 """
 from __future__ import annotations
 
 import asyncio
 import collections
-import ipaddress
 import logging
 import signal
 import threading
 from typing import Callable, Optional
 
-from minifilm.demo.budget import MessageBudget
+from minifilm.demo.budget import budgeted_connection
 from minifilm.demo.calibrations import Calibrations
 from minifilm.demo.character import Character, DemoSettings
+from minifilm.demo.hosts import HostAllowList, is_loopback, is_unspecified, parse_ip  # noqa: F401 (is_loopback: cli)
 from minifilm.demo.protocol import (MAX_MESSAGE_BYTES, PROTOCOL_VERSION, TRANSPORT_MAX_BYTES, PingMessage,
                                     ProtocolError, encode, error, parse_message, pong, refused)
 from minifilm.demo.record import FrameHistory, RecordMessage, answer_record
@@ -46,26 +50,63 @@ CLOSE_TIMEOUT = 2.0      # seconds a closed page has to answer the close; then i
 
 
 def websockets_modules():
-    """(serve, ConnectionClosed, Response, Headers) from ``websockets``, or ImportError naming the extra."""
+    """(serve, ConnectionClosed, Response, Headers, connection class) from ``websockets``, or
+    ImportError naming the extra."""
     try:
         # an optional extra (minifilm[demo]): imported only when the demo runs
-        from websockets.asyncio.server import serve
+        from websockets.asyncio.server import ServerConnection, serve
         from websockets.datastructures import Headers
-        from websockets.exceptions import ConnectionClosed
+        from websockets.exceptions import ConnectionClosed, ProtocolError
+        from websockets.frames import Opcode
         from websockets.http11 import Response
     except ImportError as e:
         raise ImportError(f"minifilm demo needs the websockets package (13 or newer), which is not installed: "
                           f"pip install 'minifilm[demo]' ({e})") from None
-    return serve, ConnectionClosed, Response, Headers
+    return serve, ConnectionClosed, Response, Headers, budgeted_connection(ServerConnection, ProtocolError, Opcode)
 
 
-def is_loopback(host: str) -> bool:
-    if host == "localhost":
-        return True
+def check_bind_host(host: str) -> str:
+    """The ``--host`` to listen on, or ValueError: an empty one would listen on every interface
+    and print an unusable URL (say 0.0.0.0 for that)."""
+    if not isinstance(host, str) or not host.strip():
+        raise ValueError("--host: give an address or name to listen on (127.0.0.1: this machine only; "
+                         "0.0.0.0: every interface), not an empty string")
+    return host.strip()
+
+
+def url_host(bound: str) -> str:
+    """The host part of a URL a browser on this machine can open for a server bound at ``bound``."""
+    ip = parse_ip(bound)
+    if ip is None:
+        return bound
+    if ip.is_unspecified:
+        return "[::1]" if ip.version == 6 else "127.0.0.1"
+    return f"[{ip}]" if ip.version == 6 else str(ip)
+
+
+#: The released network's styles 095-099 were fine-tuned on the five styles held out of training
+#: (docs/original-code.md §8.1; which number is which style is not documented).
+HELD_OUT_IDS = ("095", "096", "097", "098", "099")
+HELD_OUT_STYLES = ("Roadrunner", "ShieldedLeft", "Skip", "Star", "WildArms")
+
+
+def held_out(names) -> dict:
+    """For the page: the styles fine-tuned on held-out data, and what is known of them ({} when
+    the source has none)."""
+    ids = [n for n in HELD_OUT_IDS if n in names]
+    if len(ids) != len(HELD_OUT_IDS):
+        return {}
+    return {"ids": ids, "styles": list(HELD_OUT_STYLES),
+            "note": "fine-tuned on the five styles held out of training (" + ", ".join(HELD_OUT_STYLES)
+                    + "); which number is which style is not documented"}
+
+
+def _local_address(connection) -> str:
+    """The address a connection arrived at ("" when unknown)."""
     try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
+        return str(connection.local_address[0])
+    except (AttributeError, TypeError, IndexError, OSError):
+        return ""
 
 
 class Outbox:
@@ -105,13 +146,17 @@ class DemoServer:
     """
 
     def __init__(self, source: DemoSource, settings: DemoSettings, host: str = "127.0.0.1", port: int = 8765,
-                 max_characters: int = 4, background_calibration: bool = True):
+                 max_characters: int = 4, background_calibration: bool = True, allow_hosts=(),
+                 calibration_cache=None):
         if settings.style not in source.library:
             raise ValueError(f"--style {settings.style!r} is not one of the {len(source.library)} styles: "
                              f"{', '.join(source.library.names)}")
         self.modules = websockets_modules()
+        host = check_bind_host(host)
         self.source, self.settings, self.host, self.port = source, settings, host, int(port)
-        self.calibrations = Calibrations(source, first=[settings.style], background=background_calibration)
+        self.hosts = HostAllowList(host, allow_hosts)
+        self.calibrations = Calibrations(source, first=[settings.style], background=background_calibration,
+                                         cache=calibration_cache)
         self.stage = Stage(lambda ident: Character(ident, source, self.calibrations, settings), source.fps,
                            max_characters)
         self.site = Site(f"minifilm demo: {source.name}")
@@ -125,36 +170,43 @@ class DemoServer:
 
     @property
     def url(self) -> str:
-        host = f"[{self.host}]" if ":" in self.host else self.host
-        return f"http://{host}:{self.port}/"
+        """A URL a browser on this machine can open (127.0.0.1 when bound to every interface)."""
+        return f"http://{url_host(self.host)}:{self.port}/"
+
+    @property
+    def everywhere(self) -> bool:
+        """Listening on every interface (0.0.0.0 or ::)."""
+        return is_unspecified(self.host)
 
     # ---- HTTP ---------------------------------------------------------------------------------
-    def _allowed_hosts(self) -> set:
-        names = {"127.0.0.1", "localhost", "[::1]", self.host if ":" not in self.host else f"[{self.host}]"}
-        return {f"{n}:{self.port}".lower() for n in names}
-
     def _http(self, connection, request):
         """process_request: the page's files, or None to open the WebSocket at /ws."""
-        _, _, Response, Headers = self.modules
-        host = request.headers.get("Host", "").lower()
-        if is_loopback(self.host) and host not in self._allowed_hosts():
-            return self._plain(403, f"unexpected Host header {host[:60]!r}: open {self.url}")
+        hosts, origins = request.headers.get_all("Host"), request.headers.get_all("Origin")
+        if len(hosts) != 1:
+            return self._plain(400, f"a request needs exactly one Host header, got {len(hosts)}")
+        if len(origins) > 1:
+            return self._plain(400, f"a request may have one Origin header, got {len(origins)}")
+        local = _local_address(connection)
+        host = hosts[0]
+        if not self.hosts.allows(host, local):
+            return self._plain(403, f"unexpected Host header {host[:60]!r}: open {self.url} "
+                                    "(or start the demo with --allow-host NAME)")
         path = request.path.split("?", 1)[0]
         if path == "/ws":
-            origin = request.headers.get("Origin")
-            if origin is not None and origin.lower() != f"http://{host}":
+            if origins and not self.hosts.allows_origin(origins[0], local):
                 return self._plain(403, "a WebSocket of this demo may only be opened by its own page")
             return None
         found = self.site.get(path)
         if found is None:
             return self._plain(404, "not found")
         body, kind = found
+        _, _, Response, Headers, _ = self.modules
         return Response(200, "OK", Headers(self.site.headers(kind, len(body))), body)
 
     def _plain(self, status: int, text: str):
-        _, _, Response, Headers = self.modules
+        _, _, Response, Headers, _ = self.modules
         body = text.encode("utf-8")
-        reason = {403: "Forbidden", 404: "Not Found"}[status]
+        reason = {400: "Bad Request", 403: "Forbidden", 404: "Not Found"}[status]
         return Response(status, reason, Headers(self.site.headers("text/plain; charset=utf-8", len(body))), body)
 
     # ---- one page -------------------------------------------------------------------------------
@@ -170,10 +222,12 @@ class DemoServer:
             "speeds": {"walk": self.settings.walk_speed, "run": self.settings.run_speed},
             "turnRate": self.settings.turn_rate_deg, "calibrate": self.calibrations.enabled,
             "limits": {"maxMessageBytes": MAX_MESSAGE_BYTES, "maxCharacters": self.stage.max_characters},
+            "heldOut": held_out(self.source.library.names),
+            "calibration": self.calibrations.progress(),
         })
 
     async def _connection(self, ws) -> None:
-        _, ConnectionClosed, _, _ = self.modules
+        ConnectionClosed = self.modules[1]
         loop = asyncio.get_running_loop()
         outbox = Outbox()
         history, joined = FrameHistory(self.source.layout.n_joints, self.source.fps), []
@@ -197,18 +251,11 @@ class DemoServer:
             return
         joined.append(character)
         outbox.put(self.hello(character), False)
-        sender = asyncio.create_task(self._send(ws, outbox))
-        budget = MessageBudget()
+        # frames over this page's budget never get here (budget.py); it is told once a second
+        ws.on_over_budget = lambda text: outbox.put(error(text), False)
+        sender = asyncio.create_task(self._send(ws, outbox, character.sent))
         try:
             async for data in ws:
-                if not budget.take():  # over this page's budget: dropped unparsed (budget.py)
-                    if budget.flooding:
-                        await ws.close(1008, f"too many messages (over {budget.rate:.0f} a second)")
-                        break
-                    if budget.should_warn:
-                        outbox.put(error(f"too many messages: at most {budget.rate:.0f} a second; "
-                                         "the ones over that are dropped"), False)
-                    continue
                 try:
                     message = parse_message(data, self.styles)
                 except ProtocolError as e:
@@ -244,12 +291,14 @@ class DemoServer:
         loop.run_in_executor(None, answer_record, self.source, history, message, self.source.name,
                              send).add_done_callback(done)
 
-    async def _send(self, ws, outbox: Outbox) -> None:
-        _, ConnectionClosed, _, _ = self.modules
+    async def _send(self, ws, outbox: Outbox, sent=None) -> None:
+        ConnectionClosed = self.modules[1]
         try:
             while True:
                 for text in await outbox.take():
                     await ws.send(text)
+                    if sent is not None and text.startswith('{"type":"frame"'):
+                        sent.tick()     # the frame rate the page is told is what was sent
         except ConnectionClosed:
             pass
 
@@ -266,9 +315,10 @@ class DemoServer:
         try:
             async with serve(self._connection, self.host, self.port, process_request=self._http,
                              max_size=TRANSPORT_MAX_BYTES, compression=None, server_header=None,
-                             close_timeout=CLOSE_TIMEOUT,
+                             close_timeout=CLOSE_TIMEOUT, create_connection=self.modules[4],
                              logger=self.logger) as server:
                 self.port = server.sockets[0].getsockname()[1]
+                self.hosts.port = self.port
                 self.stage.start()
                 self._ready.set()
                 if on_ready is not None:

@@ -9,7 +9,9 @@ which way should it face and how fast (m/s, world x/z) should it move?"  Two kin
 * :class:`PathScript` -- closed loop: follow a polyline of waypoints (pure pursuit), with a speed
   schedule and a facing mode ('travel', 'backward' or a fixed world direction for strafing).
 
-Ready scripts: :func:`straight_walk`, :func:`figure_eight`, :func:`walk_run_stop`, :func:`strafe`.
+Ready scripts: :func:`straight_walk`, :func:`figure_eight`, :func:`walk_run_stop`, :func:`strafe`,
+:func:`stop_and_go` (walk, stand, walk, stand: the runtime must come to a stop and stand,
+``minifilm/runtime/standing.py``).
 
 :func:`blend_future_trajectory` is the user-trajectory blend of the original runtime
 (docs/original-code.md §10.4, after Zhang et al. 2018), rewritten at the network's own future sample
@@ -27,7 +29,7 @@ import numpy as np
 
 __all__ = [
     "Script", "CommandScript", "PathScript", "straight_walk", "figure_eight", "walk_run_stop",
-    "strafe", "SCRIPTS", "make_script", "blend_future_trajectory", "distance_to_path",
+    "strafe", "stop_and_go", "SCRIPTS", "make_script", "blend_future_trajectory", "distance_to_path",
     "heading_vector",
 ]
 
@@ -264,11 +266,24 @@ def strafe(seconds: float = 30.0, speed: float = 1.0, width: float = 4.0) -> Pat
     return PathScript(pts, speed=speed, facing=(0.0, 1.0), lookahead=0.6, duration=seconds)
 
 
+def stop_and_go(seconds: float = 30.0, speed: float = 1.3) -> PathScript:
+    """Straight line, in quarters of the time: walk at ``speed``, stop and stand, walk on, stop and
+    stand. (Speed changes take a quarter of a second: a released key.)"""
+    if seconds <= 0:
+        raise ValueError(f"stop_and_go: seconds must be positive, got {seconds}")
+    q = seconds / 4.0
+    r = min(0.25, q / 4.0)
+    keys = [(0.0, speed), (q - r, speed), (q, 0.0), (2 * q, 0.0), (2 * q + r, speed), (3 * q - r, speed),
+            (3 * q, 0.0), (seconds, 0.0)]
+    return PathScript([[0.0, 0.0], [0.0, speed * seconds + 5.0]], speed=keys, duration=seconds)
+
+
 SCRIPTS: dict = {
     "straight": straight_walk,
     "figure8": figure_eight,
     "walk_run_stop": walk_run_stop,
     "strafe": strafe,
+    "stop_and_go": stop_and_go,
 }
 
 

@@ -48,6 +48,7 @@ from minifilm.runtime.control import Script, blend_future_trajectory
 from minifilm.runtime.frames import to_local2, to_local3, to_world2, to_world3, unit2
 from minifilm.runtime.network import RuntimeNetwork
 from minifilm.runtime.rollout import Rollout
+from minifilm.runtime.standing import StandStill
 from minifilm.runtime.state import CharacterState
 
 
@@ -114,12 +115,18 @@ class Controller:
             back, the released network's own bone-length CV drops a little (median over its 100
             styles 5.1 % -> 4.6 %, ``benchmarks/released_styles.py``), but small models trained
             here stopped stepping more often (``benchmarks/trained_rollout.py --fit``).
+        stand: what is done at a zero command so the character stops and stands
+            (:class:`~minifilm.runtime.standing.StandStill`: future pinned to the root, the
+            network's leftover root drift faded out, phase amplitudes decayed); None: the paper's
+            loop unchanged at every command (the released network then keeps walking at about
+            0.4 m/s when asked to stop).
     """
 
     def __init__(self, network: RuntimeNetwork, layout: FeatureLayout, fps: float = 60.0,
                  velocity_blend: float = 0.5, future_smoothing: float = 0.15,
                  position_bias: float = 0.75, direction_bias: float = 1.25, foot_locker=None,
-                 skeleton: Optional[SkeletonFit] = None, feed_back_fit: bool = False):
+                 skeleton: Optional[SkeletonFit] = None, feed_back_fit: bool = False,
+                 stand: Optional[StandStill] = StandStill()):
         if network.x_dim != layout.x_dim or network.z_dim != layout.z_dim:
             raise ValueError(f"Controller: network sizes (x {network.x_dim}, z {network.z_dim}) do not match "
                              f"the layout (x {layout.x_dim}, z {layout.z_dim})")
@@ -131,6 +138,7 @@ class Controller:
             raise ValueError(f"Controller: the skeleton fit places {len(skeleton.joint_indices)} joints, "
                              f"the layout has {layout.n_joints}")
         self.skeleton, self.feed_back_fit = skeleton, bool(feed_back_fit)
+        self.stand = stand
         L = layout
         ts = np.asarray(L.trajectory_seconds)
         # the training features' rounding (halves away from zero), so a sample on half a frame
@@ -191,7 +199,8 @@ class Controller:
             future_pos=future_pos, future_dir=future_dir, joint_pos=joint_pos, joint_fwd=joint_fwd,
             joint_up=joint_up, joint_vel=to_world3(local["velocity"], face),
             phases=np.broadcast_to(start_phases, (B, 8)).copy(), contacts=np.zeros((B, 2)),
-            network_pos=joint_pos, out_pos=joint_pos, out_fwd=joint_fwd, out_up=joint_up)
+            network_pos=joint_pos, out_pos=joint_pos, out_fwd=joint_fwd, out_up=joint_up,
+            idle_seconds=np.zeros(B))
         if self.foot_locker is not None:
             self.foot_locker.reset(B)
 
@@ -252,6 +261,15 @@ class Controller:
         st.future_pos, st.future_dir = blend_future_trajectory(
             st.future_pos, st.future_dir, target_velocity, target_facing, self.sample_dt,
             self.position_bias, self.direction_bias)
+        idle = None
+        if self.stand is not None:      # standing.py: a zero command stops and stands
+            still = self.stand.still(target_velocity)
+            st.future_pos = self.stand.pin_future(st.future_pos, still)
+            previous = st.target_facing if st.target_facing is not None else target_facing
+            idle = self.stand.idle(target_velocity, target_facing, previous)
+            st.target_facing = np.array(target_facing, dtype=np.float64)
+            seconds = st.idle_seconds if st.idle_seconds is not None else np.zeros(len(still))
+            st.idle_seconds = np.where(still, seconds + 1.0 / self.fps, 0.0)
         x = self.build_input()
         # overflow is caught just below as one clear error, not as a screen of RuntimeWarnings
         with np.errstate(over="ignore", invalid="ignore"):
@@ -261,7 +279,7 @@ class Controller:
             raise NonFiniteOutputError(f"the network's output for character {b} is not finite (the motion "
                                        "diverged: its style vector or speed is far outside the training data, "
                                        "or the network's weights are corrupt)")
-        self._apply_output(z)
+        self._apply_output(z, idle)
         return self.frame()
 
     def _check_command(self, target_facing, target_velocity, film) -> np.ndarray:
@@ -281,7 +299,7 @@ class Controller:
                              f"{film.dtype} {film.shape}")
         return film
 
-    def _apply_output(self, z: np.ndarray) -> None:
+    def _apply_output(self, z: np.ndarray, idle: Optional[np.ndarray] = None) -> None:
         st, L = self.state, self.layout
         root, face = st.root, st.facing
         f = face[:, None]
@@ -294,6 +312,15 @@ class Controller:
         jpos[..., 2] += root[:, 1, None]
         jvel = to_world3(z[:, self.z_cols["velocity"]], face)
         st.network_pos = jpos
+        if idle is not None and np.any(st.idle_seconds > 0):
+            # standing.py: at a zero command the root's leftover drift fades out (turning on the
+            # spot needs no travel either); the predicted body and trajectory are moved back with
+            # it, so the body stays over its root
+            held = (1.0 - self.stand.root_weight(st.idle_seconds))[:, None] * (new_pos[:, 0] - root)   # (B, 2)
+            new_pos = new_pos - held[:, None]
+            jpos = jpos.copy()
+            jpos[..., 0] -= held[:, 0, None]
+            jpos[..., 2] -= held[:, 1, None]
         if self.velocity_blend < 1.0:
             integrated = st.joint_pos + jvel / self.fps
             jpos = self.velocity_blend * jpos + (1 - self.velocity_blend) * integrated
@@ -302,6 +329,8 @@ class Controller:
         st.joint_vel = jvel
         # phases: average of the predicted phase and previous + predicted update (§10.2 step 7)
         st.phases = 0.5 * z[:, L.z_phases] + 0.5 * (st.phases + z[:, L.z_phase_updates])
+        if idle is not None:            # standing: the amplitudes decay towards a still body's
+            st.phases = st.phases * self.stand.phase_factor(idle, 1.0 / self.fps)[:, None]
         st.contacts = z[:, L.z_contacts]
         # root history, then move the root by the predicted delta (future sample 0 of the next frame)
         st.history_pos = np.concatenate([st.history_pos[:, 1:], root[:, None]], axis=1)

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from typing import Optional
+
 import numpy as np
 
 
@@ -44,6 +46,8 @@ class CharacterState:
     out_pos: np.ndarray
     out_fwd: np.ndarray
     out_up: np.ndarray
+    idle_seconds: Optional[np.ndarray] = None    # (B,) how long nothing has been asked (standing.py)
+    target_facing: Optional[np.ndarray] = None   # (B, 2) the last frame's target facing (standing.py)
 
     @property
     def batch(self) -> int:

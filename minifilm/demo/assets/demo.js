@@ -239,7 +239,7 @@ const phaseScale = [1e-3, 1e-3, 1e-3, 1e-3];
 
 function readouts() {
   const f = demo.frame;
-  $('commanded').textContent = `${f.commanded.toFixed(2)} m/s`;
+  $('commanded').textContent = `${f.commanded.toFixed(2)} m/s` + (f.speedNote ? ` → ${f.reachable.toFixed(2)} (this style's top: ${f.maxSpeed.toFixed(2)})` : '');
   $('actual').textContent = `${f.speed.toFixed(2)} m/s`;
   $('frametime').textContent = `${median(frameTimes).toFixed(2)} ms`;   // median of the last 60
   // frames that arrived in the last second, once the page has been receiving for a second
@@ -256,7 +256,7 @@ function readouts() {
   const arrived = Object.keys(f.target).length === Object.keys(f.weights).length &&
     Object.entries(f.target).every(([n, w]) => Math.abs((f.weights[n] ?? -1) - w) < 0.005);
   $('mix').textContent = `now ${mix.join(' · ')}` + (arrived ? '' : ` → ${target}`) +
-    (f.calibrated ? '' : ' (speed calibration on its way)');
+    (f.calibrated ? '' : f.calibration && f.calibration.state === 'measuring' ? ` (speed calibration: ${f.calibration.done} of ${f.calibration.total} measured, ${f.calibration.measuring || ''} on its way)` : ' (speed calibration on its way)');
   for (let k = 0; k < 4; k++) dial(k, f.phases[2 * k], f.phases[2 * k + 1]);
 }
 

@@ -1,0 +1,163 @@
+"""The released network's character as a user meets it in the page (issue 26), in headless Chromium
+driving the real page of ``minifilm demo`` started as a user starts it (its own process).
+
+Checked, from every frame the page receives (captured off the page's WebSocket): after walking,
+with nothing held, the character stops within about a second and then stands for 5 s (root speed
+under 0.05 m/s, no contact changes); Shift+W for 4 s reaches at least 90 % of the commanded run
+speed, or of the style's measured top speed when it cannot run that fast (the frame then says
+so); and the page is served within 3 s of the command starting (the speed calibration no longer
+runs before it).
+"""
+import json
+import time
+import urllib.request
+
+import numpy as np
+import pytest
+
+from demo_helpers import RELEASED, browser  # noqa: F401  (browser: a fixture)
+from repo_paths import need_data
+
+from minifilm.demo.process import DemoProcess
+
+STAND_SPEED = 0.05
+CALIBRATION_WAIT = 900.0       # s: a cold calibration at nice 10 on a busy two-core machine
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    need_data(RELEASED / "Xmean.bin", "the released network")
+    with DemoProcess("--params", RELEASED, "--max-characters", 2, cache=tmp_path_factory.mktemp("cache")) as d:
+        yield d
+
+
+class Page:
+    """The demo page with every frame it received kept in ``frames`` (dicts, in order)."""
+
+    def __init__(self, browser, url):
+        self.frames, self.errors = [], []
+        self.page = browser.new_page(viewport={"width": 800, "height": 500})
+        self.page.on("pageerror", lambda e: self.errors.append(str(e)))
+        self.page.on("websocket", self._socket)
+        self.page.goto(url)
+        self.wait(lambda: len(self.frames) > 10, 30)
+
+    def _socket(self, ws):
+        def received(payload):
+            if isinstance(payload, str) and payload.startswith('{"type":"frame"'):
+                self.frames.append(json.loads(payload))
+        ws.on("framereceived", received)
+
+    def wait(self, predicate, timeout):
+        end = time.monotonic() + timeout
+        while not predicate():
+            if time.monotonic() > end:
+                raise TimeoutError("not in time")
+            self.page.wait_for_timeout(100)
+
+    def hold(self, keys, seconds):
+        for k in keys:
+            self.page.keyboard.down(k)
+        self.page.wait_for_timeout(int(seconds * 1000))
+        for k in reversed(keys):
+            self.page.keyboard.up(k)
+
+    def mark(self) -> int:
+        """A point in ``frames`` (its length now) for :meth:`since`."""
+        return len(self.frames)
+
+    def since(self, mark):
+        return self.frames[mark:]
+
+    def close(self):
+        self.page.close()
+
+
+def root_speed(frames):
+    """Root speed (m/s) between consecutive frames received, in the server's clock."""
+    roots = np.array([f["root"] for f in frames])
+    t = np.array([f["t"] for f in frames])
+    dt = np.diff(t)
+    ok = dt > 1e-6
+    return np.linalg.norm(np.diff(roots, axis=0), axis=1)[ok] / dt[ok]
+
+
+def contact_changes(frames):
+    c = np.array([f["contacts"] for f in frames]) > 0.5
+    return int(np.abs(np.diff(c.astype(int), axis=0)).sum())
+
+
+@pytest.fixture(scope="module")
+def page(browser, demo):
+    p = Page(browser, demo.url)
+    # the speed calibration of the start style, measured in the background, must be there first
+    p.wait(lambda: p.frames[-1]["calibration"]["state"] == "done", CALIBRATION_WAIT)
+    yield p
+    p.close()
+
+
+def test_with_nothing_held_after_walking_it_stops_and_stands(page):
+    walking = page.mark()
+    page.hold(["KeyW"], 2.0)
+    walked = page.since(walking)
+    page.page.wait_for_timeout(1500)                 # about a second to come to a stop
+    start = page.mark()
+    page.page.wait_for_timeout(5000)
+    idle = page.since(start)
+    assert len(idle) > 50, "too few frames received to judge"
+    roots = np.array([f["root"] for f in walked])
+    assert np.linalg.norm(roots[-1] - roots[0]) > 0.6, "it never walked"
+    speed = root_speed(idle)
+    # the largest speed over any quarter second (frames arrive in bursts: a single interval is noisy)
+    roots, t = np.array([f["root"] for f in idle]), np.array([f["t"] for f in idle])
+    k = max(1, int(np.searchsorted(t, t[0] + 0.25)))
+    windows = np.linalg.norm(roots[k:] - roots[:-k], axis=1) / np.maximum(t[k:] - t[:-k], 1e-6)
+    assert windows.max() < STAND_SPEED, (windows.max(), np.median(speed))
+    assert contact_changes(idle) == 0
+    assert page.errors == []
+
+
+def test_shift_w_runs_at_the_commanded_speed_or_the_styles_stated_top(page):
+    start = page.mark()
+    page.hold(["Shift", "KeyW"], 4.0)
+    held = page.since(start)
+    last = held[-1]
+    assert last["commanded"] == pytest.approx(2.8, abs=1e-3)       # what Shift+W asks for
+    target = last["commanded"]
+    if last["maxSpeed"] is not None and last["maxSpeed"] * 0.95 < 2.8:
+        assert last["speedNote"] and f"{last['maxSpeed']:.2f}" in last["speedNote"]   # the page is told
+        target = last["maxSpeed"]
+    tail = [f for f in held if f["t"] >= last["t"] - 1.0]
+    roots = np.array([f["root"] for f in tail])
+    reached = np.linalg.norm(roots[-1] - roots[0]) / (tail[-1]["t"] - tail[0]["t"])
+    assert reached >= 0.9 * target, (reached, target, last["speedNote"])
+    assert abs(last["speed"] - reached) < 0.25 * target          # the read-out is the character's own
+    page.page.wait_for_timeout(1500)
+
+
+def cpu_seconds(pid: int) -> float:
+    """User + system CPU time a process has used so far (Linux /proc)."""
+    import os
+    fields = open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def test_the_page_is_served_within_three_seconds_of_the_command_starting(tmp_path):
+    """The command's own start-up (load the network, bind, serve), best of three starts. On a
+    machine loaded beyond its cores the wall time measures the other jobs; then the start-up's own
+    CPU time (until the page was answered) is what must stay within 3 s."""
+    import os
+    need_data(RELEASED / "Xmean.bin", "the released network")
+    best, best_cpu = float("inf"), float("inf")
+    for i in range(3):
+        started = time.monotonic()
+        with DemoProcess("--params", RELEASED, cache=tmp_path / str(i)) as d:
+            with urllib.request.build_opener(urllib.request.ProxyHandler({})).open(d.url, timeout=10) as r:
+                assert r.status == 200 and b"minifilm demo" in r.read()
+            best = min(best, time.monotonic() - started)
+            best_cpu = min(best_cpu, cpu_seconds(d.proc.pid))
+    load = os.getloadavg()[0]
+    if load > (os.cpu_count() or 1):
+        assert best_cpu <= 3.0, f"the start-up used {best_cpu:.1f} s of CPU (wall {best:.1f} s at load {load:.1f})"
+    else:
+        assert best <= 3.0, f"the page was served {best:.1f} s after the command started (load {load:.1f})"
