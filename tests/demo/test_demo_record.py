@@ -103,7 +103,7 @@ def test_no_gif_without_the_drawing_tools_says_so(stepped, monkeypatch):
 
     def missing(path, kind):
         raise ImportError("matplotlib is not installed")
-    monkeypatch.setattr("minifilm.viewer.deps.check_output_tools", missing)
+    monkeypatch.setattr("minifilm.demo.record.check_output_tools", missing)
     sent = []
     bvh, gif = answer_record(source, history, RecordMessage(0.5, gif=True, seq=4), send=sent.append)
     assert sent == [bvh, gif]                                   # each handed on as it was ready
