@@ -78,7 +78,12 @@ def test_a_stopped_training_keeps_the_earlier_run(old_run, tmp_path, when, sig):
     if sig != signal.SIGKILL:
         assert proc.returncode in (130, 143), rest[-800:]
         assert "Traceback" not in rest
-    assert fingerprint(old_run) == before                  # the earlier run, whole
+    after = fingerprint(old_run)
+    if after != before:
+        # Only a finished run may take the earlier one's place: a kill at a random time can come after
+        # the job's last step (its pictures, "[view]") and the exchange of the folders that follows it.
+        assert sig == signal.SIGKILL and not isinstance(when, str) and "[view]" in rest, rest[-800:]
+        assert sorted(after) == sorted(before)             # a whole run, not a mix of two
     RunFolder.load(old_run).styles()
     generates(old_run, tmp_path)
     visible = sorted(p.name for p in old_run.parent.iterdir() if not p.name.startswith("."))
