@@ -204,8 +204,10 @@ function pose() {
 }
 
 function setLabel(text) {
+  const where = label ? label.position.clone() : null;   // a new text keeps its place above the head
   if (label) { stage.scene.remove(label); label.material.map.dispose(); label.material.dispose(); }
   label = makeLabel(text, COLOURS[(demo.hello.id - 1) % COLOURS.length]);
+  if (where) label.position.copy(where);
   label.userData.text = text;
   stage.scene.add(label);
 }
