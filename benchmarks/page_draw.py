@@ -20,27 +20,17 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
 import time
 from pathlib import Path
 
 import numpy as np
 
 from minifilm.demo.process import DemoProcess
+from machine import cpu_name
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 CHROMIUM = os.environ.get("MINIFILM_CHROMIUM", "/usr/bin/chromium")
 ARGS = ["--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
-
-
-def cpu_name() -> str:
-    try:
-        for line in open("/proc/cpuinfo"):
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown CPU"
 
 
 def descendants(root: int, skip: int) -> list:
