@@ -28,8 +28,8 @@ from minifilm.motion.humanoid import Humanoid, HumanoidError, find_humanoid
 from minifilm.motion.motion import Motion
 from minifilm.motion.skeletons import detect_skeleton
 
-__all__ = ["BodyUnit", "KNOWN_UNITS", "STATURE_RANGE", "LEG_FRACTION", "body_unit", "leg_length", "scaled",
-           "standing_height", "read_in_metres"]
+__all__ = ["BodyUnit", "KNOWN_UNITS", "STATURE_RANGE", "LEG_FRACTION", "body_unit", "unit_for_stature", "leg_length",
+           "scaled", "standing_height", "read_in_metres"]
 
 #: (name, metres per unit) of the units motion capture files are written in
 KNOWN_UNITS: Tuple[Tuple[str, float], ...] = (
@@ -77,6 +77,12 @@ def body_unit(motion: Motion, humanoid: Optional[Humanoid] = None) -> BodyUnit:
     if skeleton is not None:
         s = skeleton.bvh_scale
         return BodyUnit(s, stature_units * s, f"the {skeleton.name!r} skeleton's unit ({s:g} m)")
+    return unit_for_stature(stature_units)
+
+
+def unit_for_stature(stature_units: float) -> BodyUnit:
+    """The first common unit (KNOWN_UNITS) that makes a body ``stature_units`` tall 1.4-2.1 m;
+    failing every one, the scale that makes it TYPICAL_STATURE."""
     lo, hi = STATURE_RANGE
     for name, s in KNOWN_UNITS:
         if lo <= stature_units * s <= hi:

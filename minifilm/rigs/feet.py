@@ -24,7 +24,7 @@ import numpy as np
 
 from minifilm.motion.foot_ik import two_bone_ik
 from minifilm.motion.skeleton_fit import rotation_between
-from minifilm.phases.contacts import estimate_floor_height, foot_contacts
+from minifilm.phases.contacts import estimate_floor_height
 
 __all__ = ["floor_height", "contact_runs", "pin_targets", "hips_drop", "plant_feet"]
 

@@ -14,8 +14,9 @@ Chains of different lengths (a 2-joint spine onto 4) meet by normalised arc leng
 """
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Dict, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -108,11 +109,12 @@ class Roles:
         are chains (each joint below the previous one); RigError naming what is wrong (and
         ``where`` the roles came from, e.g. a map file)."""
         where = where or motion.source
-        missing = [n for n in self.names() if n not in motion.names]
+        names = self.names()
+        missing = [n for n in names if n not in motion.names]
         if missing:
             raise RigError(f"{where}: the joint map names joints the file does not have: {missing} "
                            f"(its joints are {list(motion.names)})")
-        dup = sorted({n for n in self.names() if self.names().count(n) > 1})
+        dup = sorted(n for n, count in Counter(names).items() if count > 1)
         if dup:
             raise RigError(f"{where}: the joint map gives {dup} more than one role")
         index = {n: i for i, n in enumerate(motion.names)}

@@ -21,7 +21,7 @@ from typing import Optional, Tuple, Union
 import numpy as np
 
 from minifilm.files import note_input, read_json
-from minifilm.motion.body_size import KNOWN_UNITS, LEG_FRACTION, STATURE_RANGE, TYPICAL_STATURE, body_unit
+from minifilm.motion.body_size import LEG_FRACTION, body_unit, unit_for_stature
 from minifilm.motion.bvh import parse_bvh, read_bvh
 from minifilm.motion.humanoid import HumanoidError, find_humanoid
 from minifilm.motion.motion import Motion
@@ -106,11 +106,7 @@ def file_unit(motion_in_file_units: Motion, roles: Roles) -> float:
 
 
 def _unit_from_legs(motion: Motion, roles: Roles) -> float:
-    stature = leg_length(motion, roles) / LEG_FRACTION
-    for _, unit in KNOWN_UNITS:
-        if STATURE_RANGE[0] <= stature * unit <= STATURE_RANGE[1]:
-            return unit
-    return TYPICAL_STATURE / stature
+    return unit_for_stature(leg_length(motion, roles) / LEG_FRACTION).metres_per_unit
 
 
 def load_rig(target: Union[str, os.PathLike], map_path: Union[str, os.PathLike, None] = None,
