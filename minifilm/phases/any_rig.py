@@ -103,8 +103,8 @@ def load_for_phases(path: Union[str, os.PathLike], skeleton_name: Optional[str] 
         skeleton = detect_skeleton(raw)
     except ValueError:
         skeleton = None
-    if skeleton is not None:
-        return read_bvh(path, scale=skeleton.bvh_scale), skeleton, None
+    if skeleton is not None:            # the file is read once; scaling it gives the same numbers
+        return scaled(raw, skeleton.bvh_scale), skeleton, None
     h = find_humanoid(raw)
     unit = body_unit(raw, h)
     motion = scaled(raw, unit.metres_per_unit)

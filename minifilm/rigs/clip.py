@@ -23,6 +23,7 @@ from typing import Optional, Union
 import numpy as np
 
 from minifilm.files import note_input
+from minifilm.motion.body_size import scaled
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.rigs.builtin_rigs import builtin_skeleton_for
@@ -47,8 +48,7 @@ def read_source(path: Union[str, os.PathLike], map_path=None, scale: Optional[fl
         skeleton = builtin_skeleton_for(raw)
         roles = find_roles(raw, map_path)
         scale = skeleton.bvh_scale if skeleton is not None else file_unit(raw, roles)
-        m = read_bvh(path, scale=scale)
-        return m, roles
+        return scaled(raw, scale), roles          # read once, scaled (body_size.scaled)
     m = read_bvh(path, scale=scale)
     return m, find_roles(m, map_path)
 

@@ -21,7 +21,7 @@ from typing import Optional, Tuple, Union
 import numpy as np
 
 from minifilm.files import note_input, read_json
-from minifilm.motion.body_size import LEG_FRACTION, body_unit, unit_for_stature
+from minifilm.motion.body_size import LEG_FRACTION, body_unit, scaled, unit_for_stature
 from minifilm.motion.bvh import parse_bvh, read_bvh
 from minifilm.motion.humanoid import HumanoidError, find_humanoid
 from minifilm.motion.motion import Motion
@@ -130,7 +130,7 @@ def load_rig(target: Union[str, os.PathLike], map_path: Union[str, os.PathLike, 
     roles = find_roles(raw, map_path)
     if scale is None:
         scale = skeleton.bvh_scale if skeleton is not None else file_unit(raw, roles)
-    m = read_bvh(path, scale=scale)
+    m = scaled(raw, scale)                      # read once, scaled (body_size.scaled)
     return Rig(path.stem, _rest(m, str(path)), roles, float(scale), skeleton, foot_shape_of(m, roles))
 
 
