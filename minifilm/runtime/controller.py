@@ -48,7 +48,7 @@ from minifilm.runtime.control import Script, blend_future_trajectory
 from minifilm.runtime.frames import to_local2, to_local3, to_world2, to_world3, unit2
 from minifilm.runtime.network import RuntimeNetwork
 from minifilm.runtime.rollout import Rollout
-from minifilm.runtime.standing import StandStill
+from minifilm.runtime.standing import StandStill, hold_root, leg_chains, plant_feet
 from minifilm.runtime.state import CharacterState
 
 
@@ -139,6 +139,7 @@ class Controller:
                              f"the layout has {layout.n_joints}")
         self.skeleton, self.feed_back_fit = skeleton, bool(feed_back_fit)
         self.stand = stand
+        self.legs = leg_chains(layout.joint_names, layout.parents)     # (2, 4) or None: no legs to hold
         L = layout
         ts = np.asarray(L.trajectory_seconds)
         # the training features' rounding (halves away from zero), so a sample on half a frame
@@ -200,7 +201,7 @@ class Controller:
             joint_up=joint_up, joint_vel=to_world3(local["velocity"], face),
             phases=np.broadcast_to(start_phases, (B, 8)).copy(), contacts=np.zeros((B, 2)),
             network_pos=joint_pos, out_pos=joint_pos, out_fwd=joint_fwd, out_up=joint_up,
-            idle_seconds=np.zeros(B))
+            idle_seconds=np.zeros(B), rest_seconds=np.zeros(B))
         if self.foot_locker is not None:
             self.foot_locker.reset(B)
 
@@ -270,6 +271,8 @@ class Controller:
             st.target_facing = np.array(target_facing, dtype=np.float64)
             seconds = st.idle_seconds if st.idle_seconds is not None else np.zeros(len(still))
             st.idle_seconds = np.where(still, seconds + 1.0 / self.fps, 0.0)
+            rest = st.rest_seconds if st.rest_seconds is not None else np.zeros(len(still))
+            st.rest_seconds = np.where(idle, rest + 1.0 / self.fps, 0.0)
         x = self.build_input()
         # overflow is caught just below as one clear error, not as a screen of RuntimeWarnings
         with np.errstate(over="ignore", invalid="ignore"):
@@ -312,20 +315,27 @@ class Controller:
         jpos[..., 2] += root[:, 1, None]
         jvel = to_world3(z[:, self.z_cols["velocity"]], face)
         st.network_pos = jpos
-        if idle is not None and np.any(st.idle_seconds > 0):
-            # standing.py: at a zero command the root's leftover drift fades out (turning on the
-            # spot needs no travel either); the predicted body and trajectory are moved back with
-            # it, so the body stays over its root
-            held = (1.0 - self.stand.root_weight(st.idle_seconds))[:, None] * (new_pos[:, 0] - root)   # (B, 2)
-            new_pos = new_pos - held[:, None]
-            jpos = jpos.copy()
-            jpos[..., 0] -= held[:, 0, None]
-            jpos[..., 2] -= held[:, 1, None]
+        jfwd = to_world3(z[:, self.z_cols["forward"]], face)
+        jup = to_world3(z[:, self.z_cols["up"]], face)
+        hold = np.zeros(0)
+        if idle is not None:
+            # standing.py: at a zero command the root's leftover drift fades out, and once idle its
+            # turning too; the predicted body and trajectory are moved back with the root
+            hold = self.stand.hold_weight(st.rest_seconds)
+            new_pos, new_dir, jpos, (jfwd, jup, jvel) = hold_root(
+                root, face, new_pos, new_dir, jpos, (jfwd, jup, jvel), self.stand.root_weight(st.idle_seconds),
+                1.0 - hold)
         if self.velocity_blend < 1.0:
             integrated = st.joint_pos + jvel / self.fps
             jpos = self.velocity_blend * jpos + (1 - self.velocity_blend) * integrated
-        jfwd = to_world3(z[:, self.z_cols["forward"]], face)
-        jup = to_world3(z[:, self.z_cols["up"]], face)
+        holding = bool(np.any(hold > 0)) and self.legs is not None
+        if holding:
+            # standing.py: once idle, the feet stay where they came to rest (before the fit, so the
+            # fitted bones and the pose fed back are the held ones)
+            planted, st.feet = plant_feet(jpos, st.feet, hold, self.legs, hold * self.stand.lower_speed / self.fps)
+            jpos = np.where((hold > 0)[:, None, None], planted, jpos)
+        else:
+            st.feet = None
         st.joint_vel = jvel
         # phases: average of the predicted phase and previous + predicted update (§10.2 step 7)
         st.phases = 0.5 * z[:, L.z_phases] + 0.5 * (st.phases + z[:, L.z_phase_updates])
@@ -344,6 +354,12 @@ class Controller:
         blended = jpos
         if self.skeleton is not None:
             fit_pos, fit_rot = self.skeleton.fit(jpos, axes_to_rotation(jfwd, jup))
+            if holding:     # the fitted legs (rest lengths) back onto the held feet, refitted for their axes
+                again, _ = plant_feet(fit_pos, st.feet, np.ones(len(hold)), self.legs)
+                again, again_rot = self.skeleton.fit(again, fit_rot)
+                rows = hold > 0
+                fit_pos = np.where(rows[:, None, None], again, fit_pos)
+                fit_rot = np.where(rows[:, None, None, None], again_rot, fit_rot)
             st.out_fwd, st.out_up = fit_rot[..., 2], fit_rot[..., 1]
             jpos = fit_pos
         else:
@@ -351,10 +367,21 @@ class Controller:
         if self.foot_locker is not None:
             jpos = self.foot_locker.apply(jpos, st.contacts)
         st.out_pos = jpos
+        previous = st.joint_pos
         if self.skeleton is None or self.feed_back_fit:
             st.joint_pos, st.joint_fwd, st.joint_up = jpos, st.out_fwd, st.out_up
         else:
             st.joint_pos, st.joint_fwd, st.joint_up = blended, jfwd, jup
+        if np.any(hold > 0):
+            # standing.py: a held body tells the network how it really moves (the data's velocities
+            # are the poses' own differences), and its planted feet are in contact
+            h = hold[:, None, None]
+            own = (st.joint_pos - previous) * self.fps
+            st.joint_vel = np.where(h > 0, (1.0 - h) * st.joint_vel + h * own, st.joint_vel)
+            if st.feet is not None:
+                grounded = (st.feet[:, :, 1, 1] < self.stand.contact_height).astype(np.float64)   # (B, 2)
+                st.contacts = np.where(h[..., 0] > 0, (1.0 - h[..., 0]) * st.contacts + h[..., 0] * grounded,
+                                       st.contacts)
 
     def frame(self) -> dict:
         """The current frame: positions (B, J, 3) and forward/up axes (B, J, 3) as output (after the

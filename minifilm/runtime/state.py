@@ -48,6 +48,8 @@ class CharacterState:
     out_up: np.ndarray
     idle_seconds: Optional[np.ndarray] = None    # (B,) how long nothing has been asked (standing.py)
     target_facing: Optional[np.ndarray] = None   # (B, 2) the last frame's target facing (standing.py)
+    rest_seconds: Optional[np.ndarray] = None    # (B,) how long idle and not turned (standing.py's hold)
+    feet: Optional[np.ndarray] = None            # (B, 2, 2, 3) held [right, left] (ankle, toe) (standing.py)
 
     @property
     def batch(self) -> int:
