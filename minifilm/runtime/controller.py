@@ -201,7 +201,7 @@ class Controller:
             joint_up=joint_up, joint_vel=to_world3(local["velocity"], face),
             phases=np.broadcast_to(start_phases, (B, 8)).copy(), contacts=np.zeros((B, 2)),
             network_pos=joint_pos, out_pos=joint_pos, out_fwd=joint_fwd, out_up=joint_up,
-            idle_seconds=np.zeros(B), rest_seconds=np.zeros(B))
+            idle_seconds=np.zeros(B), rest_seconds=np.zeros(B), feet_weight=np.zeros(B))
         if self.foot_locker is not None:
             self.foot_locker.reset(B)
 
@@ -273,6 +273,7 @@ class Controller:
             st.idle_seconds = np.where(still, seconds + 1.0 / self.fps, 0.0)
             rest = st.rest_seconds if st.rest_seconds is not None else np.zeros(len(still))
             st.rest_seconds = np.where(idle, rest + 1.0 / self.fps, 0.0)
+            st.feet_weight = self.stand.feet_weight(st.feet_weight, st.rest_seconds, idle, 1.0 / self.fps)
         x = self.build_input()
         # overflow is caught just below as one clear error, not as a screen of RuntimeWarnings
         with np.errstate(over="ignore", invalid="ignore"):
@@ -328,6 +329,7 @@ class Controller:
         if self.velocity_blend < 1.0:
             integrated = st.joint_pos + jvel / self.fps
             jpos = self.velocity_blend * jpos + (1 - self.velocity_blend) * integrated
+        hold = st.feet_weight if idle is not None else np.zeros(0)
         holding = bool(np.any(hold > 0)) and self.legs is not None
         if holding:
             # standing.py: once idle, the feet stay where they came to rest (before the fit, so the

@@ -61,6 +61,7 @@ class StandStill:
     contact_height: metres; a held foot whose toe is lower than this is reported in contact (the
         released network's toes are 1-6 cm high in its predicted contacts).
     lower_speed: m/s at which a held foot that is off the floor is put down (``plant_feet``).
+    release: seconds over which held feet are let go once something is asked.
     hold: once idle, hold the lower body: feet planted where they come to rest (legs bent to
         reach them), the velocities fed back the pose's own, the reported contacts the planted feet's.
     """
@@ -70,6 +71,7 @@ class StandStill:
     hold: bool = True
     contact_height: float = 0.08
     lower_speed: float = 0.5
+    release: float = 0.15
 
     def __post_init__(self):
         if not (self.settle > 0 and np.isfinite(self.settle)):
@@ -111,6 +113,14 @@ class StandStill:
             return np.zeros(np.shape(rest_seconds))
         return 1.0 - self.root_weight(rest_seconds)
 
+    def feet_weight(self, previous: Optional[np.ndarray], rest_seconds: np.ndarray, idle: np.ndarray,
+                    dt: float) -> np.ndarray:
+        """(B,) how firmly the feet are held this frame: the hold weight while idle, and from a
+        command on falling linearly to 0 over ``release`` seconds (the feet are let go, not dropped:
+        a held foot would otherwise jump to where the network has it in one frame)."""
+        falling = np.zeros(len(idle)) if previous is None else np.maximum(previous - dt / self.release, 0.0)
+        return np.where(idle, np.maximum(self.hold_weight(rest_seconds), falling), falling)
+
     def phase_factor(self, idle: np.ndarray, dt: float) -> np.ndarray:
         """(B,) the factor the phases (amplitude times (sin, cos)) are multiplied by this frame."""
         return np.where(idle, np.exp(-dt / self.phase_tau), 1.0)
@@ -136,7 +146,7 @@ def leg_chains(joint_names: Sequence[str], parents: Sequence[int]) -> Optional[n
 
 def plant_feet(positions: np.ndarray, held: Optional[np.ndarray], weight: np.ndarray,
                chains: np.ndarray, lower: Optional[np.ndarray] = None,
-               floor: float = 0.04) -> Tuple[np.ndarray, np.ndarray]:
+               floor: float = 0.08) -> Tuple[np.ndarray, np.ndarray]:
     """Hold the feet where they come to rest: the lower body of a settled character.
 
     positions (B, J, 3) world joints; held (B, 2, 2, 3) the [right, left] feet's held ankle and toe
@@ -156,8 +166,8 @@ def plant_feet(positions: np.ndarray, held: Optional[np.ndarray], weight: np.nda
     held = now if held is None else w * held + (1.0 - w) * now
     if lower is not None:
         toe_y = held[:, :, 1, 1]                                        # (B, 2)
-        down = np.minimum(toe_y[:, ::-1], floor)                       # the other toe, or the floor
-        step = np.clip(toe_y - down, 0.0, np.asarray(lower, dtype=np.float64)[:, None])
+        down = np.minimum(toe_y[:, ::-1], floor / 2)                   # the other toe, or half-way
+        step = np.where(toe_y > floor, np.clip(toe_y - down, 0.0, np.asarray(lower, dtype=np.float64)[:, None]), 0.0)
         held = held.copy()
         held[..., 1] -= step[:, :, None]
     # a held foot out of the leg's reach (the network lifts its hips: a bounce, a hop) lowers the

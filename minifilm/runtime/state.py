@@ -49,6 +49,7 @@ class CharacterState:
     idle_seconds: Optional[np.ndarray] = None    # (B,) how long nothing has been asked (standing.py)
     target_facing: Optional[np.ndarray] = None   # (B, 2) the last frame's target facing (standing.py)
     rest_seconds: Optional[np.ndarray] = None    # (B,) how long idle and not turned (standing.py's hold)
+    feet_weight: Optional[np.ndarray] = None     # (B,) how firmly the feet are held (standing.py)
     feet: Optional[np.ndarray] = None            # (B, 2, 2, 3) held [right, left] (ankle, toe) (standing.py)
 
     @property
