@@ -48,7 +48,8 @@ from minifilm.runtime.control import Script, blend_future_trajectory
 from minifilm.runtime.frames import to_local2, to_local3, to_world2, to_world3, unit2
 from minifilm.runtime.network import RuntimeNetwork
 from minifilm.runtime.rollout import Rollout
-from minifilm.runtime.standing import StandStill, hold_root, leg_chains, plant_feet
+from minifilm.runtime.held_body import leg_chains
+from minifilm.runtime.standing import StandStill
 from minifilm.runtime.state import CharacterState
 
 
@@ -264,16 +265,7 @@ class Controller:
             self.position_bias, self.direction_bias)
         idle = None
         if self.stand is not None:      # standing.py: a zero command stops and stands
-            still = self.stand.still(target_velocity)
-            st.future_pos = self.stand.pin_future(st.future_pos, still)
-            previous = st.target_facing if st.target_facing is not None else target_facing
-            idle = self.stand.idle(target_velocity, target_facing, previous)
-            st.target_facing = np.array(target_facing, dtype=np.float64)
-            seconds = st.idle_seconds if st.idle_seconds is not None else np.zeros(len(still))
-            st.idle_seconds = np.where(still, seconds + 1.0 / self.fps, 0.0)
-            rest = st.rest_seconds if st.rest_seconds is not None else np.zeros(len(still))
-            st.rest_seconds = np.where(idle, rest + 1.0 / self.fps, 0.0)
-            st.feet_weight = self.stand.feet_weight(st.feet_weight, st.rest_seconds, idle, 1.0 / self.fps)
+            idle = self.stand.begin_frame(st, target_velocity, target_facing, 1.0 / self.fps)
         x = self.build_input()
         # overflow is caught just below as one clear error, not as a screen of RuntimeWarnings
         with np.errstate(over="ignore", invalid="ignore"):
@@ -318,24 +310,17 @@ class Controller:
         st.network_pos = jpos
         jfwd = to_world3(z[:, self.z_cols["forward"]], face)
         jup = to_world3(z[:, self.z_cols["up"]], face)
-        hold = np.zeros(0)
         if idle is not None:
             # standing.py: at a zero command the root's leftover drift fades out, and once idle its
             # turning too; the predicted body and trajectory are moved back with the root
-            hold = self.stand.hold_weight(st.rest_seconds)
-            new_pos, new_dir, jpos, (jfwd, jup, jvel) = hold_root(
-                root, face, new_pos, new_dir, jpos, (jfwd, jup, jvel), self.stand.root_weight(st.idle_seconds),
-                1.0 - hold)
+            new_pos, new_dir, jpos, (jfwd, jup, jvel) = self.stand.hold_prediction(
+                st, new_pos, new_dir, jpos, (jfwd, jup, jvel))
         if self.velocity_blend < 1.0:
             integrated = st.joint_pos + jvel / self.fps
             jpos = self.velocity_blend * jpos + (1 - self.velocity_blend) * integrated
-        hold = st.feet_weight if idle is not None else np.zeros(0)
-        holding = bool(np.any(hold > 0)) and self.legs is not None
-        if holding:
-            # standing.py: once idle, the feet stay where they came to rest (before the fit, so the
-            # fitted bones and the pose fed back are the held ones)
-            planted, st.feet = plant_feet(jpos, st.feet, hold, self.legs, hold * self.stand.lower_speed / self.fps)
-            jpos = np.where((hold > 0)[:, None, None], planted, jpos)
+        holding = idle is not None and self.stand.holds_feet(st, self.legs)
+        if holding:     # standing.py: the feet stay where they came to rest (before the fit, so the
+            jpos = self.stand.plant(st, jpos, self.legs, 1.0 / self.fps)     # fit and feedback hold them)
         else:
             st.feet = None
         st.joint_vel = jvel
@@ -356,12 +341,8 @@ class Controller:
         blended = jpos
         if self.skeleton is not None:
             fit_pos, fit_rot = self.skeleton.fit(jpos, axes_to_rotation(jfwd, jup))
-            if holding:     # the fitted legs (rest lengths) back onto the held feet, refitted for their axes
-                again, _ = plant_feet(fit_pos, st.feet, np.ones(len(hold)), self.legs)
-                again, again_rot = self.skeleton.fit(again, fit_rot)
-                rows = hold > 0
-                fit_pos = np.where(rows[:, None, None], again, fit_pos)
-                fit_rot = np.where(rows[:, None, None, None], again_rot, fit_rot)
+            if holding:
+                fit_pos, fit_rot = self.stand.refit(st, self.skeleton, fit_pos, fit_rot, self.legs)
             st.out_fwd, st.out_up = fit_rot[..., 2], fit_rot[..., 1]
             jpos = fit_pos
         else:
@@ -374,16 +355,8 @@ class Controller:
             st.joint_pos, st.joint_fwd, st.joint_up = jpos, st.out_fwd, st.out_up
         else:
             st.joint_pos, st.joint_fwd, st.joint_up = blended, jfwd, jup
-        if np.any(hold > 0):
-            # standing.py: a held body tells the network how it really moves (the data's velocities
-            # are the poses' own differences), and its planted feet are in contact
-            h = hold[:, None, None]
-            own = (st.joint_pos - previous) * self.fps
-            st.joint_vel = np.where(h > 0, (1.0 - h) * st.joint_vel + h * own, st.joint_vel)
-            if st.feet is not None:
-                grounded = (st.feet[:, :, 1, 1] < self.stand.contact_height).astype(np.float64)   # (B, 2)
-                st.contacts = np.where(h[..., 0] > 0, (1.0 - h[..., 0]) * st.contacts + h[..., 0] * grounded,
-                                       st.contacts)
+        if idle is not None:            # standing.py: a held body's own velocities and contacts
+            self.stand.settle_feedback(st, previous, self.fps)
 
     def frame(self) -> dict:
         """The current frame: positions (B, J, 3) and forward/up axes (B, J, 3) as output (after the

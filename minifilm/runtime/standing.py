@@ -33,37 +33,34 @@ stand=None)`` turns it off (the runtime as the authors' demo had it).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional, Sequence, Tuple
+from typing import Optional
 
 import numpy as np
 
-from minifilm.motion.foot_ik import two_bone_ik
-from minifilm.runtime.frames import to_local2, to_local3, to_world2, to_world3, unit2
+from minifilm.runtime.held_body import hold_root, plant_feet, refit_on_feet
 
 #: below this commanded speed (m/s) the command is "stand"
 STILL_SPEED = 1e-6
 #: a target facing that moved more than this (degrees) since the last frame is being turned by the
 #: user: the character turns on the spot (stepping), it does not stand
 TURNING_DEG = 0.05
-#: the toe joints' names tried, [right, left] (the contact columns' order), for the held legs
-#: metres: a held ankle is reached this much short of the straight leg (the knee keeps a bend)
-REACH_MARGIN = 0.005
-TOE_NAMES = (("RightToe", "LeftToe"), ("RightToeBase", "LeftToeBase"), ("RightFoot", "LeftFoot"))
 
 
 @dataclass(frozen=True)
 class StandStill:
     """How the runtime stands still at a zero command (see the module docstring).
 
-    settle: seconds over which the network's own root displacement is faded out once idle, and
-        over which the lower body is taken over once idle and not turned (``hold``).
+    settle: seconds over which the network's own root displacement is faded out once still, and
+        over which the lower body is taken over once idle (``hold``).
     phase_tau: seconds, the time constant of the phase amplitudes' decay while idle.
-    contact_height: metres; a held foot whose toe is lower than this is reported in contact (the
-        released network's toes are 1-6 cm high in its predicted contacts).
-    lower_speed: m/s at which a held foot that is off the floor is put down (``plant_feet``).
-    release: seconds over which held feet are let go once something is asked.
-    hold: once idle, hold the lower body: feet planted where they come to rest (legs bent to
-        reach them), the velocities fed back the pose's own, the reported contacts the planted feet's.
+    hold: once idle, hold the body: its facing kept, the feet kept where they come to rest (the
+        legs bent to reach them), the velocities fed back the held pose's own, the contacts reported
+        the held feet's. False: the stand-still of before (root, phases), whose feet may keep stepping.
+    contact_height: metres; a held foot whose toe is lower is on the floor (reported in contact);
+        a higher one is put down at ``lower_speed`` m/s (the released network's toes are 1-6 cm high
+        where it predicts a contact).
+    release: seconds over which held feet are let go once something is asked (instead of jumping
+        to where the network has them in one frame).
     """
 
     settle: float = 0.5
@@ -74,10 +71,10 @@ class StandStill:
     release: float = 0.15
 
     def __post_init__(self):
-        if not (self.settle > 0 and np.isfinite(self.settle)):
-            raise ValueError(f"StandStill: settle must be a positive number of seconds, got {self.settle}")
-        if not (self.phase_tau > 0 and np.isfinite(self.phase_tau)):
-            raise ValueError(f"StandStill: phase_tau must be a positive number of seconds, got {self.phase_tau}")
+        for name in ("settle", "phase_tau", "contact_height", "lower_speed", "release"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and v > 0 and np.isfinite(v)):
+                raise ValueError(f"StandStill: {name} must be a positive finite number, got {v!r}")
 
     @staticmethod
     def still(target_velocity: np.ndarray) -> np.ndarray:
@@ -125,100 +122,53 @@ class StandStill:
         """(B,) the factor the phases (amplitude times (sin, cos)) are multiplied by this frame."""
         return np.where(idle, np.exp(-dt / self.phase_tau), 1.0)
 
+    # ------------------------------------------------------------------ the controller's hooks
+    def begin_frame(self, st, target_velocity: np.ndarray, target_facing: np.ndarray, dt: float) -> np.ndarray:
+        """Before the input is built: pin the future of still characters to their roots and count
+        the time still (``idle_seconds``), idle (``rest_seconds``) and the feet's hold. st: the
+        :class:`~minifilm.runtime.state.CharacterState`. Returns idle (B,)."""
+        still = self.still(target_velocity)
+        st.future_pos = self.pin_future(st.future_pos, still)
+        previous = st.target_facing if st.target_facing is not None else target_facing
+        idle = self.idle(target_velocity, target_facing, previous)
+        st.target_facing = np.array(target_facing, dtype=np.float64)
+        zeros = np.zeros(len(still))
+        st.idle_seconds = np.where(still, (zeros if st.idle_seconds is None else st.idle_seconds) + dt, 0.0)
+        st.rest_seconds = np.where(idle, (zeros if st.rest_seconds is None else st.rest_seconds) + dt, 0.0)
+        st.feet_weight = self.feet_weight(st.feet_weight, st.rest_seconds, idle, dt)
+        return idle
 
-def leg_chains(joint_names: Sequence[str], parents: Sequence[int]) -> Optional[np.ndarray]:
-    """(2, 4) exported-joint indices (hip, knee, ankle, toe) of the [right, left] legs: the toes by
-    name (``TOE_NAMES``), the rest their parents; None when no pair of toes is found."""
-    names = list(joint_names)
-    for pair in TOE_NAMES:
-        if all(n in names for n in pair):
-            chains = []
-            for toe in (names.index(n) for n in pair):
-                ankle = parents[toe]
-                knee = parents[ankle] if ankle >= 0 else -1
-                hip = parents[knee] if knee >= 0 else -1
-                if hip < 0:
-                    return None
-                chains.append([hip, knee, ankle, toe])
-            return np.array(chains, dtype=np.int64)
-    return None
+    def hold_prediction(self, st, new_pos, new_dir, joints, vectors):
+        """The network's root step faded out while still, its turn while idle, the predicted body
+        moved and turned back with it (:func:`~minifilm.runtime.held_body.hold_root`)."""
+        return hold_root(st.root, st.facing, new_pos, new_dir, joints, vectors,
+                         self.root_weight(st.idle_seconds), 1.0 - self.hold_weight(st.rest_seconds))
 
+    def holds_feet(self, st, legs) -> bool:
+        """True when some character's feet are held this frame (and there are legs to hold)."""
+        return legs is not None and st.feet_weight is not None and bool(np.any(st.feet_weight > 0))
 
-def plant_feet(positions: np.ndarray, held: Optional[np.ndarray], weight: np.ndarray,
-               chains: np.ndarray, lower: Optional[np.ndarray] = None,
-               floor: float = 0.08) -> Tuple[np.ndarray, np.ndarray]:
-    """Hold the feet where they come to rest: the lower body of a settled character.
+    def plant(self, st, positions: np.ndarray, legs: np.ndarray, dt: float) -> np.ndarray:
+        """The pose (B, J, 3) with held feet (:func:`~minifilm.runtime.held_body.plant_feet`);
+        the held feet are kept in ``st.feet``. Characters not held are returned unchanged."""
+        w = st.feet_weight
+        planted, st.feet = plant_feet(positions, st.feet, w, legs, w * self.lower_speed * dt, self.contact_height)
+        return np.where((w > 0)[:, None, None], planted, positions)
 
-    positions (B, J, 3) world joints; held (B, 2, 2, 3) the [right, left] feet's held ankle and toe
-    positions (None: start from these positions); weight (B,) in [0, 1] (:meth:`StandStill.hold_weight`).
-    Each frame the held feet move towards the current ones by ``1 - weight`` (free at 0, still at
-    1: the foot locker's rule with the hold weight as the contact), the legs bend to put the ankles
-    there (two-bone IK, hips fixed, bone lengths kept) and the toes sit at theirs (the foot keeps
-    its length). A foot held with its toe higher than ``floor`` (m) and than the other toe (a
-    knee up, a hop, a kick when the stop came) is put down by up to ``lower`` (B,) metres this
-    frame: a standing body stands on both feet. Returns the new positions (B, J, 3) and held
-    feet (B, 2, 2, 3).
-    """
-    P = np.array(positions, dtype=np.float64)
-    hip, knee, ankle, toe = (chains[:, i] for i in range(4))
-    now = np.stack([P[:, ankle], P[:, toe]], axis=2)                    # (B, 2 feet, 2 joints, 3)
-    w = np.asarray(weight, dtype=np.float64)[:, None, None, None]
-    held = now if held is None else w * held + (1.0 - w) * now
-    if lower is not None:
-        toe_y = held[:, :, 1, 1]                                        # (B, 2)
-        down = np.minimum(toe_y[:, ::-1], floor / 2)                   # the other toe, or half-way
-        step = np.where(toe_y > floor, np.clip(toe_y - down, 0.0, np.asarray(lower, dtype=np.float64)[:, None]), 0.0)
-        held = held.copy()
-        held[..., 1] -= step[:, :, None]
-    # a held foot out of the leg's reach (the network lifts its hips: a bounce, a hop) lowers the
-    # whole body until both are reached, as a game's pelvis adjustment does: the feet stay put
-    reach = (np.linalg.norm(P[:, knee] - P[:, hip], axis=-1)
-             + np.linalg.norm(P[:, ankle] - P[:, knee], axis=-1) - REACH_MARGIN)          # (B, 2)
-    to_foot = held[:, :, 0] - P[:, hip]
-    across = np.hypot(to_foot[..., 0], to_foot[..., 2])
-    above = -to_foot[..., 1]                                     # hip height over the held ankle
-    drop = np.where(across < reach, above - np.sqrt(np.maximum(reach ** 2 - across ** 2, 0.0)), 0.0)
-    P[..., 1] -= np.maximum(drop.max(axis=1), 0.0)[:, None]
-    new_knee, new_ankle = two_bone_ik(P[:, hip], P[:, knee], P[:, ankle], held[:, :, 0])
-    foot = held[:, :, 1] - held[:, :, 0]
-    # the foot's own length (held toe - held ankle drifts from it only while the hold is partial)
-    length = np.linalg.norm(P[:, toe] - P[:, ankle], axis=-1, keepdims=True)
-    P[:, knee], P[:, ankle] = new_knee, new_ankle
-    P[:, toe] = new_ankle + foot * (length / np.maximum(np.linalg.norm(foot, axis=-1, keepdims=True), 1e-9))
-    return P, held
+    def refit(self, st, fit, positions, rotations, legs):
+        """The skeleton fit's output with its legs back on the held feet (:func:`refit_on_feet`)."""
+        return refit_on_feet(fit, positions, rotations, st.feet, st.feet_weight > 0, legs)
 
-
-def hold_root(root: np.ndarray, facing: np.ndarray, new_pos: np.ndarray, new_dir: np.ndarray,
-              joints: np.ndarray, vectors: Sequence[np.ndarray], move: np.ndarray, turn: np.ndarray):
-    """Keep only part of the network's root step, moving its predicted body with the root.
-
-    root, facing (B, 2): the current root; new_pos, new_dir (B, S, 2): the predicted trajectory,
-    sample 0 the next root; joints (B, J, 3) predicted world positions; vectors: world 3-vectors
-    (B, J, 3) to turn with the body (axes, velocities); move, turn (B,): the fraction of the
-    predicted displacement and of the predicted change of facing that is kept (1: all, the
-    paper's loop, those rows returned unchanged). The body and the trajectory are moved back and
-    turned back about the next root, so the body stays where its root is and faces its way.
-    Returns new_pos, new_dir, joints, [vectors].
-    """
-    rows = (move < 1.0) | (turn < 1.0)
-    if not np.any(rows):
-        return new_pos, new_dir, joints, list(vectors)
-    shift = (1.0 - move)[:, None] * (new_pos[:, 0] - root)                     # (B, 2)
-    pos = new_pos - shift[:, None]
-    centre = pos[:, 0]
-    before = np.arctan2(facing[:, 0], facing[:, 1])
-    turned = np.arctan2(new_dir[:, 0, 0], new_dir[:, 0, 1])
-    kept = before + turn * (np.mod(turned - before + np.pi, 2 * np.pi) - np.pi)
-    g_new, g_kept = new_dir[:, :1], np.stack([np.sin(kept), np.cos(kept)], axis=-1)[:, None]
-    pos = to_world2(to_local2(pos - centre[:, None], g_new), g_kept) + centre[:, None]
-    direction = unit2(to_world2(to_local2(new_dir, g_new), g_kept), new_dir)
-    rel = joints.copy()                         # moved back with the root, about the next root
-    rel[..., 0] -= (shift[:, 0] + centre[:, 0])[:, None]
-    rel[..., 2] -= (shift[:, 1] + centre[:, 1])[:, None]
-    body = to_world3(to_local3(rel, g_new[:, 0]), g_kept[:, 0])
-    body[..., 0] += centre[:, 0, None]
-    body[..., 2] += centre[:, 1, None]
-    turned_vectors = [to_world3(to_local3(v, g_new[:, 0]), g_kept[:, 0]) for v in vectors]
-    r2, r3 = rows[:, None, None], rows[:, None, None]
-    return (np.where(r2, pos, new_pos), np.where(r2, direction, new_dir), np.where(r3, body, joints),
-            [np.where(r3, t, v) for t, v in zip(turned_vectors, vectors)])
+    def settle_feedback(self, st, previous: np.ndarray, fps: float) -> None:
+        """After the pose to feed back is chosen: held characters feed back the velocities their
+        pose really has (the data's are backward differences; the network's own prediction keeps a
+        shuffle going) and report the contacts of their held feet (toe below ``contact_height``)."""
+        if st.feet_weight is None or not np.any(st.feet_weight > 0):
+            return
+        h = st.feet_weight[:, None, None]
+        own = (st.joint_pos - previous) * fps
+        st.joint_vel = np.where(h > 0, (1.0 - h) * st.joint_vel + h * own, st.joint_vel)
+        if st.feet is not None:
+            grounded = (st.feet[:, :, 1, 1] < self.contact_height).astype(np.float64)     # (B, 2) toes
+            h = h[..., 0]
+            st.contacts = np.where(h > 0, (1.0 - h) * st.contacts + h * grounded, st.contacts)
