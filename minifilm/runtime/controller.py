@@ -202,7 +202,7 @@ class Controller:
             joint_up=joint_up, joint_vel=to_world3(local["velocity"], face),
             phases=np.broadcast_to(start_phases, (B, 8)).copy(), contacts=np.zeros((B, 2)),
             network_pos=joint_pos, out_pos=joint_pos, out_fwd=joint_fwd, out_up=joint_up,
-            idle_seconds=np.zeros(B), rest_seconds=np.zeros(B), feet_weight=np.zeros(B))
+            idle_seconds=np.zeros(B), quiet_seconds=np.zeros(B), rest_seconds=np.zeros(B), feet_weight=np.zeros(B))
         if self.foot_locker is not None:
             self.foot_locker.reset(B)
 

@@ -44,6 +44,17 @@ STILL_SPEED = 1e-6
 #: a target facing that moved more than this (degrees) since the last frame is being turned by the
 #: user: the character turns on the spot (stepping), it does not stand
 TURNING_DEG = 0.05
+#: an idle character whose facing is within REACHED_DEG of the target, or came closer to it by
+#: less than TURN_RATE (degrees per second) over the last TURN_WINDOW seconds, has finished turning
+REACHED_DEG = 3.0
+TURN_RATE = 20.0
+TURN_WINDOW = 0.25
+
+
+def _angle_to(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(B,) degrees between the floor directions a and b (B, 2)."""
+    cos = np.sum(a * b, axis=-1) / np.maximum(np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1), 1e-9)
+    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
 
 
 @dataclass(frozen=True)
@@ -61,6 +72,8 @@ class StandStill:
         where it predicts a contact).
     release: seconds over which held feet are let go once something is asked (instead of jumping
         to where the network has them in one frame).
+    turn_wait: seconds an idle character may go on turning towards the target facing (see
+        ``TURN_RATE``) before it is held all the same.
     """
 
     settle: float = 0.5
@@ -69,9 +82,10 @@ class StandStill:
     contact_height: float = 0.08
     lower_speed: float = 0.5
     release: float = 0.15
+    turn_wait: float = 1.0
 
     def __post_init__(self):
-        for name in ("settle", "phase_tau", "contact_height", "lower_speed", "release"):
+        for name in ("settle", "phase_tau", "contact_height", "lower_speed", "release", "turn_wait"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and v > 0 and np.isfinite(v)):
                 raise ValueError(f"StandStill: {name} must be a positive finite number, got {v!r}")
@@ -125,7 +139,8 @@ class StandStill:
     # ------------------------------------------------------------------ the controller's hooks
     def begin_frame(self, st, target_velocity: np.ndarray, target_facing: np.ndarray, dt: float) -> np.ndarray:
         """Before the input is built: pin the future of still characters to their roots and count
-        the time still (``idle_seconds``), idle (``rest_seconds``) and the feet's hold. st: the
+        the time still (``idle_seconds``), idle (``quiet_seconds``), at rest (idle with the turn
+        finished: ``rest_seconds``) and the feet's hold. st: the
         :class:`~minifilm.runtime.state.CharacterState`. Returns idle (B,)."""
         still = self.still(target_velocity)
         st.future_pos = self.pin_future(st.future_pos, still)
@@ -134,7 +149,18 @@ class StandStill:
         st.target_facing = np.array(target_facing, dtype=np.float64)
         zeros = np.zeros(len(still))
         st.idle_seconds = np.where(still, (zeros if st.idle_seconds is None else st.idle_seconds) + dt, 0.0)
-        st.rest_seconds = np.where(idle, (zeros if st.rest_seconds is None else st.rest_seconds) + dt, 0.0)
+        st.quiet_seconds = np.where(idle, (zeros if st.quiet_seconds is None else st.quiet_seconds) + dt, 0.0)
+        rest = zeros if st.rest_seconds is None else st.rest_seconds
+        # the hold waits while the network is still turning towards the target facing (a turn on
+        # the spot is finished by its own steps), at most ``turn_wait`` seconds
+        lag = max(1, int(round(TURN_WINDOW / dt)))
+        if st.history_dir.shape[1] >= lag:
+            now, then = _angle_to(st.facing, st.target_facing), _angle_to(st.history_dir[:, -lag], st.target_facing)
+            turning = (now > REACHED_DEG) & (then - now > TURN_RATE * lag * dt)
+        else:
+            turning = np.zeros(len(idle), dtype=bool)
+        at_rest = idle & ((rest > 0) | ~turning | (st.quiet_seconds > self.turn_wait))
+        st.rest_seconds = np.where(at_rest, rest + dt, 0.0)
         st.feet_weight = self.feet_weight(st.feet_weight, st.rest_seconds, idle, dt)
         return idle
 

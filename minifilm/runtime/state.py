@@ -48,7 +48,8 @@ class CharacterState:
     out_up: np.ndarray
     idle_seconds: Optional[np.ndarray] = None    # (B,) how long nothing has been asked (standing.py)
     target_facing: Optional[np.ndarray] = None   # (B, 2) the last frame's target facing (standing.py)
-    rest_seconds: Optional[np.ndarray] = None    # (B,) how long idle and not turned (standing.py's hold)
+    quiet_seconds: Optional[np.ndarray] = None   # (B,) how long idle: still, the target not turned (standing.py)
+    rest_seconds: Optional[np.ndarray] = None    # (B,) how long at rest: idle, the turn finished (standing.py)
     feet_weight: Optional[np.ndarray] = None     # (B,) how firmly the feet are held (standing.py)
     feet: Optional[np.ndarray] = None            # (B, 2, 2, 3) held [right, left] (ankle, toe) (standing.py)
 
