@@ -17,7 +17,7 @@ from minifilm.runtime.frames import to_local2, to_local3, to_world2, to_world3, 
 #: the toe joints' names tried, [right, left] (the contact columns' order)
 TOE_NAMES = (("RightToe", "LeftToe"), ("RightToeBase", "LeftToeBase"), ("RightFoot", "LeftFoot"))
 #: metres: a held ankle is reached this much short of the straight leg (the knee keeps a bend)
-REACH_MARGIN = 0.005
+REACH_MARGIN = 0.0005
 
 
 def leg_chains(joint_names: Sequence[str], parents: Sequence[int]) -> Optional[np.ndarray]:
