@@ -39,8 +39,8 @@ def leg_chains(joint_names: Sequence[str], parents: Sequence[int]) -> Optional[n
 
 
 def plant_feet(positions: np.ndarray, held: Optional[np.ndarray], weight: np.ndarray,
-               chains: np.ndarray, lower: Optional[np.ndarray] = None,
-               floor: float = 0.08) -> Tuple[np.ndarray, np.ndarray]:
+               chains: np.ndarray, lower: Optional[np.ndarray] = None, floor: float = 0.08,
+               lowering: Optional[np.ndarray] = None) -> Tuple[np.ndarray, np.ndarray, Optional[np.ndarray]]:
     """Hold the feet where they come to rest: the lower body of a settled character.
 
     positions (B, J, 3) world joints; held (B, 2, 2, 3) the [right, left] feet's held ankle and toe
@@ -48,10 +48,11 @@ def plant_feet(positions: np.ndarray, held: Optional[np.ndarray], weight: np.nda
     Each frame the held feet move towards the current ones by ``1 - weight`` (free at 0, still at
     1: the foot locker's rule with the hold weight as the contact), the legs bend to put the ankles
     there (two-bone IK, hips fixed, bone lengths kept) and the toes sit at theirs (the foot keeps
-    its length). A foot held with its toe higher than ``floor`` (m) and than the other toe (a
-    knee up, a hop, a kick when the stop came) is put down by up to ``lower`` (B,) metres this
-    frame: a standing body stands on both feet. Returns the new positions (B, J, 3) and held
-    feet (B, 2, 2, 3).
+    its length). A foot held with its toe higher than ``floor`` (m) (a knee up, a hop, a kick
+    when the stop came) is put down, by up to ``lower`` (B,) metres a frame, to the other toe's
+    height (half ``floor`` at most): a standing body stands on both feet. ``lowering`` (B, 2)
+    says which feet are on their way down (None: none yet). Returns the new positions (B, J, 3),
+    held feet (B, 2, 2, 3) and lowering (B, 2) (None without ``lower``).
     """
     P = np.array(positions, dtype=np.float64)
     hip, knee, ankle, toe = (chains[:, i] for i in range(4))
@@ -61,7 +62,8 @@ def plant_feet(positions: np.ndarray, held: Optional[np.ndarray], weight: np.nda
     if lower is not None:
         toe_y = held[:, :, 1, 1]                                        # (B, 2)
         down = np.minimum(toe_y[:, ::-1], floor / 2)                   # the other toe, or half-way
-        step = np.where(toe_y > floor, np.clip(toe_y - down, 0.0, np.asarray(lower, dtype=np.float64)[:, None]), 0.0)
+        lowering = (toe_y > floor) if lowering is None else (lowering | (toe_y > floor))
+        step = np.where(lowering, np.clip(toe_y - down, 0.0, np.asarray(lower, dtype=np.float64)[:, None]), 0.0)
         held = held.copy()
         held[..., 1] -= step[:, :, None]
     # a held foot out of the leg's reach (the network lifts its hips: a bounce, a hop) lowers the
@@ -79,7 +81,7 @@ def plant_feet(positions: np.ndarray, held: Optional[np.ndarray], weight: np.nda
     length = np.linalg.norm(P[:, toe] - P[:, ankle], axis=-1, keepdims=True)
     P[:, knee], P[:, ankle] = new_knee, new_ankle
     P[:, toe] = new_ankle + foot * (length / np.maximum(np.linalg.norm(foot, axis=-1, keepdims=True), 1e-9))
-    return P, held
+    return P, held, (lowering if lower is not None else None)
 
 
 def hold_root(root: np.ndarray, facing: np.ndarray, new_pos: np.ndarray, new_dir: np.ndarray,
@@ -129,7 +131,7 @@ def refit_on_feet(fit, positions: np.ndarray, rotations: np.ndarray, held: np.nd
     now, are bent onto the held feet again; fitting that pose reproduces it (it is already on the
     skeleton) and gives the legs' rotations. Other rows are returned unchanged.
     """
-    again, _ = plant_feet(positions, held, np.ones(len(rows)), chains)
+    again, _, _ = plant_feet(positions, held, np.ones(len(rows)), chains)
     again, again_rot = fit.fit(again, rotations)
     return (np.where(rows[:, None, None], again, positions),
             np.where(rows[:, None, None, None], again_rot, rotations))

@@ -178,7 +178,10 @@ class StandStill:
         """The pose (B, J, 3) with held feet (:func:`~minifilm.runtime.held_body.plant_feet`);
         the held feet are kept in ``st.feet``. Characters not held are returned unchanged."""
         w = st.feet_weight
-        planted, st.feet = plant_feet(positions, st.feet, w, legs, w * self.lower_speed * dt, self.contact_height)
+        if st.feet is None:
+            st.lowering = None
+        planted, st.feet, st.lowering = plant_feet(positions, st.feet, w, legs, w * self.lower_speed * dt,
+                                                   self.contact_height, st.lowering)
         return np.where((w > 0)[:, None, None], planted, positions)
 
     def refit(self, st, fit, positions, rotations, legs):

@@ -52,6 +52,7 @@ class CharacterState:
     rest_seconds: Optional[np.ndarray] = None    # (B,) how long at rest: idle, the turn finished (standing.py)
     feet_weight: Optional[np.ndarray] = None     # (B,) how firmly the feet are held (standing.py)
     feet: Optional[np.ndarray] = None            # (B, 2, 2, 3) held [right, left] (ankle, toe) (standing.py)
+    lowering: Optional[np.ndarray] = None        # (B, 2) held feet on their way down to the floor (standing.py)
 
     @property
     def batch(self) -> int:
