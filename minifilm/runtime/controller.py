@@ -118,9 +118,10 @@ class Controller:
             here stopped stepping more often (``benchmarks/trained_rollout.py --fit``).
         stand: what is done at a zero command so the character stops and stands
             (:class:`~minifilm.runtime.standing.StandStill`: future pinned to the root, the
-            network's leftover root drift faded out, phase amplitudes decayed); None: the paper's
+            network's leftover root drift faded out, phase amplitudes decayed, then the body held:
+            facing kept, feet planted by leg IK, its own velocities fed back); None: the paper's
             loop unchanged at every command (the released network then keeps walking at about
-            0.4 m/s when asked to stop).
+            0.4 m/s when asked to stop). While anything is asked the two are the same, bit for bit.
     """
 
     def __init__(self, network: RuntimeNetwork, layout: FeatureLayout, fps: float = 60.0,

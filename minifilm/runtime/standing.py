@@ -1,8 +1,8 @@
 """Standing still when nothing is asked: what the runtime adds to the paper's loop at zero command.
 
-Measured on the released network (Neutral, ``benchmarks/standing.py``): with a zero command after
-walking, the character kept going at 0.37 m/s, stepping, for as long as it ran. Three things keep
-it going, each found by switching it off:
+Measured on the released network (``benchmarks/standing.py``): with a zero command after
+walking, the character kept going (Neutral at 0.37 m/s), stepping, for as long as it ran. Three
+things keep it going, each found by switching it off:
 
 1. **The trajectory blend** (Sec. 4.4, ``blend_future_trajectory``) keeps 85 % of the network's
    own predicted step for the nearest future sample and 68 % for the next: at a zero command the
@@ -16,19 +16,53 @@ it going, each found by switching it off:
    network was never trained on the idle clips (the authors' exporter skipped them), only on the
    stops inside the transition clips, so it does not find its own way there.
 
+Pinning the future, fading the root's drift out and decaying the phases stopped the root in all
+100 styles, but in 34 the body went on stepping on the spot (43 counting the feet's own motion,
+a toe faster than 0.15 m/s: the contact labeller's "slow"). Three more causes, each measured on
+the 100 styles:
+
+4. **The fed-back joint velocities.** The input's velocities are the network's own predicted
+   ones, while in the data they are the pose's backward differences. A shuffling style predicts
+   moving feet, is told its feet are moving, and goes on: feeding back zero velocities once idle
+   alone made 92 of 100 stand (contacts and feet).
+5. **The facing** is never held: SpinClock turned 414 degrees in 5 s of "standing", Drunk 269,
+   SpinAntiClock 54, and 30 styles more than 5 degrees. Turning on the spot is stepping.
+6. **No standing pose to settle into.** Even told it is still, some styles keep their feet busy
+   (Drunk's flail at 2.6 m/s, hops, kicks), and the still feet of others get contacts hovering
+   about 0.5 (Followed 0.54 / 0.50) that flip with the slightest sway.
+
 So while the commanded velocity is zero, :class:`StandStill`:
 
 - pins every future sample to the root (the stop the user asked for, at once);
 - fades the network's remaining root displacement out over ``settle`` seconds (smoothstep), moving
-  the predicted body with it, so the root history becomes still and the network sees a still past
-  (turning on the spot needs no travel either);
-- and, while the target facing is not being turned either (turning on the spot is stepping, not
+  the predicted body with it, so the root history becomes still and the network sees a still past;
+- while the target facing is not being turned either (turning on the spot is stepping, not
   standing), decays the phase amplitudes with time constant ``phase_tau`` seconds, towards the
-  standing phases of the data. (Judged by the target, not by the facing reached: some styles
-  drift their facing while standing, and would otherwise never count as idle.)
+  standing phases of the data (judged by the target, not by the facing reached);
+- and once at rest (idle, and no longer turning towards the target: a turn on the spot is
+  finished by the network's own steps first, for at most ``turn_wait`` seconds) holds the body
+  as a game character settles, over ``settle`` seconds (``hold``, :mod:`~minifilm.runtime.held_body`):
+  the network's turning is faded out like its drift; the feet are kept where they come to rest
+  (the foot locker's rule with the hold as the contact; the legs bent by two-bone IK, the pelvis
+  lowered when the network lifts it out of the legs' reach; a foot left in the air, over
+  ``contact_height``, put down to the other); the held pose is fed back with the velocities it
+  really has; and the reported contacts are the held feet's (toe under ``contact_height``).
 
-None of this happens while anything is held; the paper's loop is unchanged then. ``Controller(...,
-stand=None)`` turns it off (the runtime as the authors' demo had it).
+What was tried and left (figures from ``benchmarks/standing.py``, 100 styles): phases forced to
+zero instead of decayed, 73 stand (by the contacts); hysteresis on the predicted contacts alone,
+78; feet planted without lowering the pelvis, 87 (a bouncing pelvis drags held feet along); the
+held feet fed back with the network's own velocities: all stand, but the start after idling is
+slower (``--go``: 11 styles more than 3 frames later than without the held body, mean 7.96
+frames to 0.3 m/s, against 6 and 6.50 with the pose's own velocities); feet put down whenever
+over 4 cm (not only over 8 cm), about a frame more on average (the network then has to lift a
+foot it would have stepped with); the facing and velocities without the feet held: 88 stand by
+the contacts, but only 55 keep their toes under 0.1 m/s.
+
+None of this happens while anything is held: the paper's loop is unchanged then, bit for bit
+(``tests/runtime/test_standing.py``), except that held feet are let go over ``release`` seconds
+after a command (a foot the network holds up would otherwise jump there in one frame).
+``StandStill(hold=False)`` is the stand-still without the held body; ``Controller(...,
+stand=None)`` turns it all off (the runtime as the authors' demo had it).
 """
 from __future__ import annotations
 
