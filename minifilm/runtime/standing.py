@@ -46,7 +46,8 @@ So while the commanded velocity is zero, :class:`StandStill`:
   (the foot locker's rule with the hold as the contact; the legs bent by two-bone IK, the pelvis
   lowered when the network lifts it out of the legs' reach; a foot left in the air, over
   ``contact_height``, put down to the other); the held pose is fed back with the velocities it
-  really has; and the reported contacts are the held feet's (toe under ``contact_height``).
+  really has; and the reported contacts are the held feet's (toe under ``contact_height``; the
+  network's own flip with still feet in 3 styles: LawnMower, Swimming, 098).
 
 What was tried and left (figures from ``benchmarks/standing.py``, 100 styles): phases forced to
 zero instead of decayed, 73 stand (by the contacts); hysteresis on the predicted contacts alone,
