@@ -18,7 +18,7 @@ so they float, sink and slide by a few centimetres. Here:
 """
 from __future__ import annotations
 
-from typing import Sequence, Tuple
+from typing import Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -26,7 +26,7 @@ from minifilm.motion.foot_ik import two_bone_ik
 from minifilm.motion.skeleton_fit import rotation_between
 from minifilm.phases.contacts import estimate_floor_height
 
-__all__ = ["floor_height", "contact_runs", "pin_targets", "hips_drop", "plant_feet"]
+__all__ = ["floor_height", "contact_runs", "pin_targets", "speeds", "band_heights", "hips_drop", "pitch_foot", "slide_correction", "plant_feet"]
 
 
 def floor_height(sensors: np.ndarray, fps: float) -> float:
@@ -45,46 +45,72 @@ def contact_runs(contacts: np.ndarray) -> list:
     return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
 
 
-def pin_targets(sensor: np.ndarray, guide: np.ndarray, contacts: np.ndarray, fps: float, blend_seconds: float = 0.1,
-                floor: float = 0.0, near_floor: float = 0.02) -> Tuple[np.ndarray, np.ndarray]:
-    """Where one toe tip should be, and how much: (targets (F, 3), weights (F,) in [0, 1]).
+def pin_targets(sensor: np.ndarray, contacts: np.ndarray, fps: float, blend_seconds: float = 0.1,
+                step_limit: Optional[np.ndarray] = None) -> Tuple[np.ndarray, np.ndarray]:
+    """Where one toe tip should be on the floor plane, and how much: (targets (F, 3), weights (F,)).
 
-    ``sensor`` (F, 3) is the tip's position after the transfer, ``guide`` (F, 3) the source's tip
-    (floor at 0; not scaled, so that the tip moves at the source tip's speed). During each contact run
-    the target is one point: the tip's own mean position over the run, on the floor. For
-    ``blend_seconds`` before and after it the tip moves from the pin as the guide moves from its
-    position at the run's edge, and over the next ``blend_seconds`` the weight falls smoothly to 0
-    (the nearer run wins between two); its height there is the guide's own (above the floor) while
-    the guide is within ``near_floor`` metres of the floor, fading to the tip's own height by twice
-    that: the tip lands and takes off as the source's does, so the contacts found on the result
-    agree with the source's."""
+    ``sensor`` (F, 3) is the tip's position. During each contact run the target is one point, the
+    tip's mean position over the run; for ``blend_seconds`` before and after it the tip moves away
+    from the pin as it moves itself (its own steps, frame by frame), except that a step into a frame
+    with a ``step_limit`` (F,) (metres, NaN: none) is no longer than that; over the next
+    ``blend_seconds`` the weight falls smoothly to 0 (the nearer run wins between two). Only x and z
+    are meant: y is the tip's own (heights are :func:`band_heights`')."""
     F = len(sensor)
     targets = sensor.copy()
     weights = np.zeros(F)
     blend = max(1, int(round(blend_seconds * fps)))
+    limit = np.full(F, np.nan) if step_limit is None else np.asarray(step_limit, dtype=np.float64)
+    flat = sensor.copy()
+    flat[:, 1] = 0.0
     for start, stop in contact_runs(contacts):
-        pin = sensor[start:stop].mean(axis=0)
-        pin[1] = floor
         lo, hi = max(0, start - 2 * blend), min(F, stop + 2 * blend)
+        want = np.empty((hi - lo, 3))
+        want[start - lo:stop - lo] = flat[start:stop].mean(axis=0)
+        # walk outwards from the run's edges: the frame whose speed a step sets is the later one
+        for k, nxt, later in [(k, k + 1, k + 1) for k in range(start - 1, lo - 1, -1)] + \
+                              [(k, k - 1, k) for k in range(stop, hi)]:
+            step = flat[k] - flat[nxt]
+            n = np.linalg.norm(step)
+            if np.isfinite(limit[later]) and n > limit[later]:
+                step = step * (limit[later] / n)
+            want[k - lo] = want[nxt - lo] + step
+        want[:, 1] = sensor[lo:hi, 1]
         k = np.arange(lo, hi)
         dist = np.where(k < start, start - k, np.where(k >= stop, k - stop + 1, 0))
-        # out of the pin the tip moves as the source's does; the weight fades after `blend` frames
         w = 0.5 + 0.5 * np.cos(np.pi * np.clip((dist - blend) / (blend + 1), 0, 1))
-        edge = np.where(k < start, start, stop - 1)
-        want = np.where((dist == 0)[:, None], pin, pin + guide[k] - guide[edge])
-        # out of the run, while the source's tip is near its floor (where the contact test's height
-        # threshold decides), the tip is at the source tip's own height above it: the pin's height
-        # plus the guide's rise from the run's edge sat up to a centimetre lower and counted as a
-        # contact where a slow pivoting source tip did not. Higher up it fades to the tip's own
-        # height: feet of other lengths lift their tips differently, and forcing the source's
-        # height there bends the knee by several centimetres (paid twice on a round trip).
-        own = np.clip((guide[k, 1] - near_floor) / near_floor, 0.0, 1.0)
-        height = (1.0 - own) * (floor + guide[k, 1]) + own * sensor[k, 1]
-        want[:, 1] = np.where(dist == 0, floor, height)
         better = w > weights[lo:hi]
         targets[lo:hi][better] = want[better]
         weights[lo:hi] = np.maximum(weights[lo:hi], w)
     return targets, weights
+
+
+def speeds(points: np.ndarray, fps: float) -> np.ndarray:
+    """(F,) backward-difference speed (m/s) of points (F, 3), frame 0 copying frame 1 (as contacts.py)."""
+    v = np.zeros(len(points))
+    if len(points) >= 2:
+        v[1:] = np.linalg.norm(points[1:] - points[:-1], axis=-1) * fps
+        v[0] = v[1]
+    return v
+
+
+def band_heights(height: np.ndarray, speed: np.ndarray, guide: np.ndarray, guide_speed: np.ndarray,
+                 speed_threshold: float = 0.15, band: float = 0.01, margin: float = 0.003) -> np.ndarray:
+    """(F,) the height (floor at 0) a target toe tip should have so that the contact test of
+    :func:`minifilm.phases.contacts.foot_contacts` (slow and within ``band`` of the floor) says on
+    every frame what it says for the source's tip, changing the tip's own ``height`` (F,) only
+    where it has to.
+
+    Where the source's tip (``guide`` heights and ``guide_speed``, (F,) each) passes the test, the
+    tip takes its height (then the floor the test estimates on the target, the median height of its
+    slow tips, is the source's too); where the source's tip does not pass but the target's slow tip
+    would, it takes the source tip's height if that is out of the band, else is lifted (or lowered)
+    ``margin`` out of it. Anywhere else the tip keeps its own height: feet of other lengths lift
+    their tips differently, and forcing the source's heights there bends the knee or the foot (a
+    round trip pays it twice)."""
+    src_in = (guide_speed <= speed_threshold) & (np.abs(guide) <= band)
+    own_in = (speed <= speed_threshold) & (np.abs(height) <= band)
+    away = np.where(np.abs(guide) > band, guide, np.where(height < 0, -1.0, 1.0) * (band + margin))
+    return np.where(src_in, guide, np.where(own_in, away, height))
 
 
 def hips_drop(P: np.ndarray, legs: Sequence[Sequence[int]], wants: Sequence[np.ndarray], weights: Sequence[np.ndarray],
@@ -112,34 +138,131 @@ def hips_drop(P: np.ndarray, legs: Sequence[Sequence[int]], wants: Sequence[np.n
     return np.convolve(np.pad(widened, k, mode="edge"), kernel, mode="valid")
 
 
+def pitch_foot(P: np.ndarray, R: np.ndarray, ankle: int, below: Sequence[int], sensor: int, height: np.ndarray,
+               max_pitch: float) -> None:
+    """Turn each frame's foot about the ankle, in the vertical plane of the ankle -> sensor line,
+    so that the sensor is at ``height`` (F,) (as near as ``max_pitch`` radians allows), in place.
+
+    P (F, J, 3) world positions and R (F, J, 3, 3) world rotations; the ankle stays where it is,
+    the ankle's rotation and every joint in ``below`` (the ankle's descendants) turn with it."""
+    a = P[:, ankle]
+    r = P[:, sensor] - a
+    length = np.maximum(np.linalg.norm(r, axis=-1), 1e-9)
+    flat = np.maximum(np.hypot(r[:, 0], r[:, 2]), 1e-9)
+    now = np.arctan2(r[:, 1], flat)
+    want = np.arcsin(np.clip((height - a[:, 1]) / length, -0.99, 0.99))
+    turn = np.clip(want - now, -max_pitch, max_pitch)
+    new = np.cos(now + turn)[:, None] * np.stack([r[:, 0], np.zeros(len(r)), r[:, 2]], -1) / flat[:, None]
+    new[:, 1] = np.sin(now + turn)
+    Q = rotation_between(r / length[:, None], new)                 # (F, 3, 3) about the foot's side axis
+    R[:, ankle] = Q @ R[:, ankle]
+    for j in below:
+        P[:, j] = a + (Q @ (P[:, j] - a)[..., None])[..., 0]
+        R[:, j] = Q @ R[:, j]
+
+
+def slide_correction(sensors: np.ndarray, contacts: np.ndarray, fps: float, smooth_seconds: float = 0.1) -> np.ndarray:
+    """(F, 3) horizontal shift of the body that keeps planted toe tips where they were put down.
+
+    ``sensors`` (F, L, 3) toe tips, ``contacts`` (F, L) 0/1. On a frame where foot i is in contact
+    it wants the shift pin_i - tip_i (pin_i: the tip's mean over that contact run); the shift is
+    the mean over the feet in contact, linearly interpolated over frames without a contact, then
+    smoothed over ``smooth_seconds``. Every step is linear in the tips, so a round trip (rig A -> B
+    -> A with the same contacts) undoes the first pass's shift, up to the source tips' own slide."""
+    F, L = sensors.shape[:2]
+    total, count = np.zeros((F, 3)), np.zeros(F)
+    for i in range(L):
+        for start, stop in contact_runs(contacts[:, i]):
+            tips = sensors[start:stop, i]
+            total[start:stop] += tips.mean(axis=0) - tips
+            count[start:stop] += 1
+    shift = np.zeros((F, 3))
+    on = count > 0
+    if not np.any(on):
+        return shift
+    frames = np.flatnonzero(on)
+    for axis in (0, 2):
+        shift[:, axis] = np.interp(np.arange(F), frames, total[on, axis] / count[on])
+    k = max(1, int(round(smooth_seconds * fps / 2)))
+    kernel = np.hanning(2 * k + 3)[1:-1]
+    kernel /= kernel.sum()
+    for axis in (0, 2):
+        shift[:, axis] = np.convolve(np.pad(shift[:, axis], k, mode="edge"), kernel, mode="valid")
+    return shift
+
+
+NEAR = 0.02
+SPEED, BAND = 0.15, 0.01
+
+
 def plant_feet(positions: np.ndarray, world: np.ndarray, parents: np.ndarray, legs: Sequence[Sequence[int]],
-               contacts: np.ndarray, guides: np.ndarray, fps: float, body: Sequence[int], blend_seconds: float = 0.1
-               ) -> Tuple[np.ndarray, np.ndarray]:
-    """Pin each leg's sensor to the floor during its contacts (module doc, steps 2-3).
+               contacts: np.ndarray, guides: np.ndarray, fps: float, body: Sequence[int], blend_seconds: float = 0.1,
+               max_pitch: float = np.radians(30.0)) -> Tuple[np.ndarray, np.ndarray]:
+    """Plant each leg's toe tip during its contacts, and give it the source's contacts (module doc).
 
     Args:
         positions: (F, J, 3) world joint positions, floor at y = 0.
         world:     (F, J, 3, 3) world rotations.
         parents:   (J,) the hierarchy.
-        legs:      per leg, joint indices (upper leg, knee, ankle, sensor); the sensor is rigid
-                   with the ankle (a toe tip, or the toe joint).
+        legs:      per leg, joint indices (upper leg, knee, ankle, sensor); the sensor is below the
+                   ankle (a toe tip, or the toe joint).
         contacts:  (F, len(legs)) 0/1 source contacts, in the order of ``legs``.
-        guides:    (F, len(legs), 3) the source's toe tips (:func:`pin_targets`).
+        guides:    (F, len(legs), 3) the source's toe tips, its floor at y = 0 (:func:`band_heights`).
         body:      the joints that move with the hips (the hips and everything below them).
+        max_pitch: how far (radians) a foot may be turned about its ankle to put its tip at its
+                   height; what is left is the leg's (two-bone IK).
     Returns:
-        new (positions, world): the body lowered where a pinned foot could not be reached
-        (:func:`hips_drop`), then the legs' knees, ankles and everything below them moved; the
-        world rotations of the upper legs and knees turn to match, those below the ankle are kept.
+        new (positions, world): the body shifted horizontally so planted tips stay put
+        (:func:`slide_correction`) and lowered where a tip could not be reached (:func:`hips_drop`);
+        each foot pitched about its ankle to its tip's height (:func:`band_heights`,
+        :func:`pitch_foot`); the legs' knees, ankles and everything below them moved by the
+        two-bone IK for what is left; the world rotations of the upper legs and knees turn to match.
     """
     P, R = positions.copy(), world.copy()
-    pins = [pin_targets(P[:, leg[3]], guides[:, i], c, fps, blend_seconds)
-            for i, (leg, c) in enumerate(zip(legs, np.asarray(contacts).T))]
-    wants = [P[:, leg[2]] + (t - P[:, leg[3]]) for leg, (t, _) in zip(legs, pins)]   # ankle where the sensor is pinned
-    drop = hips_drop(P, legs, wants, [w for _, w in pins], fps)
+    parents = np.asarray(parents)
+    contacts = np.asarray(contacts)
+    sensors = [int(leg[3]) for leg in legs]
+    below = [_descendants(int(leg[2]), parents) for leg in legs]
+    guide_speed = [speeds(guides[:, i], fps) for i in range(len(legs))]
+    # where the source's tip passes the contact test the target's may move no faster than it
+    limits = [np.where((v <= SPEED) & (np.abs(guides[:, i, 1]) <= BAND), v / fps, np.nan) for i, v in enumerate(guide_speed)]
+    near = [w * np.clip(2.0 - np.abs(guides[:, i, 1]) / NEAR, 0.0, 1.0)
+            for i, (_, w) in enumerate(pin_targets(P[:, j], c, fps, blend_seconds) for j, c in zip(sensors, contacts.T))]
+
+    def heights(P_, soft=True):
+        out = []
+        for i, j in enumerate(sensors):
+            h = band_heights(P_[:, j, 1], speeds(P_[:, j], fps), guides[:, i, 1], guide_speed[i])
+            out.append(h + near[i] * (guides[:, i, 1] - h) if soft else h)
+        return out
+
+    def pitch_and_slide(P_, R_):
+        """Pitch the feet to their heights, then shift the body so planted tips stay put; the pins."""
+        for leg, under, h in zip(legs, below, heights(P_)):
+            pitch_foot(P_, R_, int(leg[2]), under, int(leg[3]), h, max_pitch)
+        # the body, not the legs, makes up for a planted tip's slide: the legs keep the source's
+        # directions (the rigs' legs, scaled by one ratio, carry their feet over different distances)
+        P_[:, list(body)] += slide_correction(P_[:, sensors], contacts, fps)[:, None]
+        return [pin_targets(P_[:, j], c, fps, blend_seconds, limit) for j, c, limit in zip(sensors, contacts.T, limits)]
+
+    # the height is the foot's to reach (a pitch about the ankle leaves the knee and ankle where
+    # the bone directions put them); what the pitch cannot do is the leg's, and the body drops
+    # where even the leg cannot
+    trial_P, trial_R = P.copy(), R.copy()
+    pins = pitch_and_slide(trial_P, trial_R)
+    wants, reach = [], []
+    for leg, h, (t, w) in zip(legs, heights(trial_P, False), pins):
+        shift = w[:, None] * (t - trial_P[:, leg[3]])
+        shift[:, 1] = h - trial_P[:, leg[3], 1]
+        wants.append(trial_P[:, leg[2]] + shift)
+        reach.append(np.maximum(w, np.abs(shift[:, 1]) > 1e-6))
+    drop = hips_drop(trial_P, legs, wants, reach, fps)
     P[:, list(body), 1] -= drop[:, None]
-    for leg, (targets, w) in zip(legs, pins):
+    pins = pitch_and_slide(P, R)
+    for leg, under, h, (t, w) in zip(legs, below, heights(P, False), pins):
         hip, knee, ankle, sensor = (int(i) for i in leg)
-        shift = w[:, None] * (targets - P[:, sensor])
+        shift = w[:, None] * (t - P[:, sensor])
+        shift[:, 1] = h - P[:, sensor, 1]
         new_knee, new_ankle = two_bone_ik(P[:, hip], P[:, knee], P[:, ankle], P[:, ankle] + shift)
         swing_thigh = rotation_between(P[:, knee] - P[:, hip], new_knee - P[:, hip])
         shin_now = (swing_thigh @ (P[:, ankle] - P[:, knee])[..., None])[..., 0]
@@ -148,7 +271,7 @@ def plant_feet(positions: np.ndarray, world: np.ndarray, parents: np.ndarray, le
         R[:, knee] = swing_shin @ swing_thigh @ R[:, knee]
         delta = new_ankle - P[:, ankle]
         P[:, knee], P[:, ankle] = new_knee, new_ankle
-        for j in _descendants(ankle, np.asarray(parents)):
+        for j in under:
             P[:, j] += delta
     return P, R
 
