@@ -225,7 +225,8 @@ def plant_feet(positions: np.ndarray, world: np.ndarray, parents: np.ndarray, le
     below = [_descendants(int(leg[2]), parents) for leg in legs]
     guide_speed = [speeds(guides[:, i], fps) for i in range(len(legs))]
     # where the source's tip passes the contact test the target's may move no faster than it
-    limits = [np.where((v <= SPEED) & (np.abs(guides[:, i, 1]) <= BAND), v / fps, np.nan) for i, v in enumerate(guide_speed)]
+    limits = [np.where((v <= SPEED) & (np.abs(guides[:, i, 1]) <= BAND), speeds(guides[:, i] * [1, 0, 1], fps) / fps, np.nan)
+              for i, v in enumerate(guide_speed)]
     near = [w * np.clip(2.0 - np.abs(guides[:, i, 1]) / NEAR, 0.0, 1.0)
             for i, (_, w) in enumerate(pin_targets(P[:, j], c, fps, blend_seconds) for j, c in zip(sensors, contacts.T))]
 
