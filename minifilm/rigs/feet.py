@@ -86,13 +86,13 @@ def plant_feet(positions: np.ndarray, world: np.ndarray, parents: np.ndarray, le
                        speeds(guides[:, i] * np.array([1.0, 0.0, 1.0]), fps) / fps, np.nan)
               for i, v in enumerate(guide_speed)]
     # near a contact (the pins' weights), towards the source tip's height while it is near the floor
-    near = [w * np.clip(2.0 - np.abs(guides[:, i, 1]) / NEAR_FLOOR, 0.0, 1.0)
-            for i, (_, w) in enumerate(pin_targets(P[:, j], c, fps, blend_seconds) for j, c in zip(sensors, contacts.T))]
+    weights = [pin_targets(P[:, j], c, fps, blend_seconds)[1] for j, c in zip(sensors, contacts.T)]
+    near = [w * np.clip(2.0 - np.abs(guides[:, i, 1]) / NEAR_FLOOR, 0.0, 1.0) for i, w in enumerate(weights)]
 
     def heights(soft: bool):
         out = []
         for i, j in enumerate(sensors):
-            h = band_heights(P[:, j, 1], speeds(P[:, j], fps), guides[:, i, 1], guide_speed[i])
+            h = band_heights(P[:, j, 1], speeds(P[:, j], fps), guides[:, i, 1], guide_speed[i], where=weights[i] > 0)
             out.append(h + near[i] * (guides[:, i, 1] - h) if soft else h)
         return out
 

@@ -45,7 +45,7 @@ def speeds(points: np.ndarray, fps: float) -> np.ndarray:
 
 
 def band_heights(height: np.ndarray, speed: np.ndarray, guide: np.ndarray, guide_speed: np.ndarray,
-                 margin: float = 0.003) -> np.ndarray:
+                 margin: float = 0.003, where: Optional[np.ndarray] = None) -> np.ndarray:
     """(F,) the height (floor at 0) a target toe tip should have so that the contact test says on
     every frame what it says for the source's tip, changing the tip's own ``height`` (F,) (at
     ``speed`` (F,), m/s) only where it has to.
@@ -56,11 +56,14 @@ def band_heights(height: np.ndarray, speed: np.ndarray, guide: np.ndarray, guide
     would, it takes the source tip's height if that is out of the band, else is lifted (or
     lowered) ``margin`` out of it. Anywhere else the tip keeps its own height: feet of other
     lengths lift their tips differently, and forcing the source's heights there bends the knee (a
-    round trip pays it twice)."""
+    round trip pays it twice). ``where`` (F,) bool, if given, is where this may be done at all:
+    near the source's contacts (a single frame passing the test elsewhere is voted away by the
+    contact test's majority filter, and following it would jerk the leg)."""
     src_in = (guide_speed <= SPEED_THRESHOLD) & (np.abs(guide) <= HEIGHT_BAND)
     own_in = (speed <= SPEED_THRESHOLD) & (np.abs(height) <= HEIGHT_BAND)
     away = np.where(np.abs(guide) > HEIGHT_BAND, guide, np.where(height < 0, -1.0, 1.0) * (HEIGHT_BAND + margin))
-    return np.where(src_in, guide, np.where(own_in, away, height))
+    out = np.where(src_in, guide, np.where(own_in, away, height))
+    return out if where is None else np.where(where, out, height)
 
 
 def slide_correction(sensors: np.ndarray, contacts: np.ndarray, fps: float, smooth_seconds: float = 0.1) -> np.ndarray:

@@ -98,3 +98,13 @@ def test_xia_thighs_and_shins_keep_the_source_directions(shared_data):
         for bone, e in errors.items():
             if "upleg-knee" in bone or "knee-ankle" in bone:
                 assert np.median(e) < 1.0, (path, bone, np.median(e))
+
+
+def test_a_clip_without_contacts_is_left_as_the_pose_transfer_put_it(shared_data):
+    """CMU 08_01's toe sites slide through every stance, so it has no contacts; a single frame
+    passing the contact test (voted away by its majority filter) once pulled a tip down 12 cm."""
+    style = load_rig("100style")
+    m, roles = read_source(shared_data / "bvh" / "cmu" / "08_01_trimmed.bvh")
+    planted, _ = retarget_motion(m, style, roles).world()
+    free, _ = retarget_motion(m, style, roles, plant=False).world()
+    np.testing.assert_allclose(planted, free, atol=1e-9)
