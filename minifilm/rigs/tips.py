@@ -147,7 +147,9 @@ def pitch_foot(P: np.ndarray, R: np.ndarray, ankle: int, below: Sequence[int], s
     length = np.maximum(np.linalg.norm(r, axis=-1), 1e-9)
     flat = np.maximum(np.hypot(r[:, 0], r[:, 2]), 1e-9)
     now = np.arctan2(r[:, 1], flat)
-    want = np.arcsin(np.clip((height - a[:, 1]) / length, -0.99, 0.99))
+    # short of straight down, unless the foot already points further (then it may stay)
+    lo, hi = np.minimum(-0.99, np.sin(now)), np.maximum(0.99, np.sin(now))
+    want = np.arcsin(np.clip((height - a[:, 1]) / length, lo, hi))
     turned = now + np.clip(want - now, -max_pitch, max_pitch)
     new = np.cos(turned)[:, None] * (r * np.array([1.0, 0.0, 1.0])) / flat[:, None]
     new[:, 1] = np.sin(turned)
