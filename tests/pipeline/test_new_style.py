@@ -90,3 +90,16 @@ def test_rollout_aware_rounds_keep_the_trained_styles_and_the_best_psi(trained, 
 def test_self_fed_settings_are_checked(bad):
     with pytest.raises(ValueError, match="SelfFed"):
         SelfFed(**bad)
+
+
+def test_the_command_runs_rollout_rounds_and_says_what_it_kept(trained, tmp_path, capsys):
+    from minifilm import cli
+    path = tmp_path / "limp.bvh"
+    write_bvh(default_dataset(styles=["Limp"], gaits=["FW"], seconds=6.0, seed=4)[0].motion, path)
+    with pytest.raises(SystemExit) as done:
+        cli.main(["finetune", "--run", str(trained), "--name", "CliLimp", "--steps", "5", "--rollout-rounds", "1",
+                  str(path)])
+    assert done.value.code == 0
+    out = capsys.readouterr().out
+    assert "rollouts along the clip" in out and "(kept" in out, out
+    assert "CliLimp" in RunFolder.load(trained).styles()
