@@ -78,11 +78,15 @@ def clip_training_data(motions: Sequence[Motion], files, run: RunFolder, stats, 
     skeleton = builtin_skeleton(run.skeleton_name)
     clip_seconds = clip_frames / run.fps
     xs, ps, zs, ys = [], [], [], []
-    for motion, path in zip(motions, files):
-        labels = label(motion, skeleton, name)
-        if count_steps(labels.contacts) < 2:
-            raise ValueError(f"{path}: fewer than two foot steps in {motion.n_frames / run.fps:.1f} s "
-                             "(a style is learnt from locomotion: walk or run in it for a few steps)")
+    labelled = [label(motion, skeleton, name) for motion in motions]
+    # the clip as a whole must hold locomotion; one file of it may have no step the contact test
+    # finds (a fast one-legged hop, a turn on the spot) and still show the style
+    if sum(count_steps(lab.contacts) for lab in labelled) < 2:
+        seconds = sum(m.n_frames for m in motions) / run.fps
+        where = files[0] if len(files) == 1 else f"{len(files)} files ({', '.join(str(f) for f in files)})"
+        raise ValueError(f"{where}: fewer than two foot steps in {seconds:.1f} s (a style is learnt from "
+                         "locomotion: walk or run in it for a few steps)")
+    for motion, path, labels in zip(motions, files, labelled):
         variants = [(motion, labels)] + ([(mirror(motion), labels.mirrored())] if with_mirror else [])
         for m, lab in variants:
             rows = frame_features(m, skeleton, lab.vectors, lab.contacts, fps=run.fps)

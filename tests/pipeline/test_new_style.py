@@ -103,3 +103,15 @@ def test_the_command_runs_rollout_rounds_and_says_what_it_kept(trained, tmp_path
     out = capsys.readouterr().out
     assert "rollouts along the clip" in out and "(kept" in out, out
     assert "CliLimp" in RunFolder.load(trained).styles()
+
+
+def test_a_file_without_steps_is_taken_beside_one_with_steps_but_not_alone(trained, tmp_path):
+    stand = tmp_path / "stand.bvh"
+    walk = tmp_path / "walk.bvh"
+    write_bvh(default_dataset(styles=["Limp"], gaits=["ID"], seconds=6.0, seed=4)[0].motion, stand)
+    write_bvh(default_dataset(styles=["Limp"], gaits=["FW"], seconds=6.0, seed=4)[0].motion, walk)
+    with pytest.raises(ValueError, match="fewer than two foot steps"):
+        teach_style(trained, "Standing", [stand], steps=5, log=lambda m: None)
+    assert "Standing" not in RunFolder.load(trained).styles()
+    teach_style(trained, "StandAndWalk", [stand, walk], steps=5, log=lambda m: None)
+    assert "StandAndWalk" in RunFolder.load(trained).styles()
