@@ -6,12 +6,15 @@ measure style with both measures (classifier over seeds, Fréchet rank).
     minifilm dataset --from-released ../shared/data/released-lpn --out study/held --seconds-per-style 60 \
         --styles Chicken Proud                                  # the held-out styles
     python benchmarks/dense_study.py --trained study/trained --held study/held --work study/work --epochs 3
+    python benchmarks/dense_study.py ... --reuse-run        # fine-tune and measure again on the trained run
 
 Steps, each timed (the load is printed beside):
 
 1. ``minifilm train``'s pipeline on the trained styles (``--epochs``, ``--quick`` for the small model);
 2. each held-out style taught from ``--clip-seconds`` of its files (FW, FR, TR1, BW, ... in that
-   order) with ``minifilm finetune``'s code (Ψ alone; Ω and Φ frozen); the trained styles' FiLM
+   order) with ``minifilm finetune``'s code (Ψ alone; Ω and Φ frozen), once per ``--variants``:
+   ``teacher`` (teacher forcing alone, the paper) and ``self-fed`` (then rollout-aware rounds,
+   pipeline/self_fed.py), each in its own copy of the run folder; the trained styles' FiLM
    vectors and one trained style's rollout compared bit for bit before and after;
 3. every style generated for ``--generate-seconds`` along a figure-eight (one batch), and measured:
    the style classifier (minifilm/evaluation/style_classifier.py) trained on all styles' data, for
@@ -27,6 +30,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -44,10 +48,12 @@ from minifilm.evaluation.style_measures import StyleSpace, recognition, style_re
 from minifilm.motion.bvh import bvh_duration  # noqa: E402
 from minifilm.pipeline.new_style import teach_style  # noqa: E402
 from minifilm.pipeline.run_folder import RunFolder  # noqa: E402
+from minifilm.pipeline.self_fed import SelfFed  # noqa: E402
 from minifilm.pipeline.train_small import Settings, run as train_run  # noqa: E402
 from minifilm.runtime.control import figure_eight  # noqa: E402
 
 CLIP_ORDER = ("FW", "FR", "TR1", "BW", "SW", "BR", "SR", "ID")
+VARIANTS = {"teacher": None, "self-fed": SelfFed()}
 
 
 def load() -> str:
@@ -87,6 +93,8 @@ def main():
     ap.add_argument("--steps", type=int, default=400, help="fine-tuning steps")
     ap.add_argument("--generate-seconds", type=float, default=10.0)
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    ap.add_argument("--variants", nargs="+", choices=sorted(VARIANTS), default=sorted(VARIANTS, reverse=True))
+    ap.add_argument("--reuse-run", action="store_true", help="keep --work/run as trained (skip training)")
     a = ap.parse_args()
     a.work.mkdir(parents=True, exist_ok=True)
     report = {"load_start": os.getloadavg()[0]}
@@ -97,50 +105,63 @@ def main():
     if a.quick:
         s = replace(s.quick(), epochs=a.epochs, generate_seconds=a.generate_seconds)
     s = replace(s, out=run_dir)
-    t0 = time.perf_counter()
-    result = train_run(s, a.trained / "manifest.csv")
-    report["train_seconds"] = time.perf_counter() - t0
-    report["test_mse"] = {k: v for k, v in result.items() if k != "recognition"}
-    report["train_recognition"] = result["recognition"]
-    print(f"[study] training: {report['train_seconds']:.0f} s ({load()})", flush=True)
+    if not a.reuse_run:
+        t0, c0 = time.perf_counter(), time.process_time()
+        result = train_run(s, a.trained / "manifest.csv")
+        report["train_seconds"] = time.perf_counter() - t0
+        report["train_cpu_seconds"] = time.process_time() - c0
+        report["test_mse"] = {k: v for k, v in result.items() if k != "recognition"}
+        report["train_recognition"] = result["recognition"]
+        print(f"[study] training: {report['train_seconds']:.0f} s, {report['train_cpu_seconds']:.0f} CPU s "
+              f"({load()})", flush=True)
 
     held_files = read_manifest(a.held / "manifest.csv")     # read now: it may be written while training runs
     held = sorted({f.style for f in held_files})
-    run = RunFolder.load(run_dir)
-    trained = [n for n in run.styles().names]
-    films_before = {n: run.styles()[n].copy() for n in trained}
+    base = RunFolder.load(run_dir)
+    trained = [n for n in base.styles().names if n not in held]
+    films_before = {n: base.styles()[n].copy() for n in trained}
     probe = trained[0]
-    before = rollouts(run, [probe], 4.0).positions
+    before = rollouts(base, [probe], 4.0).positions
 
-    report["finetune"] = {}
-    for h in held:
-        clip, secs = clip_files(held_files, h, a.clip_seconds)
-        t0 = time.perf_counter()
-        taught = teach_style(run_dir, h, [f.path for f in clip], steps=a.steps, log=lambda m: None)
-        took = time.perf_counter() - t0
-        report["finetune"][h] = dict(seconds=took, clip_seconds=secs, files=[Path(f.path).name for f in clip],
-                                     loss_before=taught.loss_before, loss_after=taught.loss_after,
-                                     nearest=taught.nearest)
-        print(f"[study] {h}: fine-tuned on {secs:.1f} s ({len(clip)} files) in {took:.1f} s; loss "
-              f"{taught.loss_before:.3f} -> {taught.loss_after:.3f}; nearest trained {taught.nearest} ({load()})",
-              flush=True)
-    run = RunFolder.load(run_dir)
-    same_films = all(np.array_equal(films_before[n], run.styles()[n]) for n in trained)
-    same_rollout = bool(np.array_equal(before, rollouts(run, [probe], 4.0).positions))
-    report["bit_identical"] = dict(films=same_films, rollout=same_rollout)
-    print(f"[study] trained styles bit-identical after fine-tuning: FiLM vectors {same_films}, "
-          f"rollout of {probe} {same_rollout}", flush=True)
+    report["finetune"], report["bit_identical"], runs = {}, {}, {}
+    for v in a.variants:
+        folder = a.work / f"run-{v}"
+        if folder.exists():
+            shutil.rmtree(folder)
+        shutil.copytree(run_dir, folder, ignore=shutil.ignore_patterns("model-*.npz", "*.lock"))
+        for h in held:
+            clip, secs = clip_files(held_files, h, a.clip_seconds)
+            t0 = time.perf_counter()
+            taught = teach_style(folder, h, [f.path for f in clip], steps=a.steps, log=lambda m: None,
+                                 self_fed=VARIANTS[v], replace=True)
+            took = time.perf_counter() - t0
+            report["finetune"][f"{v}/{h}"] = dict(
+                seconds=took, clip_seconds=secs, files=[Path(f.path).name for f in clip], loss_before=taught.loss_before,
+                loss_after=taught.loss_after, nearest=taught.nearest, rollout_errors=taught.rollout_errors)
+            errs = " -> ".join(f"{e * 100:.1f}" for e in taught.rollout_errors)
+            print(f"[study] {v} {h}: fine-tuned on {secs:.1f} s ({len(clip)} files) in {took:.1f} s; loss "
+                  f"{taught.loss_before:.3f} -> {taught.loss_after:.3f}; rollout error {errs or '-'} cm; nearest "
+                  f"trained {taught.nearest} ({load()})", flush=True)
+        runs[v] = run = RunFolder.load(folder)
+        same_films = all(np.array_equal(films_before[n], run.styles()[n]) for n in trained)
+        same_rollout = bool(np.array_equal(before, rollouts(run, [probe], 4.0).positions))
+        report["bit_identical"][v] = dict(films=same_films, rollout=same_rollout)
+        print(f"[study] {v}: trained styles bit-identical after fine-tuning: FiLM vectors {same_films}, "
+              f"rollout of {probe} {same_rollout}", flush=True)
 
     # every style's data, for the classifier and the real windows
     every = write_manifest(trained_files + held_files, a.work / "all.csv")
     ds = build_dataset(every, cache_dir=a.work / "cache", progress=False, clip_seconds=s.clip_seconds,
                        clip_stride_seconds=s.clip_seconds / 2, seed=s.seed, split_unit="files")
-    names = trained + held
     t0 = time.perf_counter()
-    r = rollouts(run, names, a.generate_seconds)
-    print(f"[study] {len(names)} styles x {a.generate_seconds:g} s generated in {time.perf_counter() - t0:.0f} s",
+    names = trained + [f"{v}/{h}" for v in a.variants for h in held]
+    generated = [rollouts(base, trained, a.generate_seconds)] + [rollouts(runs[v], held, a.generate_seconds)
+                                                                 for v in a.variants]
+    r = replace(generated[0], **{k: np.concatenate([getattr(g, k) for g in generated]) for k in
+                                 ("positions", "rotations", "contacts", "phases", "root_positions", "root_facing",
+                                  "targets", "network_positions") if getattr(generated[0], k) is not None})
+    print(f"[study] {len(names)} rollouts x {a.generate_seconds:g} s generated in {time.perf_counter() - t0:.0f} s",
           flush=True)
-
     probs = {}
     for seed in a.seeds:
         clf, info = train_style_classifier(ds, seed=seed)
@@ -156,27 +177,30 @@ def main():
     blocks = ds.stats.normalize_clip(rollout_blocks(r), ds.layout.x_joints)
     rows = []
     for b, name in enumerate(names):
-        target = ds.styles.index(name)
+        style = name.split("/")[-1]
+        target = ds.styles.index(style)
         recs = [recognition(probs[seed][0][b], target) for seed in a.seeds]
-        rep = style_report(space, cut_windows(blocks[b], window, stride), name, recs)
-        rep["held_out"] = name in held
+        rep = style_report(space, cut_windows(blocks[b], window, stride), style, recs)
+        rep["held_out"] = "/" in name
+        rep["variant"] = name.split("/")[0] if "/" in name else ""
         rows.append(rep)
     report["styles"] = rows
     tr = [x for x in rows if not x["held_out"]]
     hd = [x for x in rows if x["held_out"]]
-    print("\n| style | held out | recognised min / mean over seeds | Fréchet rank | nearest | reproduced |")
+    print("\n| style | held out (variant) | recognised min / mean over seeds | Fréchet rank | nearest | reproduced |")
     print("|---|---|---|---|---|---|")
     for x in rows:
         c = x["classifier"]
-        print(f"| {x['target']} | {'yes' if x['held_out'] else ''} | {c['min']:.2f} / {c['mean']:.2f} | {x['rank']} | "
+        print(f"| {x['target']} | {x['variant']} | {c['min']:.2f} / {c['mean']:.2f} | {x['rank']} | "
               f"{x['nearest']} | {'yes' if x['reproduced'] else 'no'} |")
     summary = dict(trained_recognised_mean=float(np.mean([x["classifier"]["mean"] for x in tr])),
                    trained_rank1=float(np.mean([x["rank"] == 1 for x in tr])),
-                   held_reproduced=int(sum(x["reproduced"] for x in hd)), held=len(hd),
+                   held_reproduced={v: int(sum(x["reproduced"] for x in hd if x["variant"] == v)) for v in a.variants},
+                   held=len(held),
                    classifier_heldout_acc=[probs[k][1]["heldout_acc"] for k in a.seeds], load_end=os.getloadavg()[0])
     report["summary"] = summary
     print(f"\n[study] trained styles: recognised {summary['trained_recognised_mean']:.2f} mean, rank 1 for "
-          f"{summary['trained_rank1']:.0%}; held-out reproduced {summary['held_reproduced']}/{len(hd)}; "
+          f"{summary['trained_rank1']:.0%}; held-out reproduced (of {len(held)}) {summary['held_reproduced']}; "
           f"classifier held-out accuracy on real windows {summary['classifier_heldout_acc']} ({load()})")
     (a.work / "report.json").write_text(json.dumps(report, indent=1, default=float))
 

@@ -116,7 +116,7 @@ def one(work: Path, style: str, files, with_oracle: bool) -> None:
     trainer = Trainer.resume(run.checkpoint, TrainConfig(progress=False), restore_optimizer=False)
     clip, _ = clip_files([f for f in files if f.style == style], 30.0)
     motions = [read_clip(f.path, run, lambda m: None) for f in clip]
-    data, _ = clip_training_data(motions, [f.path for f in clip], run, stats, model.config.clip_frames, style)
+    data, _, _ = clip_training_data(motions, [f.path for f in clip], run, stats, model.config.clip_frames, style)
     lib = run.styles()
     seeds = [recognised(*train_style_classifier(ds, seed=s), ds, rollouts(run, style, lib[style][None]), style)[0]
              for s in range(4)]

@@ -28,7 +28,7 @@ import numpy as np
 from minifilm.demo.process import DemoProcess
 from machine import cpu_name
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+DATA = Path(os.environ.get("MINIFILM_SHARED_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
 CHROMIUM = os.environ.get("MINIFILM_CHROMIUM", "/usr/bin/chromium")
 ARGS = ["--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
 

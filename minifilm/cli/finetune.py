@@ -15,8 +15,10 @@ from pathlib import Path
 
 from minifilm.cli.args import in_range, input_path, positive
 from minifilm.pipeline.new_style import teach_style
+from minifilm.pipeline.self_fed import SelfFed
 
 HELP = "teach a trained run a new style from a short clip (Ψ only)"
+ROLLOUT_ROUNDS = 0
 
 
 def add_arguments(ap) -> None:
@@ -27,14 +29,22 @@ def add_arguments(ap) -> None:
     ap.add_argument("--steps", type=in_range(1, 100_000, int), default=400, help="fine-tuning steps (default 400)")
     ap.add_argument("--lr", type=positive(float, 1.0), default=5e-4, help="learning rate (default 5e-4)")
     ap.add_argument("--seed", type=in_range(0, 2**32 - 1, int), default=0)
+    ap.add_argument("--rollout-rounds", type=in_range(0, 100, int), default=ROLLOUT_ROUNDS,
+                    help="rounds of training on the model's own rollouts along the clip after the "
+                         f"teacher-forced steps (pipeline/self_fed.py; 0: teacher forcing alone, the paper; "
+                         f"default {ROLLOUT_ROUNDS})")
 
 
 def run(args) -> int:
     r = teach_style(args.run, args.name, args.files, steps=args.steps, lr=args.lr, seed=args.seed,
-                    replace=args.replace)
+                    replace=args.replace,
+                    self_fed=SelfFed(rounds=args.rollout_rounds) if args.rollout_rounds else None)
     print(f"[finetune] {r.name}: Ψ fine-tuned for {r.steps} steps on {r.frames} frames ({r.clips} style clips) "
           f"in {r.seconds:.1f} s")
     print(f"    loss on the clip (MSE + BLL): {r.loss_before:.4f} with Ψ as trained -> {r.loss_after:.4f}")
+    if r.rollout_errors:
+        print("    rollouts along the clip, mean joint error per round: "
+              + " -> ".join(f"{e * 100:.1f} cm" for e in r.rollout_errors) + f" (kept {min(r.rollout_errors) * 100:.1f})")
     if r.nearest:
         print(f"    nearest trained style in FiLM space: {r.nearest}")
     print(f"    added to {args.run / 'styles.npz'}; fine-tuned checkpoint {r.checkpoint}")

@@ -12,9 +12,9 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, List, Sequence
+from typing import Callable, List, Optional, Sequence
 
 import numpy as np
 
@@ -28,6 +28,7 @@ from minifilm.phases.label import label
 from minifilm.files import check_name, check_writable, child_path, folder_lock
 from minifilm.pipeline.run_folder import RunFolder
 from minifilm.pipeline.run_rig import retarget_onto_run
+from minifilm.pipeline.self_fed import SelfFed, self_fed_rounds
 from minifilm.train.finetune import finetune
 from minifilm.train.trainer import TrainConfig, Trainer
 
@@ -42,6 +43,7 @@ class NewStyleResult:
     loss_after: float         # ... with the fine-tuned Ψ
     nearest: str              # the trained style whose FiLM vector is closest to the new one
     checkpoint: Path
+    rollout_errors: list = field(default_factory=list)   # m, before each self-fed round and after the last
 
 
 def check_new_name(name: str, run: RunFolder, replace: bool) -> None:
@@ -70,16 +72,21 @@ def count_steps(contacts: np.ndarray) -> int:
 
 def clip_training_data(motions: Sequence[Motion], files, run: RunFolder, stats, clip_frames: int, name: str,
                        with_mirror: bool = False):
-    """TrainData (one style, id 0) of the clips, normalised with the run's statistics, and the raw
-    start frame (x, p) from the middle of the first file."""
+    """TrainData (one style, id 0) of the clips, normalised with the run's statistics, the raw
+    start frame (x, p) from the middle of the first file, and the raw rows of each file (and its
+    mirror) as (x, p, z) of consecutive frames, for rollouts along the clip (self_fed.py)."""
     skeleton = builtin_skeleton(run.skeleton_name)
     clip_seconds = clip_frames / run.fps
     xs, ps, zs, ys = [], [], [], []
-    for motion, path in zip(motions, files):
-        labels = label(motion, skeleton, name)
-        if count_steps(labels.contacts) < 2:
-            raise ValueError(f"{path}: fewer than two foot steps in {motion.n_frames / run.fps:.1f} s "
-                             "(a style is learnt from locomotion: walk or run in it for a few steps)")
+    labelled = [label(motion, skeleton, name) for motion in motions]
+    # the clip as a whole must hold locomotion; one file of it may have no step the contact test
+    # finds (a fast one-legged hop, a turn on the spot) and still show the style
+    if sum(count_steps(lab.contacts) for lab in labelled) < 2:
+        seconds = sum(m.n_frames for m in motions) / run.fps
+        where = files[0] if len(files) == 1 else f"{len(files)} files ({', '.join(str(f) for f in files)})"
+        raise ValueError(f"{where}: fewer than two foot steps in {seconds:.1f} s (a style is learnt from "
+                         "locomotion: walk or run in it for a few steps)")
+    for motion, path, labels in zip(motions, files, labelled):
         variants = [(motion, labels)] + ([(mirror(motion), labels.mirrored())] if with_mirror else [])
         for m, lab in variants:
             rows = frame_features(m, skeleton, lab.vectors, lab.contacts, fps=run.fps)
@@ -93,27 +100,31 @@ def clip_training_data(motions: Sequence[Motion], files, run: RunFolder, stats, 
         raise ValueError(f"the clip{'s are' if len(files) > 1 else ' is'} too short for one style clip: the "
                          f"model reads {clip_seconds:.2f} s windows, the longest file lasts {longest:.2f} s")
     x, p, z = np.concatenate(xs), np.concatenate(ps), np.concatenate(zs)
+    segments = list(zip(xs, ps, zs))
     start = (np.asarray(xs[0][len(xs[0]) // 2], np.float64), np.asarray(ps[0][len(ps[0]) // 2], np.float64))
     f32 = np.float32
     data = TrainData(x=stats.normalize_x(x).astype(f32), p=stats.normalize_p(p).astype(f32),
                      z=stats.normalize_z(z).astype(f32), style=np.zeros(len(x), np.int64),
                      clips=stats.normalize_clip(clips, run.layout.x_joints).astype(f32),
                      clip_style=np.zeros(len(clips), np.int64), style_names=[name])
-    return data, start
+    return data, start, segments
 
 
 def teach_style(run_path, name: str, files: Sequence, steps: int = 400, lr: float = 5e-4, seed: int = 0,
-                replace: bool = False, log: Callable[[str], None] = print, with_mirror: bool = False) -> NewStyleResult:
+                replace: bool = False, log: Callable[[str], None] = print, with_mirror: bool = False,
+                self_fed: Optional[SelfFed] = None) -> NewStyleResult:
     """Fine-tune the run's Ψ on ``files`` and add ``name`` to its style library (see the module
-    docstring). Raises ValueError naming the file or setting that is wrong; the run folder is then
-    untouched. The run folder is locked meanwhile: a second command writing it is refused."""
+    docstring). ``self_fed``: rollout-aware rounds after the teacher-forced steps (self_fed.py;
+    None: teacher forcing alone, as the paper). Raises ValueError naming the file or setting that
+    is wrong; the run folder is then untouched. The run folder is locked meanwhile: a second command writing it is refused."""
     RunFolder.load(run_path)                    # a run folder at all, before a lock file is made beside it
     with folder_lock(run_path):
-        return _teach_style(RunFolder.load(run_path), name, files, steps, lr, seed, replace, log, with_mirror)
+        return _teach_style(RunFolder.load(run_path), name, files, steps, lr, seed, replace, log, with_mirror,
+                            self_fed)
 
 
 def _teach_style(run: RunFolder, name: str, files: Sequence, steps: int, lr: float, seed: int, replace: bool,
-                 log: Callable[[str], None], with_mirror: bool) -> NewStyleResult:
+                 log: Callable[[str], None], with_mirror: bool, self_fed: Optional[SelfFed]) -> NewStyleResult:
     log(f"[finetune] teaching {run.path} the style {name!r} from {len(files)} file(s)")
     check_new_name(name, run, replace)
     checkpoint = child_path(run.path, f"model-{name}", ".npz")
@@ -125,7 +136,7 @@ def _teach_style(run: RunFolder, name: str, files: Sequence, steps: int, lr: flo
     library = run.styles()
     model, stats = run.model_and_stats()
     motions: List[Motion] = [read_clip(f, run, log) for f in files]
-    data, start = clip_training_data(motions, files, run, stats, model.config.clip_frames, name, with_mirror)
+    data, start, segments = clip_training_data(motions, files, run, stats, model.config.clip_frames, name, with_mirror)
 
     batch = min(32, len(data))
     epochs = max(1, math.ceil(steps / (len(data) // batch)))
@@ -134,6 +145,10 @@ def _teach_style(run: RunFolder, name: str, files: Sequence, steps: int, lr: flo
     before = Trainer.resume(run.checkpoint, config, restore_optimizer=False).evaluate(data)["loss"]
     t0 = time.perf_counter()
     tuned = finetune(run.checkpoint, data, config=config, style_names=[name])
+    rollout_errors = []
+    if self_fed is not None and self_fed.rounds > 0:
+        log(f"[finetune] {self_fed.rounds} rollout-aware round(s) along the clip")
+        rollout_errors = self_fed_rounds(tuned, data, segments, run.layout, stats, self_fed, log)
     seconds = time.perf_counter() - t0
     after = tuned.evaluate(data)["loss"]
 
@@ -146,4 +161,5 @@ def _teach_style(run: RunFolder, name: str, files: Sequence, steps: int, lr: flo
     starts[name] = start
     run.save_starts(starts)
     library.save(run.path / "styles.npz")
-    return NewStyleResult(name, seconds, tuned.step, len(data), len(data.clips), before, after, nearest, checkpoint)
+    return NewStyleResult(name, seconds, tuned.step, len(data), len(data.clips), before, after, nearest, checkpoint,
+                          rollout_errors)

@@ -13,6 +13,7 @@ Modules, in the order the data flows through them:
 * rig.py         -- a target rig: hierarchy, roles, units (``load_rig``)
 * pose.py        -- canonical rest poses and the transfer of world bone directions
 * proportions.py -- how a rig's foot lies flat; its legs' length (the root's scale)
+* tips.py        -- where a toe tip goes near a contact: heights the contact test needs, no slide
 * feet.py        -- the floor, planted contacts, leg IK
 * clip.py        -- one clip onto a rig (``retarget_motion``)
 * batch.py       -- a data set's files onto one rig (``minifilm train --rig``)

@@ -4,17 +4,25 @@ After the pose transfer the target's feet follow the source's joint angles on ot
 so they float, sink and slide by a few centimetres. Here:
 
 1. the floor: the target is lifted or lowered as a whole so that where its toe tips rest
-   (:func:`minifilm.phases.contacts.estimate_floor_height`) is y = 0;
-2. the contacts: the source's foot contacts (:func:`minifilm.phases.contacts.foot_contacts` on its
-   toe-tip sensors) say when each foot is planted. During each contact the target's toe tip is
-   pinned at one point on the floor (the source's tip's mean position over the contact, scaled like
-   the root's path, at y = 0); for ``blend_seconds`` on either side it follows the source's tip
-   into and out of the pin; the leg reaches it with the two-bone
-   IK of :func:`minifilm.motion.foot_ik.two_bone_ik` (hip fixed, thigh and shin lengths kept, knee
-   in its bending plane) and the foot moves rigidly with the ankle. Where a pin is out of the leg's
-   reach (the rigs' proportions differ), the whole body is first lowered just enough, smoothly.
-3. the thigh and shin rotations are turned by the smallest rotations onto the new knee and ankle,
-   the foot keeps its world rotation.
+   (:func:`minifilm.phases.contacts.estimate_floor_height`) is y = 0 (``clip.py``);
+2. the contacts (:func:`plant_feet`): the source's foot contacts
+   (:func:`minifilm.phases.contacts.foot_contacts` on its toe tips) say when each foot is planted.
+   During each contact the target's toe tip stays at one point; the heights of the tips are
+   changed only where the contact test would otherwise disagree with the source's, and near a
+   contact the tip comes down towards the source tip's height. How, in order
+   (:mod:`minifilm.rigs.tips`):
+
+   * each foot is turned about its ankle by up to ``max_pitch`` towards its tip's height;
+   * the body (hips and everything below) is shifted horizontally so the planted tips stay put;
+   * the leg reaches for what is left with the two-bone IK of
+     :func:`minifilm.motion.foot_ik.two_bone_ik` (hip fixed, thigh and shin lengths kept, knee in
+     its bending plane); the foot moves rigidly with the ankle. A tip out of the leg's reach is
+     approached as far as the straight leg goes (the body is not lowered: that does not come
+     back on a round trip);
+3. the thigh and shin rotations are turned by the smallest rotations onto the new knee and ankle.
+
+Why each step moves as little as it does: a clip taken to another rig and back must come back
+within 3 cm (issue 27), and every change here is made on both passes.
 """
 from __future__ import annotations
 
@@ -25,8 +33,15 @@ import numpy as np
 from minifilm.motion.foot_ik import two_bone_ik
 from minifilm.motion.skeleton_fit import rotation_between
 from minifilm.phases.contacts import estimate_floor_height
+from minifilm.rigs.tips import (HEIGHT_BAND, SPEED_THRESHOLD, band_heights, pin_targets, pitch_foot,
+                                slide_correction, speeds)
 
-__all__ = ["floor_height", "contact_runs", "pin_targets", "hips_drop", "plant_feet"]
+__all__ = ["floor_height", "plant_feet"]
+
+#: near a contact (within ``blend_seconds``, fading over as long again) a tip comes down to the
+#: source tip's height while that is under this (metres), fading to its own height by twice it:
+#: so the two land and lift off on the same frames
+NEAR_FLOOR = 0.02
 
 
 def floor_height(sensors: np.ndarray, fps: float) -> float:
@@ -38,108 +53,59 @@ def floor_height(sensors: np.ndarray, fps: float) -> float:
     return estimate_floor_height(sensors[..., 1], np.linalg.norm(v, axis=-1))
 
 
-def contact_runs(contacts: np.ndarray) -> list:
-    """[(start, stop)] frame ranges where a 0/1 series (F,) is 1."""
-    c = np.concatenate([[0], (np.asarray(contacts) > 0.5).astype(int), [0]])
-    d = np.diff(c)
-    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
-
-
-def pin_targets(sensor: np.ndarray, guide: np.ndarray, contacts: np.ndarray, fps: float, blend_seconds: float = 0.1,
-                floor: float = 0.0, near_floor: float = 0.02) -> Tuple[np.ndarray, np.ndarray]:
-    """Where one toe tip should be, and how much: (targets (F, 3), weights (F,) in [0, 1]).
-
-    ``sensor`` (F, 3) is the tip's position after the transfer, ``guide`` (F, 3) the source's tip
-    (floor at 0; not scaled, so that the tip moves at the source tip's speed). During each contact run
-    the target is one point: the tip's own mean position over the run, on the floor. For
-    ``blend_seconds`` before and after it the tip moves from the pin as the guide moves from its
-    position at the run's edge, and over the next ``blend_seconds`` the weight falls smoothly to 0
-    (the nearer run wins between two); its height there is the guide's own (above the floor) while
-    the guide is within ``near_floor`` metres of the floor, fading to the tip's own height by twice
-    that: the tip lands and takes off as the source's does, so the contacts found on the result
-    agree with the source's."""
-    F = len(sensor)
-    targets = sensor.copy()
-    weights = np.zeros(F)
-    blend = max(1, int(round(blend_seconds * fps)))
-    for start, stop in contact_runs(contacts):
-        pin = sensor[start:stop].mean(axis=0)
-        pin[1] = floor
-        lo, hi = max(0, start - 2 * blend), min(F, stop + 2 * blend)
-        k = np.arange(lo, hi)
-        dist = np.where(k < start, start - k, np.where(k >= stop, k - stop + 1, 0))
-        # out of the pin the tip moves as the source's does; the weight fades after `blend` frames
-        w = 0.5 + 0.5 * np.cos(np.pi * np.clip((dist - blend) / (blend + 1), 0, 1))
-        edge = np.where(k < start, start, stop - 1)
-        want = np.where((dist == 0)[:, None], pin, pin + guide[k] - guide[edge])
-        # out of the run, while the source's tip is near its floor (where the contact test's height
-        # threshold decides), the tip is at the source tip's own height above it: the pin's height
-        # plus the guide's rise from the run's edge sat up to a centimetre lower and counted as a
-        # contact where a slow pivoting source tip did not. Higher up it fades to the tip's own
-        # height: feet of other lengths lift their tips differently, and forcing the source's
-        # height there bends the knee by several centimetres (paid twice on a round trip).
-        own = np.clip((guide[k, 1] - near_floor) / near_floor, 0.0, 1.0)
-        height = (1.0 - own) * (floor + guide[k, 1]) + own * sensor[k, 1]
-        want[:, 1] = np.where(dist == 0, floor, height)
-        better = w > weights[lo:hi]
-        targets[lo:hi][better] = want[better]
-        weights[lo:hi] = np.maximum(weights[lo:hi], w)
-    return targets, weights
-
-
-def hips_drop(P: np.ndarray, legs: Sequence[Sequence[int]], wants: Sequence[np.ndarray], weights: Sequence[np.ndarray],
-              fps: float, smooth_seconds: float = 0.1, reach: float = 0.999) -> np.ndarray:
-    """(F,) how far (metres) to lower the body so that every pinned foot can be reached.
-
-    A pinned ankle farther from its hip than ``reach`` times the leg's length (proportions differ:
-    a wider pelvis, a longer foot) pulls the hips straight down just enough, in proportion to the
-    pin's weight; the drop is then widened by a running maximum and smoothed over
-    ``smooth_seconds`` so the body does not bob."""
-    F = len(P)
-    drop = np.zeros(F)
-    for (hip, knee, ankle, _), want, w in zip(legs, wants, weights):
-        length = reach * (np.linalg.norm(P[:, knee] - P[:, hip], axis=-1) + np.linalg.norm(P[:, ankle] - P[:, knee], axis=-1))
-        d = want - P[:, hip]
-        horizontal = np.hypot(d[:, 0], d[:, 2])
-        below = np.sqrt(np.maximum(length ** 2 - horizontal ** 2, 0.0))      # how far below the hip it may be
-        need = np.maximum(0.0, -d[:, 1] - below)
-        drop = np.maximum(drop, w * need)
-    k = max(1, int(round(smooth_seconds * fps)))
-    padded = np.pad(drop, k, mode="edge")
-    widened = np.max(np.stack([padded[i:i + F] for i in range(2 * k + 1)]), axis=0)
-    kernel = np.hanning(2 * k + 3)[1:-1]
-    kernel /= kernel.sum()
-    return np.convolve(np.pad(widened, k, mode="edge"), kernel, mode="valid")
-
-
 def plant_feet(positions: np.ndarray, world: np.ndarray, parents: np.ndarray, legs: Sequence[Sequence[int]],
-               contacts: np.ndarray, guides: np.ndarray, fps: float, body: Sequence[int], blend_seconds: float = 0.1
-               ) -> Tuple[np.ndarray, np.ndarray]:
-    """Pin each leg's sensor to the floor during its contacts (module doc, steps 2-3).
+               contacts: np.ndarray, guides: np.ndarray, fps: float, body: Sequence[int], blend_seconds: float = 0.1,
+               max_pitch: float = np.radians(5.0)) -> Tuple[np.ndarray, np.ndarray]:
+    """Plant each leg's toe tip during its contacts, and give it the source's contacts (module doc).
 
     Args:
         positions: (F, J, 3) world joint positions, floor at y = 0.
         world:     (F, J, 3, 3) world rotations.
         parents:   (J,) the hierarchy.
-        legs:      per leg, joint indices (upper leg, knee, ankle, sensor); the sensor is rigid
-                   with the ankle (a toe tip, or the toe joint).
+        legs:      per leg, joint indices (upper leg, knee, ankle, sensor); the sensor is below the
+                   ankle (a toe tip, or the toe joint).
         contacts:  (F, len(legs)) 0/1 source contacts, in the order of ``legs``.
-        guides:    (F, len(legs), 3) the source's toe tips (:func:`pin_targets`).
+        guides:    (F, len(legs), 3) the source's toe tips, its floor at y = 0 (unscaled: their
+                   speeds are compared with the contact test's threshold).
         body:      the joints that move with the hips (the hips and everything below them).
+        max_pitch: how far (radians) a foot may be turned about its ankle towards its tip's height.
+                   5 degrees measured best (benchmarks/README.md): more changes the foot by more
+                   than a round trip gives back, none misses contacts a slight turn catches.
     Returns:
-        new (positions, world): the body lowered where a pinned foot could not be reached
-        (:func:`hips_drop`), then the legs' knees, ankles and everything below them moved; the
-        world rotations of the upper legs and knees turn to match, those below the ankle are kept.
+        new (positions, world).
     """
     P, R = positions.copy(), world.copy()
-    pins = [pin_targets(P[:, leg[3]], guides[:, i], c, fps, blend_seconds)
-            for i, (leg, c) in enumerate(zip(legs, np.asarray(contacts).T))]
-    wants = [P[:, leg[2]] + (t - P[:, leg[3]]) for leg, (t, _) in zip(legs, pins)]   # ankle where the sensor is pinned
-    drop = hips_drop(P, legs, wants, [w for _, w in pins], fps)
-    P[:, list(body), 1] -= drop[:, None]
-    for leg, (targets, w) in zip(legs, pins):
+    parents = np.asarray(parents)
+    contacts = np.asarray(contacts)
+    sensors = [int(leg[3]) for leg in legs]
+    below = [_descendants(int(leg[2]), parents) for leg in legs]
+    guide_speed = [speeds(guides[:, i], fps) for i in range(len(legs))]
+    # where the source's tip passes the contact test, the target's may step no farther than it
+    # (horizontally: the skating measure is the horizontal speed)
+    limits = [np.where((v <= SPEED_THRESHOLD) & (np.abs(guides[:, i, 1]) <= HEIGHT_BAND),
+                       speeds(guides[:, i] * np.array([1.0, 0.0, 1.0]), fps) / fps, np.nan)
+              for i, v in enumerate(guide_speed)]
+    # near a contact (the pins' weights), towards the source tip's height while it is near the floor
+    weights = [pin_targets(P[:, j], c, fps, blend_seconds)[1] for j, c in zip(sensors, contacts.T)]
+    near = [w * np.clip(2.0 - np.abs(guides[:, i, 1]) / NEAR_FLOOR, 0.0, 1.0) for i, w in enumerate(weights)]
+
+    def heights(soft: bool):
+        out = []
+        for i, j in enumerate(sensors):
+            h = band_heights(P[:, j, 1], speeds(P[:, j], fps), guides[:, i, 1], guide_speed[i], where=weights[i] > 0)
+            out.append(h + near[i] * (guides[:, i, 1] - h) if soft else h)
+        return out
+
+    for leg, under, h in zip(legs, below, heights(soft=True)):
+        pitch_foot(P, R, int(leg[2]), under, int(leg[3]), h, max_pitch)
+    P[:, list(body)] += slide_correction(P[:, sensors], contacts, fps)[:, None]
+    pins = [pin_targets(P[:, j], c, fps, blend_seconds, limit) for j, c, limit in zip(sensors, contacts.T, limits)]
+    # the leg reaches for the pins and for the heights the contact test needs (not the softer
+    # heights near a contact: those only the foot's turn goes for)
+    for leg, under, h, (t, w) in zip(legs, below, heights(soft=False), pins):
         hip, knee, ankle, sensor = (int(i) for i in leg)
-        shift = w[:, None] * (targets - P[:, sensor])
+        shift = w[:, None] * (t - P[:, sensor])
+        shift[:, 1] = h - P[:, sensor, 1]
         new_knee, new_ankle = two_bone_ik(P[:, hip], P[:, knee], P[:, ankle], P[:, ankle] + shift)
         swing_thigh = rotation_between(P[:, knee] - P[:, hip], new_knee - P[:, hip])
         shin_now = (swing_thigh @ (P[:, ankle] - P[:, knee])[..., None])[..., 0]
@@ -148,7 +114,7 @@ def plant_feet(positions: np.ndarray, world: np.ndarray, parents: np.ndarray, le
         R[:, knee] = swing_shin @ swing_thigh @ R[:, knee]
         delta = new_ankle - P[:, ankle]
         P[:, knee], P[:, ankle] = new_knee, new_ankle
-        for j in _descendants(ankle, np.asarray(parents)):
+        for j in under:
             P[:, j] += delta
     return P, R
 

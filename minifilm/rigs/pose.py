@@ -278,6 +278,10 @@ def _with_pitch(d: np.ndarray, pitch: np.ndarray, fallback: np.ndarray) -> np.nd
     return np.cos(pitch)[..., None] * h - np.sin(pitch)[..., None] * UP
 
 
+#: how far (degrees) a placed foot may point below (or above) the horizontal
+MAX_FOOT_PITCH = 85.0
+
+
 def place_feet(world: np.ndarray, target: Motion, t_roles: Roles, t_shape: Tuple[float, float],
                source: Motion, s_roles: Roles, s_shape: Tuple[float, float]) -> np.ndarray:
     """Aim each target foot and toe from the source's, in world space (returns new world rotations).
@@ -304,7 +308,10 @@ def place_feet(world: np.ndarray, target: Motion, t_roles: Roles, t_shape: Tuple
         if np.linalg.norm(local_foot) < 1e-9:
             continue
         ft_now = (world[:, a] @ local_foot[:, None])[..., 0]
-        ft = _with_pitch(fs, pitch_below_horizontal(fs) + (t_pitch - s_pitch), ft_now)
+        # short of vertical: a foot shifted past it would point backwards, and read back (a round
+        # trip) as a foot pitched less than vertical the other way
+        limit = np.radians(MAX_FOOT_PITCH)
+        ft = _with_pitch(fs, np.clip(pitch_below_horizontal(fs) + (t_pitch - s_pitch), -limit, limit), ft_now)
         world[:, a] = rotation_between(ft_now, ft) @ world[:, a]
         if not (t.toe and t.toe_end):
             continue

@@ -28,6 +28,7 @@ NUMBERS = {
     "train --clip-seconds": ["0", "-1", "nan", "100"],
     "finetune --steps": ["0", "-1", "abc", "1e9"],
     "finetune --lr": ["0", "-1", "nan", "2"],
+    "finetune --rollout-rounds": ["-1", "1.5", "101", "x"],
     "table2 --styles": ["-3", "0", "abc"],
     "table2 --runs": ["0", "-1"],
     "compare --epochs": ["0", "-5"],
