@@ -46,9 +46,9 @@ from minifilm.motion.skeleton_fit import SkeletonFit
 from minifilm.runtime.calibration import SpeedCalibration
 from minifilm.runtime.control import Script, blend_future_trajectory
 from minifilm.runtime.frames import to_local2, to_local3, to_world2, to_world3, unit2
+from minifilm.runtime.held_body import leg_chains
 from minifilm.runtime.network import RuntimeNetwork
 from minifilm.runtime.rollout import Rollout
-from minifilm.runtime.held_body import leg_chains
 from minifilm.runtime.standing import StandStill
 from minifilm.runtime.state import CharacterState
 
@@ -320,8 +320,8 @@ class Controller:
             integrated = st.joint_pos + jvel / self.fps
             jpos = self.velocity_blend * jpos + (1 - self.velocity_blend) * integrated
         holding = idle is not None and self.stand.holds_feet(st, self.legs)
-        if holding:     # standing.py: the feet stay where they came to rest (before the fit, so the
-            jpos = self.stand.plant(st, jpos, self.legs, 1.0 / self.fps)     # fit and feedback hold them)
+        if holding:     # standing.py: the feet kept where they came to rest, before the fit and feedback
+            jpos = self.stand.plant(st, jpos, self.legs, 1.0 / self.fps)
         else:
             st.feet = None
         st.joint_vel = jvel
