@@ -46,7 +46,9 @@ from minifilm.evaluation.style_classifier import (classify_rollout, cut_windows,
                                                   split_windows, train_style_classifier)
 from minifilm.evaluation.style_measures import StyleSpace, recognition, style_report  # noqa: E402
 from minifilm.motion.bvh import bvh_duration  # noqa: E402
-from minifilm.pipeline.new_style import teach_style  # noqa: E402
+from minifilm.features.compute import clip_features  # noqa: E402
+from minifilm.motion.skeletons import builtin_skeleton  # noqa: E402
+from minifilm.pipeline.new_style import read_clip, teach_style  # noqa: E402
 from minifilm.pipeline.run_folder import RunFolder  # noqa: E402
 from minifilm.pipeline.self_fed import SelfFed  # noqa: E402
 from minifilm.pipeline.train_small import Settings, run as train_run  # noqa: E402
@@ -74,6 +76,21 @@ def clip_files(files, style: str, seconds: float):
     return chosen, total
 
 
+def vectors_from_clips(run: RunFolder, files, styles, seconds: float) -> None:
+    """Replace the run's vectors of ``styles`` by mean Ψ over the clips of each one's first ``seconds`` of
+    files in CLIP_ORDER: the same kind of clip a held-out style is taught from (styles.npz rewritten)."""
+    model, stats = run.model_and_stats()
+    skeleton = builtin_skeleton(run.skeleton_name)
+    T = model.config.clip_frames / run.fps
+    library = run.styles()
+    for style in styles:
+        chosen, _ = clip_files(files, style, seconds)
+        clips = np.concatenate([clip_features(read_clip(f.path, run, lambda m: None), skeleton, T, T / 2, fps=run.fps)
+                                for f in chosen])
+        library.add_from_clips(style, model, stats.normalize_clip(clips, run.layout.x_joints))
+    library.save(run.path / "styles.npz")
+
+
 def rollouts(run: RunFolder, names, seconds: float):
     x0, p0 = run.start_states(names)
     lib = run.styles()
@@ -95,6 +112,9 @@ def main():
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     ap.add_argument("--variants", nargs="+", choices=sorted(VARIANTS), default=sorted(VARIANTS, reverse=True))
     ap.add_argument("--reuse-run", action="store_true", help="keep --work/run as trained (skip training)")
+    ap.add_argument("--trained-vectors", choices=("library", "clip"), default="library",
+                    help="the trained styles' FiLM vectors for generating: the run's (mean Ψ over the style's "
+                         "training clips) or mean Ψ over its --clip-seconds clip, as a held-out style is taught")
     a = ap.parse_args()
     a.work.mkdir(parents=True, exist_ok=True)
     report = {"load_start": os.getloadavg()[0]}
@@ -119,6 +139,15 @@ def main():
     held = sorted({f.style for f in held_files})
     base = RunFolder.load(run_dir)
     trained = [n for n in base.styles().names if n not in held]
+    if a.trained_vectors == "clip":
+        folder = a.work / "run-clip-vectors"
+        if folder.exists():
+            shutil.rmtree(folder)
+        shutil.copytree(run_dir, folder, ignore=shutil.ignore_patterns("model-*.npz", "*.lock"))
+        vectors_from_clips(RunFolder.load(folder), trained_files, trained, a.clip_seconds)
+        base = RunFolder.load(folder)
+        print(f"[study] trained styles' vectors: mean Ψ over each one's {a.clip_seconds:g} s clip ({load()})",
+              flush=True)
     films_before = {n: base.styles()[n].copy() for n in trained}
     probe = trained[0]
     before = rollouts(base, [probe], 4.0).positions
@@ -128,7 +157,7 @@ def main():
         folder = a.work / f"run-{v}"
         if folder.exists():
             shutil.rmtree(folder)
-        shutil.copytree(run_dir, folder, ignore=shutil.ignore_patterns("model-*.npz", "*.lock"))
+        shutil.copytree(base.path, folder, ignore=shutil.ignore_patterns("model-*.npz", "*.lock"))
         for h in held:
             clip, secs = clip_files(held_files, h, a.clip_seconds)
             t0 = time.perf_counter()
