@@ -106,6 +106,7 @@ def main():
     ap.add_argument("--work", type=Path, required=True)
     ap.add_argument("--epochs", type=int, default=3)
     ap.add_argument("--quick", action="store_true", help="the quick (smaller) model")
+    ap.add_argument("--hidden", type=int, help="hidden units of Φ (default: the small model's 128)")
     ap.add_argument("--clip-seconds", type=float, default=30.0)
     ap.add_argument("--steps", type=int, default=400, help="fine-tuning steps")
     ap.add_argument("--generate-seconds", type=float, default=10.0)
@@ -131,7 +132,7 @@ def main():
     s = replace(Settings(), epochs=a.epochs, generate_seconds=a.generate_seconds, seed=0)
     if a.quick:
         s = replace(s.quick(), epochs=a.epochs, generate_seconds=a.generate_seconds)
-    s = replace(s, out=run_dir)
+    s = replace(s, out=run_dir, model=dict(s.model, **({"hidden": a.hidden} if a.hidden else {})))
     if not a.reuse_run:
         t0, c0 = time.perf_counter(), time.process_time()
         result = train_run(s, a.trained / "manifest.csv")
