@@ -3,7 +3,7 @@
     python benchmarks/retarget.py                                   # every real file -> 100STYLE, round trips
     python benchmarks/retarget.py --released DIR                    # + 100STYLE-rig clips (e.g. made by
                                                                     #   minifilm generate --params ...) round trips
-    python benchmarks/retarget.py --every 10 --gifs /tmp/rt_gifs    # every 10th file; one GIF per source
+    python benchmarks/retarget.py --every 10 --gifs docs/img        # every 10th file; the GIFs of docs/retargeting.md
 
 Per source (Bandai-1, Bandai-2, Xia, CMU), every file retargeted to the 100STYLE rig:
   * bone directions: per mapped bone, the median over frames of the angle between source and
@@ -23,8 +23,6 @@ from __future__ import annotations
 import argparse
 import glob
 import os
-import subprocess
-import sys
 import tempfile
 from collections import defaultdict
 from pathlib import Path
@@ -33,11 +31,12 @@ import numpy as np
 
 from minifilm.evaluation.retargeting import (bone_direction_errors, contact_agreement, round_trip_errors, skating,
                                              standing_height)
-from minifilm.motion.bvh_write import write_bvh
 from minifilm.rigs import read_source, retarget_motion
 from minifilm.pipeline.run_rig import load_target as load_rig
 from minifilm.motion.skeletons import STYLE100
 from minifilm.phases.label import label
+
+from retarget_gifs import write_pictures
 
 DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
 
@@ -49,7 +48,7 @@ def sources(data: Path):
             "CMU": sorted(glob.glob(str(data / "bvh" / "cmu" / "*.bvh")))}
 
 
-def to_100style(name, files, target, every_phases, gif_dir):
+def to_100style(name, files, target, every_phases):
     per_bone = defaultdict(list)
     agree, skate, height, phases_ok, phases_tried = [], [], [], 0, 0
     for i, path in enumerate(files):
@@ -67,8 +66,6 @@ def to_100style(name, files, target, every_phases, gif_dir):
                 phases_ok += 1
             except ValueError as e:
                 print(f"    phases failed on {path}: {e}")
-        if gif_dir is not None and i == 0:
-            gif(path, out, target, gif_dir, name)
     print(f"\n{name}: {len(files)} files -> 100style")
     print(f"  contacts agree: min {min(agree):.3f}, median {np.median(agree):.3f}; files below 0.95: "
           f"{sum(a < 0.95 for a in agree)}")
@@ -78,17 +75,6 @@ def to_100style(name, files, target, every_phases, gif_dir):
     print("  bone direction error, degrees (median over frames; median over files / worst file):")
     for bone, v in per_bone.items():
         print(f"    {bone:16s} {np.median(v):6.2f} / {max(v):6.2f}")
-
-
-def gif(path, out_motion, target, folder: Path, name: str) -> None:
-    folder.mkdir(parents=True, exist_ok=True)
-    tag = name.lower().replace("-", "")
-    retargeted = folder / f"{tag}_{Path(path).stem}_100style.bvh"
-    write_bvh(out_motion, retargeted, scale=target.bvh_scale)
-    picture = folder / f"{tag}_{Path(path).stem}.gif"
-    subprocess.run([sys.executable, "-m", "minifilm", "view", path, str(retargeted), "--gif", str(picture),
-                    "--seconds", "4"], check=True, stdout=subprocess.DEVNULL)
-    print(f"  GIF: {picture}")
 
 
 def round_trip(label_text, files, first, second, plant=True):
@@ -115,13 +101,17 @@ def main() -> None:
     ap.add_argument("--released", type=Path, help="folder of 100STYLE-rig BVH files (the released network's output)")
     ap.add_argument("--every", type=int, default=1, help="take every n-th file of each source")
     ap.add_argument("--phases-every", type=int, default=1, help="label phases on every n-th result")
-    ap.add_argument("--gifs", type=Path, help="write one GIF per source (original beside retargeted) here")
+    ap.add_argument("--gifs", type=Path, help="write one GIF per source (original beside retargeted) here, as "
+                    "benchmarks/retarget_gifs.py does")
     args = ap.parse_args()
     print(f"load: {os.popen('uptime').read().strip()}")
     target, bandai = load_rig("100style"), load_rig("bandai")
     groups = {k: v[::args.every] for k, v in sources(args.data).items() if v}
     for name, files in groups.items():
-        to_100style(name, files, target, args.phases_every, args.gifs)
+        to_100style(name, files, target, args.phases_every)
+    if args.gifs is not None:
+        print("\nGIFs, one clip per source beside itself on 100STYLE (benchmarks/retarget_gifs.py):")
+        write_pictures(args.data, args.gifs)
     for plant in (True, False):
         if args.released is not None:
             round_trip("100STYLE -> Bandai -> 100STYLE", sorted(glob.glob(str(args.released / "*.bvh"))), target,
