@@ -103,7 +103,8 @@ def round_trip(label_text, files, second, plant=True):
         print(f"    {joint:16s} {np.median(d):5.2f} / {np.percentile(d, 95):5.2f}")
     print(f"  largest 95th percentile: {worst:.2f} cm")
     name = max(per_file, key=per_file.get)
-    print(f"  worst single file: {name}, largest 95th percentile {per_file[name]:.2f} cm")
+    print(f"  worst single file: {name}, largest 95th percentile {per_file[name]:.2f} cm; files over 3 cm: "
+          f"{sorted(k for k, v in per_file.items() if v > 3.0)}")
 
 
 def main() -> None:
