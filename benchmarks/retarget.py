@@ -11,6 +11,8 @@ Per source (Bandai-1, Bandai-2, Xia, CMU), every file retargeted to the 100STYLE
   * contacts: the fraction of frames on which source and target foot contacts agree (min, median);
   * skating: target minus source mean toe-tip speed during contacts, cm/s (max over files);
   * standing height (min, max over files), metres;
+  * the floor: the target's lowest toe tip (y = 0 is the floor) and the share of frames on which a
+    toe tip is more than 1 cm below it;
   * phases: whether local phases could be labelled on the result (minifilm.phases.label, the
     labelling ``minifilm phases`` draws), on every ``--phases-every``-th file.
 Round trips (mapped joints, after the leg-length scale; median and 95th percentile over frames,
@@ -53,6 +55,7 @@ def sources(data: Path):
 def to_100style(name, files, target, every_phases):
     per_bone = defaultdict(list)
     agree, skate, height, phases_ok, phases_tried = [], [], [], 0, 0
+    lowest, sunk = [], []     # the target's toe tips below the floor (y = 0)
     for i, path in enumerate(files):
         m, roles = read_source(path)
         out = retarget_motion(m, target, roles)
@@ -61,6 +64,9 @@ def to_100style(name, files, target, every_phases):
         agree.append(contact_agreement(m, roles, out, target.roles))
         skate.append(skating(out, target.roles) - skating(m, roles))
         height.append(standing_height(out, target.roles))
+        tips = out.world()[0][:, [out.names.index(target.roles.limb(s).sensor) for s in ("left", "right")], 1]
+        lowest.append(float(tips.min()))
+        sunk.append(float(np.mean(tips.min(axis=1) < -0.01)))
         if i % every_phases == 0:
             phases_tried += 1
             try:
@@ -73,6 +79,8 @@ def to_100style(name, files, target, every_phases):
           f"{sum(a < 0.95 for a in agree)}")
     print(f"  skating, target - source: max {100 * max(skate):+.2f} cm/s, median {100 * np.median(skate):+.2f} cm/s")
     print(f"  standing height: {min(height):.2f} - {max(height):.2f} m")
+    print(f"  toe tips below the floor: lowest {100 * min(lowest):.1f} cm (median over files {100 * np.median(lowest):.1f}); "
+          f"frames with a tip below -1 cm: median {100 * np.median(sunk):.0f} %, max {100 * max(sunk):.0f} %")
     print(f"  phases labelled on {phases_ok} of {phases_tried} results")
     print("  bone direction error, degrees (median over frames; median over files / worst file):")
     for bone, v in per_bone.items():

@@ -8,7 +8,7 @@ Each clip is read as ``minifilm retarget`` reads it, put on the built-in 100STYL
 ``retarget_motion`` (feet planted), and both are drawn side by side at their true sizes, the foot
 contacts marked (the viewer's contact test on each): the original on the left, the 100STYLE
 character on the right. The GIFs are kept small for the repository: at most 3.5 s at about 15 fps,
-200 x 250 pixels per character, 16 colours (about 0.3-0.6 MB each). The data's licences are in
+200 x 250 pixels per character, 32 colours (about 0.4-0.6 MB each). The data's licences are in
 docs/retargeting.md (Bandai Namco: CC BY-NC 4.0; Xia et al.: research use; CMU: free with
 acknowledgement).
 """
@@ -30,7 +30,7 @@ CLIPS = (("Bandai-1", "bandai1", "bvh/bandai1/dataset-1_walk_proud_001.bvh", "Ba
          ("Bandai-2", "bandai2", "bandai2/dataset-2_walk_feminine_001.bvh", "Bandai-2 feminine walk"),
          ("Xia", "xia", "bvh/xia/sexy_01_000.bvh", "Xia sexy walk"),
          ("CMU", "cmu", "bvh/cmu/08_01_trimmed.bvh", "CMU 08_01 walk"))
-SECONDS, FPS, SIZE, COLOURS = 3.5, 15.0, (200, 250), 16
+SECONDS, FPS, SIZE, COLOURS = 3.5, 15.0, (200, 250), 32
 
 
 def picture(source_path: Path, gif_path: Path, title: str, target) -> Path:
