@@ -49,7 +49,7 @@ def test_frames_are_not_blank_and_change(tmp_path, walker):
 
 
 def test_fewer_colours_make_a_smaller_gif_of_the_same_frames(tmp_path, walker):
-    """``colours`` bounds the palette (docs/img's retargeting GIFs use 16) and the file shrinks."""
+    """``colours`` bounds the palette (docs/img's retargeting GIFs use 32) and the file shrinks."""
     track = track_from_motion(walker)
     full = write_gif(track, tmp_path / "full.gif", size=SMALL).path
     few = write_gif(track, tmp_path / "few.gif", size=SMALL, colours=16).path
