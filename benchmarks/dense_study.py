@@ -111,11 +111,18 @@ def main():
     ap.add_argument("--generate-seconds", type=float, default=10.0)
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     ap.add_argument("--variants", nargs="+", choices=sorted(VARIANTS), default=sorted(VARIANTS, reverse=True))
+    ap.add_argument("--rounds", type=int, default=SelfFed.rounds, help="self-fed: rollout rounds")
+    ap.add_argument("--round-steps", type=int, default=SelfFed.steps, help="self-fed: fine-tuning steps per round")
+    ap.add_argument("--horizon", type=int, default=SelfFed.horizon, help="self-fed: frames per rollout")
+    ap.add_argument("--reference-gaits", nargs="+", help="fit the classifier and the real windows of the Fréchet "
+                    "measure on files of these gaits only (default: every gait); the figure-eight is forward "
+                    "walking, so FW TR1 compares like with like")
     ap.add_argument("--reuse-run", action="store_true", help="keep --work/run as trained (skip training)")
     ap.add_argument("--trained-vectors", choices=("library", "clip"), default="library",
                     help="the trained styles' FiLM vectors for generating: the run's (mean Ψ over the style's "
                          "training clips) or mean Ψ over its --clip-seconds clip, as a held-out style is taught")
     a = ap.parse_args()
+    VARIANTS["self-fed"] = SelfFed(rounds=a.rounds, steps=a.round_steps, horizon=a.horizon)
     a.work.mkdir(parents=True, exist_ok=True)
     report = {"load_start": os.getloadavg()[0]}
     trained_files = read_manifest(a.trained / "manifest.csv")
@@ -179,7 +186,9 @@ def main():
               f"rollout of {probe} {same_rollout}", flush=True)
 
     # every style's data, for the classifier and the real windows
-    every = write_manifest(trained_files + held_files, a.work / "all.csv")
+    reference = [f for f in trained_files + held_files if not a.reference_gaits or f.gait in a.reference_gaits]
+    every = write_manifest(reference, a.work / ("all.csv" if not a.reference_gaits else
+                                                "reference-" + "-".join(a.reference_gaits) + ".csv"))
     ds = build_dataset(every, cache_dir=a.work / "cache", progress=False, clip_seconds=s.clip_seconds,
                        clip_stride_seconds=s.clip_seconds / 2, seed=s.seed, split_unit="files")
     t0 = time.perf_counter()
@@ -203,6 +212,15 @@ def main():
             if np.any(st == k):
                 real.setdefault(name, []).append(w[st == k])
     space = StyleSpace.fit({n: np.concatenate(v) for n, v in real.items()})
+    # the measure's own resolution: each style's validation and test windows against the others' real windows
+    # (its own from the training split), as a generated motion is measured
+    train_only = {n: v[0] for n, v in real.items() if len(v[0]) >= 2}
+    if len(train_only) == len(real):
+        half = StyleSpace.fit(train_only)
+        ranks = [half.rank(np.concatenate(v[1:]), n) for n, v in real.items() if sum(len(x) for x in v[1:]) >= 2]
+        report["real_rank1"] = float(np.mean(np.array(ranks) == 1))
+        print(f"[study] real held-back windows of each style rank 1 by Fréchet distance for "
+              f"{report['real_rank1']:.0%} of {len(ranks)} styles (the measure's ceiling)", flush=True)
     blocks = ds.stats.normalize_clip(rollout_blocks(r), ds.layout.x_joints)
     rows = []
     for b, name in enumerate(names):
