@@ -3,7 +3,7 @@
     python benchmarks/retarget.py                                   # every real file -> 100STYLE, round trips
     python benchmarks/retarget.py --released DIR                    # + 100STYLE-rig clips (e.g. made by
                                                                     #   minifilm generate --params ...) round trips
-    python benchmarks/retarget.py --every 10 --gifs /tmp/rt_gifs    # every 10th file; one GIF per source
+    python benchmarks/retarget.py --every 10 --gifs docs/img        # every 10th file; the GIFs of docs/retargeting.md
 
 Per source (Bandai-1, Bandai-2, Xia, CMU), every file retargeted to the 100STYLE rig:
   * bone directions: per mapped bone, the median over frames of the angle between source and
@@ -11,11 +11,15 @@ Per source (Bandai-1, Bandai-2, Xia, CMU), every file retargeted to the 100STYLE
   * contacts: the fraction of frames on which source and target foot contacts agree (min, median);
   * skating: target minus source mean toe-tip speed during contacts, cm/s (max over files);
   * standing height (min, max over files), metres;
+  * the floor: the target's lowest toe tip (y = 0 is the floor) and the share of frames on which a
+    toe tip is more than 1 cm below it;
   * phases: whether local phases could be labelled on the result (minifilm.phases.label, the
     labelling ``minifilm phases`` draws), on every ``--phases-every``-th file.
 Round trips (mapped joints, after the leg-length scale; median and 95th percentile over frames,
-pooled over files): 100STYLE clips -> Bandai -> 100STYLE, and Bandai -> 100STYLE -> Bandai; with
-the feet planted (the whole method) and without (the pose transfer and root scaling alone).
+pooled over files, and the worst single file): 100STYLE clips -> Bandai -> 100STYLE, and Bandai ->
+100STYLE -> Bandai, each file coming back onto its own skeleton (the file's hierarchy as the target
+rig, as ``minifilm retarget --to FILE.bvh``); with the feet planted (the whole method) and without
+(the pose transfer and root scaling alone).
 Timings are not measured; the load (``uptime``) is printed for the record.
 """
 from __future__ import annotations
@@ -23,8 +27,6 @@ from __future__ import annotations
 import argparse
 import glob
 import os
-import subprocess
-import sys
 import tempfile
 from collections import defaultdict
 from pathlib import Path
@@ -33,11 +35,12 @@ import numpy as np
 
 from minifilm.evaluation.retargeting import (bone_direction_errors, contact_agreement, round_trip_errors, skating,
                                              standing_height)
-from minifilm.motion.bvh_write import write_bvh
 from minifilm.rigs import read_source, retarget_motion
 from minifilm.pipeline.run_rig import load_target as load_rig
 from minifilm.motion.skeletons import STYLE100
 from minifilm.phases.label import label
+
+from retarget_gifs import write_pictures
 
 DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
 
@@ -49,9 +52,10 @@ def sources(data: Path):
             "CMU": sorted(glob.glob(str(data / "bvh" / "cmu" / "*.bvh")))}
 
 
-def to_100style(name, files, target, every_phases, gif_dir):
+def to_100style(name, files, target, every_phases):
     per_bone = defaultdict(list)
     agree, skate, height, phases_ok, phases_tried = [], [], [], 0, 0
+    lowest, sunk = [], []     # the target's toe tips below the floor (y = 0)
     for i, path in enumerate(files):
         m, roles = read_source(path)
         out = retarget_motion(m, target, roles)
@@ -60,6 +64,9 @@ def to_100style(name, files, target, every_phases, gif_dir):
         agree.append(contact_agreement(m, roles, out, target.roles))
         skate.append(skating(out, target.roles) - skating(m, roles))
         height.append(standing_height(out, target.roles))
+        tips = out.world()[0][:, [out.names.index(target.roles.limb(s).sensor) for s in ("left", "right")], 1]
+        lowest.append(float(tips.min()))
+        sunk.append(float(np.mean(tips.min(axis=1) < -0.01)))
         if i % every_phases == 0:
             phases_tried += 1
             try:
@@ -67,46 +74,45 @@ def to_100style(name, files, target, every_phases, gif_dir):
                 phases_ok += 1
             except ValueError as e:
                 print(f"    phases failed on {path}: {e}")
-        if gif_dir is not None and i == 0:
-            gif(path, out, target, gif_dir, name)
     print(f"\n{name}: {len(files)} files -> 100style")
     print(f"  contacts agree: min {min(agree):.3f}, median {np.median(agree):.3f}; files below 0.95: "
           f"{sum(a < 0.95 for a in agree)}")
     print(f"  skating, target - source: max {100 * max(skate):+.2f} cm/s, median {100 * np.median(skate):+.2f} cm/s")
     print(f"  standing height: {min(height):.2f} - {max(height):.2f} m")
+    print(f"  toe tips below the floor: lowest {100 * min(lowest):.1f} cm (median over files {100 * np.median(lowest):.1f}); "
+          f"frames with a tip below -1 cm: median {100 * np.median(sunk):.0f} %, max {100 * max(sunk):.0f} %")
     print(f"  phases labelled on {phases_ok} of {phases_tried} results")
     print("  bone direction error, degrees (median over frames; median over files / worst file):")
     for bone, v in per_bone.items():
         print(f"    {bone:16s} {np.median(v):6.2f} / {max(v):6.2f}")
 
 
-def gif(path, out_motion, target, folder: Path, name: str) -> None:
-    folder.mkdir(parents=True, exist_ok=True)
-    tag = name.lower().replace("-", "")
-    retargeted = folder / f"{tag}_{Path(path).stem}_100style.bvh"
-    write_bvh(out_motion, retargeted, scale=target.bvh_scale)
-    picture = folder / f"{tag}_{Path(path).stem}.gif"
-    subprocess.run([sys.executable, "-m", "minifilm", "view", path, str(retargeted), "--gif", str(picture),
-                    "--seconds", "4"], check=True, stdout=subprocess.DEVNULL)
-    print(f"  GIF: {picture}")
-
-
-def round_trip(label_text, files, first, second, plant=True):
-    per_joint = defaultdict(list)
+def round_trip(label_text, files, second, plant=True):
+    """Each file -> ``second`` -> back onto the file's own skeleton (its hierarchy as the rig, as
+    ``minifilm retarget --to FILE.bvh`` takes it), so a file whose proportions differ from the
+    built-in rig of its kind (Bandai-1 ``run_normal_001``'s legs are 3.5 % longer) comes back to
+    itself."""
+    per_joint, per_file = defaultdict(list), {}
     for path in files:
         m, roles = read_source(path)
+        own = load_rig(path)
         there = retarget_motion(m, second, roles, plant=plant)
-        back = retarget_motion(there, first, second.roles, plant=plant)
-        for joint, d in round_trip_errors(m, roles, back, first.roles).items():
+        back = retarget_motion(there, own, second.roles, plant=plant)
+        errors = round_trip_errors(m, roles, back, own.roles)
+        for joint, d in errors.items():
             per_joint[joint].append(d)
-    print(f"\nround trip {label_text}{'' if plant else ', feet not planted'}: {len(files)} files; "
-          "mapped joints, cm (median / 95th percentile)")
+        per_file[Path(path).stem] = max(np.percentile(d, 95) for d in errors.values()) * 100
+    print(f"\nround trip {label_text}{'' if plant else ', feet not planted'}: {len(files)} files, each back onto "
+          "its own skeleton; mapped joints, cm (median / 95th percentile)")
     worst = 0.0
     for joint, ds in per_joint.items():
         d = np.concatenate(ds) * 100
         worst = max(worst, np.percentile(d, 95))
         print(f"    {joint:16s} {np.median(d):5.2f} / {np.percentile(d, 95):5.2f}")
     print(f"  largest 95th percentile: {worst:.2f} cm")
+    name = max(per_file, key=per_file.get)
+    print(f"  worst single file: {name}, largest 95th percentile {per_file[name]:.2f} cm; files over 3 cm: "
+          f"{sorted(k for k, v in per_file.items() if v > 3.0)}")
 
 
 def main() -> None:
@@ -115,19 +121,23 @@ def main() -> None:
     ap.add_argument("--released", type=Path, help="folder of 100STYLE-rig BVH files (the released network's output)")
     ap.add_argument("--every", type=int, default=1, help="take every n-th file of each source")
     ap.add_argument("--phases-every", type=int, default=1, help="label phases on every n-th result")
-    ap.add_argument("--gifs", type=Path, help="write one GIF per source (original beside retargeted) here")
+    ap.add_argument("--gifs", type=Path, help="write one GIF per source (original beside retargeted) here, as "
+                    "benchmarks/retarget_gifs.py does")
     args = ap.parse_args()
     print(f"load: {os.popen('uptime').read().strip()}")
     target, bandai = load_rig("100style"), load_rig("bandai")
     groups = {k: v[::args.every] for k, v in sources(args.data).items() if v}
     for name, files in groups.items():
-        to_100style(name, files, target, args.phases_every, args.gifs)
+        to_100style(name, files, target, args.phases_every)
+    if args.gifs is not None:
+        print("\nGIFs, one clip per source beside itself on 100STYLE (benchmarks/retarget_gifs.py):")
+        write_pictures(args.data, args.gifs)
     for plant in (True, False):
         if args.released is not None:
-            round_trip("100STYLE -> Bandai -> 100STYLE", sorted(glob.glob(str(args.released / "*.bvh"))), target,
-                       bandai, plant)
-        round_trip("Bandai -> 100STYLE -> Bandai", groups.get("Bandai-1", []) + groups.get("Bandai-2", []), bandai,
-                   target, plant)
+            round_trip("100STYLE -> Bandai -> 100STYLE", sorted(glob.glob(str(args.released / "*.bvh"))), bandai,
+                       plant)
+        round_trip("Bandai -> 100STYLE -> Bandai", groups.get("Bandai-1", []) + groups.get("Bandai-2", []), target,
+                   plant)
 
 
 if __name__ == "__main__":

@@ -8,7 +8,8 @@ TARGET is a built-in rig (100style, bandai, cmu), a run folder written by ``mini
 skeleton.bvh) or any BVH file (its hierarchy). Each source file is written to OUT/<its name>.bvh on
 the target rig, in the target's channel order and units. Joints are matched by role (hips, spine,
 neck, head, arms, legs); a rig minifilm does not recognise needs a JSON map of its roles (--map for
-the sources, --to-map for the target).
+the sources, --to-map for the target). Every input (target, sources, maps, outputs) is checked
+before anything is printed or written.
 """
 from __future__ import annotations
 
@@ -47,6 +48,12 @@ def run(args) -> int:
     outs = [child_path(args.out, stem, ".bvh") for stem in stems]
     for out in outs:                                    # every output checked before the first is written
         check_writable(out, "retargeted BVH")
+    # Every source read (and its roles found) before anything is printed or written, so a missing
+    # or bad file late in the list is one error, not a half-written folder. The motions are not
+    # kept: a batch of hundreds of clips would not fit in memory, and reading is cheap beside
+    # retargeting.
+    for f in args.files:
+        read_source(f, args.map, args.scale)
     print(f"[retarget] target rig {target.name}: {target.template.n_joints} joints, "
           f"{target.bvh_scale:g} m per unit")
     args.out.mkdir(parents=True, exist_ok=True)

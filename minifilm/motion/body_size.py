@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
-from typing import Optional, Tuple, Union
+from typing import Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -29,6 +29,7 @@ from minifilm.motion.motion import Motion
 from minifilm.motion.skeletons import detect_skeleton
 
 __all__ = ["BodyUnit", "KNOWN_UNITS", "STATURE_RANGE", "LEG_FRACTION", "body_unit", "unit_for_stature", "leg_length",
+           "leg_bones", "stature_from_legs",
            "scaled", "standing_height", "read_in_metres"]
 
 #: (name, metres per unit) of the units motion capture files are written in
@@ -55,21 +56,34 @@ class BodyUnit:
     how: str
 
 
+def leg_bones(motion: Motion, legs: Sequence[Tuple[int, int, int]]) -> float:
+    """Thigh + shin (hip to knee to ankle), averaged over ``legs``, in the motion's units.
+
+    legs: (hip, knee, ankle) joint indices per leg, however they were found (humanoid.py's parts,
+    or a retargeting rig's roles, minifilm/rigs/rig.py). Bone lengths do not change with the pose,
+    so the first frame serves."""
+    P = np.asarray(motion.world()[0][0])                                         # (J, 3) first frame
+    total = sum(np.linalg.norm(P[knee] - P[hip]) + np.linalg.norm(P[ankle] - P[knee]) for hip, knee, ankle in legs)
+    return float(total / len(legs))
+
+
 def leg_length(motion: Motion, h: Humanoid) -> float:
     """Thigh + shin (hip to knee to ankle), averaged over both legs, in the motion's units."""
-    P = np.asarray(motion.world()[0][0])                                         # (J, 3) first frame
-    total = 0.0
-    for side in ("left", "right"):
-        hip, knee, ankle = (getattr(h, f"{side}_{r}") for r in ("hip", "knee", "ankle"))
-        total += np.linalg.norm(P[knee] - P[hip]) + np.linalg.norm(P[ankle] - P[knee])
-    return float(total / 2)
+    return leg_bones(motion, [tuple(getattr(h, f"{side}_{r}") for r in ("hip", "knee", "ankle"))
+                              for side in ("left", "right")])
+
+
+def stature_from_legs(thigh_and_shin: float) -> float:
+    """A body's standing height from its thigh + shin (any unit; the same unit out): the one
+    definition every unit guess uses (LEG_FRACTION, module docstring)."""
+    return thigh_and_shin / LEG_FRACTION
 
 
 def body_unit(motion: Motion, humanoid: Optional[Humanoid] = None) -> BodyUnit:
     """The unit of ``motion`` (read with scale 1: file units). From the built-in skeleton its names
     fit, else from its height (module docstring). HumanoidError when it is not a humanoid."""
     h = humanoid if humanoid is not None else find_humanoid(motion)
-    stature_units = leg_length(motion, h) / LEG_FRACTION
+    stature_units = stature_from_legs(leg_length(motion, h))
     try:
         skeleton = detect_skeleton(motion)
     except ValueError:

@@ -21,19 +21,20 @@ from typing import Optional, Tuple, Union
 import numpy as np
 
 from minifilm.files import note_input, read_json
-from minifilm.motion.body_size import LEG_FRACTION, body_unit, scaled, unit_for_stature
+from minifilm.motion.body_size import BodyUnit, body_unit, leg_bones, scaled, stature_from_legs, unit_for_stature
 from minifilm.motion.bvh import parse_bvh, read_bvh
 from minifilm.motion.humanoid import HumanoidError, find_humanoid
 from minifilm.motion.motion import Motion
 from minifilm.motion.skeletons import Skeleton, builtin_skeleton
 from minifilm.rigs import builtin_rigs
 from minifilm.rigs.builtin_rigs import BANDAI_FOOT_SHAPE, builtin_skeleton_for
-from minifilm.rigs.joint_map import BUILTIN_ROLES, RigError, Roles, roles_from_mapping
-from minifilm.rigs.proportions import foot_shape_of, leg_length
+from minifilm.rigs.joint_map import BUILTIN_ROLES, SIDES, RigError, Roles, roles_from_mapping
+from minifilm.rigs.proportions import foot_shape_of
 from minifilm.rigs.roles import roles_from_humanoid
 from minifilm.synthetic.generator import rest_motion
 
-__all__ = ["Rig", "load_rig", "builtin_rig", "find_roles", "file_unit", "rig_from_template", "BUILTIN_RIGS"]
+__all__ = ["Rig", "load_rig", "builtin_rig", "find_roles", "file_unit", "unit_from_legs", "rig_from_template",
+           "BUILTIN_RIGS"]
 
 BUILTIN_RIGS = ("100style", "bandai", "cmu")
 
@@ -101,12 +102,18 @@ def file_unit(motion_in_file_units: Motion, roles: Roles) -> float:
     try:
         h = find_humanoid(motion_in_file_units)
     except HumanoidError:       # roles from a map on a rig humanoid.py does not recognise: go by the legs
-        return _unit_from_legs(motion_in_file_units, roles)
+        return unit_from_legs(motion_in_file_units, roles).metres_per_unit
     return body_unit(motion_in_file_units, h).metres_per_unit
 
 
-def _unit_from_legs(motion: Motion, roles: Roles) -> float:
-    return unit_for_stature(leg_length(motion, roles) / LEG_FRACTION).metres_per_unit
+def unit_from_legs(motion: Motion, roles: Roles) -> BodyUnit:
+    """The unit of a rig known by its roles alone, as body_size guesses it for a humanoid it finds:
+    the stature from the roles' thigh + shin (``body_size.stature_from_legs``), then the common unit
+    that makes it 1.4-2.1 m. (The hips' standing height, ``proportions.leg_length``, is longer than
+    thigh + shin by the pelvis and the ankle's height, so it does not fit that fraction.)"""
+    idx = {n: i for i, n in enumerate(motion.names)}
+    legs = [(idx[roles.limb(s).upleg], idx[roles.limb(s).knee], idx[roles.limb(s).ankle]) for s in SIDES]
+    return unit_for_stature(stature_from_legs(leg_bones(motion, legs)))
 
 
 def load_rig(target: Union[str, os.PathLike], map_path: Union[str, os.PathLike, None] = None,

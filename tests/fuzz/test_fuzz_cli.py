@@ -47,6 +47,7 @@ BASE = {
     "dataset": ["dataset", f"{R}/data", "--cache", f"{T}/cache"],
     "phases": ["phases", f"{R}/data/Neutral_FW.bvh", "--out", f"{T}/p.png"],
     "view": ["view", f"{R}/data/Neutral_FW.bvh", "--gif", f"{T}/v.gif"],
+    "retarget": ["retarget", f"{R}/data/Neutral_FW.bvh", "--to", "bandai", "--out", f"{T}/rt"],
 }
 
 
@@ -115,6 +116,13 @@ OTHER = [
     ("phases: not BVH", ["phases", f"{R}/run.json", "--out", f"{T}/p.png"]),
     ("phases: unknown skeleton", BASE["phases"] + ["--skeleton", "robot"]),
     ("phases: stop before start", BASE["phases"] + ["--start", "3", "--stop", "1"]),
+    # every source is read before anything is printed or written (a good file comes first)
+    ("retarget: source missing", BASE["retarget"][:2] + [f"{T}/nope.bvh"] + BASE["retarget"][2:]),
+    ("retarget: source not BVH", BASE["retarget"][:2] + [f"{R}/run.json"] + BASE["retarget"][2:]),
+    ("retarget: source no humanoid", BASE["retarget"][:2] + [f"{T}/chain.bvh"] + BASE["retarget"][2:]),
+    ("retarget: map missing", BASE["retarget"] + ["--map", f"{T}/nope.json"]),
+    ("retarget: unknown target", ["retarget", f"{R}/data/Neutral_FW.bvh", "--to", "robot", "--out", f"{T}/rt"]),
+    ("retarget: same name twice", BASE["retarget"][:2] + [f"{R}/data/Neutral_FW.bvh"] + BASE["retarget"][2:]),
     ("view: file missing", ["view", f"{T}/nope.bvh", "--gif", f"{T}/v.gif"]),
     ("view: gif is a folder", ["view", f"{R}/data/Neutral_FW.bvh", "--gif", T]),
     ("view: not BVH", ["view", f"{R}/run.json", "--gif", f"{T}/v.gif"]),
@@ -188,6 +196,8 @@ def test_bad_arguments_are_one_line_and_change_nothing(run_copy, tmp_path, share
     assert len(errors) == 1 or not args, out.err[-500:]
     assert set(tmp_path.rglob("*")) == existing, "wrote something"
     assert snapshot(run) == before, "changed the run folder"
+    if args and args[0] == "retarget":
+        assert out.out == "", f"printed before every input was checked: {out.out!r}"
 
 
 def test_well_formed_commands_work(run_copy, tmp_path, capsys):

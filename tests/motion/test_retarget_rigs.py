@@ -10,6 +10,7 @@ import pytest
 from minifilm.evaluation.retargeting import (bone_direction_errors, contact_agreement, round_trip_errors, skating,
                                              standing_height)
 from minifilm.motion.bvh import parse_bvh, read_bvh
+from minifilm.motion.humanoid import find_humanoid
 from minifilm.rigs.joint_map import BUILTIN_ROLES, RigError, chain_overlaps, roles_from_mapping
 from minifilm.rigs import load_rig, read_source, retarget_motion
 from minifilm.rigs.pose import UP, canonical_pose, rest_positions
@@ -223,6 +224,46 @@ def test_a_map_makes_an_unrecognised_rig_usable(tmp_path, synthetic_walk):
     motion, roles = read_source(path, map_path)
     out = retarget_motion(motion, load_rig("bandai"), roles)
     assert out.n_frames == m.n_frames and np.all(np.isfinite(out.rotations))
+
+
+def test_a_rig_known_only_by_its_map_gets_the_unit_body_size_gives(tmp_path, synthetic_walk, monkeypatch):
+    """The unit of a file humanoid.py cannot read comes from the map's legs by body_size's own rule
+    (thigh + shin = 0.49 of the stature). The body is made 2.0 m tall, in centimetres: the hips'
+    standing height (12 % longer than thigh + shin) over 0.49 would make it 2.25 m, out of the
+    1.4-2.1 m range, and the file would be rescaled to 1.7 m instead of read in centimetres."""
+    from minifilm.motion import body_size
+    from minifilm.motion.bvh_write import write_bvh
+    from minifilm.motion.humanoid import HumanoidError
+    from minifilm.motion.motion import Motion
+    from minifilm.rigs import rig as rig_module
+    m = body_size.scaled(synthetic_walk, 1.0)
+    thigh_and_shin = body_size.leg_length(m, find_humanoid(m))
+    m = body_size.scaled(m, 2.0 * body_size.LEG_FRACTION / thigh_and_shin)      # a 2.0 m body, metres
+    rename = {n: f"j{i:02d}" for i, n in enumerate(m.names)}
+    renamed = Motion([rename[n] for n in m.names], m.parents, m.offsets, m.channels, m.rotations, m.translations,
+                     m.frame_time, "renamed")
+    path = tmp_path / "renamed.bvh"
+    write_bvh(renamed, path, scale=0.01)                                         # centimetres
+    raw = read_bvh(path, scale=1.0)
+    expected = body_size.body_unit(raw)                 # humanoid.py finds it by structure: the reference
+    assert expected.metres_per_unit == 0.01 and expected.stature == pytest.approx(2.0)
+
+    r = BUILTIN_ROLES["100style"]
+    limb = lambda lb: {k: rename[getattr(lb, k)] for k in ("collar", "shoulder", "elbow", "wrist", "upleg", "knee",
+                                                            "ankle", "toe")}
+    mapping = {"hips": rename[r.hips], "spine": [rename[n] for n in r.spine], "neck": [rename[n] for n in r.neck],
+               "left": limb(r.left), "right": limb(r.right)}
+    map_path = tmp_path / "map.json"
+    map_path.write_text(json.dumps(mapping))
+
+    def unrecognised(motion):
+        raise HumanoidError(f"{motion.source}: not a humanoid skeleton that minifilm recognises")
+    monkeypatch.setattr(rig_module, "find_humanoid", unrecognised)      # only the map knows this rig
+    roles = roles_from_mapping(mapping, raw)
+    assert rig_module.unit_from_legs(raw, roles).stature == pytest.approx(expected.stature, rel=1e-9)
+    assert rig_module.file_unit(raw, roles) == expected.metres_per_unit
+    motion, _ = read_source(path, map_path)
+    np.testing.assert_allclose(motion.offsets, raw.offsets * 0.01)
 
 
 # ----------------------------------------------------------------------------------------------

@@ -48,6 +48,22 @@ def test_frames_are_not_blank_and_change(tmp_path, walker):
     assert min(changed) > 20  # every frame differs from the next by more than the clock text
 
 
+def test_fewer_colours_make_a_smaller_gif_of_the_same_frames(tmp_path, walker):
+    """``colours`` bounds the palette (docs/img's retargeting GIFs use 32) and the file shrinks."""
+    track = track_from_motion(walker)
+    full = write_gif(track, tmp_path / "full.gif", size=SMALL).path
+    few = write_gif(track, tmp_path / "few.gif", size=SMALL, colours=16).path
+    frames, _ = read_gif(few)
+    assert frames.shape == read_gif(full)[0].shape
+    assert max(len(np.unique(f.reshape(-1, 3), axis=0)) for f in frames) <= 16
+    assert chromatic(frames[0]).sum() > 300                   # the skeleton keeps its colour
+    assert few.stat().st_size < full.stat().st_size
+    for bad in (1, 257, 2.5):
+        with pytest.raises(ValueError, match="colours"):
+            write_gif(track, tmp_path / "bad.gif", size=SMALL, colours=bad)
+    assert not (tmp_path / "bad.gif").exists()
+
+
 def test_drawn_joints_are_the_projected_bvh_forward_kinematics(tmp_path, bandai_walk):
     motion = read_bvh(bandai_walk)
     P, _ = motion.world()  # (F, J, 3): the reference, computed without the viewer
