@@ -1,7 +1,7 @@
 """Issue 27's pictures: one clip of each real source beside itself on the 100STYLE character.
 
-    python benchmarks/retarget_gifs.py                  # docs/img/retarget_{bandai1,bandai2,xia,cmu}.gif
-    python benchmarks/retarget_gifs.py --out /tmp/gifs  # elsewhere
+    python benchmarks/retarget_gifs.py                  # docs/img/retarget_{bandai1,bandai2,cmu}.gif
+    python benchmarks/retarget_gifs.py --out /tmp/gifs  # elsewhere, with the Xia clip too
     python benchmarks/retarget.py --gifs DIR            # the same, after the retargeting checks
 
 Each clip is read as ``minifilm retarget`` reads it, put on the built-in 100STYLE rig with
@@ -10,11 +10,13 @@ contacts marked (the viewer's contact test on each): the original on the left, t
 character on the right. The GIFs are kept small for the repository: at most 3.5 s at about 15 fps,
 200 x 250 pixels per character, 32 colours (about 0.4-0.6 MB each). The data's licences are in
 docs/retargeting.md (Bandai Namco: CC BY-NC 4.0; Xia et al.: research use; CMU: free with
-acknowledgement).
+acknowledgement). The Xia clips carry no licence that allows redistribution, so their picture is
+drawn only into a folder of your own (``--out``), never into the repository's docs/img.
 """
 from __future__ import annotations
 
 import argparse
+import os
 import tempfile
 from pathlib import Path
 
@@ -24,7 +26,10 @@ from minifilm.viewer.builders import track_with_contacts
 from minifilm.viewer.gif import write_gif
 
 REPO = Path(__file__).resolve().parents[1]
-DATA = REPO / ".." / "shared" / "data"
+DATA = Path(os.environ.get("MINIFILM_SHARED_DATA", REPO.parent / "shared" / "data"))
+DOCS_IMG = REPO / "docs" / "img"
+#: sources whose licence does not let the repository carry pictures made from them
+NOT_IN_REPOSITORY = {"xia"}
 #: (source, tag, file under the data folder, title of the original): a styled walk of each
 CLIPS = (("Bandai-1", "bandai1", "bvh/bandai1/dataset-1_walk_proud_001.bvh", "Bandai-1 proud walk"),
          ("Bandai-2", "bandai2", "bandai2/dataset-2_walk_feminine_001.bvh", "Bandai-2 feminine walk"),
@@ -52,6 +57,9 @@ def write_pictures(data: Path, out: Path, log=print) -> list:
     out.mkdir(parents=True, exist_ok=True)
     target, written = load_rig("100style"), []
     for source, tag, rel, title in CLIPS:
+        if tag in NOT_IN_REPOSITORY and out.resolve() == DOCS_IMG.resolve():
+            log(f"  {source}: not drawn into docs/img (its licence allows research use only; use --out)")
+            continue
         path = data / rel
         if not path.is_file():
             log(f"  {source}: {path} not found, no GIF")
@@ -66,7 +74,7 @@ def write_pictures(data: Path, out: Path, log=print) -> list:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--data", type=Path, default=DATA, help="the shared data folder")
-    ap.add_argument("--out", type=Path, default=REPO / "docs" / "img", help="folder to write the GIFs into")
+    ap.add_argument("--out", type=Path, default=DOCS_IMG, help="folder to write the GIFs into")
     args = ap.parse_args()
     write_pictures(args.data, args.out)
 
