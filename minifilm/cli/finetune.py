@@ -18,7 +18,7 @@ from minifilm.pipeline.new_style import teach_style
 from minifilm.pipeline.self_fed import SelfFed
 
 HELP = "teach a trained run a new style from a short clip (Ψ only)"
-ROLLOUT_ROUNDS = 0
+ROLLOUT_ROUNDS = SelfFed.rounds
 
 
 def add_arguments(ap) -> None:
