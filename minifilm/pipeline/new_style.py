@@ -112,11 +112,13 @@ def clip_training_data(motions: Sequence[Motion], files, run: RunFolder, stats, 
 
 def teach_style(run_path, name: str, files: Sequence, steps: int = 400, lr: float = 5e-4, seed: int = 0,
                 replace: bool = False, log: Callable[[str], None] = print, with_mirror: bool = False,
-                self_fed: Optional[SelfFed] = SelfFed()) -> NewStyleResult:
+                self_fed: Optional[SelfFed] = None) -> NewStyleResult:
     """Fine-tune the run's Ψ on ``files`` and add ``name`` to its style library (see the module
     docstring). ``self_fed``: rollout-aware rounds after the teacher-forced steps (self_fed.py;
-    None: teacher forcing alone, as the paper; the default SelfFed() lowered the rollout error
-    along the clip by 25-32 % for each of five held-out styles in benchmarks/dense_study.py).
+    None, the default: teacher forcing alone, as the paper. On the 90-style runs of
+    benchmarks/dense_study.py, SelfFed() lowered the rollout error along the clip by 10-32 % for
+    each of five held-out styles but reproduced no more of them on a new path: see
+    benchmarks/README.md).
     Raises ValueError naming the file or setting that is wrong; the run folder is then untouched.
     The run folder is locked meanwhile: a second command writing it is refused."""
     RunFolder.load(run_path)                    # a run folder at all, before a lock file is made beside it
