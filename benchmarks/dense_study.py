@@ -55,7 +55,17 @@ from minifilm.pipeline.train_small import Settings, run as train_run  # noqa: E4
 from minifilm.runtime.control import figure_eight  # noqa: E402
 
 CLIP_ORDER = ("FW", "FR", "TR1", "BW", "SW", "BR", "SR", "ID")
-VARIANTS = {"teacher": None, "self-fed": SelfFed()}
+VARIANTS = {"teacher": None, "self-fed": SelfFed(), "span": None}
+
+
+def onto_span(vector: np.ndarray, trained: np.ndarray) -> np.ndarray:
+    """``vector`` (D,) projected onto the affine span of the trained styles' vectors (S, D): the
+    nearest combination mean + sum_k c_k (v_k - mean), by least squares (the "span" variant: the
+    new style kept on the trained styles' manifold, one of the routes issue 28 names)."""
+    mean = trained.mean(axis=0)
+    basis = (trained - mean).T                                        # (D, S)
+    coef, *_ = np.linalg.lstsq(basis, vector - mean, rcond=None)
+    return mean + basis @ coef
 
 
 def load() -> str:
@@ -179,6 +189,12 @@ def main():
             print(f"[study] {v} {h}: fine-tuned on {secs:.1f} s ({len(clip)} files) in {took:.1f} s; loss "
                   f"{taught.loss_before:.3f} -> {taught.loss_after:.3f}; rollout error {errs or '-'} cm; nearest "
                   f"trained {taught.nearest} ({load()})", flush=True)
+        if v == "span":            # taught by teacher forcing, then moved onto the trained styles' span
+            library = RunFolder.load(folder).styles()
+            trained_vectors = np.stack([library[n] for n in trained]).astype(np.float64)
+            for h in held:
+                library.add(h, onto_span(library[h].astype(np.float64), trained_vectors))
+            library.save(folder / "styles.npz")
         runs[v] = run = RunFolder.load(folder)
         same_films = all(np.array_equal(films_before[n], run.styles()[n]) for n in trained)
         same_rollout = bool(np.array_equal(before, rollouts(run, [probe], 4.0).positions))
