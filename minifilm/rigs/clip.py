@@ -111,7 +111,11 @@ def retarget_motion(source: Motion, target: Rig, source_roles: Optional[Roles] =
             feet = [[tm.names.index(limb.ankle), tm.names.index(limb.toe) if limb.toe else None,
                      tm.names.index(limb.sensor)] for limb in (t_roles.right, t_roles.left)]
             bound = np.minimum(guides[..., 1], 0.0) - FLOOR_SLACK
-            clear_floor(P, world, tm.parents, feet, bound, source.fps, contacts)
+            # no turn where either foot is planted: the source's contacts, and the target's own
+            # (a turn moves a tip the contact test holds still: skating)
+            own = foot_contacts(sensor_positions(P, tm, t_roles), source.fps, floor_height=0.0,
+                                filter_seconds=contact_filter_seconds)
+            clear_floor(P, world, tm.parents, feet, bound, source.fps, np.maximum(contacts, own))
     return _to_motion(tm, world, P, tm.names.index(t_roles.hips), source.frame_time,
                       f"{source.source} on {target.name}")
 
