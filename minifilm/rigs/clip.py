@@ -111,11 +111,24 @@ def retarget_motion(source: Motion, target: Rig, source_roles: Optional[Roles] =
             feet = [[tm.names.index(limb.ankle), tm.names.index(limb.toe) if limb.toe else None,
                      tm.names.index(limb.sensor)] for limb in (t_roles.right, t_roles.left)]
             bound = np.minimum(guides[..., 1], 0.0) - FLOOR_SLACK
-            # no turn where either foot is planted: the source's contacts, and the target's own
-            # (a turn moves a tip the contact test holds still: skating)
-            own = foot_contacts(sensor_positions(P, tm, t_roles), source.fps, floor_height=0.0,
-                                filter_seconds=contact_filter_seconds)
-            clear_floor(P, world, tm.parents, feet, bound, source.fps, np.maximum(contacts, own))
+            # no turn where a foot is planted, by the source's contacts or the target's own (a turn
+            # moves a tip the contact test holds still: skating); the test estimates its floor, as
+            # minifilm phases and the benchmark do
+            def test(Q):
+                return foot_contacts(sensor_positions(Q, tm, t_roles), source.fps,
+                                     filter_seconds=contact_filter_seconds)
+            own = test(P)
+            keep = np.maximum(contacts, own)
+            # a turn that slows a tip into the contact test's band makes a contact the source has
+            # not (or takes one away): no turn there (and a frame either side); again, a few times
+            for _ in range(4):
+                P1, world1 = P.copy(), world.copy()
+                clear_floor(P1, world1, tm.parents, feet, bound, source.fps, keep)
+                made = (test(P1) != own).astype(float)
+                if not np.any(made):
+                    break
+                keep = np.maximum(keep, np.maximum(made, np.maximum(np.r_[made[1:], made[-1:]], np.r_[made[:1], made[:-1]])))
+            P, world = P1, world1
     return _to_motion(tm, world, P, tm.names.index(t_roles.hips), source.frame_time,
                       f"{source.source} on {target.name}")
 
