@@ -22,13 +22,14 @@ comes back as a higher foot (measured: benchmarks/README.md).
 """
 from __future__ import annotations
 
-from typing import Optional, Sequence
+from typing import Callable, Optional, Sequence, Tuple
 
 import numpy as np
 
 from minifilm.motion.skeleton_fit import rotation_between
 
-__all__ = ["FLOOR_SLACK", "upper_envelope", "needed_lift", "turn_up", "away_from", "clear_floor"]
+__all__ = ["FLOOR_SLACK", "upper_envelope", "needed_lift", "turn_up", "away_from", "clear_floor",
+           "clear_floor_keeping_contacts"]
 
 
 #: how far (metres) below the floor (or the source's own tip, where that is lower) a ball or tip
@@ -110,6 +111,31 @@ def clear_floor(P: np.ndarray, R: np.ndarray, parents: np.ndarray, feet: Sequenc
         bend = needed_lift(P[:, ball], P[:, tip], floor[:, i], max_up=max_toe_up)
         if np.any(bend > 0):
             turn_up(P, R, ball, tip, _descendants(ball, parents), free[:, i] * upper_envelope(bend, radius))
+
+
+def clear_floor_keeping_contacts(P: np.ndarray, R: np.ndarray, parents: np.ndarray, feet, floor: np.ndarray,
+                                 fps: float, contacts: np.ndarray, contact_test: Callable[[np.ndarray], np.ndarray],
+                                 passes: int = 4) -> Tuple[np.ndarray, np.ndarray]:
+    """:func:`clear_floor` on copies of P and R, with no turn where a foot is planted or where
+    turning would change what the target's own contact test says; returns new (P, R).
+
+    ``contacts`` (F, L): the source's; ``contact_test``: positions (F, J, 3) -> (F, L) 0/1, the
+    target's test. A foot is held where the source's test or the target's own (before any turn)
+    says contact: a turn moves a tip that test holds still (skating). Where a turn still makes
+    or takes away a contact (a tip turned up and back slows into the test's band just after
+    toe-off), that frame and one either side are held too, and the turn is made again, up to
+    ``passes`` times."""
+    own = contact_test(P)
+    hold = np.maximum(np.asarray(contacts, dtype=np.float64), own)
+    for _ in range(passes):
+        P1, R1 = P.copy(), R.copy()
+        clear_floor(P1, R1, parents, feet, floor, fps, hold)
+        changed = (contact_test(P1) != own).astype(np.float64)
+        if not np.any(changed):
+            break
+        hold = np.maximum(hold, np.maximum(changed, np.maximum(np.r_[changed[1:], changed[-1:]],
+                                                               np.r_[changed[:1], changed[:-1]])))
+    return P1, R1
 
 
 def away_from(contacts: np.ndarray, ramp: int) -> np.ndarray:

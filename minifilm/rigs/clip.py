@@ -32,7 +32,7 @@ from minifilm.rigs.joint_map import RigError, Roles, sensor_positions
 from minifilm.rigs.proportions import foot_shape_of, leg_length
 from minifilm.motion.motion import Motion
 from minifilm.motion.retarget import world_to_local
-from minifilm.rigs.clearance import FLOOR_SLACK, clear_floor
+from minifilm.rigs.clearance import FLOOR_SLACK, clear_floor_keeping_contacts
 from minifilm.rigs.feet import floor_height, plant_feet
 from minifilm.rigs.pose import canonical_pose, match_chords, place_feet, rest_positions, transfer_rotations
 from minifilm.rigs.rig import Rig, file_unit, find_roles
@@ -111,24 +111,11 @@ def retarget_motion(source: Motion, target: Rig, source_roles: Optional[Roles] =
             feet = [[tm.names.index(limb.ankle), tm.names.index(limb.toe) if limb.toe else None,
                      tm.names.index(limb.sensor)] for limb in (t_roles.right, t_roles.left)]
             bound = np.minimum(guides[..., 1], 0.0) - FLOOR_SLACK
-            # no turn where a foot is planted, by the source's contacts or the target's own (a turn
-            # moves a tip the contact test holds still: skating); the test estimates its floor, as
-            # minifilm phases and the benchmark do
+            # the contact test estimates its floor, as minifilm phases and the benchmark do
             def test(Q):
                 return foot_contacts(sensor_positions(Q, tm, t_roles), source.fps,
                                      filter_seconds=contact_filter_seconds)
-            own = test(P)
-            keep = np.maximum(contacts, own)
-            # a turn that slows a tip into the contact test's band makes a contact the source has
-            # not (or takes one away): no turn there (and a frame either side); again, a few times
-            for _ in range(4):
-                P1, world1 = P.copy(), world.copy()
-                clear_floor(P1, world1, tm.parents, feet, bound, source.fps, keep)
-                made = (test(P1) != own).astype(float)
-                if not np.any(made):
-                    break
-                keep = np.maximum(keep, np.maximum(made, np.maximum(np.r_[made[1:], made[-1:]], np.r_[made[:1], made[:-1]])))
-            P, world = P1, world1
+            P, world = clear_floor_keeping_contacts(P, world, tm.parents, feet, bound, source.fps, contacts, test)
     return _to_motion(tm, world, P, tm.names.index(t_roles.hips), source.frame_time,
                       f"{source.source} on {target.name}")
 
