@@ -18,7 +18,7 @@ from minifilm.pipeline.new_style import teach_style
 from minifilm.pipeline.self_fed import SelfFed
 
 HELP = "teach a trained run a new style from a short clip (Ψ only)"
-ROLLOUT_ROUNDS = 0
+ROLLOUT_ROUNDS = 0     # teacher forcing alone (the paper); benchmarks/README.md has the comparison
 
 
 def add_arguments(ap) -> None:
@@ -31,8 +31,8 @@ def add_arguments(ap) -> None:
     ap.add_argument("--seed", type=in_range(0, 2**32 - 1, int), default=0)
     ap.add_argument("--rollout-rounds", type=in_range(0, 100, int), default=ROLLOUT_ROUNDS,
                     help="rounds of training on the model's own rollouts along the clip after the "
-                         f"teacher-forced steps (pipeline/self_fed.py; 0: teacher forcing alone, the paper; "
-                         f"default {ROLLOUT_ROUNDS})")
+                         f"teacher-forced steps (pipeline/self_fed.py; default {ROLLOUT_ROUNDS}: teacher forcing "
+                         f"alone, the paper; {SelfFed.rounds} is the studied setting)")
 
 
 def run(args) -> int:
