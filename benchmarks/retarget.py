@@ -12,7 +12,9 @@ Per source (Bandai-1, Bandai-2, Xia, CMU), every file retargeted to the 100STYLE
   * skating: target minus source mean toe-tip speed during contacts, cm/s (max over files);
   * standing height (min, max over files), metres;
   * the floor: the target's lowest toe tip (y = 0 is the floor) and the share of frames on which a
-    toe tip is more than 1 cm below it;
+    toe tip is more than 1 cm below it; the source's lowest toe tip above its own floor;
+  * smoothness: the toe tips' peak acceleration (m/s^2, the largest second difference of a tip's
+    position times fps^2; median over files / worst file) and its 99th percentile, target and source;
   * phases: whether local phases could be labelled on the result (minifilm.phases.label, the
     labelling ``minifilm phases`` draws), on every ``--phases-every``-th file.
 Round trips (mapped joints, after the leg-length scale; median and 95th percentile over frames,
@@ -36,6 +38,8 @@ import numpy as np
 from minifilm.evaluation.retargeting import (bone_direction_errors, contact_agreement, round_trip_errors, skating,
                                              standing_height)
 from minifilm.rigs import read_source, retarget_motion
+from minifilm.rigs.feet import floor_height
+from minifilm.rigs.joint_map import sensor_positions
 from minifilm.pipeline.run_rig import load_target as load_rig
 from minifilm.motion.skeletons import STYLE100
 from minifilm.phases.label import label
@@ -55,7 +59,8 @@ def sources(data: Path):
 def to_100style(name, files, target, every_phases):
     per_bone = defaultdict(list)
     agree, skate, height, phases_ok, phases_tried = [], [], [], 0, 0
-    lowest, sunk = [], []     # the target's toe tips below the floor (y = 0)
+    lowest, sunk, src_lowest = [], [], []     # the target's toe tips below the floor (y = 0)
+    acc, src_acc = [], []                        # the tips' (peak, 99th percentile) accelerations
     for i, path in enumerate(files):
         m, roles = read_source(path)
         out = retarget_motion(m, target, roles)
@@ -67,6 +72,10 @@ def to_100style(name, files, target, every_phases):
         tips = out.world()[0][:, [out.names.index(target.roles.limb(s).sensor) for s in ("left", "right")], 1]
         lowest.append(float(tips.min()))
         sunk.append(float(np.mean(tips.min(axis=1) < -0.01)))
+        s_tips = sensor_positions(m.world()[0], m, roles)
+        src_lowest.append(float(s_tips[..., 1].min() - floor_height(s_tips, m.fps)))
+        acc.append(tip_acceleration(out, target.roles))
+        src_acc.append(tip_acceleration(m, roles))
         if i % every_phases == 0:
             phases_tried += 1
             try:
@@ -80,11 +89,25 @@ def to_100style(name, files, target, every_phases):
     print(f"  skating, target - source: max {100 * max(skate):+.2f} cm/s, median {100 * np.median(skate):+.2f} cm/s")
     print(f"  standing height: {min(height):.2f} - {max(height):.2f} m")
     print(f"  toe tips below the floor: lowest {100 * min(lowest):.1f} cm (median over files {100 * np.median(lowest):.1f}); "
-          f"frames with a tip below -1 cm: median {100 * np.median(sunk):.0f} %, max {100 * max(sunk):.0f} %")
+          f"frames with a tip below -1 cm: median {100 * np.median(sunk):.0f} %, max {100 * max(sunk):.0f} %; "
+          f"the source's lowest tip above its floor: {100 * min(src_lowest):.1f} cm")
+    a, sa = np.array(acc), np.array(src_acc)
+    print(f"  toe-tip acceleration, m/s^2 (median over files / worst): peak {np.median(a[:, 0]):.0f} / {a[:, 0].max():.0f}, "
+          f"99th pct {np.median(a[:, 1]):.0f} / {a[:, 1].max():.0f}; source peak {np.median(sa[:, 0]):.0f} / "
+          f"{sa[:, 0].max():.0f}, 99th pct {np.median(sa[:, 1]):.0f} / {sa[:, 1].max():.0f}")
     print(f"  phases labelled on {phases_ok} of {phases_tried} results")
     print("  bone direction error, degrees (median over frames; median over files / worst file):")
     for bone, v in per_bone.items():
         print(f"    {bone:16s} {np.median(v):6.2f} / {max(v):6.2f}")
+
+
+def tip_acceleration(motion, roles):
+    """(peak, 99th percentile) of the toe tips' acceleration (m/s^2): second differences times fps^2."""
+    s = sensor_positions(motion.world()[0], motion, roles)
+    if len(s) < 3:
+        return np.zeros(2)
+    a = np.linalg.norm(s[2:] - 2 * s[1:-1] + s[:-2], axis=-1) * motion.fps ** 2
+    return np.array([a.max(), np.percentile(a, 99)])
 
 
 def round_trip(label_text, files, second, plant=True):

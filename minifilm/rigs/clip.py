@@ -10,7 +10,8 @@
 The steps: roles of both rigs (:mod:`~minifilm.rigs.joint_map`), the pose transfer on world bone
 directions from canonical rest poses (:mod:`~minifilm.rigs.pose`), the root's path
 scaled by the ratio of leg lengths, then the floor and the planted feet
-(:mod:`~minifilm.rigs.feet`). The result is a Motion on the target's hierarchy with its
+(:mod:`~minifilm.rigs.feet`) and the toes kept out of the floor in swing
+(:mod:`~minifilm.rigs.clearance`). The result is a Motion on the target's hierarchy with its
 channels (so ``write_bvh`` writes it in the target's channel order; pass the rig's ``bvh_scale``
 for its units), at the source's frame rate.
 """
@@ -31,6 +32,7 @@ from minifilm.rigs.joint_map import RigError, Roles, sensor_positions
 from minifilm.rigs.proportions import foot_shape_of, leg_length
 from minifilm.motion.motion import Motion
 from minifilm.motion.retarget import world_to_local
+from minifilm.rigs.clearance import FLOOR_SLACK, clear_floor_keeping_contacts
 from minifilm.rigs.feet import floor_height, plant_feet
 from minifilm.rigs.pose import canonical_pose, match_chords, place_feet, rest_positions, transfer_rotations
 from minifilm.rigs.rig import Rig, file_unit, find_roles
@@ -103,8 +105,27 @@ def retarget_motion(source: Motion, target: Rig, source_roles: Optional[Roles] =
         # just under the contact speed threshold stays under it on a longer-legged target
         guides = sensor_positions(Ps, source, s_roles) - np.array([0.0, s_floor, 0.0])
         P, world = plant_feet(P, world, tm.parents, legs, contacts, guides, source.fps, body, blend_seconds)
+        # the toes out of the floor in swing, where this foot reaches further than the source's
+        # (rigs/clearance.py): no lower than the source's tip, nor than 0.7 cm under the floor
+        if _foot_reach(tm, t_roles, t_shape[0]) > _foot_reach(source, s_roles, s_shape[0]):
+            feet = [[tm.names.index(limb.ankle), tm.names.index(limb.toe) if limb.toe else None,
+                     tm.names.index(limb.sensor)] for limb in (t_roles.right, t_roles.left)]
+            bound = np.minimum(guides[..., 1], 0.0) - FLOOR_SLACK
+            # the contact test estimates its floor, as minifilm phases and the benchmark do
+            def test(Q):
+                return foot_contacts(sensor_positions(Q, tm, t_roles), source.fps,
+                                     filter_seconds=contact_filter_seconds)
+            P, world = clear_floor_keeping_contacts(P, world, tm.parents, feet, bound, source.fps, contacts, test)
     return _to_motion(tm, world, P, tm.names.index(t_roles.hips), source.frame_time,
                       f"{source.source} on {target.name}")
+
+
+def _foot_reach(motion: Motion, roles: Roles, foot_pitch: float) -> float:
+    """How far the toe tip reaches from the ankle at rest, in leg lengths (the mean of both feet)."""
+    P0 = rest_positions(motion)
+    i = motion.names.index
+    reach = [np.linalg.norm(P0[i(l.sensor)] - P0[i(l.ankle)]) for l in (roles.left, roles.right)]
+    return float(np.mean(reach)) / leg_length(motion, roles, foot_pitch)
 
 
 def _ancestor_list(motion: Motion, j: int) -> list:
