@@ -9,7 +9,7 @@ import pytest
 
 from minifilm.evaluation.retargeting import (bone_direction_errors, contact_agreement, round_trip_errors, skating,
                                              standing_height)
-from minifilm.motion.bvh import parse_bvh, read_bvh
+from minifilm.motion.bvh import read_bvh
 from minifilm.motion.humanoid import find_humanoid
 from minifilm.rigs.joint_map import BUILTIN_ROLES, RigError, chain_overlaps, roles_from_mapping
 from minifilm.rigs import load_rig, read_source, retarget_motion
@@ -186,8 +186,7 @@ def test_non_humanoid_rigs_are_refused_with_one_clear_error(tmp_path, joints, wh
 
 
 def test_a_map_naming_missing_joints_is_refused(tmp_path):
-    m = read_bvh  # noqa: F841 (the rig is the built-in 100STYLE one)
-    rig = load_rig("100style")
+    rig = load_rig("100style")                       # the file: the built-in 100STYLE rig's template
     mapping = {"hips": "Hips", "spine": ["Chest", "Chest4"], "neck": ["Neck", "Head"],
                "left": {"shoulder": "LeftShoulder", "elbow": "LeftElbow", "wrist": "LeftWrist", "upleg": "LeftHip",
                         "knee": "LeftKnee", "ankle": "LeftFoot"},
@@ -204,16 +203,13 @@ def test_a_map_naming_missing_joints_is_refused(tmp_path):
         roles_from_mapping(mapping, rig.template)
 
 
-def test_a_map_makes_an_unrecognised_rig_usable(tmp_path, synthetic_walk):
-    """Renamed joints no convention knows: the map names them and the file retargets."""
-    from minifilm.motion.bvh_write import write_bvh
+def renamed_with_map(m, tmp_path):
+    """``m`` with every joint renamed to jNN (no convention knows them) and a JSON map naming its
+    parts by the 100STYLE roles: (renamed Motion, map path)."""
     from minifilm.motion.motion import Motion
-    rename = {n: f"j{i:02d}" for i, n in enumerate(synthetic_walk.names)}
-    m = synthetic_walk
+    rename = {n: f"j{i:02d}" for i, n in enumerate(m.names)}
     renamed = Motion([rename[n] for n in m.names], m.parents, m.offsets, m.channels, m.rotations, m.translations,
                      m.frame_time, "renamed")
-    path = tmp_path / "renamed.bvh"
-    write_bvh(renamed, path)
     r = BUILTIN_ROLES["100style"]
     limb = lambda lb: {k: rename[getattr(lb, k)] for k in ("collar", "shoulder", "elbow", "wrist", "upleg", "knee",
                                                             "ankle", "toe")}
@@ -221,6 +217,16 @@ def test_a_map_makes_an_unrecognised_rig_usable(tmp_path, synthetic_walk):
                "left": limb(r.left), "right": limb(r.right)}
     map_path = tmp_path / "map.json"
     map_path.write_text(json.dumps(mapping))
+    return renamed, map_path
+
+
+def test_a_map_makes_an_unrecognised_rig_usable(tmp_path, synthetic_walk):
+    """Renamed joints no convention knows: the map names them and the file retargets."""
+    from minifilm.motion.bvh_write import write_bvh
+    renamed, map_path = renamed_with_map(synthetic_walk, tmp_path)
+    m = synthetic_walk
+    path = tmp_path / "renamed.bvh"
+    write_bvh(renamed, path)
     motion, roles = read_source(path, map_path)
     out = retarget_motion(motion, load_rig("bandai"), roles)
     assert out.n_frames == m.n_frames and np.all(np.isfinite(out.rotations))
@@ -234,27 +240,17 @@ def test_a_rig_known_only_by_its_map_gets_the_unit_body_size_gives(tmp_path, syn
     from minifilm.motion import body_size
     from minifilm.motion.bvh_write import write_bvh
     from minifilm.motion.humanoid import HumanoidError
-    from minifilm.motion.motion import Motion
     from minifilm.rigs import rig as rig_module
     m = body_size.scaled(synthetic_walk, 1.0)
     thigh_and_shin = body_size.leg_length(m, find_humanoid(m))
     m = body_size.scaled(m, 2.0 * body_size.LEG_FRACTION / thigh_and_shin)      # a 2.0 m body, metres
-    rename = {n: f"j{i:02d}" for i, n in enumerate(m.names)}
-    renamed = Motion([rename[n] for n in m.names], m.parents, m.offsets, m.channels, m.rotations, m.translations,
-                     m.frame_time, "renamed")
+    renamed, map_path = renamed_with_map(m, tmp_path)
+    mapping = json.loads(map_path.read_text())
     path = tmp_path / "renamed.bvh"
     write_bvh(renamed, path, scale=0.01)                                         # centimetres
     raw = read_bvh(path, scale=1.0)
     expected = body_size.body_unit(raw)                 # humanoid.py finds it by structure: the reference
     assert expected.metres_per_unit == 0.01 and expected.stature == pytest.approx(2.0)
-
-    r = BUILTIN_ROLES["100style"]
-    limb = lambda lb: {k: rename[getattr(lb, k)] for k in ("collar", "shoulder", "elbow", "wrist", "upleg", "knee",
-                                                            "ankle", "toe")}
-    mapping = {"hips": rename[r.hips], "spine": [rename[n] for n in r.spine], "neck": [rename[n] for n in r.neck],
-               "left": limb(r.left), "right": limb(r.right)}
-    map_path = tmp_path / "map.json"
-    map_path.write_text(json.dumps(mapping))
 
     def unrecognised(motion):
         raise HumanoidError(f"{motion.source}: not a humanoid skeleton that minifilm recognises")
