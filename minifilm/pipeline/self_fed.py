@@ -76,42 +76,33 @@ def rollout_rows(model, stats, layout: FeatureLayout, segments: Sequence[Tuple[n
     starts every ``every`` frames. Returns raw x (N, x_dim), p (N, 8), z (N, z_dim) and the mean
     joint-position error (m) of the rolled-out poses against the clip's: the rollout measure.
     """
-    x0s, p0s, idx = [], [], []
-    for seg, (x, p, z) in enumerate(segments):
-        for s in range(0, len(x) - horizon, every):
-            x0s.append(x[s])
-            p0s.append(p[s])
-            idx.append((seg, s))
-    if not idx:
+    # every clip's rows end to end; a rollout from start s reads rows s, s + 1, ... of its own file
+    X, P, Z = (np.concatenate([np.asarray(seg[i], np.float64) for seg in segments]) for i in range(3))
+    first = np.cumsum([0] + [len(seg[0]) for seg in segments])[:-1]
+    starts = np.array([f + s for f, seg in zip(first, segments) for s in range(0, len(seg[0]) - horizon, every)],
+                      dtype=np.int64)
+    if len(starts) == 0:
         return (np.zeros((0, layout.x_dim)), np.zeros((0, layout.phase_dim)), np.zeros((0, layout.z_dim)), 0.0)
-    xs, ps = np.array(x0s, np.float64), np.array(p0s, np.float64)
+    xs, ps = X[starts], P[starts]
     joints, pos_cols = layout.x_joints, layout.joint_columns("x", "position")
     out_x, out_p, out_z, errors = [], [], [], []
     dtype = model.dtype
     for k in range(horizon):
-        true_x = np.array([segments[g][0][s + k] for g, s in idx], np.float64)
-        true_z = np.array([segments[g][2][s + k] for g, s in idx], np.float64)
+        true_z = Z[starts + k]
         if k > 0:
-            errors.append(np.linalg.norm(xs[:, pos_cols] - true_x[:, pos_cols], axis=-1).mean())
-        out_x.append(xs.copy())
-        out_p.append(ps.copy())
+            errors.append(np.linalg.norm(xs[:, pos_cols] - X[starts + k][:, pos_cols], axis=-1).mean())
+        out_x.append(xs)
+        out_p.append(ps)
         out_z.append(true_z)
         z_hat = stats.denormalize_z(model.forward_with_film(stats.normalize_x(xs).astype(dtype),
                                                            stats.normalize_p(ps).astype(dtype), film))
         z_hat = np.asarray(z_hat, np.float64)
         if k + 1 < horizon:
-            nxt = np.array([segments[g][0][s + k + 1] for g, s in idx], np.float64)
-            nxt[:, joints] = into_next_root(z_hat, true_z[:, layout.z_root_delta], layout)
+            xs = X[starts + k + 1]                    # a fresh array: the path is the clip's ...
+            xs[:, joints] = into_next_root(z_hat, true_z[:, layout.z_root_delta], layout)   # ... the pose the model's
             ps = 0.5 * z_hat[:, layout.z_phases] + 0.5 * (ps + z_hat[:, layout.z_phase_updates])
-            xs = nxt
     return (np.concatenate(out_x), np.concatenate(out_p), np.concatenate(out_z),
             float(np.mean(errors)) if errors else 0.0)
-
-
-def split_segments(x: np.ndarray, p: np.ndarray, z: np.ndarray, lengths: Sequence[int]) -> List[tuple]:
-    """Raw rows of several files, concatenated, back into one (x, p, z) per file of ``lengths`` rows."""
-    bounds = np.cumsum([0] + list(lengths))
-    return [(x[a:b], p[a:b], z[a:b]) for a, b in zip(bounds[:-1], bounds[1:])]
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,7 @@ from minifilm.features.compute import frame_features
 from minifilm.features.layout import FeatureLayout
 from minifilm.motion.skeletons import builtin_skeleton
 from minifilm.phases.label import label
-from minifilm.pipeline.self_fed import into_next_root, rollout_rows, split_segments
+from minifilm.pipeline.self_fed import into_next_root, rollout_rows
 from minifilm.synthetic.generator import default_dataset
 
 
@@ -81,10 +81,3 @@ def test_a_wrong_model_is_measured_and_its_states_are_its_own(rows):
         np.testing.assert_allclose(row[layout.x_trajectory], first[k][layout.x_trajectory])
         assert np.abs(row[layout.x_joints] - first[k][layout.x_joints]).max() > 1e-3
     np.testing.assert_allclose(z[9 * starts], segments[0][2][9])           # the target is the clip's
-
-
-def test_split_segments_restores_each_file():
-    x, p, z = np.arange(10.0)[:, None], np.arange(10.0)[:, None] * 2, np.arange(10.0)[:, None] * 3
-    parts = split_segments(x, p, z, [3, 7])
-    assert [len(a[0]) for a in parts] == [3, 7]
-    np.testing.assert_array_equal(parts[1][2][:, 0], [9, 12, 15, 18, 21, 24, 27])
