@@ -115,9 +115,9 @@ def hold_root(root: np.ndarray, facing: np.ndarray, new_pos: np.ndarray, new_dir
     body[..., 0] += centre[:, 0, None]
     body[..., 2] += centre[:, 1, None]
     turned_vectors = [to_world3(to_local3(v, g_new[:, 0]), g_kept[:, 0]) for v in vectors]
-    r2, r3 = rows[:, None, None], rows[:, None, None]
-    return (np.where(r2, pos, new_pos), np.where(r2, direction, new_dir), np.where(r3, body, joints),
-            [np.where(r3, t, v) for t, v in zip(turned_vectors, vectors)])
+    r = rows[:, None, None]
+    return (np.where(r, pos, new_pos), np.where(r, direction, new_dir), np.where(r, body, joints),
+            [np.where(r, t, v) for t, v in zip(turned_vectors, vectors)])
 
 
 def refit_on_feet(fit, positions: np.ndarray, rotations: np.ndarray, held: np.ndarray, rows: np.ndarray,
