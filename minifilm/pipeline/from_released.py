@@ -25,7 +25,7 @@ import time
 import zlib
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Callable, Dict, List, Optional, Sequence
+from typing import Callable, Dict, Iterator, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -42,6 +42,7 @@ from minifilm.pipeline.gait_scripts import GAIT_SHARES, gait_script, gait_second
 from minifilm.runtime.calibration import PerCharacterCalibration, SpeedCalibration
 from minifilm.runtime.control import CommandScript
 from minifilm.runtime.controller import Controller, root_joint_indices
+from minifilm.runtime.rollout import Rollout
 from minifilm.runtime.released import load_released
 from minifilm.synthetic.generator import rest_motion
 
@@ -96,6 +97,29 @@ def style_seed(seed: int, style: str, gait: str) -> np.random.Generator:
     return np.random.default_rng([seed, zlib.crc32(style.encode()), zlib.crc32(gait.encode())])
 
 
+def drive_gaits(controller: Controller, films: np.ndarray, names: Sequence[str], gaits: Sequence[str],
+                seconds_per_style: float, seed: int, warmup: float,
+                calibrations: Optional[Sequence] = None, batch: int = 100) -> Iterator[Tuple[str, int, Rollout]]:
+    """Drive ``controller`` in every style along each gait's scripted path, up to ``batch`` styles at once.
+
+    films (S, D) are the styles' FiLM vectors, ``names`` their names (each style's paths come from
+    :func:`style_seed`). A gait gets its :data:`GAIT_SHARES` share of ``seconds_per_style``, after
+    ``warmup`` seconds (the first ``round(warmup * fps)`` frames of each rollout; cut them).
+    calibrations: one per style, each anything with ``apply(velocity, facing)`` (a
+    :class:`SpeedCalibration`), or None. Yields (gait, index of the chunk's first style, Rollout).
+    """
+    seconds = gait_seconds(seconds_per_style)
+    fps = controller.fps
+    w = int(round(warmup * fps))
+    for gait in gaits:
+        n = w + max(2, int(round(seconds[gait] * fps)))
+        for a in range(0, len(names), batch):
+            chunk = names[a:a + batch]
+            scripts = [gait_script(gait, style_seed(seed, st, gait), n / fps - warmup, warmup) for st in chunk]
+            cal = None if calibrations is None else PerCharacterCalibration(calibrations[a:a + len(chunk)])
+            yield gait, a, controller.run(scripts, n, films[a:a + len(chunk)], calibration=cal)
+
+
 def make_released_dataset(params: Path, out: Path, settings: ReleasedDataSettings = ReleasedDataSettings(),
                           log: Callable[[str], None] = print) -> dict:
     """Write the data set into the folder ``out`` (atomically: the whole folder or nothing) and
@@ -130,35 +154,31 @@ def make_released_dataset(params: Path, out: Path, settings: ReleasedDataSetting
     ctrl = Controller(rel.network, layout, fps=fps, skeleton=Controller.skeleton_for(layout, skeleton),
                       feed_back_fit=True,
                       foot_locker=FootLocker.from_names(layout.joint_names) if s.foot_lock else None)
-    seconds = gait_seconds(s.seconds_per_style)
     w = int(round(s.warmup * fps))
     files: List[MotionFile] = []
     described: List[dict] = []
     checks: Dict[str, List[dict]] = {n: [] for n in names}
     with atomic_directory(out, "data set folder", replaceable=lambda name: bool(_OWN_NAME.match(name))) as tmp:
-        for gi, gait in enumerate(s.gaits):
-            t0 = time.perf_counter()
-            n = w + max(2, int(round(seconds[gait] * fps)))
-            for a in range(0, len(names), s.batch):
-                chunk = names[a:a + s.batch]
-                scripts = [gait_script(gait, style_seed(s.seed, st, gait), n / fps - s.warmup, s.warmup)
-                           for st in chunk]
-                cal = None if cals is None else PerCharacterCalibration(cals[a:a + len(chunk)])
-                r = ctrl.run(scripts, n, films[a:a + len(chunk)], calibration=cal)
-                for b, style in enumerate(chunk):
-                    motion = r.to_motion(skeleton, joints, character=b).slice(w, n)
-                    path = tmp / f"{style}_{gait}.bvh"
-                    write_bvh(motion, path, scale=STYLE100.bvh_scale)
-                    files.append(MotionFile(out / path.name, style, gait))
-                    row = dict(file=path.name, style=style, gait=gait, frames=n - w,
-                               mean_speed=float(np.linalg.norm(np.diff(r.root_positions[b, w:], axis=0),
-                                                               axis=1).mean() * fps))
-                    if s.check_labels:
-                        lab = label(motion, STYLE100, style)
-                        row["labels"] = agreement(lab, r.contacts[b, w:], r.phases[b, w:])
-                        checks[style].append(row["labels"])
-                    described.append(row)
-            log(f"{gait}: {len(names)} styles x {(n - w) / fps:.1f} s in {time.perf_counter() - t0:.1f} s")
+        t0 = time.perf_counter()
+        for gait, first, r in drive_gaits(ctrl, films, names, s.gaits, s.seconds_per_style, s.seed, s.warmup,
+                                          cals, s.batch):
+            n = r.positions.shape[1]
+            for b, style in enumerate(names[first:first + len(r.positions)]):
+                motion = r.to_motion(skeleton, joints, character=b).slice(w, n)
+                path = tmp / f"{style}_{gait}.bvh"
+                write_bvh(motion, path, scale=STYLE100.bvh_scale)
+                files.append(MotionFile(out / path.name, style, gait))
+                row = dict(file=path.name, style=style, gait=gait, frames=n - w,
+                           mean_speed=float(np.linalg.norm(np.diff(r.root_positions[b, w:], axis=0),
+                                                           axis=1).mean() * fps))
+                if s.check_labels:
+                    lab = label(motion, STYLE100, style)
+                    row["labels"] = agreement(lab, r.contacts[b, w:], r.phases[b, w:])
+                    checks[style].append(row["labels"])
+                described.append(row)
+            if first + len(r.positions) == len(names):
+                log(f"{gait}: {len(names)} styles x {(n - w) / fps:.1f} s in {time.perf_counter() - t0:.1f} s")
+                t0 = time.perf_counter()
         write_manifest([MotionFile(tmp / f.path.name, f.style, f.gait) for f in files], tmp / "manifest.csv")
         info = dict(made_by="minifilm dataset --from-released", params=str(params),
                     settings={k: (list(v) if isinstance(v, (tuple, list)) else v) for k, v in asdict(s).items()},
