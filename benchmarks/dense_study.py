@@ -33,6 +33,7 @@ import os
 import shutil
 import time
 from dataclasses import replace
+from typing import Optional
 from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
@@ -43,11 +44,18 @@ import numpy as np  # noqa: E402
 from minifilm.dataset.build import build_dataset  # noqa: E402
 from minifilm.dataset.manifest import read_manifest, write_manifest  # noqa: E402
 from minifilm.evaluation.style_classifier import (classify_rollout, cut_windows, rollout_blocks,  # noqa: E402
-                                                  split_windows, train_style_classifier)
+                                                  split_windows, train_style_classifier, window_summary)
 from minifilm.evaluation.style_measures import StyleSpace, recognition, style_report  # noqa: E402
 from minifilm.motion.bvh import bvh_duration  # noqa: E402
 from minifilm.features.compute import clip_features  # noqa: E402
-from minifilm.motion.skeletons import builtin_skeleton  # noqa: E402
+from minifilm.features.layout import FeatureLayout  # noqa: E402
+from minifilm.motion.foot_ik import FootLocker  # noqa: E402
+from minifilm.motion.skeletons import STYLE100, builtin_skeleton  # noqa: E402
+from minifilm.pipeline.from_released import ReleasedDataSettings, calibrate_styles, drive_gaits  # noqa: E402
+from minifilm.runtime.calibration import SpeedCalibration  # noqa: E402
+from minifilm.runtime.controller import Controller  # noqa: E402
+from minifilm.runtime.released import load_released  # noqa: E402
+from minifilm.synthetic.generator import rest_motion  # noqa: E402
 from minifilm.pipeline.new_style import read_clip, teach_style  # noqa: E402
 from minifilm.pipeline.run_folder import RunFolder  # noqa: E402
 from minifilm.pipeline.self_fed import SelfFed  # noqa: E402
@@ -67,6 +75,102 @@ def onto_span(vector: np.ndarray, trained: np.ndarray) -> np.ndarray:
     coef, *_ = np.linalg.lstsq(basis, vector - mean, rcond=None)
     return mean + basis @ coef
 
+
+# ---------------------------------------------------------------- like with like: the data set's own paths
+class SpeedLimit:
+    """What a trained network is asked for on a gait script: the speed the released network reached in
+    the same style and direction when it made the data (the wish, up to that style's top speed).
+    The released network needs its calibration to reach a wish; the trained network learned from
+    what it reached, so it is asked for exactly that."""
+
+    def __init__(self, calibration: SpeedCalibration):
+        self.top = calibration.achieved[:, -1]
+        self.directions = np.asarray(calibration.directions, np.float64)
+
+    def apply(self, velocity: np.ndarray, facing: Optional[np.ndarray] = None) -> np.ndarray:
+        v = np.asarray(velocity, np.float64)
+        n = np.linalg.norm(v)
+        angle = 0.0
+        if facing is not None and n > 1e-9:
+            f = np.asarray(facing, np.float64)
+            angle = np.degrees(np.arccos(np.clip(v @ f / max(n * np.linalg.norm(f), 1e-9), -1.0, 1.0)))
+        top = np.interp(angle, self.directions, self.top)
+        return v * min(1.0, top / n) if n > 1e-9 else v * 0.0
+
+
+def teacher_calibrations(params: Path, names, cache: Path):
+    """The released network's speed calibration of each style, as ``minifilm dataset`` measures it (cached)."""
+    rel = load_released(params)
+    d = ReleasedDataSettings()
+    if cache.exists():
+        with np.load(cache, allow_pickle=False) as z:
+            if list(z["names"]) == list(names):
+                return rel, [SpeedCalibration(np.asarray(d.calibration_commands), z["achieved"][k],
+                                              tuple(d.calibration_directions)) for k in range(len(names))]
+    layout = FeatureLayout.for_skeleton(STYLE100)
+    cals = calibrate_styles(Controller(rel.network, layout, fps=60.0), np.stack([rel.styles[n] for n in names]),
+                            d.calibration_commands, d.calibration_directions, d.calibration_seconds)
+    raw = np.stack([c.achieved[:, 1:] for c in cals])           # without the (0, 0) point the class adds
+    np.savez(cache, names=np.array(list(names)), achieved=raw)
+    return rel, cals
+
+
+def gait_windows(controller: Controller, films: np.ndarray, names, gaits, seconds: float, seed: int, calibrations,
+                 ds, window: int, stride: int):
+    """Drive ``controller`` in each style along the data set's gait scripts (new paths: ``seed``), and cut
+    every rollout into normalised windows. Returns (name, gait) -> (M, window, C)."""
+    out = {}
+    for gait, first, r in drive_gaits(controller, films, list(names), gaits, seconds, seed, 1.0, calibrations):
+        blocks = ds.stats.normalize_clip(rollout_blocks(r, 1.0), ds.layout.x_joints)
+        for b, block in enumerate(blocks):
+            out[(names[first + b], gait)] = cut_windows(block, window, stride)
+    return out
+
+
+def trained_gaits(run: RunFolder):
+    """style -> the gaits of its files in the training split of the run's own data set (the run folder's cache)."""
+    from minifilm.dataset.dataset import Dataset
+    caches = sorted((run.path / "cache").glob("dataset-*.npz"))
+    if not caches:
+        raise SystemExit(f"{run.path}: no dataset cache, so the gaits each style was trained on are unknown")
+    ds = Dataset.load(caches[0])
+    train = ds.split("train")
+    out = {}
+    for k in np.unique(train.file):
+        f = ds.files[int(k)]
+        out.setdefault(f["style"], set()).add(f["gait"])
+    return out
+
+
+def real_windows_by_gait(ds, window: int, stride: int):
+    """(style, gait) -> real normalised windows from every split of the data set."""
+    out = {}
+    gait_of = np.array([f.get("gait", "") for f in ds.files])
+    for split in ("train", "val", "test"):
+        sp = ds.split(split)
+        for g in sorted(set(gait_of[sp.file]) if len(sp) else ()):
+            keep = gait_of[sp.file] == g
+            part = replace(sp, **{k: getattr(sp, k)[keep] for k in ("x", "p", "z", "style", "file", "frame")})
+            w, st = split_windows(part, ds.layout, ds.stats, window, stride)
+            for k, name in enumerate(ds.styles):
+                if np.any(st == k):
+                    out.setdefault((name, g), []).append(w[st == k])
+    return {key: np.concatenate(v) for key, v in out.items()}
+
+
+def measure_sets(generated, gaits_of, space_for, probs_of, seeds, ds, label: str):
+    """Rows of style_report, one per style of ``gaits_of`` (name -> its gaits): its generated windows of
+    those gaits (``generated``: (name, gait) -> windows) against every style's real windows of the same
+    gaits (``space_for(gaits)`` -> StyleSpace); probs_of(windows) -> {seed: class probabilities}."""
+    rows = []
+    for name, gaits in gaits_of.items():
+        w = np.concatenate([generated[(name, g)] for g in gaits])
+        target = ds.styles.index(name)
+        probs = probs_of(w)
+        rep = style_report(space_for(gaits), w, name, [recognition(probs[k], target) for k in seeds])
+        rep.update(set=label, gaits=list(gaits))
+        rows.append(rep)
+    return rows
 
 def load() -> str:
     return f"load {os.getloadavg()[0]:.1f}"
@@ -109,6 +213,77 @@ def rollouts(run: RunFolder, names, seconds: float):
                                 phases=p0, start_x=x0)
 
 
+def gaits_measure(a, ds, base: RunFolder, runs, trained, held, probs, window: int, stride: int) -> dict:
+    """Every style driven along the data set's gait scripts on new paths, by the released network (the
+    ceiling: the motion the data set is made of) and by the trained networks; each style measured on
+    the gaits it was taught (a trained style: the gaits of its training files; a held-out style: the
+    gaits of its clip) against every style's real windows of the same gaits."""
+    if a.teacher is None:
+        raise SystemExit("--measure gaits needs --teacher (the released network's folder)")
+    t0 = time.perf_counter()
+    taught = trained_gaits(RunFolder.load(a.work / "run"))
+    gaits_of = {n: tuple(g for g in CLIP_ORDER if g in taught[n]) for n in trained}
+    clip_gaits = tuple(CLIP_ORDER[:3])
+    gaits_of.update({n: clip_gaits for n in held})
+    every_gait = [g for g in CLIP_ORDER if any(g in v for v in gaits_of.values())]
+    names = trained + held
+    rel, cals = teacher_calibrations(a.teacher, names, a.work / "teacher-calibration.npz")
+    cal_of = dict(zip(names, cals))
+    layout = FeatureLayout.for_skeleton(STYLE100)
+    teacher = Controller(rel.network, layout, fps=60.0, skeleton=Controller.skeleton_for(layout, rest_motion()),
+                         feed_back_fit=True, foot_locker=FootLocker.from_names(layout.joint_names))
+    real = real_windows_by_gait(ds, window, stride)
+    spaces = {}
+
+    def space_for(gaits):
+        if gaits not in spaces:
+            spaces[gaits] = StyleSpace.fit({n: np.concatenate([real[(n, g)] for g in gaits if (n, g) in real])
+                                            for n in names})
+        return spaces[gaits]
+
+    def probs_of(w):
+        return {k: probs[k][2].predict_proba(window_summary(w)) for k in a.seeds}
+
+    def drive(ctrl, films, who, gaits, cal):
+        return gait_windows(ctrl, films, who, gaits, a.path_seconds, a.path_seed, cal, ds, window, stride)
+
+    rows = []
+    films = np.stack([rel.styles[n] for n in names])
+    released = drive(teacher, films, names, every_gait, cals)
+    rows += measure_sets(released, {n: gaits_of[n] for n in trained}, space_for, probs_of, a.seeds, ds,
+                         "released network, trained styles")
+    rows += measure_sets(released, {n: gaits_of[n] for n in held}, space_for, probs_of, a.seeds, ds,
+                         "released network, held-out styles")
+    lib = base.styles()
+    mine = drive(base.controller(), np.stack([lib[n] for n in trained]), trained, every_gait,
+                 [SpeedLimit(cal_of[n]) for n in trained])
+    rows += measure_sets(mine, {n: gaits_of[n] for n in trained}, space_for, probs_of, a.seeds, ds,
+                         "trained network, trained styles")
+    for v, run in runs.items():
+        lib = run.styles()
+        mine = drive(run.controller(), np.stack([lib[n] for n in held]), held, clip_gaits,
+                     [SpeedLimit(cal_of[n]) for n in held])
+        rows += measure_sets(mine, {n: gaits_of[n] for n in held}, space_for, probs_of, a.seeds, ds,
+                             f"{v}, held-out styles")
+    print(f"\n[study] gait scripts on new paths (seed {a.path_seed}, {a.path_seconds:g} s per style over the "
+          f"gaits), {time.perf_counter() - t0:.0f} s ({load()})")
+    print("| set | style | gaits | recognised min / mean | Fréchet rank | nearest | reproduced |")
+    print("|---|---|---|---|---|---|---|")
+    for x in rows:
+        c = x["classifier"]
+        print(f"| {x['set']} | {x['target']} | {' '.join(x['gaits'])} | {c['min']:.2f} / {c['mean']:.2f} | "
+              f"{x['rank']} | {x['nearest']} | {'yes' if x['reproduced'] else 'no'} |")
+    summary = {}
+    for label in dict.fromkeys(x["set"] for x in rows):
+        mine = [x for x in rows if x["set"] == label]
+        summary[label] = dict(styles=len(mine), recognised_mean=float(np.mean([x["classifier"]["mean"] for x in mine])),
+                              recognised_min_mean=float(np.mean([x["classifier"]["min"] for x in mine])),
+                              rank1=float(np.mean([x["rank"] == 1 for x in mine])),
+                              reproduced=int(sum(x["reproduced"] for x in mine)))
+        print(f"[study] {label}: {len(mine)} styles, recognised {summary[label]['recognised_mean']:.2f} mean, "
+              f"rank 1 for {summary[label]['rank1']:.0%}, reproduced {summary[label]['reproduced']}")
+    return dict(rows=rows, summary=summary, seconds=time.perf_counter() - t0)
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--trained", type=Path, required=True, help="data set folder of the trained styles")
@@ -117,6 +292,8 @@ def main():
     ap.add_argument("--epochs", type=int, default=3)
     ap.add_argument("--quick", action="store_true", help="the quick (smaller) model")
     ap.add_argument("--hidden", type=int, help="hidden units of Φ (default: the small model's 128)")
+    ap.add_argument("--input-noise", type=float, default=0.0, help="training: Gaussian noise on the normalised "
+                    "inputs (TrainConfig.input_noise; 0 = the paper)")
     ap.add_argument("--clip-seconds", type=float, default=30.0)
     ap.add_argument("--steps", type=int, default=400, help="fine-tuning steps")
     ap.add_argument("--generate-seconds", type=float, default=10.0)
@@ -128,6 +305,14 @@ def main():
     ap.add_argument("--reference-gaits", nargs="+", help="fit the classifier and the real windows of the Fréchet "
                     "measure on files of these gaits only (default: every gait); the figure-eight is forward "
                     "walking, so FW TR1 compares like with like")
+    ap.add_argument("--measure", nargs="+", choices=("figure-eight", "gaits"), default=["figure-eight", "gaits"],
+                    help="figure-eight: every style walks one figure-eight, measured against all its real frames; "
+                    "gaits: every style driven along the data set's own gait scripts on new paths (--path-seed), "
+                    "measured against its real frames of the same gaits, beside the released network driven "
+                    "the same way (the ceiling; needs --teacher)")
+    ap.add_argument("--teacher", type=Path, help="the released network's folder that made the data set")
+    ap.add_argument("--path-seed", type=int, default=1, help="gait scripts' seed (the data set's is 0)")
+    ap.add_argument("--path-seconds", type=float, default=60.0, help="seconds per style over the gait scripts")
     ap.add_argument("--reuse-run", action="store_true", help="keep --work/run as trained (skip training)")
     ap.add_argument("--trained-vectors", choices=("library", "clip"), default="library",
                     help="the trained styles' FiLM vectors for generating: the run's (mean Ψ over the style's "
@@ -142,7 +327,7 @@ def main():
     s = replace(Settings(), epochs=a.epochs, generate_seconds=a.generate_seconds, seed=0)
     if a.quick:
         s = replace(s.quick(), epochs=a.epochs, generate_seconds=a.generate_seconds)
-    s = replace(s, out=run_dir, model=dict(s.model, **({"hidden": a.hidden} if a.hidden else {})))
+    s = replace(s, out=run_dir, input_noise=a.input_noise, model=dict(s.model, **({"hidden": a.hidden} if a.hidden else {})))
     if not a.reuse_run:
         t0, c0 = time.perf_counter(), time.process_time()
         result = train_run(s, a.trained / "manifest.csv")
@@ -220,7 +405,7 @@ def main():
     probs = {}
     for seed in a.seeds:
         clf, info = train_style_classifier(ds, seed=seed)
-        probs[seed] = (classify_rollout(clf, ds, r, window=info["window"], stride=info["stride"]), info)
+        probs[seed] = (classify_rollout(clf, ds, r, window=info["window"], stride=info["stride"]), info, clf)
     window, stride = probs[a.seeds[0]][1]["window"], probs[a.seeds[0]][1]["stride"]
     real = {}
     for split in ("train", "val", "test"):
@@ -238,34 +423,38 @@ def main():
         report["real_rank1"] = float(np.mean(np.array(ranks) == 1))
         print(f"[study] real held-back windows of each style rank 1 by Fréchet distance for "
               f"{report['real_rank1']:.0%} of {len(ranks)} styles (the measure's ceiling)", flush=True)
-    blocks = ds.stats.normalize_clip(rollout_blocks(r), ds.layout.x_joints)
-    rows = []
-    for b, name in enumerate(names):
-        style = name.split("/")[-1]
-        target = ds.styles.index(style)
-        recs = [recognition(probs[seed][0][b], target) for seed in a.seeds]
-        rep = style_report(space, cut_windows(blocks[b], window, stride), style, recs)
-        rep["held_out"] = "/" in name
-        rep["variant"] = name.split("/")[0] if "/" in name else ""
-        rows.append(rep)
-    report["styles"] = rows
-    tr = [x for x in rows if not x["held_out"]]
-    hd = [x for x in rows if x["held_out"]]
-    print("\n| style | held out (variant) | recognised min / mean over seeds | Fréchet rank | nearest | reproduced |")
-    print("|---|---|---|---|---|---|")
-    for x in rows:
-        c = x["classifier"]
-        print(f"| {x['target']} | {x['variant']} | {c['min']:.2f} / {c['mean']:.2f} | {x['rank']} | "
-              f"{x['nearest']} | {'yes' if x['reproduced'] else 'no'} |")
-    summary = dict(trained_recognised_mean=float(np.mean([x["classifier"]["mean"] for x in tr])),
-                   trained_rank1=float(np.mean([x["rank"] == 1 for x in tr])),
-                   held_reproduced={v: int(sum(x["reproduced"] for x in hd if x["variant"] == v)) for v in a.variants},
-                   held=len(held),
-                   classifier_heldout_acc=[probs[k][1]["heldout_acc"] for k in a.seeds], load_end=os.getloadavg()[0])
-    report["summary"] = summary
-    print(f"\n[study] trained styles: recognised {summary['trained_recognised_mean']:.2f} mean, rank 1 for "
-          f"{summary['trained_rank1']:.0%}; held-out reproduced (of {len(held)}) {summary['held_reproduced']}; "
-          f"classifier held-out accuracy on real windows {summary['classifier_heldout_acc']} ({load()})")
+    if "figure-eight" in a.measure:
+        blocks = ds.stats.normalize_clip(rollout_blocks(r), ds.layout.x_joints)
+        rows = []
+        for b, name in enumerate(names):
+            style = name.split("/")[-1]
+            target = ds.styles.index(style)
+            recs = [recognition(probs[seed][0][b], target) for seed in a.seeds]
+            rep = style_report(space, cut_windows(blocks[b], window, stride), style, recs)
+            rep["held_out"] = "/" in name
+            rep["variant"] = name.split("/")[0] if "/" in name else ""
+            rows.append(rep)
+        report["styles"] = rows
+        tr = [x for x in rows if not x["held_out"]]
+        hd = [x for x in rows if x["held_out"]]
+        print("\n| style | held out (variant) | recognised min / mean over seeds | Fréchet rank | nearest | reproduced |")
+        print("|---|---|---|---|---|---|")
+        for x in rows:
+            c = x["classifier"]
+            print(f"| {x['target']} | {x['variant']} | {c['min']:.2f} / {c['mean']:.2f} | {x['rank']} | "
+                  f"{x['nearest']} | {'yes' if x['reproduced'] else 'no'} |")
+        summary = dict(trained_recognised_mean=float(np.mean([x["classifier"]["mean"] for x in tr])),
+                       trained_rank1=float(np.mean([x["rank"] == 1 for x in tr])),
+                       held_reproduced={v: int(sum(x["reproduced"] for x in hd if x["variant"] == v)) for v in a.variants},
+                       held=len(held),
+                       classifier_heldout_acc=[probs[k][1]["heldout_acc"] for k in a.seeds], load_end=os.getloadavg()[0])
+        report["summary"] = summary
+        print(f"\n[study] trained styles: recognised {summary['trained_recognised_mean']:.2f} mean, rank 1 for "
+              f"{summary['trained_rank1']:.0%}; held-out reproduced (of {len(held)}) {summary['held_reproduced']}; "
+              f"classifier held-out accuracy on real windows {summary['classifier_heldout_acc']} ({load()})")
+
+    if "gaits" in a.measure:
+        report["gaits"] = gaits_measure(a, ds, base, runs, trained, held, probs, window, stride)
     (a.work / "report.json").write_text(json.dumps(report, indent=1, default=float))
 
 

@@ -76,6 +76,7 @@ class Settings:
     # larger network)
     learning_rate: float = 5e-4
     lr_schedule: str = "constant"        # or "cosine" (TrainConfig.lr_schedule)
+    input_noise: float = 0.0             # TrainConfig.input_noise (0: none, the paper)
     clips_per_batch: Optional[int] = 4   # None: one style clip per sample, as the paper (benchmarks/clip_sharing.py)
     model: dict = field(default_factory=dict)   # overrides of ModelConfig.small
     generate_seconds: float = 10.0       # length of each generated BVH
@@ -153,6 +154,7 @@ def new_trainer(job: "Job") -> Trainer:
     trainer = Trainer(model, ds.stats,
                       TrainConfig(epochs=s.epochs, batch_size=s.batch_size, lr=s.learning_rate, seed=s.seed,
                                   lr_schedule=s.lr_schedule, clips_per_batch=s.clips_per_batch,
+                                  input_noise=s.input_noise,
                                   checkpoint_path=str(job.work / "model.npz")),
                       positions_idx=layout.joint_columns("z", "position"), parents=np.asarray(layout.parents),
                       style_names=ds.styles)
