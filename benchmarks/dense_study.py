@@ -42,6 +42,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 from minifilm.dataset.build import build_dataset  # noqa: E402
+from minifilm.dataset.dataset import Dataset  # noqa: E402
 from minifilm.dataset.manifest import read_manifest, write_manifest  # noqa: E402
 from minifilm.evaluation.style_classifier import (classify_rollout, cut_windows, rollout_blocks,  # noqa: E402
                                                   split_windows, train_style_classifier, window_summary)
@@ -129,7 +130,6 @@ def gait_windows(controller: Controller, films: np.ndarray, names, gaits, second
 
 def trained_gaits(run: RunFolder):
     """style -> the gaits of its files in the training split of the run's own data set (the run folder's cache)."""
-    from minifilm.dataset.dataset import Dataset
     caches = sorted((run.path / "cache").glob("dataset-*.npz"))
     if not caches:
         raise SystemExit(f"{run.path}: no dataset cache, so the gaits each style was trained on are unknown")
