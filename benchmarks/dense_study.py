@@ -119,12 +119,12 @@ def teacher_calibrations(params: Path, names, cache: Path):
 def gait_windows(controller: Controller, films: np.ndarray, names, gaits, seconds: float, seed: int, calibrations,
                  ds, window: int, stride: int):
     """Drive ``controller`` in each style along the data set's gait scripts (new paths: ``seed``), and cut
-    every rollout into normalised windows. Returns (name, gait) -> (M, window, C)."""
+    every rollout into normalised windows. Returns (name, gait) -> window summaries (M, 2C)."""
     out = {}
     for gait, first, r in drive_gaits(controller, films, list(names), gaits, seconds, seed, 1.0, calibrations):
         blocks = ds.stats.normalize_clip(rollout_blocks(r, 1.0), ds.layout.x_joints)
         for b, block in enumerate(blocks):
-            out[(names[first + b], gait)] = cut_windows(block, window, stride)
+            out[(names[first + b], gait)] = window_summary(cut_windows(block, window, stride))
     return out
 
 
@@ -143,7 +143,7 @@ def trained_gaits(run: RunFolder):
 
 
 def real_windows_by_gait(ds, window: int, stride: int):
-    """(style, gait) -> real normalised windows from every split of the data set."""
+    """(style, gait) -> summaries (M, 2C) of the real normalised windows from every split of the data set."""
     out = {}
     gait_of = np.array([f.get("gait", "") for f in ds.files])
     for split in ("train", "val", "test"):
@@ -154,20 +154,20 @@ def real_windows_by_gait(ds, window: int, stride: int):
             w, st = split_windows(part, ds.layout, ds.stats, window, stride)
             for k, name in enumerate(ds.styles):
                 if np.any(st == k):
-                    out.setdefault((name, g), []).append(w[st == k])
+                    out.setdefault((name, g), []).append(window_summary(w[st == k]))
     return {key: np.concatenate(v) for key, v in out.items()}
 
 
 def measure_sets(generated, gaits_of, space_for, probs_of, seeds, ds, label: str):
     """Rows of style_report, one per style of ``gaits_of`` (name -> its gaits): its generated windows of
-    those gaits (``generated``: (name, gait) -> windows) against every style's real windows of the same
+    those gaits (``generated``: (name, gait) -> window summaries) against every style's real windows of the same
     gaits (``space_for(gaits)`` -> StyleSpace); probs_of(windows) -> {seed: class probabilities}."""
     rows = []
     for name, gaits in gaits_of.items():
         w = np.concatenate([generated[(name, g)] for g in gaits])
         target = ds.styles.index(name)
         probs = probs_of(w)
-        rep = style_report(space_for(gaits), w, name, [recognition(probs[k], target) for k in seeds])
+        rep = style_report(space_for(gaits), w, name, [recognition(probs[k], target) for k in seeds], summarised=True)
         rep.update(set=label, gaits=list(gaits))
         rows.append(rep)
     return rows
@@ -238,11 +238,11 @@ def gaits_measure(a, ds, base: RunFolder, runs, trained, held, probs, window: in
     def space_for(gaits):
         if gaits not in spaces:
             spaces[gaits] = StyleSpace.fit({n: np.concatenate([real[(n, g)] for g in gaits if (n, g) in real])
-                                            for n in names})
+                                            for n in names}, summarised=True)
         return spaces[gaits]
 
     def probs_of(w):
-        return {k: probs[k][2].predict_proba(window_summary(w)) for k in a.seeds}
+        return {k: probs[k][2].predict_proba(w) for k in a.seeds}
 
     def drive(ctrl, films, who, gaits, cal):
         return gait_windows(ctrl, films, who, gaits, a.path_seconds, a.path_seed, cal, ds, window, stride)
@@ -412,14 +412,14 @@ def main():
         w, st = split_windows(ds.split(split), ds.layout, ds.stats, window, stride)
         for k, name in enumerate(ds.styles):
             if np.any(st == k):
-                real.setdefault(name, []).append(w[st == k])
-    space = StyleSpace.fit({n: np.concatenate(v) for n, v in real.items()})
+                real.setdefault(name, []).append(window_summary(w[st == k]))
+    space = StyleSpace.fit({n: np.concatenate(v) for n, v in real.items()}, summarised=True)
     # the measure's own resolution: each style's validation and test windows against the others' real windows
     # (its own from the training split), as a generated motion is measured
     train_only = {n: v[0] for n, v in real.items() if len(v[0]) >= 2}
     if len(train_only) == len(real):
-        half = StyleSpace.fit(train_only)
-        ranks = [half.rank(np.concatenate(v[1:]), n) for n, v in real.items() if sum(len(x) for x in v[1:]) >= 2]
+        half = StyleSpace.fit(train_only, summarised=True)
+        ranks = [half.rank(np.concatenate(v[1:]), n, summarised=True) for n, v in real.items() if sum(len(x) for x in v[1:]) >= 2]
         report["real_rank1"] = float(np.mean(np.array(ranks) == 1))
         print(f"[study] real held-back windows of each style rank 1 by Fréchet distance for "
               f"{report['real_rank1']:.0%} of {len(ranks)} styles (the measure's ceiling)", flush=True)

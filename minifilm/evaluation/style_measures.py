@@ -78,12 +78,13 @@ class StyleSpace:
     gaussians: Dict[str, tuple]  # name -> (mu (dims,), cov (dims, dims))
 
     @classmethod
-    def fit(cls, windows: Mapping[str, np.ndarray], dims: int = 32) -> "StyleSpace":
-        """windows: style name -> (M, T, C) real windows (normalised clip features), M >= 2 each."""
+    def fit(cls, windows: Mapping[str, np.ndarray], dims: int = 32, summarised: bool = False) -> "StyleSpace":
+        """windows: style name -> (M, T, C) real windows (normalised clip features), M >= 2 each, or
+        with ``summarised`` their (M, 2C) summaries (:func:`window_summary`: far less memory)."""
         names = list(windows)
         if len(names) < 1:
             raise ValueError("StyleSpace.fit: no styles")
-        summ = {n: window_summary(windows[n]) for n in names}
+        summ = {n: np.asarray(windows[n], np.float64) if summarised else window_summary(windows[n]) for n in names}
         for n, s in summ.items():
             if len(s) < 2:
                 raise ValueError(f"StyleSpace.fit: style {n!r} has {len(s)} windows; need at least 2")
@@ -103,16 +104,17 @@ class StyleSpace:
         s = np.asarray(windows, np.float64) if summarised else window_summary(windows)
         return ((s - self.mean) / self.std) @ self.basis
 
-    def distances(self, windows: np.ndarray) -> Dict[str, float]:
-        """Squared Fréchet distance from generated windows (M >= 2, T, C) to every style."""
-        mu, cov = gaussian(self.project(windows))
+    def distances(self, windows: np.ndarray, summarised: bool = False) -> Dict[str, float]:
+        """Squared Fréchet distance from generated windows (M >= 2, T, C), or their (M, 2C)
+        summaries with ``summarised``, to every style."""
+        mu, cov = gaussian(self.project(windows, summarised))
         return {n: frechet_distance(mu, cov, *g) for n, g in self.gaussians.items()}
 
-    def rank(self, windows: np.ndarray, target: str) -> int:
+    def rank(self, windows: np.ndarray, target: str, summarised: bool = False) -> int:
         """The target style's place among all styles by distance (1 = nearest; ties count against it)."""
         if target not in self.gaussians:
             raise KeyError(f"StyleSpace.rank: no style {target!r}; styles: {self.names}")
-        d = self.distances(windows)
+        d = self.distances(windows, summarised)
         return 1 + sum(v <= d[target] for n, v in d.items() if n != target)
 
 
@@ -138,10 +140,11 @@ def reproduced(rank: int, recognitions: Sequence[float], threshold: float = 0.8)
 
 
 def style_report(space: StyleSpace, windows: np.ndarray, target: str, recognitions: Optional[Sequence[float]] = None,
-                 threshold: float = 0.8) -> dict:
+                 threshold: float = 0.8, summarised: bool = False) -> dict:
     """Everything measured for one generated motion of style ``target``: distance to the target,
-    the nearest style, the rank, and with ``recognitions`` the classifier spread and the verdict."""
-    d = space.distances(windows)
+    the nearest style, the rank, and with ``recognitions`` the classifier spread and the verdict.
+    windows: (M, T, C), or (M, 2C) summaries with ``summarised``."""
+    d = space.distances(windows, summarised)
     nearest = min(d, key=d.get)
     rank = 1 + sum(v <= d[target] for n, v in d.items() if n != target)
     out = dict(target=target, distance=d[target], nearest=nearest, nearest_distance=d[nearest], rank=rank)

@@ -94,3 +94,19 @@ def test_fit_needs_windows():
     rng = np.random.default_rng(3)
     with pytest.raises(ValueError, match="at least 2"):
         StyleSpace.fit({"A": windows_of(rng, 1, 0.0), "B": windows_of(rng, 5, 1.0)})
+
+
+def test_summaries_measure_exactly_as_the_windows_they_summarise():
+    """The study keeps (M, 2C) summaries instead of (M, T, C) windows (a 95-style measure of raw
+    windows held several GB): every measure must be the same either way."""
+    from minifilm.evaluation.style_classifier import window_summary
+    rng = np.random.default_rng(3)
+    real, offsets = style_windows(rng)
+    a = StyleSpace.fit(real, dims=8)
+    b = StyleSpace.fit({k: window_summary(v) for k, v in real.items()}, dims=8, summarised=True)
+    np.testing.assert_array_equal(a.basis, b.basis)
+    new = windows_of(rng, 60, offsets["C"] + 0.3)
+    s = window_summary(new)
+    assert a.distances(new) == b.distances(s, summarised=True)
+    assert a.rank(new, "C") == b.rank(s, "C", summarised=True) == 1
+    assert style_report(a, new, "C", [0.9]) == style_report(b, s, "C", [0.9], summarised=True)
