@@ -314,9 +314,10 @@ def main():
     ap.add_argument("--path-seed", type=int, default=1, help="gait scripts' seed (the data set's is 0)")
     ap.add_argument("--path-seconds", type=float, default=60.0, help="seconds per style over the gait scripts")
     ap.add_argument("--reuse-run", action="store_true", help="keep --work/run as trained (skip training)")
-    ap.add_argument("--trained-vectors", choices=("library", "clip"), default="library",
+    ap.add_argument("--trained-vectors", choices=("library", "clip", "tuned"), default="library",
                     help="the trained styles' FiLM vectors for generating: the run's (mean Ψ over the style's "
-                         "training clips) or mean Ψ over its --clip-seconds clip, as a held-out style is taught")
+                         "training clips), mean Ψ over its --clip-seconds clip, or 'tuned': each trained style "
+                         "taught anew from --clip-seconds of its own training files, as a held-out style is")
     a = ap.parse_args()
     VARIANTS["self-fed"] = SelfFed(rounds=a.rounds, steps=a.round_steps, horizon=a.horizon)
     a.work.mkdir(parents=True, exist_ok=True)
@@ -350,6 +351,27 @@ def main():
         vectors_from_clips(RunFolder.load(folder), trained_files, trained, a.clip_seconds)
         base = RunFolder.load(folder)
         print(f"[study] trained styles' vectors: mean Ψ over each one's {a.clip_seconds:g} s clip ({load()})",
+              flush=True)
+    if a.trained_vectors == "tuned":
+        folder = a.work / "run-tuned-vectors"
+        if folder.exists():
+            shutil.rmtree(folder)
+        shutil.copytree(run_dir, folder, ignore=shutil.ignore_patterns("model-*.npz", "*.lock"))
+        taught_gaits = trained_gaits(RunFolder.load(run_dir))
+        t0, kept = time.perf_counter(), []
+        for style in trained:
+            own = [f for f in trained_files if f.style == style and f.gait in taught_gaits[style]]
+            clip, _ = clip_files(own, style, a.clip_seconds)
+            try:
+                teach_style(folder, style, [f.path for f in clip], steps=a.steps, log=lambda m: None, replace=True)
+            except ValueError as e:           # e.g. no foot step found in the clip: the library's vector stays
+                kept.append(style)
+                print(f"[study] {style}: kept its library vector ({e})", flush=True)
+                continue
+            (folder / f"model-{style}.npz").unlink()          # only the vector is kept
+        base = RunFolder.load(folder)
+        print(f"[study] trained styles' vectors: each taught anew from {a.clip_seconds:g} s of its training "
+              f"files ({len(trained) - len(kept)} of {len(trained)}), {time.perf_counter() - t0:.0f} s ({load()})",
               flush=True)
     films_before = {n: base.styles()[n].copy() for n in trained}
     probe = trained[0]
