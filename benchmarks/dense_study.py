@@ -172,6 +172,16 @@ def measure_sets(generated, gaits_of, space_for, probs_of, seeds, ds, label: str
         rows.append(rep)
     return rows
 
+def print_rows(rows, lead_headers, lead) -> None:
+    """A markdown table of style_report rows: the ``lead`` columns, then both measures and the verdict."""
+    print("| " + " | ".join(lead_headers) + " | recognised min / mean over seeds | Fréchet rank | nearest | reproduced |")
+    print("|---" * (len(lead_headers) + 4) + "|")
+    for x in rows:
+        c = x["classifier"]
+        print("| " + " | ".join(lead(x)) + f" | {c['min']:.2f} / {c['mean']:.2f} | {x['rank']} | {x['nearest']} | "
+              f"{'yes' if x['reproduced'] else 'no'} |")
+
+
 def load() -> str:
     return f"load {os.getloadavg()[0]:.1f}"
 
@@ -267,12 +277,7 @@ def gaits_measure(a, ds, base: RunFolder, runs, trained, held, probs, window: in
                              f"{v}, held-out styles")
     print(f"\n[study] gait scripts on new paths (seed {a.path_seed}, {a.path_seconds:g} s per style over the "
           f"gaits), {time.perf_counter() - t0:.0f} s ({load()})")
-    print("| set | style | gaits | recognised min / mean | Fréchet rank | nearest | reproduced |")
-    print("|---|---|---|---|---|---|---|")
-    for x in rows:
-        c = x["classifier"]
-        print(f"| {x['set']} | {x['target']} | {' '.join(x['gaits'])} | {c['min']:.2f} / {c['mean']:.2f} | "
-              f"{x['rank']} | {x['nearest']} | {'yes' if x['reproduced'] else 'no'} |")
+    print_rows(rows, ("set", "style", "gaits"), lambda x: (x["set"], x["target"], " ".join(x["gaits"])))
     summary = {}
     for label in dict.fromkeys(x["set"] for x in rows):
         mine = [x for x in rows if x["set"] == label]
@@ -459,12 +464,8 @@ def main():
         report["styles"] = rows
         tr = [x for x in rows if not x["held_out"]]
         hd = [x for x in rows if x["held_out"]]
-        print("\n| style | held out (variant) | recognised min / mean over seeds | Fréchet rank | nearest | reproduced |")
-        print("|---|---|---|---|---|---|")
-        for x in rows:
-            c = x["classifier"]
-            print(f"| {x['target']} | {x['variant']} | {c['min']:.2f} / {c['mean']:.2f} | {x['rank']} | "
-                  f"{x['nearest']} | {'yes' if x['reproduced'] else 'no'} |")
+        print()
+        print_rows(rows, ("style", "held out (variant)"), lambda x: (x["target"], x["variant"]))
         summary = dict(trained_recognised_mean=float(np.mean([x["classifier"]["mean"] for x in tr])),
                        trained_rank1=float(np.mean([x["rank"] == 1 for x in tr])),
                        held_reproduced={v: int(sum(x["reproduced"] for x in hd if x["variant"] == v)) for v in a.variants},
