@@ -55,6 +55,7 @@ from minifilm.motion.skeletons import STYLE100, builtin_skeleton  # noqa: E402
 from minifilm.pipeline.from_released import ReleasedDataSettings, calibrate_styles, drive_gaits  # noqa: E402
 from minifilm.runtime.calibration import SpeedCalibration  # noqa: E402
 from minifilm.runtime.controller import Controller  # noqa: E402
+from minifilm.runtime.frames import floor_angle  # noqa: E402
 from minifilm.runtime.released import load_released  # noqa: E402
 from minifilm.synthetic.generator import rest_motion  # noqa: E402
 from minifilm.pipeline.new_style import read_clip, teach_style  # noqa: E402
@@ -91,10 +92,7 @@ class SpeedLimit:
     def apply(self, velocity: np.ndarray, facing: Optional[np.ndarray] = None) -> np.ndarray:
         v = np.asarray(velocity, np.float64)
         n = np.linalg.norm(v)
-        angle = 0.0
-        if facing is not None and n > 1e-9:
-            f = np.asarray(facing, np.float64)
-            angle = np.degrees(np.arccos(np.clip(v @ f / max(n * np.linalg.norm(f), 1e-9), -1.0, 1.0)))
+        angle = 0.0 if facing is None or n <= 1e-9 else floor_angle(v, np.asarray(facing, np.float64))
         top = np.interp(angle, self.directions, self.top)
         return v * min(1.0, top / n) if n > 1e-9 else v * 0.0
 

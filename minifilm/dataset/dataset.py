@@ -44,6 +44,15 @@ class Split:
     def __len__(self) -> int:
         return int(self.x.shape[0])
 
+    def runs(self):
+        """(starts, stops) (R,) row bounds of the runs of consecutive frames of one file: a run's
+        rows are frames f, f + 1, ... of its file (the split's other frames of it start a new run)."""
+        if len(self) == 0:
+            return np.zeros(0, np.int64), np.zeros(0, np.int64)
+        brk = np.r_[True, (np.diff(self.file) != 0) | (np.diff(self.frame) != 1)]
+        starts = np.nonzero(brk)[0]
+        return starts, np.r_[starts[1:], len(self)]
+
 
 _SPLIT_ARRAYS = ("x", "p", "z", "style", "file", "frame", "clips", "clip_style", "clip_file")
 

@@ -45,11 +45,8 @@ def split_windows(split, layout, normalizer, window: int, stride: int):
     """
     if len(split) == 0:
         return np.empty((0, window, layout.clip_dim)), np.empty(0, dtype=np.int64)
-    brk = np.r_[True, (np.diff(split.file) != 0) | (np.diff(split.frame) != 1)]
-    starts = np.nonzero(brk)[0]
-    stops = np.r_[starts[1:], len(split)]
     wins, styles = [], []
-    for a, b in zip(starts, stops):
+    for a, b in zip(*split.runs()):
         block = normalizer.normalize_clip(np.asarray(split.x[a:b, layout.x_joints], dtype=np.float64), layout.x_joints)
         w = cut_windows(block, window, stride)
         wins.append(w)

@@ -33,20 +33,15 @@ from minifilm.pipeline.self_fed import SelfFed, rollout_rows, style_film
 def file_runs(split) -> Tuple[List[Tuple[np.ndarray, np.ndarray, np.ndarray]], np.ndarray]:
     """The raw rows of a data set split cut into runs of consecutive frames of one file:
     [(x (F, x_dim), p (F, 8), z (F, z_dim)), ...] and each run's style id (R,)."""
-    if len(split) == 0:
-        return [], np.zeros(0, np.int64)
-    brk = np.r_[True, (np.diff(split.file) != 0) | (np.diff(split.frame) != 1)]
-    starts = np.nonzero(brk)[0]
-    stops = np.r_[starts[1:], len(split)]
+    starts, stops = split.runs()
     runs = [(split.x[a:b], split.p[a:b], split.z[a:b]) for a, b in zip(starts, stops)]
     return runs, np.asarray(split.style[starts], np.int64)
 
 
-def gather_rows(model, ds, train: TrainData, settings: SelfFed):
-    """One round's rows: every style rolled out along its own training files with its own FiLM
-    vector. Returns normalised float32 (x, p, z, style) and the mean joint-position error (m) of
-    the rollouts against the files, over styles."""
-    runs, run_style = file_runs(ds.split("train"))
+def gather_rows(model, ds, train: TrainData, runs, run_style: np.ndarray, settings: SelfFed):
+    """One round's rows: every style rolled out along its own training files (``runs``, ``run_style``:
+    :func:`file_runs` of the training split) with its own FiLM vector. Returns normalised float32
+    (x, p, z, style) and the mean joint-position error (m) of the rollouts against the files, over styles."""
     xs, ps, zs, ss, errors = [], [], [], [], []
     for k in range(len(ds.styles)):
         mine = [r for r, s in zip(runs, run_style) if s == k]
@@ -69,11 +64,12 @@ def self_fed_training(trainer, ds, settings: SelfFed = SelfFed(rounds=3, horizon
     the same rounds on the training rows alone (the control: as many more teacher-forced steps).
     Returns the mean rollout error (m) before each round and after the last."""
     train, val = ds.train_data("train"), ds.train_data("val")
+    runs, run_style = file_runs(ds.split("train"))          # the same rows every round
     rng = np.random.default_rng(trainer.config.seed + 1)
     pool: List[tuple] = []
     errors = []
     for r in range(settings.rounds + 1):
-        x, p, z, s, error = gather_rows(trainer.model, ds, train, settings)
+        x, p, z, s, error = gather_rows(trainer.model, ds, train, runs, run_style, settings)
         errors.append(error)
         log(f"    self-fed round {r}: rollout error {error * 100:.2f} cm; {len(x)} rows gathered")
         if r == settings.rounds:

@@ -14,6 +14,7 @@ from typing import Optional, Sequence
 import numpy as np
 
 from minifilm.runtime.control import CommandScript
+from minifilm.runtime.frames import floor_angle
 
 
 @dataclass
@@ -70,11 +71,7 @@ class SpeedCalibration:
         of travel is measured against ``facing`` (..., 2) (forwards if not given)."""
         v = np.asarray(velocity, dtype=np.float64)
         n = np.linalg.norm(v, axis=-1)
-        direction = 0.0
-        if facing is not None:
-            f = np.asarray(facing, dtype=np.float64)
-            cos = np.sum(v * f, axis=-1) / np.maximum(n * np.linalg.norm(f, axis=-1), 1e-9)
-            direction = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+        direction = 0.0 if facing is None else floor_angle(v, np.asarray(facing, dtype=np.float64))
         scale = self.command_for(n, direction) / np.maximum(n, 1e-9)
         return np.where((n > 1e-9)[..., None], v * scale[..., None], 0.0)
 

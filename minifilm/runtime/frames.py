@@ -50,3 +50,9 @@ def to_world3(v: np.ndarray, f: np.ndarray) -> np.ndarray:
 def unit2(v: np.ndarray, fallback: np.ndarray) -> np.ndarray:
     n = np.linalg.norm(v, axis=-1, keepdims=True)
     return np.where(n > 1e-8, v / np.maximum(n, 1e-8), fallback)
+
+
+def floor_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Degrees in [0, 180] between floor directions a and b (..., 2); 90 where either is zero-length."""
+    cos = np.sum(a * b, axis=-1) / np.maximum(np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1), 1e-9)
+    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))

@@ -72,6 +72,7 @@ from typing import Optional
 
 import numpy as np
 
+from minifilm.runtime.frames import floor_angle
 from minifilm.runtime.held_body import hold_root, plant_feet, refit_on_feet
 
 #: below this commanded speed (m/s) the command is "stand"
@@ -85,11 +86,6 @@ REACHED_DEG = 3.0
 TURN_RATE = 20.0
 TURN_WINDOW = 0.25
 
-
-def _angle_to(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(B,) degrees between the floor directions a and b (B, 2)."""
-    cos = np.sum(a * b, axis=-1) / np.maximum(np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1), 1e-9)
-    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
 
 
 @dataclass(frozen=True)
@@ -190,7 +186,7 @@ class StandStill:
         # the spot is finished by its own steps), at most ``turn_wait`` seconds
         lag = max(1, int(round(TURN_WINDOW / dt)))
         if st.history_dir.shape[1] >= lag:
-            now, then = _angle_to(st.facing, st.target_facing), _angle_to(st.history_dir[:, -lag], st.target_facing)
+            now, then = floor_angle(st.facing, st.target_facing), floor_angle(st.history_dir[:, -lag], st.target_facing)
             turning = (now > REACHED_DEG) & (then - now > TURN_RATE * lag * dt)
         else:
             turning = np.zeros(len(idle), dtype=bool)

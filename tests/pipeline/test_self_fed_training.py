@@ -53,8 +53,8 @@ def test_file_runs_are_the_consecutive_rows_of_one_file(ds):
 def test_each_style_is_rolled_out_along_its_own_files(ds):
     trainer = new_trainer(ds)
     settings = SelfFed(rounds=1, horizon=20, every=20)
-    x, p, z, s, error = gather_rows(trainer.model, ds, ds.train_data("train"), settings)
     runs, run_style = file_runs(ds.split("train"))
+    x, p, z, s, error = gather_rows(trainer.model, ds, ds.train_data("train"), runs, run_style, settings)
     for k in (0, 1):
         starts = sum(len(range(0, len(r[0]) - 20, 20)) for r, st in zip(runs, run_style) if st == k)
         assert np.sum(s == k) == 20 * starts > 0
