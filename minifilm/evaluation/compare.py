@@ -181,7 +181,8 @@ def style_recognition(model, info, ctx):
     rollout = run_rollouts(controller_for(model, info, ctx), cond, ids, ctx, a.rollout_seconds)
     if diverged(rollout):
         return {"diverged": True, "accuracy": None, "per_style": {n: None for n in ctx.seen},
-                "foot_sliding": None, "bone_cv_mean": None, "bone_cv_max": None, "speed": None}
+                "foot_sliding": None, "foot_sliding_cm_s": None, "path_error": None,
+                "direction_error": None, "bone_cv_mean": None, "bone_cv_max": None, "speed": None}
     w, s = ctx.clf_info["window"], ctx.clf_info["stride"]
     probs = classify_rollout(ctx.classifier, ctx.ds, rollout, window=w, stride=s)     # (B, M, classes)
     target = np.array([ctx.ds.styles.index(n) for n in ctx.seen])

@@ -168,14 +168,19 @@ def write_report(out: Path, name: str, ctx, results, ft, meta) -> Path:
         w(f"| {v} | " + " | ".join(f"{e['per_style'][s]:.4f}" for s in ctx.seen) + " |")
     w("\n## Generated motion: style recognition, foot sliding, bone lengths\n")
     w(f"Classifier ceiling on real held-out rows: **{ci['heldout_acc']:.3f}** (chance {1 / len(ds.styles):.3f}).\n")
-    w("| variant | style accuracy | foot sliding (m/s) | bone-length cv mean | bone-length cv max | root speed (m/s) |")
-    w("|---|---:|---:|---:|---:|---:|")
+    w("Foot sliding twice: while the network's own contact label is on (m/s), and by the field's "
+      "height-based definition (cm/s while a toe is within 1 cm of the floor, docs/metrics.md). "
+      "Path and direction errors: the root against the commanded velocities integrated.\n")
+    w("| variant | style accuracy | foot sliding (m/s) | foot sliding, height (cm/s) | path error (m) | "
+      "direction error (°) | bone-length cv mean | bone-length cv max | root speed (m/s) |")
+    w("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     for v, r in results.items():
         q = r["rollout"]
         if q["diverged"]:
-            w(f"| {v} | diverged | | | | |")
+            w(f"| {v} | diverged | | | | | | | |")
             continue
-        w(f"| {v} | {q['accuracy']:.3f} | {_fmt(q['foot_sliding'], 3)} | {_fmt(q['bone_cv_mean'])} | "
+        w(f"| {v} | {q['accuracy']:.3f} | {_fmt(q['foot_sliding'], 3)} | {_fmt(q.get('foot_sliding_cm_s'), 1)} | "
+          f"{_fmt(q.get('path_error'), 2)} | {_fmt(q.get('direction_error'), 1)} | {_fmt(q['bone_cv_mean'])} | "
           f"{_fmt(q['bone_cv_max'])} | {_fmt(q['speed'], 2)} |")
     w("\nStyle accuracy per seen style (fraction of rollout windows classified as the commanded style):\n")
     w("| variant | " + " | ".join(ctx.seen) + " |")
@@ -197,7 +202,7 @@ def write_report(out: Path, name: str, ctx, results, ft, meta) -> Path:
         if i is None:
             continue
         if i.get("diverged"):
-            w(f"| {v} | diverged | | | | |")
+            w(f"| {v} | diverged | | | | | | | |")
             continue
         small = abs(i["change"]) < 0.2             # the score hardly moves: the ratio means little
         step = "n/a" if small else f"{i['max_step']:.2f}"

@@ -1,7 +1,7 @@
 """Style metrics for the comparison of Sec. 5 (Figure 8, 10, 11): numbers computed from rollouts,
 style scores and FiLM vectors. Plain NumPy, no model code.
 
-- foot sliding and bone-length variation of generated motion (quality of rollouts);
+- foot sliding, bone-length variation and path following of generated motion (quality of rollouts);
 - smoothness of a style score along an interpolation weight (Figure 8: FiLM blends smoothly);
 - a 2-D PCA embedding and the silhouette score of FiLM vectors grouped by style (Figure 11).
 """
@@ -11,6 +11,7 @@ from typing import Sequence
 
 import numpy as np
 
+from minifilm.evaluation import field_metrics
 from minifilm.motion.measures import bone_length_cv, foot_sliding
 
 
@@ -26,23 +27,44 @@ def bone_length_variation(positions: np.ndarray, parents: Sequence[int]) -> dict
     return {"mean": float(cv[bones].mean()), "max": float(cv.max())}
 
 
+def commanded_path(rollout, b: int) -> np.ndarray:
+    """(F, 2) where character ``b`` would be if it moved exactly at its commanded velocities from
+    where it started: the path a trajectory error is measured against."""
+    steps = rollout.targets[b, :-1] / rollout.fps
+    return rollout.root_positions[b, 0] + np.concatenate([np.zeros((1, 2)), np.cumsum(steps, axis=0)])
+
+
 def rollout_quality(rollout, parents: Sequence[int], toes: Sequence[int], warmup_seconds: float = 1.0,
                     contact_threshold: float = 0.5) -> dict:
-    """Foot sliding (m/s) and bone-length variation of a :class:`minifilm.runtime.controller.Rollout`,
-    averaged over its characters, after ``warmup_seconds`` (the start pose is the mean pose).
+    """Foot sliding, bone-length variation and path following of a
+    :class:`minifilm.runtime.controller.Rollout`, averaged over its characters, after
+    ``warmup_seconds`` (the start pose is the mean pose).
 
     toes: joint index of the toe for each contact column (the Rollout's order [right, left]).
+    Keys: foot_sliding (m/s, toes while the network's own contact label is on), foot_sliding_cm_s
+    (cm/s, toes while within 1 cm of the floor: the field's height-based definition,
+    :func:`~minifilm.evaluation.field_metrics.foot_sliding`), bone_cv_mean / bone_cv_max,
+    path_error (m, mean distance of the root from the commanded path), direction_error (degrees,
+    direction of travel against the command's) and stalled (share of moving commands on which the
+    root stood), all from the first frame.
     """
     k0 = min(int(round(warmup_seconds * rollout.fps)), rollout.positions.shape[1] - 2)
-    slide, cv_mean, cv_max = [], [], []
+    slide, slide_cm, cv_mean, cv_max, path, direction, stalled = [], [], [], [], [], [], []
     for b in range(rollout.positions.shape[0]):
         P = rollout.positions[b, k0:]
         slide.append(foot_sliding(P, rollout.contacts[b, k0:], toes, rollout.fps, contact_threshold))
+        slide_cm.append(field_metrics.foot_sliding(P, toes, rollout.fps)["speed_cm_s"])
         v = bone_length_variation(P, parents)
         cv_mean.append(v["mean"])
         cv_max.append(v["max"])
-    return {"foot_sliding": float(np.mean(slide)), "bone_cv_mean": float(np.mean(cv_mean)),
-            "bone_cv_max": float(np.max(cv_max))}
+        e = field_metrics.trajectory_errors(rollout.root_positions[b], commanded_path(rollout, b), fps=rollout.fps)
+        path.append(e["position_mean"])
+        direction.append(e["direction_mean"])
+        stalled.append(e["stalled"])
+    return {"foot_sliding": float(np.mean(slide)), "foot_sliding_cm_s": float(np.mean(slide_cm)),
+            "bone_cv_mean": float(np.mean(cv_mean)), "bone_cv_max": float(np.max(cv_max)),
+            "path_error": float(np.mean(path)), "direction_error": float(np.mean(direction)),
+            "stalled": float(np.mean(stalled))}
 
 
 # ---------------------------------------------------------------------------- interpolation

@@ -97,3 +97,17 @@ def test_sliding_planted_vs_sliding_foot():
     sliding = rollout_quality(_rollout(np.arange(F) * 0.5 / 60.0), [-1, 0, 1], toes=[2, 2],
                               warmup_seconds=0.5)
     assert sliding["foot_sliding"] == pytest.approx(0.5)     # 0.5 m/s while in contact
+
+
+def test_rollout_quality_reads_the_height_based_sliding_and_the_path_error():
+    F = 120
+    r = _rollout(np.arange(F) * 0.01)                        # toe 1 cm per frame on the floor (y = 0)
+    r.targets, r.root_positions = np.zeros((1, F, 2)), np.zeros((1, F, 2))   # _rollout shares one array
+    r.targets[0, :, 1] = 1.0                                # commanded 1 m/s along +z ...
+    r.root_positions[0, :, 0] = 0.25                        # ... the root stands 25 cm to the side
+    q = rollout_quality(r, [-1, 0, 1], toes=[2, 2], warmup_seconds=0.5)
+    assert q["foot_sliding_cm_s"] == pytest.approx(60.0)
+    # the commanded path starts at the root and runs away at 1 m/s: mean gap over 2 s
+    gap = np.hypot(0.0, np.arange(F) / 60.0)
+    assert q["path_error"] == pytest.approx(gap.mean())
+    assert q["stalled"] == pytest.approx(1.0)              # it never moves while the path does
