@@ -35,7 +35,8 @@ def add_arguments(p) -> None:
     p.add_argument("--fps", type=in_range(1.0, 1000.0), default=30.0, help="resample the data to this rate (default 30)")
     p.add_argument("--clip-seconds", type=positive(float, 60.0), default=2.0)
     p.add_argument("--seconds", type=positive(float, 3600.0), default=10.0, help="synthetic seconds per style and gait")
-    p.add_argument("--styles", help="comma-separated synthetic styles (default: all)")
+    p.add_argument("--styles", help="comma-separated styles of the data, or a number N: N styles spread "
+                   "evenly over the sorted names, keeping --holdout and --interpolate (default: all)")
     p.add_argument("--gaits", help="comma-separated synthetic gaits (default: all)")
     p.add_argument("--split-files", action="store_true",
                    help="whole files per split (for many short files, e.g. Bandai's ~5 s files)")

@@ -36,7 +36,7 @@ from minifilm.baselines.variants import VARIANTS, build_variant
 from minifilm.dataset.build import build_dataset, resolve_files
 from minifilm.errors import InputError
 from minifilm.evaluation.compare_report import write_report
-from minifilm.evaluation.compare_tools import (film_codes, film_separation, fit_stats, motion_errors,
+from minifilm.evaluation.compare_tools import (film_codes, film_separation, fit_stats, select_styles, motion_errors,
                                                style_subset)
 from minifilm.evaluation.metrics import interpolation_smoothness, rollout_quality
 from minifilm.evaluation.style_classifier import classify_rollout, train_style_classifier
@@ -76,6 +76,8 @@ def load_data(args):
         if not folder.is_dir():
             raise FileNotFoundError(f"--data {folder}: no such folder (give 'synthetic' or a folder of BVH files)")
         extra = {"split_unit": "files"} if args.split_files else {}
+        if args.styles:     # the run's style subset (already checked by run): only its files are read
+            folder = [f for f in resolve_files(folder) if f.style in set(args.styles)]
     ds = build_dataset(folder, cache_dir=cache, progress=False, clip_seconds=args.clip_seconds,
                        clip_stride_seconds=args.clip_seconds / 2, seed=args.seed, fps=args.fps, **extra)
     return ds, name
@@ -289,8 +291,14 @@ def run(args):
     if not synthetic_data and not Path(args.data).is_dir():
         raise FileNotFoundError(f"--data {args.data}: no such folder (give 'synthetic' or a folder of BVH files)")
     # the style names, from the file names, before anything is generated or built (as the dataset lists them)
-    styles = sorted(set(args.styles or synthetic.STYLES) if synthetic_data
-                    else {f.style for f in resolve_files(args.data)})
+    available = synthetic.STYLES if synthetic_data else {f.style for f in resolve_files(args.data)}
+    keep = [x for x in [args.holdout] + (args.interpolate.split(",") if args.interpolate else []) if x]
+    try:
+        styles = select_styles(available, args.styles, keep)
+    except ValueError as e:
+        raise InputError(f"compare: {e}") from None
+    if args.styles:
+        args.styles = styles if args.styles[0].strip().isdigit() else [x.strip() for x in args.styles]
     holdout = args.holdout or (SYNTH_HOLDOUT if synthetic_data and SYNTH_HOLDOUT in styles else styles[-1])
     pa, pb = check_styles(styles, holdout, args.interpolate.split(",") if args.interpolate else None)
     Path(args.work).mkdir(parents=True, exist_ok=True)

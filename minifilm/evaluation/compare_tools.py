@@ -1,5 +1,6 @@
 """Pieces shared by the comparison (minifilm/evaluation/compare.py) and examples/finetune_new_style.py.
 
+- `select_styles`: the styles a comparison runs on (all, named, or N spread over the names);
 - `style_subset`: the frames and clips of some styles of a dataset as a TrainData, normalised with
   given statistics and with the style ids renumbered 0 .. S-1 (to hold a style out of training);
 - `motion_errors`: test MSE and bone-length loss on the output columns every variant predicts
@@ -20,6 +21,34 @@ from minifilm.model.losses import bone_length_loss
 
 
 # ---------------------------------------------------------------------------- data
+def select_styles(available: Sequence[str], spec: Optional[Sequence[str]], keep: Sequence[str] = ()) -> list:
+    """The styles a comparison runs on: all of ``available`` (spec None), the named ones, or with a
+    single whole number N, N styles spread evenly over the sorted names (so a 100-style set cut to
+    20 still spans the alphabet rather than its first fifth), always including ``keep`` (the
+    held-out style and the interpolation pair, when named). Returns sorted names.
+
+    ValueError for a name that is not available or N outside 3 .. len(available).
+    """
+    names = sorted(set(available))
+    if not spec:
+        return names
+    if len(spec) == 1 and spec[0].strip().isdigit():
+        n = int(spec[0])
+        if not 3 <= n <= len(names):
+            raise ValueError(f"--styles {n}: give between 3 and {len(names)} styles (one is held out, "
+                             f"two are interpolated)")
+        kept = [k for k in keep if k in names]
+        rest = [x for x in names if x not in kept]
+        picks = np.linspace(0, len(rest) - 1, max(n - len(kept), 0)).round().astype(int) if rest else []
+        return sorted(set(kept) | {rest[i] for i in picks})
+    chosen = [x.strip() for x in spec if x.strip()]
+    unknown = [x for x in chosen if x not in names]
+    if unknown:
+        raise ValueError(f"--styles: {', '.join(map(repr, unknown))} not in the data ({len(names)} styles: "
+                         f"{', '.join(names[:12])}{' ...' if len(names) > 12 else ''})")
+    return sorted(set(chosen))
+
+
 def fit_stats(ds, styles: Sequence[str]) -> NormStats:
     """Normalisation statistics from the training rows of `styles` only (a held-out style must not
     leak into them)."""

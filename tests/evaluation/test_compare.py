@@ -111,3 +111,22 @@ def test_claims_use_seed_means():
     text = claims(types.SimpleNamespace(seen=["Swimming"], holdout=None), res, None)
     assert "lowest test error: **holds**" in text[0]
     assert "LPN lowest on 0 of 1" in text[1]
+
+
+def test_a_number_of_styles_spreads_over_the_names_and_keeps_the_named_ones():
+    from minifilm.evaluation.compare_tools import select_styles
+    names = [f"S{i:03d}" for i in range(100)]
+    picked = select_styles(names, ["5"])
+    assert picked == ["S000", "S025", "S050", "S074", "S099"]
+    kept = select_styles(names, ["4"], keep=["S042", "S043"])
+    assert len(kept) == 4 and {"S042", "S043"} <= set(kept)
+    assert select_styles(names, None) == names
+    assert select_styles(names, ["S002", " S001"]) == ["S001", "S002"]
+
+
+@pytest.mark.parametrize("spec, words", [(["2"], "between 3 and 100"), (["101"], "between 3 and 100"),
+                                          (["Nope"], "'Nope' not in the data")])
+def test_a_style_subset_outside_the_data_is_refused(spec, words):
+    from minifilm.evaluation.compare_tools import select_styles
+    with pytest.raises(ValueError, match=words):
+        select_styles([f"S{i:03d}" for i in range(100)], spec)
