@@ -140,3 +140,15 @@ def test_a_non_humanoid_is_told_what_to_do_in_words_every_command_follows(tmp_pa
     assert "minifilm retarget" in lines[0] and "--map" in lines[0]        # the way, as a whole command
     assert lines[0].index("minifilm retarget") < lines[0].index("--map")
     outcome(lambda: find_humanoid(quadruped()), InputError)
+
+
+def test_finetune_takes_the_cmu_layout_onto_a_run_without_a_map(shared_data, tmp_path, tiny_run):
+    """finetune's way in (pipeline.run_rig.retarget_onto_run): the CMU layout on the run's skeleton."""
+    from minifilm.pipeline.run_rig import retarget_onto_run
+    m = reparented(read_bvh(shared_data / STYLE100, scale=0.01), *CMU_LAYOUT_FROM_100STYLE)
+    path = tmp_path / "cmu_layout.bvh"
+    write_bvh(m, path, scale=0.01)
+    said = []
+    out = retarget_onto_run(path, tiny_run, log=said.append)
+    assert out.n_frames == 3 and np.isfinite(out.world()[0]).all()
+    assert said and "retargeted onto it" in said[0]
