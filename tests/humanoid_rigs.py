@@ -144,3 +144,121 @@ def stick_human(pelvis_apart: bool = False, arms: str = "T") -> Motion:
             rows.append((f"leg_{side}{k}", leg_top if k == 0 else top + k - 1, off))
     names_, parents, offsets = zip(*rows)
     return posed(names_, parents, offsets, frames=6, source="<stick human>")
+
+
+#: Names a spine joint goes by, and a neck joint (the unfamiliar ones too: only the hierarchy tells).
+SPINE_NAMES = ("Spine", "Spine1", "Spine2", "Chest", "Chest2", "Chest3", "abdomen", "LowerBack", "UpperBack",
+               "torso", "thorax", "back_01")
+NECK_NAMES = ("Neck", "NeckBase", "C7", "cervical", "Throat", "lowerneck", "upperneck", "Neck1", "neck_01",
+              "nape")
+#: (collar, upper arm, forearm, hand) names, {S} the side as the convention writes it
+ARM_CONVENTIONS = (("{S}Collar", "{S}Shoulder", "{S}Elbow", "{S}Wrist"),        # 100STYLE, the CMU conversion
+                   ("{S}Shoulder", "{S}Arm", "{S}ForeArm", "{S}Hand"),          # Mixamo, Xia
+                   ("Clavicle_{s}", "UpperArm_{s}", "LowerArm_{s}", "Hand_{s}"),
+                   ("{s}Collar", "{s}Shldr", "{s}ForeArm", "{s}Hand"))          # the MotionBuilder CMU file
+
+
+def branching_human(n_spine: int, arms_at: int, n_neck: int, collars: bool, spine_names, neck_names,
+                    arm_convention=ARM_CONVENTIONS[0], arms: str = "down", frames: int = 4):
+    """A 1.75 m person (metres, facing +z, left = +x) whose arms branch off spine joint ``arms_at``
+    (0-based, of ``n_spine`` joints above the hips): the spine joints above it and then ``n_neck``
+    neck joints lead to ``Head`` (and its End Site). So the names may say "spine" for what the
+    hierarchy makes the neck, and a neck may go by any name.
+
+    Returns (motion, expected): expected is {role: joint name} as a person reading the hierarchy
+    names the parts: the chest is where the arms branch, the neck is the first joint above it
+    towards the head (None when the head sits on the chest)."""
+    assert 0 <= arms_at < n_spine and len(spine_names) >= n_spine and len(neck_names) >= n_neck
+    rows = [("Hips", -1, (0.0, 0.95, 0.0))]
+    torso = 0.45 / (arms_at + 1)
+    above = n_spine - 1 - arms_at + n_neck                 # joints between the chest and the head
+    neck_step = 0.12 / max(above, 1)
+    for k in range(n_spine):
+        rows.append((spine_names[k], k, (0.0, torso if k <= arms_at else neck_step, 0.0)))
+    chest = 1 + arms_at
+    for k in range(n_neck):
+        rows.append((neck_names[k], len(rows) - 1, (0.0, neck_step, 0.01)))
+    head = len(rows)
+    rows.append(("Head", head - 1, (0.0, 0.1 if above else 0.2, 0.02)))
+    rows.append(("HeadSite", head, (0.0, 0.18, 0.0)))
+    expected = dict(hips="Hips", head="Head", head_top="HeadSite",
+                    neck=rows[chest + 1][0] if chest + 1 < head + 1 and above else None,
+                    **{f"spine{k}": spine_names[k] for k in range(arms_at + 1)})
+    for side, S, s, x in (("left", "Left", "l", 1.0), ("right", "Right", "r", -1.0)):
+        names = [c.format(S=S, s=s) for c in arm_convention]
+        if arms == "T":
+            segs = [(0.03 * x, 0.02, 0), (0.15 * x, 0, 0), (0.28 * x, 0, 0), (0.25 * x, 0, 0), (0.08 * x, 0, 0)]
+        else:
+            segs = [(0.03 * x, 0.02, 0), (0.15 * x, 0, 0), (0.02 * x, -0.28, 0), (0, -0.25, 0.03), (0, -0.08, 0)]
+        if not collars:
+            segs = [(0.18 * x, 0.02, 0)] + segs[2:]
+            names = names[1:]
+        parent = chest
+        for k, (name, off) in enumerate(zip(names + [names[-1] + "Site"], segs)):
+            rows.append((name, parent, off))
+            parent = len(rows) - 1
+        roles = ("collar", "shoulder", "elbow", "wrist") if collars else ("shoulder", "elbow", "wrist")
+        expected.update({f"{side}_{r}": n for r, n in zip(roles, names)})
+        if not collars:
+            expected[f"{side}_collar"] = None
+        leg = [f"{S}Hip", f"{S}Knee", f"{S}Ankle", f"{S}Toe", f"{S}ToeSite"]
+        segs = [(0.09 * x, -0.03, 0), (0, -0.43, 0.02), (0, -0.42, -0.02), (0, -0.06, 0.14), (0, -0.01, 0.05)]
+        parent = 0
+        for name, off in zip(leg, segs):
+            rows.append((name, parent, off))
+            parent = len(rows) - 1
+        expected.update({f"{side}_{r}": n for r, n in zip(("hip", "knee", "ankle", "toe", "toe_tip"), leg)})
+    names_, parents, offsets = zip(*rows)
+    return posed(names_, parents, offsets, frames=frames, source="<branching human>"), expected
+
+
+def branching_humans(n: int, seed: int = 0):
+    """``n`` varied :func:`branching_human` rigs drawn at random (spine 1-5 joints, arms off any
+    of them, 0-3 neck joints, with and without collars, names from the pools above): a list of
+    (label, motion, expected)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(n):
+        n_spine = int(rng.integers(1, 6))
+        arms_at = int(rng.integers(0, n_spine))
+        n_neck = int(rng.integers(0, 4))
+        if arms_at == n_spine - 1 and n_neck == 0 and rng.random() < 0.5:
+            n_neck = 1
+        spine = [str(n) for n in rng.permutation(SPINE_NAMES)[:n_spine]]
+        neck = [str(n) for n in rng.permutation(NECK_NAMES)[:n_neck]]
+        collars = bool(rng.random() < 0.7)
+        convention = ARM_CONVENTIONS[int(rng.integers(len(ARM_CONVENTIONS)))]
+        arms = "down" if rng.random() < 0.7 else "T"
+        m, expected = branching_human(n_spine, arms_at, n_neck, collars, spine, neck, convention, arms)
+        label = (f"#{i} spine={spine} arms_at={spine[arms_at]} neck={neck} collars={collars} "
+                 f"arms={convention[1]} {arms}")
+        out.append((label, m, expected))
+    return out
+
+
+def reparented(motion: Motion, moves: dict, names: dict = None) -> Motion:
+    """``motion`` with each joint of ``moves`` ({joint: new parent}, the new parent an ancestor of
+    the old one) hung off its new parent where it stood at rest (its offset lengthened by the
+    bones it now skips), then renamed by ``names``: e.g. the collars moved from ``Chest4`` to
+    ``Chest2``, as the CMU layout hangs them."""
+    parents, offsets = motion.parents.copy(), motion.offsets.copy()
+    T = motion.translations.copy()
+    index = {n: i for i, n in enumerate(motion.names)}
+    for joint, new_parent in moves.items():
+        j, target = index[joint], index[new_parent]
+        p = int(parents[j])
+        while p != target:
+            offsets[j] += offsets[p]
+            T[:, j] += offsets[p]
+            p = int(parents[p])
+            assert p >= 0, f"{new_parent} is not above {joint}"
+        parents[j] = target
+    out = Motion(list(motion.names), parents, offsets, list(motion.channels), motion.rotations.copy(), T,
+                 motion.frame_time, motion.source)
+    return renamed(out, names or {})
+
+
+#: The CMU layout seen in released conversions: the collars off ``Chest2``; ``Chest3``, ``Chest4``
+#: then lead up the neck (here renamed ``lowerneck``, ``upperneck``) to the head.
+CMU_LAYOUT_FROM_100STYLE = (dict(LeftCollar="Chest2", RightCollar="Chest2"),
+                            dict(Chest3="lowerneck", Chest4="upperneck"))

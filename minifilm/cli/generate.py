@@ -26,7 +26,7 @@ from minifilm.cli.args import in_range, input_path, png_path, positive
 from minifilm.errors import InputError
 from minifilm.features.layout import FeatureLayout
 from minifilm.files import check_writable
-from minifilm.motion.bvh import read_bvh
+from minifilm.motion.body_size import read_in_metres
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.motion.foot_ik import FootLocker
 from minifilm.motion.measures import bone_length_cv, foot_sliding
@@ -103,7 +103,21 @@ class Source:
             self.fit, self.calibrate = args.fit or "output", False
             self.options = {"position_bias": run.position_bias}
         if args.skeleton_bvh is not None:
-            self.skeleton = read_bvh(args.skeleton_bvh, scale=self.bvh_scale)
+            self.skeleton = skeleton_in_metres(args.skeleton_bvh, self.bvh_scale)
+
+
+def skeleton_in_metres(path, run_unit: float):
+    """The ``--skeleton-bvh`` file in metres, its unit found as ``view`` and ``retarget`` find it
+    (minifilm.motion.body_size.read_in_metres): a skeleton in millimetres or metres is converted
+    (and said so), one that is not a humanoid or has no size (all-zero offsets) is refused."""
+    skeleton, humanoid, unit = read_in_metres(path)
+    if humanoid is None:
+        raise InputError(f"--skeleton-bvh {path}: its size cannot be told ({unit.how}); give a humanoid "
+                         "skeleton with its bones' real offsets")
+    if abs(unit.metres_per_unit / run_unit - 1.0) > 1e-6:
+        print(f"[generate] --skeleton-bvh {path}: read in {unit.how}; the output is written in "
+              f"{run_unit:g} m per unit like the skeleton it replaces")
+    return skeleton
 
 
 def style_condition(args, lib: StyleLibrary, n: int, fps: float):

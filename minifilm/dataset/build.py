@@ -31,7 +31,7 @@ from minifilm.dataset.progress import Progress
 from minifilm.dataset.settings import DatasetSettings
 from minifilm.dataset.splits import SPLITS, apply_gap, file_rng, split_files, split_segments
 from minifilm.dataset.stats import NormStats
-from minifilm.dataset.survey import check_memory, survey
+from minifilm.dataset.survey import check_memory, check_one_rig, most_common_rig, survey
 from minifilm.dataset.validate import check_every_style_trains, check_finite
 from minifilm.errors import DataError
 from minifilm.files import check_name, note_input
@@ -89,14 +89,15 @@ def _featurise(motion, skeleton, contacts, phases, segments, fps, want_clips, se
     return rows, clips
 
 
-def _pick_skeleton(settings: DatasetSettings, first: MotionFile):
-    """The skeleton named in the settings, else the built-in one the first file's joints match."""
+def _pick_skeleton(settings: DatasetSettings, surveyed):
+    """The skeleton named in the settings, else the built-in one the joints of most files match
+    (read off their headers by the survey)."""
     if settings.skeleton is not None:
         try:
             return builtin_skeleton(settings.skeleton)
         except ValueError as e:
             raise ValueError(f"DatasetSettings.skeleton: {e}") from None
-    return detect_skeleton(read_bvh(first.path))
+    return detect_skeleton(most_common_rig(surveyed))
 
 
 def build_dataset(source: Union[str, Path, Sequence[MotionFile]],
@@ -126,8 +127,9 @@ def build_dataset(source: Union[str, Path, Sequence[MotionFile]],
         if cache_path.is_file() and cached_key(cache_path) == key:
             return Dataset.load(cache_path)
     t0 = time.perf_counter()
-    surveyed = survey(files, settings.fps)
-    skeleton = skeleton or _pick_skeleton(settings, files[0])
+    surveyed = survey(files, settings.fps)                # headers only: rates, lengths, joints
+    skeleton = skeleton or _pick_skeleton(settings, surveyed)
+    check_one_rig(surveyed, skeleton)                     # a foreign file named before any is read
     fps = settings.fps or next(iter(surveyed.values())).fps
     check_memory(surveyed, [settings.mirrors(f) for f in files], FeatureLayout.for_skeleton(skeleton),
                  int(round(settings.clip_seconds * fps)), int(round(settings.clip_stride_seconds * fps)),

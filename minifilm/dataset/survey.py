@@ -6,7 +6,9 @@ error naming the files at fault, what would otherwise fail late or blame the wro
 * files at different frame rates when no common rate is set (the minority is named, not whichever
   file happened to be read second);
 * a frame range (manifest ``start, end``) outside its file, and files too short for a single row;
-* a dataset whose arrays would not fit in memory (estimated before anything is allocated).
+* a dataset whose arrays would not fit in memory (estimated before anything is allocated);
+* files of another rig than the others (:func:`check_one_rig`: the skeleton's joints are read
+  off every header, so one foreign file among hundreds is named before any file is labelled).
 """
 from __future__ import annotations
 
@@ -14,11 +16,12 @@ import os
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Dict, List, Optional, Sequence
+from types import SimpleNamespace
+from typing import Dict, List, Optional, Sequence, Tuple
 
 from minifilm.dataset.manifest import MotionFile
 from minifilm.errors import DataError
-from minifilm.motion.bvh import bvh_header
+from minifilm.motion.bvh import bvh_header_names
 
 #: Frames a file needs for one training row (a current frame with a frame before and after it).
 MIN_FRAMES = 3
@@ -34,6 +37,7 @@ class FileSurvey:
     fps: float              # the file's own rate
     n_joints: int = 0       # joints in the file's hierarchy (End Sites included): what reading it allocates
     raw_frames: int = 0     # frames in the file, before cropping and resampling
+    names: Tuple[str, ...] = ()   # its joints' names (End Sites included), from the header
 
 
 def _round_rate(fps: float) -> float:
@@ -45,7 +49,8 @@ def survey(files: Sequence[MotionFile], fps: Optional[float]) -> Dict[Path, File
     for mixed rates without a common ``fps``, a range outside a file, or a file too short."""
     out: Dict[Path, FileSurvey] = {}
     for f in files:
-        n, frame_time, n_joints = bvh_header(f.path)
+        names, n, frame_time = bvh_header_names(f.path)
+        n_joints = len(names)
         rate = 1.0 / frame_time
         a = 0 if f.start is None else f.start
         b = n if f.end is None else f.end
@@ -55,7 +60,7 @@ def survey(files: Sequence[MotionFile], fps: Optional[float]) -> Dict[Path, File
         if used < MIN_FRAMES:
             raise DataError(f"{f.path}: {used} frame{'s' if used != 1 else ''} to use; a file needs at least "
                             f"{MIN_FRAMES} (one frame with a neighbour on each side)")
-        out[Path(f.path)] = FileSurvey(Path(f.path), used, rate, n_joints, n)
+        out[Path(f.path)] = FileSurvey(Path(f.path), used, rate, n_joints, n, tuple(names))
     if fps is None:
         rates = Counter(_round_rate(s.fps) for s in out.values())
         if len(rates) > 1:
@@ -67,6 +72,34 @@ def survey(files: Sequence[MotionFile], fps: Optional[float]) -> Dict[Path, File
                             "resample them all to one rate (--fps of minifilm train / dataset, "
                             "DatasetSettings(fps=...))")
     return out
+
+
+def most_common_rig(surveyed: Dict[Path, FileSurvey]) -> SimpleNamespace:
+    """The joint names most files share, as a stand-in motion (``names``, ``source``) for
+    :func:`~minifilm.motion.skeletons.detect_skeleton`: the data set's skeleton is the majority's,
+    not whichever file comes first."""
+    layouts = Counter(s.names for s in surveyed.values())
+    names, count = layouts.most_common(1)[0]
+    first = next(s.path for s in surveyed.values() if s.names == names)
+    return SimpleNamespace(names=list(names), source=f"{first} (and the {count - 1} other files of its joints)")
+
+
+def check_one_rig(surveyed: Dict[Path, FileSurvey], skeleton) -> None:
+    """DataError naming the files that lack joints ``skeleton`` reads (files of another rig), from
+    their headers alone, before any file is read in full."""
+    odd = [(s, skeleton.missing_joints(SimpleNamespace(names=s.names))) for s in surveyed.values()]
+    odd = [(s, missing) for s, missing in odd if missing]
+    if not odd:
+        return
+    listed = "; ".join(f"{s.path.name} lacks {', '.join(missing[:4])}{' ...' if len(missing) > 4 else ''} "
+                       f"(its {len(s.names)} joints start {', '.join(s.names[:3])})" for s, missing in odd[:3])
+    more = f"; and {len(odd) - 3} more" if len(odd) > 3 else ""
+    fitting = next((s.path for s in surveyed.values() if not skeleton.missing_joints(SimpleNamespace(names=s.names))),
+                   None)
+    how = (f"put them on the others' rig first (minifilm retarget FILES --to {fitting} --out DIR)"
+           if fitting is not None else f"give files of the {skeleton.name!r} skeleton")
+    raise DataError(f"{len(odd)} of {len(surveyed)} files are not of the {skeleton.name!r} skeleton the data set "
+                    f"is read with: {listed}{more}. A data set is one rig: {how}, or leave them out")
 
 
 def memory_budget() -> int:

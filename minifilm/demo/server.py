@@ -44,6 +44,7 @@ from minifilm.demo.site import Site
 from minifilm.demo.source import DemoSource
 from minifilm.demo.stage import Stage, StageFull
 from minifilm.demo.style_mix import film_digest
+from minifilm.viewer.body import body_plan_of_positions
 
 MAX_QUEUED = 64          # control messages (errors, notices) waiting for a slow page; older ones go
 CLOSE_TIMEOUT = 2.0      # seconds a closed page has to answer the close; then its connection is dropped
@@ -217,6 +218,7 @@ class DemoServer:
             "fps": self.source.fps, "styles": self.source.library.names, "style": character.mix.target,
             "films": self.film_digests,
             "joints": list(layout.joint_names), "parents": [int(p) for p in layout.parents],
+            "body": self._body_plan(state.out_pos[0]),
             "contactJoints": self.source.contact_joints(), "size": round(float(state.out_pos[0][:, 1].max()), 3),
             "settings": {"footLock": character.foot_lock, "fit": character.fit},
             "speeds": {"walk": self.settings.walk_speed, "run": self.settings.run_speed},
@@ -225,6 +227,13 @@ class DemoServer:
             "heldOut": held_out(self.source.library.names),
             "calibration": self.calibrations.progress(),
         })
+
+    def _body_plan(self, positions) -> dict:
+        """The mannequin's body plan (minifilm/viewer/body.py) of the source's layout, found once."""
+        if getattr(self, "_body", None) is None:
+            layout = self.source.layout
+            self._body = body_plan_of_positions(positions, layout.parents, layout.joint_names)
+        return self._body
 
     async def _connection(self, ws) -> None:
         ConnectionClosed = self.modules[1]

@@ -1,8 +1,9 @@
 """A file's length unit (metres per file unit) and a body's standing height.
 
 A BVH file does not say its unit. When its joint names are one of the built-in skeletons
-(minifilm/motion/skeletons.py) the unit is that skeleton's ``bvh_scale``. Otherwise it is inferred
-from the body: the thigh and shin together are about 0.49 of a standing adult's height
+(minifilm/motion/skeletons.py) and that skeleton's ``bvh_scale`` gives a human height, the unit is
+that one. Otherwise (other names, or known names written in another unit: the 100STYLE skeleton in
+millimetres) it is inferred from the body: the thigh and shin together are about 0.49 of a standing adult's height
 (Drillis & Contini 1966: 0.245 + 0.246), and a standing human is 1.4-2.1 m tall, so
 
     stature (file units) = (thigh + shin) / 0.49
@@ -88,16 +89,25 @@ def body_unit(motion: Motion, humanoid: Optional[Humanoid] = None) -> BodyUnit:
         skeleton = detect_skeleton(motion)
     except ValueError:
         skeleton = None
-    if skeleton is not None:
+    lo, hi = STATURE_RANGE
+    if skeleton is not None and lo <= stature_units * skeleton.bvh_scale <= hi:
         s = skeleton.bvh_scale
         return BodyUnit(s, stature_units * s, f"the {skeleton.name!r} skeleton's unit ({s:g} m)")
-    return unit_for_stature(stature_units)
+    unit = unit_for_stature(stature_units)      # names of a known skeleton, written in another unit
+    if skeleton is not None:
+        unit = BodyUnit(unit.metres_per_unit, unit.stature,
+                        f"{unit.how}, not the {skeleton.name!r} skeleton's usual {skeleton.bvh_scale:g} m "
+                        f"(that would make it {stature_units * skeleton.bvh_scale:.3g} m tall)")
+    return unit
 
 
 def unit_for_stature(stature_units: float) -> BodyUnit:
     """The first common unit (KNOWN_UNITS) that makes a body ``stature_units`` tall 1.4-2.1 m;
     failing every one, the scale that makes it TYPICAL_STATURE."""
     lo, hi = STATURE_RANGE
+    if not stature_units > 1e-9:                # all-zero offsets: a point, no height to go by
+        raise HumanoidError(f"the legs have no length (thigh + shin = {stature_units:g} file units): the "
+                            "skeleton's offsets are zero, so it has no size and no unit can be found")
     for name, s in KNOWN_UNITS:
         if lo <= stature_units * s <= hi:
             return BodyUnit(s, stature_units * s,

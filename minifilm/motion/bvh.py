@@ -23,7 +23,6 @@ one split per line and a bulk float conversion per block of frames.
 """
 from __future__ import annotations
 
-import io
 import os
 from typing import Dict, List, Tuple, Union
 
@@ -35,7 +34,8 @@ from minifilm.motion.bvh_syntax import (LINE_END, MAX_VALUE, NUMBER, BVHError, H
 from minifilm.motion.kinematics import axis_rotation, euler_to_matrix
 from minifilm.motion.motion import Motion
 
-__all__ = ["BVHError", "read_bvh", "parse_bvh", "bvh_duration", "bvh_timing", "bvh_header"]
+__all__ = ["BVHError", "read_bvh", "parse_bvh", "bvh_duration", "bvh_timing", "bvh_header", "bvh_header_names",
+           "decode_bvh"]
 
 
 #: the largest BVH file read (100STYLE's longest take is about 20 MB)
@@ -49,7 +49,7 @@ def read_bvh(path: Union[str, os.PathLike], scale: float = 0.01) -> Motion:
     FIFO, a device) and for files over :data:`MAX_BVH_BYTES`, and OSError when the file can't be read.
     """
     raw = read_regular_bytes(path, "BVH file", MAX_BVH_BYTES, error=BVHError.about_file)
-    return parse_bvh(raw.decode("utf-8", errors="replace"), source=str(path), scale=scale)
+    return parse_bvh(decode_bvh(raw, str(path)), source=str(path), scale=scale)
 
 
 def bvh_duration(path: Union[str, os.PathLike]) -> float:
@@ -69,25 +69,49 @@ def bvh_timing(path: Union[str, os.PathLike]) -> Tuple[int, float]:
 def bvh_header(path: Union[str, os.PathLike]) -> Tuple[int, float, int]:
     """(frames, seconds per frame, joints with End Sites) of a BVH file, read from its header
     alone: what parsing it would allocate, known before it is parsed."""
-    lines: List[str] = []
-    motion_line, after, n_joints = None, 0, 0
-    with open_regular(path, "BVH file", MAX_BVH_BYTES, error=BVHError.about_file) as raw, \
-            io.TextIOWrapper(raw, encoding="utf-8", errors="replace") as f:
-        for line in f:                        # stop two non-empty lines after MOTION
-            lines.append(line.rstrip("\r\n"))
-            first = lines[-1].split(None, 1)[0].upper() if lines[-1].strip() else ""
-            if motion_line is None and first in ("ROOT", "JOINT", "END"):
-                n_joints += 1
-            if motion_line is None and lines[-1].strip().upper() == "MOTION":
-                motion_line = len(lines) - 1
-            elif motion_line is not None and lines[-1].strip():
+    names, n_frames, frame_time = bvh_header_names(path)
+    return n_frames, frame_time, len(names)
+
+
+def bvh_header_names(path: Union[str, os.PathLike]) -> Tuple[List[str], int, float]:
+    """(joint names with End Sites, frames, seconds per frame) of a BVH file, from its header alone.
+
+    The hierarchy is read by the same parser as the whole file (so a hierarchy written on one line
+    counts its joints, and names are those ``read_bvh`` gives); the frames are not read."""
+    chunks: List[bytes] = []
+    motion_line, after = None, 0
+    with open_regular(path, "BVH file", MAX_BVH_BYTES, error=BVHError.about_file) as raw:
+        for i, line in enumerate(raw):        # stop two non-empty lines after MOTION
+            chunks.append(line)
+            text = line.strip()
+            first = text.split(None, 1)[0].upper() if text else b""
+            if motion_line is None and first == b"MOTION":
+                motion_line = i
+            elif motion_line is not None and text:
                 after += 1
                 if after == 2:
                     break
-    if motion_line is None:
-        raise BVHError(str(path), None, "no MOTION section")
+    lines = LINE_END.split(decode_bvh(b"".join(chunks), str(path)).lstrip("\ufeff"))
+    header = Hierarchy(lines, str(path))
+    motion_line = header.parse()
     n_frames, frame_time, _ = parse_motion_header(lines, motion_line, str(path))
-    return n_frames, frame_time, n_joints
+    return list(header.names), n_frames, frame_time
+
+
+def decode_bvh(raw: bytes, source: str) -> str:
+    """The text of a BVH file: UTF-8 (ASCII included), else Windows-1252, the encoding of files
+    written on Windows (joint names such as ``Hüfte``); BVHError naming the first byte neither
+    reads (instead of names that silently end in a replacement character)."""
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError:
+        pass
+    try:
+        return raw.decode("cp1252")
+    except UnicodeDecodeError as e:
+        line = raw[:e.start].count(b"\n") + 1
+        raise BVHError(source, line, f"byte 0x{raw[e.start]:02X} is neither UTF-8 nor Windows-1252 text; "
+                                     "save the file as UTF-8") from None
 
 
 def parse_bvh(text: str, source: str = "<string>", scale: float = 0.01) -> Motion:

@@ -84,6 +84,9 @@ class Hierarchy:
         self.tokens.append(("<end of hierarchy>", end_line))
 
         tok, line = self.next()
+        if tok == "<end of hierarchy>" and motion_line is not None:
+            raise self.error(line, "the file starts with MOTION: it has no HIERARCHY section (the skeleton "
+                                   "must come first, 'HIERARCHY' then 'ROOT ...')")
         if tok == "<end of hierarchy>":
             raise self.error(line, "expected 'HIERARCHY' at the start of the file, found no text")
         if tok.upper() != "HIERARCHY":
@@ -247,10 +250,9 @@ def parse_motion_header(lines: List[str], motion_line: int, source: str) -> Tupl
             if found[key] == 0:
                 raise BVHError(source, i + 1, "expected at least one frame, the file declares 'Frames: 0'")
         else:
-            try:
-                t = float(value) if value is not None else float("nan")
-            except ValueError:
-                t = float("nan")
+            # the same spelling as the motion's numbers: float() alone would take "0.01_6" or
+            # Arabic-Indic digits, which no BVH writer produces and the frames would refuse
+            t = float(value) if value is not None and NUMBER.fullmatch(value) else float("nan")
             if not (np.isfinite(t) and t > 0):
                 raise BVHError(source, i + 1, f"expected 'Frame Time: <positive seconds>', found {clip(lines[i])!r}")
             if not MIN_FPS <= 1.0 / t <= MAX_FPS:

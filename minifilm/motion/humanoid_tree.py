@@ -44,6 +44,16 @@ class PosedTree:
             p = int(self.parents[p])
         return False
 
+    def common_ancestor(self, a: int, b: int) -> int:
+        """The deepest joint that is ``a`` or an ancestor of it and ``b`` or an ancestor of it."""
+        above_a = {a}
+        while self.parents[a] >= 0:
+            a = int(self.parents[a])
+            above_a.add(a)
+        while b not in above_a:
+            b = int(self.parents[b])
+        return b
+
     def path(self, top: int, bottom: int) -> List[int]:
         """Joints from ``top`` (exclusive) down to ``bottom`` (inclusive); ``top`` must be an ancestor."""
         out = [bottom]
@@ -133,11 +143,35 @@ def farthest_leaf(tree: PosedTree, top: int, j: int) -> int:
 
 def assemble(tree: PosedTree, method: str, hips: int, neck: Optional[int], head: int,
            limbs: Dict[str, Dict[str, Optional[int]]]) -> Humanoid:
-    """Assemble the Humanoid and check it is plausible (raises HumanoidError otherwise)."""
-    top = neck if neck is not None else head
-    if not tree.is_ancestor(hips, top):
+    """Assemble the Humanoid and check it is plausible (raises HumanoidError otherwise).
+
+    The torso is read off the hierarchy, whatever the names said: the chest is the joint where
+    the two arms and the head's chain part (their nearest common ancestor), the spine runs from
+    the hips to it, and the neck is the first joint above it towards the head. So a neck of any
+    name (``NeckBase``, ``C7``), spine joints above the arms (collars off ``Chest2`` while
+    ``Chest3``, ``Chest4`` lead to the head) and collars off the neck chain all come out right;
+    ``neck`` (the names' or the structure's guess) only serves when it agrees."""
+    if not tree.is_ancestor(hips, head):
         raise HumanoidError(f"by {method}: the head {tree.names[head]!r} is not below the hips {tree.names[hips]!r}")
-    chest_path = tree.path(hips, top)[:-1]
+    arm_tops = []
+    for side in ("left", "right"):
+        shoulder = limbs[side]["shoulder"]
+        if not tree.is_ancestor(hips, shoulder):
+            raise HumanoidError(f"by {method}: the {side} arm {tree.names[shoulder]!r} is not below the hips "
+                                f"{tree.names[hips]!r}")
+        arm_tops.append(shoulder)
+    chest = tree.common_ancestor(tree.common_ancestor(arm_tops[0], arm_tops[1]), head)
+    if chest != hips and not tree.is_ancestor(hips, chest):
+        raise HumanoidError(f"by {method}: the arms and the head {tree.names[head]!r} meet at "
+                            f"{tree.names[chest]!r}, which is not above the hips {tree.names[hips]!r}")
+    if chest in arm_tops or chest == head:
+        raise HumanoidError(f"by {method}: the arms {[tree.names[j] for j in arm_tops]} and the head "
+                            f"{tree.names[head]!r} do not branch off a spine (one hangs below another)")
+    chest_path = tree.path(hips, chest) if chest != hips else []
+    neck_path = tree.path(chest, head)
+    neck = neck_path[0] if len(neck_path) > 1 else None
+    limbs = {side: dict(limbs[side], collar=_collar(tree, chest, limbs[side]["collar"], limbs[side]["shoulder"]))
+             for side in ("left", "right")}
     root = hips
     while tree.parents[root] >= 0:
         root = int(tree.parents[root])
@@ -151,6 +185,16 @@ def assemble(tree: PosedTree, method: str, hips: int, neck: Optional[int], head:
                  neck=neck, head=head, head_top=head_top, **kw)
     _check_plausible(tree, h)
     return h
+
+
+def _collar(tree: PosedTree, chest: int, collar: Optional[int], shoulder: int) -> Optional[int]:
+    """The collar between the chest and the upper arm: ``collar`` when it lies there, else the
+    joint right above the shoulder when that is below the chest, else None (the arm hangs off the
+    chest directly)."""
+    if collar is not None and tree.is_ancestor(chest, collar) and tree.is_ancestor(collar, shoulder):
+        return collar
+    above = int(tree.parents[shoulder])
+    return above if above != chest and tree.is_ancestor(chest, above) else None
 
 
 def _check_plausible(tree: PosedTree, h: Humanoid) -> None:

@@ -27,7 +27,6 @@ from minifilm.files import note_input
 from minifilm.motion.body_size import scaled
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.bvh_write import write_bvh
-from minifilm.rigs.builtin_rigs import builtin_skeleton_for
 from minifilm.rigs.joint_map import RigError, Roles, sensor_positions
 from minifilm.rigs.proportions import foot_shape_of, leg_length
 from minifilm.motion.motion import Motion
@@ -47,9 +46,8 @@ def read_source(path: Union[str, os.PathLike], map_path=None, scale: Optional[fl
     path = note_input(Path(path))
     if scale is None:
         raw = read_bvh(path, scale=1.0)
-        skeleton = builtin_skeleton_for(raw)
         roles = find_roles(raw, map_path)
-        scale = skeleton.bvh_scale if skeleton is not None else file_unit(raw, roles)
+        scale = file_unit(raw, roles)             # the names' skeleton's unit if the body agrees
         return scaled(raw, scale), roles          # read once, scaled (body_size.scaled)
     m = read_bvh(path, scale=scale)
     return m, find_roles(m, map_path)

@@ -97,8 +97,9 @@ def find_roles(motion: Motion, map_path: Union[str, os.PathLike, None] = None) -
 
 
 def file_unit(motion_in_file_units: Motion, roles: Roles) -> float:
-    """Metres per unit of a file read with scale 1: a built-in skeleton's, else the common unit
-    that makes the body 1.4-2.1 m tall (:func:`minifilm.motion.body_size.body_unit`)."""
+    """Metres per unit of a file read with scale 1: a built-in skeleton's when its body is of human
+    height in it, else the common unit that makes the body 1.4-2.1 m tall
+    (:func:`minifilm.motion.body_size.body_unit`, the one unit rule of every command)."""
     try:
         h = find_humanoid(motion_in_file_units)
     except HumanoidError:       # roles from a map on a rig humanoid.py does not recognise: go by the legs
@@ -136,7 +137,7 @@ def load_rig(target: Union[str, os.PathLike], map_path: Union[str, os.PathLike, 
     skeleton = builtin_skeleton_for(raw)
     roles = find_roles(raw, map_path)
     if scale is None:
-        scale = skeleton.bvh_scale if skeleton is not None else file_unit(raw, roles)
+        scale = file_unit(raw, roles)             # the names' skeleton's unit if the body agrees
     m = scaled(raw, scale)                      # read once, scaled (body_size.scaled)
     return Rig(path.stem, _rest(m, str(path)), roles, float(scale), skeleton, foot_shape_of(m, roles))
 

@@ -17,6 +17,14 @@ def _only_child(motion, j: int):
     return motion.names[kids[0]] if len(kids) == 1 else None
 
 
+def _path(motion, top: int, bottom: int):
+    """Joints below ``top`` down to ``bottom`` (inclusive), top first."""
+    out = [bottom]
+    while int(motion.parents[out[-1]]) != top:
+        out.append(int(motion.parents[out[-1]]))
+    return out[::-1]
+
+
 def _limb(motion, h: Humanoid, side: str) -> Limb:
     n = motion.names
     part = {r: getattr(h, f"{side}_{r}") for r in ("collar", "shoulder", "elbow", "wrist", "hip", "knee", "ankle",
@@ -37,12 +45,14 @@ def roles_from_humanoid(motion, h: Humanoid = None) -> Roles:
     try:
         h = h if h is not None else find_humanoid(motion)
     except HumanoidError as e:
-        raise RigError(f"{e} (name its joints' roles with --map FILE.json, docs/retargeting.md)") from None
+        raise RigError(f"{e}. A JSON map of its joints' roles makes it usable: `minifilm retarget FILE "
+                       f"--map MAP.json --to 100style` (docs/retargeting.md) puts it on a rig that every "
+                       f"command reads") from None
     n = motion.names
     if not h.spine:
         raise RigError(f"{motion.source}: no spine joint between the hips {n[h.hips]!r} and the arms; "
                        "retargeting needs at least a chest")
-    neck = ((n[h.neck],) if h.neck is not None else ()) + (n[h.head],)
+    neck = tuple(n[j] for j in _path(motion, h.chest, h.head))       # the whole chain, chest to head
     roles = Roles(n[h.hips], tuple(n[j] for j in h.spine), neck, _limb(motion, h, "left"), _limb(motion, h, "right"),
                   head_end=None if h.head_top is None else n[h.head_top], source=motion.source)
     return roles.check(motion)

@@ -15,6 +15,7 @@ from typing import List, Sequence
 
 import numpy as np
 
+from minifilm.viewer.body import body_plan_of_positions
 from minifilm.viewer.tracks import Track
 
 __all__ = ["encode_track", "encode_tracks", "quantise", "decode_positions", "INT16_MAX"]
@@ -58,6 +59,8 @@ def encode_track(track: Track, offset: Sequence[float]) -> dict:
         "trail": _b64(track.trail, "<f4"),
         "offset": [float(v) for v in offset],
         "contactJoints": [int(j) for j in track.contact_joints],
+        "body": track.body if track.body is not None else body_plan_of_positions(track.positions, track.parents,
+                                                                                 track.joint_names),
         # Contacts only switch a highlight at 0.5: one byte per value is plenty.
         "contacts": _b64(np.round(track.contacts * 255), "u1") if track.contacts is not None else None,
     }

@@ -18,6 +18,7 @@ import numpy as np
 from minifilm.motion.body_size import read_in_metres
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.motion import Motion
+from minifilm.viewer.body import body_plan
 
 __all__ = ["Track", "track_from_motion", "track_from_bvh", "as_tracks"]
 
@@ -42,6 +43,9 @@ class Track:
                         that moves (Bandai files have a ``joint_Root`` fixed at the origin and the
                         walking ``Hips`` below it), joint 0 for a motionless track.
         joint_names:    optional (J,) names, for labels and error messages.
+        body:           optional body plan for the shaded body (minifilm/viewer/body.py: which bone
+                        is torso, neck, head, arm or leg); default: found from the positions when
+                        the page is made.
 
     Arrays are converted to float64 / int64 copies and checked; a problem raises one ``ValueError``
     naming the track, the field and, for bad values, the frame and joint.
@@ -56,6 +60,7 @@ class Track:
     trail: Optional[np.ndarray] = None
     root: Optional[int] = None
     joint_names: Optional[List[str]] = None
+    body: Optional[dict] = None
 
     def __post_init__(self) -> None:
         self.name = str(self.name)
@@ -239,7 +244,7 @@ def track_from_motion(motion: Motion, name: Optional[str] = None,
             c_idx.append(position_in_track[j])
     return Track(name=name, positions=P[:, keep], parents=np.array(track_parents, dtype=np.int64),
                  fps=motion.fps, contacts=contacts, contact_joints=c_idx, trail=trail,
-                 joint_names=[names[j] for j in keep])
+                 joint_names=[names[j] for j in keep], body=body_plan(motion, keep))
 
 
 def track_from_bvh(path: Union[str, os.PathLike], name: Optional[str] = None, scale: Optional[float] = None,

@@ -32,9 +32,11 @@ SKELETON = [
     ("RightFoot", 9, (0.0, -0.42, 0.0)),
     ("RightFootSite", 10, (0.0, -0.06, 0.12)),
     ("LeftArm", 1, (0.2, 0.3, 0.0)),
-    ("LeftHand", 12, (0.0, -0.5, 0.0)),
+    ("LeftForeArm", 12, (0.0, -0.25, 0.0)),
+    ("LeftHand", 13, (0.0, -0.25, 0.0)),
     ("RightArm", 1, (-0.2, 0.3, 0.0)),
-    ("RightHand", 14, (0.0, -0.5, 0.0)),
+    ("RightForeArm", 15, (0.0, -0.25, 0.0)),
+    ("RightHand", 16, (0.0, -0.25, 0.0)),
 ]
 SWING = {"LeftUpLeg": 0.5, "RightUpLeg": -0.5, "LeftLeg": 0.3, "RightLeg": -0.3,
          "LeftArm": -0.4, "RightArm": 0.4}
@@ -50,7 +52,7 @@ def _rx(angle: np.ndarray) -> np.ndarray:
 
 
 def synthetic_walker(n_frames: int = 36, fps: float = 30.0, speed: float = 1.2, turn: float = 0.0) -> Motion:
-    """A 16-joint stick figure walking along +z (``speed`` m/s), legs and arms swinging at 1 Hz.
+    """An 18-joint stick figure (a humanoid: the mannequin draws it) walking along +z (``speed`` m/s), legs and arms swinging at 1 Hz.
 
     ``turn`` rad/s turns the root about y, so the path curves.
     """

@@ -111,7 +111,7 @@ function setup(h) {
   stage.scene.add(group);
   const colour = COLOURS[(h.id - 1) % COLOURS.length];
   actor = skeletonKit(SIZE).build(group, h.parents, colour);
-  body = mannequinKit(SIZE).build(group, h.parents, colour, h.joints);
+  body = mannequinKit(SIZE).build(group, h.parents, colour, h.body);   // h.body: the body plan
   showBody();
   const geometry = new THREE.BufferGeometry();
   geometry.setAttribute('position', new THREE.BufferAttribute(new Float32Array(3 * TRAIL), 3));
@@ -216,7 +216,7 @@ function setLabel(text) {
 function showBody() {
   if (!body) return;
   setMannequinVisible(body, $('body').checked);
-  setSkeletonVisible(actor, $('sticks').checked || !$('body').checked);
+  setSkeletonVisible(actor, $('sticks').checked || !$('body').checked || !body.plan);
 }
 for (const id of ['body', 'sticks']) $(id).addEventListener('change', e => { showBody(); e.target.blur(); });
 

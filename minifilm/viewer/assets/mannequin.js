@@ -4,17 +4,17 @@
 // meshes hold the joint positions), so both drawings always show the same pose.
 //
 //   mannequinKit(size)                 shared geometries and the shadow texture
-//   kit.build(group, parents, colour, names)  one body's meshes inside ``group`` (hidden until posed)
+//   kit.build(group, parents, colour, plan)  one body's meshes inside ``group`` (hidden until posed)
 //   poseMannequin(body, sk, contacts)  limbs, head and shadow from skeleton ``sk``'s joints;
 //                                      ``contacts``: joint indices to draw in the contact colour
 //
-// Which bone is torso, neck, head, arm or leg comes from the hierarchy and the first pose, not from
-// joint names, so any humanoid rig gets a body: the spine is the chain from the root that always
-// climbs to the highest child; the head sits on the spine joint named "head" if there is one (a
-// rig may go on above it to an end site or the eyes: those bones are inside the head), else on its
-// last joint; the joint where most branches leave the spine is the chest (bones above it are the
-// neck); a branch that reaches down to the lower half of the hips' height is a leg, any other an
-// arm. A limb's segments get thinner away from the body.
+// Which bone is torso, neck, head, arm or leg is not worked out here: ``plan`` is the body plan
+// the page was given (minifilm/viewer/body.py, from the parts minifilm/motion/humanoid.py finds):
+// ``parts`` (per joint: the part of the bone ending there), ``head``, ``neck`` (the joint below the
+// head) and ``toes``. A skeleton without a plan (not a humanoid) gets no body: its sticks are drawn.
+// A limb's segments get thinner away from the body. Limbs are a little thinner than the balls at
+// their joints, so the two surfaces never coincide (coinciding surfaces z-fight: dark saw-tooth
+// bands where segments meet).
 // Everything is in metres, y up; ``size`` (the body's height) scales every radius.
 import * as THREE from 'three';
 import { CONTACT_COLOUR } from 'minifilm-scene';
@@ -24,6 +24,8 @@ const UP = new THREE.Vector3(0, 1, 0);
 const RADIUS = { torso: 0.064, hips: 0.066, pelvis: 0.048, neck: 0.027, head: 0.062, leg: 0.040, arm: 0.027,
                  shoulder: 0.030 };
 const TAPER = { leg: 0.8, arm: 0.86 };   // each segment down a limb is this much thinner than the last
+const INSET = 0.82;                      // a limb's radius over its joints' balls: no coinciding surfaces
+const SEGMENTS = 16;                     // around a limb and a ball alike
 
 function lighter(colour, amount) {
   return new THREE.Color(colour).lerp(new THREE.Color(0xffffff), amount);
@@ -44,15 +46,15 @@ function shadowTexture() {
 }
 
 export function mannequinKit(size) {
-  const limb = new THREE.CylinderGeometry(1, 1, 1, 12, 1, true);
+  const limb = new THREE.CylinderGeometry(1, 1, 1, SEGMENTS, 1, true);
   limb.translate(0, 0.5, 0);                  // spans y in [0, 1]: scaled to the bone, from the parent
-  const ball = new THREE.SphereGeometry(1, 14, 10);   // software WebGL pays for every triangle
+  const ball = new THREE.SphereGeometry(1, SEGMENTS, 12);   // software WebGL pays for every triangle
   const blob = new THREE.PlaneGeometry(1, 1);
   blob.rotateX(-Math.PI / 2);                 // lies on the floor
   const shadowMap = shadowTexture();
   const contactMaterial = new THREE.MeshStandardMaterial({ color: CONTACT_COLOUR, roughness: 0.5 });
 
-  function build(group, parents, colour, names = []) {
+  function build(group, parents, colour, plan = null) {
     const skin = new THREE.MeshStandardMaterial({ color: lighter(colour, 0.45), roughness: 0.62, metalness: 0.0 });
     const joint = new THREE.MeshStandardMaterial({ color: lighter(colour, 0.15), roughness: 0.55, metalness: 0.0 });
     const children = parents.map(() => []);
@@ -69,71 +71,40 @@ export function mannequinKit(size) {
     shadow.renderOrder = -1;                   // under the character, over the floor
     const all = [...limbs.map(l => l.mesh), ...balls, head, nose, shadow];
     for (const m of all) { m.visible = false; group.add(m); }
-    return { parents, names, children, limbs, balls, head, nose, shadow, all, toes: [], joint, contactMaterial, shaped: false,
-             ballRadius: [], headJoint: -1, neckJoint: -1, visible: true, size };
+    const hasPlan = !!(plan && Array.isArray(plan.parts) && plan.parts.length === parents.length);
+    return { parents, plan: hasPlan ? plan : null, children, limbs, balls, head, nose, shadow, all, toes: [], joint,
+             contactMaterial, shaped: false, ballRadius: [], headJoint: -1, neckJoint: -1, visible: true, size };
   }
 
   return { build };
 }
 
-// Decide each bone's radius from the hierarchy and the first pose (see the top of this file).
-function shape(body, positions) {
-  const { parents, children } = body, J = parents.length, s = body.size;
-  const root = parents.indexOf(-1);
-  const spine = [root];
-  for (let j = root; children[j].length;) {
-    const up = children[j].filter(c => positions[c].y > positions[j].y - 0.02 * s);
-    if (!up.length) break;
-    j = up.reduce((a, b) => (positions[b].y > positions[a].y ? b : a));
-    spine.push(j);
-  }
-  const onSpine = new Set(spine);
-  // the head: on the spine joint named so, else the spine's last; what is above it (an end site,
-  // the eyes) is inside the head and gets no limb or ball of its own
-  const named = spine.findIndex((j, k) => k > 0 && /head/i.test(body.names[j] || '') && !/site|end/i.test(body.names[j]));
-  const headAt = named > 0 ? named : spine.length - 1;
-  const inHead = new Set();
-  const within = j => { inHead.add(j); children[j].forEach(within); };
-  children[spine[headAt]].forEach(within);
-  // the chest: the spine joint below the head (root excluded) where most branches leave; the neck is above it
-  let chest = -1;
-  for (const j of spine.slice(1, headAt)) if (chest < 0 || children[j].length > children[chest].length) chest = j;
-  const chestAt = chest < 0 ? spine.length : spine.indexOf(chest);
+// Each bone's radius from the body plan's parts (see the top of this file).
+function shape(body) {
+  const { parents, children, plan } = body, J = parents.length, s = body.size;
   const radius = new Array(J).fill(0);         // of the bone ending at joint j
-  spine.forEach((j, k) => { if (k > 0) radius[j] = (k <= chestAt ? RADIUS.torso : RADIUS.neck) * s; });
-  // the limbs: depth-first from every branch that leaves the spine below the head
-  const visit = (j, r, taper) => {
-    radius[j] = r;
-    for (const c of children[j]) visit(c, r * taper, taper);
-  };
-  // a leg reaches down to the lower half of the hips' height (a hanging hand stays near the hips)
-  const lowest = Math.min(...positions.map(p => p.y));
-  const reach = j => Math.min(positions[j].y, ...children[j].map(reach));
-  for (const j of spine.slice(0, headAt)) {
-    for (const c of children[j]) {
-      if (onSpine.has(c)) continue;
-      const leg = reach(c) - lowest < 0.5 * (positions[root].y - lowest);
-      if (leg) {
-        let tip = c;                                                    // the foot's last joint points forward
-        while (children[tip].length) tip = children[tip][0];
-        if (parents[tip] !== j) body.toes.push(tip);
-        radius[c] = j === root ? RADIUS.pelvis * s : RADIUS.leg * s;   // the hip joint's offset from the root
-        for (const g of children[c]) visit(g, RADIUS.leg * s, TAPER.leg);
-      } else {
-        radius[c] = RADIUS.shoulder * s;                                // collar bone
-        for (const g of children[c]) visit(g, RADIUS.arm * s, TAPER.arm);
-      }
-    }
+  const depth = new Array(J).fill(0);          // segments below the first of its limb
+  for (let j = 0; j < J; j++) {
+    const part = plan.parts[j], p = parents[j];
+    if (p >= 0 && (part === 'arm' || part === 'leg') && plan.parts[p] === part) depth[j] = depth[p] + 1;
+    if (part === 'torso') radius[j] = RADIUS.torso * s;
+    else if (part === 'neck') radius[j] = RADIUS.neck * s;
+    else if (part === 'collar') radius[j] = RADIUS.shoulder * s;
+    else if (part === 'arm') radius[j] = RADIUS.arm * s * TAPER.arm ** depth[j];
+    else if (part === 'pelvis') radius[j] = RADIUS.pelvis * s;
+    else if (part === 'leg') radius[j] = RADIUS.leg * s * TAPER.leg ** depth[j];
   }
-  for (const j of inHead) radius[j] = 0;
-  for (const l of body.limbs) l.r = radius[l.j];
-  // a ball at every joint as thick as the thickest bone there: the limbs' rounded ends
+  for (const l of body.limbs) l.r = INSET * radius[l.j];
+  // a ball at every joint of the body as thick as the thickest bone there: the limbs' rounded ends
+  const inBody = j => plan.parts[j] !== null && plan.parts[j] !== 'inhead';
   body.ballRadius = Array.from({ length: J }, (_, j) =>
-    (inHead.has(j) ? 0 : Math.max(radius[j], ...children[j].map(c => radius[c]), 0.012 * s)));
-  body.ballRadius[root] = Math.max(body.ballRadius[root], RADIUS.hips * s);
-  body.headJoint = spine[headAt];
-  body.neckJoint = headAt > 0 ? spine[headAt - 1] : -1;
+    (inBody(j) ? Math.max(radius[j], ...children[j].filter(inBody).map(c => radius[c]), 0.012 * s) : 0));
+  const hips = plan.parts.indexOf('hips');
+  if (hips >= 0) body.ballRadius[hips] = Math.max(body.ballRadius[hips], RADIUS.hips * s);
+  body.headJoint = plan.head;
+  body.neckJoint = plan.neck;
   body.ballRadius[body.headJoint] = RADIUS.neck * s;
+  body.toes = plan.toes.filter(t => parents[t] >= 0);
   body.shaped = true;
 }
 
@@ -141,12 +112,13 @@ const tmp = new THREE.Vector3(), centre = new THREE.Vector3(), facing = new THRE
 
 export function setMannequinVisible(body, on) {
   body.visible = on;
-  for (const m of body.all) m.visible = on && body.shaped;
+  for (const m of body.all) m.visible = on && body.shaped;   // no plan: never shaped, never shown
 }
 
 export function poseMannequin(body, sk, contacts = []) {
   const P = sk.joints.map(m => m.position);
-  if (!body.shaped) { shape(body, P); setMannequinVisible(body, body.visible); }
+  if (!body.plan) return;                     // not a humanoid: the sticks stay
+  if (!body.shaped) { shape(body); setMannequinVisible(body, body.visible); }
   if (!body.visible) return;
   const s = body.size;
   for (const l of body.limbs) {

@@ -92,7 +92,7 @@ const actors = CHARS.map((c, i) => {
   group.position.set(c.offset[0], c.offset[1], c.offset[2]);
   scene.add(group);
   const sk = kit.build(group, c.parents, colour);
-  const body = bodyKit.build(group, c.parents, colour, c.jointNames);
+  const body = bodyKit.build(group, c.parents, colour, c.body);   // c.body: its body plan
   const trailGeometry = new THREE.BufferGeometry();
   const trail = new Float32Array(c.trailPos);
   for (let f = 0; f < c.nFrames; f++) trail[3 * f + 1] += 0.003 * SIZE;  // above the grid
@@ -125,7 +125,7 @@ function pose(a) {
     }
   }
   // the sticks and the body are each shown or not; the sticks are always posed (the body reads them)
-  setSkeletonVisible(a.sk, toggles.sticks || !toggles.body);
+  setSkeletonVisible(a.sk, toggles.sticks || !toggles.body || !a.body.plan);   // no plan: no body, sticks
   setMannequinVisible(a.body, toggles.body);
   poseMannequin(a.body, a.sk, touching);
   a.trailLine.visible = toggles.trail;
@@ -283,6 +283,13 @@ window.minifilmPlayer = {
     sticks: actors.reduce((n, a) => n + [...a.sk.joints, ...a.sk.bones.map(b => b[0])].filter(m => m.visible).length, 0),
   }),
   setFollow(value) { ui.follow.value = String(value); draw(0); },
+  // Character i's shaded body as drawn now: its plan, the head sphere's centre (in its group), and
+  // the limbs shown as [parent joint, joint, radius] and the balls' radii (metres).
+  body: i => {
+    const b = actors[i].body;
+    return { plan: b.plan, head: b.head.visible ? b.head.position.toArray() : null,
+             limbs: b.limbs.filter(l => l.mesh.visible).map(l => [l.p, l.j, l.r]), balls: b.ballRadius };
+  },
 };
 
 resize();
