@@ -1,0 +1,115 @@
+"""The worker process of data-parallel training (minifilm/train/parallel.py): its share of each
+minibatch's forward and backward pass.
+
+A worker is started with the 'spawn' method and gets one JSON text: the model's configuration,
+the names and layouts of three shared-memory segments (the parameters every process reads, one
+gradient slot per worker, the minibatch of the step), the loss settings and the dropout sites.
+It builds the model, points its parameters at the shared ones and its gradients at its own slot,
+and then loops: receive (rows lo:hi, clips clo:chi, batch size B, shared clips?) as 6 int64, run
+forward and backward on those rows with the dropout masks the parent drew, leaving the gradient
+of (share / B) x the share's mean loss in its slot, and reply (weighted MSE, weighted BLL) as
+2 float64 -- or the text of an error. No object is ever pickled.
+
+This module imports nothing heavy at the top: the worker ignores SIGINT (Ctrl-C reaches the
+whole process group; the parent decides and stops the workers) before numpy is loaded.
+"""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import sys
+
+#: reply to a step: b"ok" + 2 float64, or b"er" + the error's text (utf-8)
+OK, ERROR = b"ok", b"er"
+
+
+def attach(name: str):
+    """The existing shared-memory segment ``name``. The worker shares the parent's resource
+    tracker (the 'spawn' start method passes it on), whose record of the segment is a set: the
+    worker's registration adds nothing, and the parent's unlink removes it."""
+    from multiprocessing import shared_memory
+    return shared_memory.SharedMemory(name=name)
+
+
+def views(shm, layout: dict) -> dict:
+    """{field: ndarray view into ``shm``} from {field: [byte offset, shape, dtype]}."""
+    import numpy as np
+    return {k: np.ndarray(tuple(shape), dtype=np.dtype(dt), buffer=shm.buf, offset=off)
+            for k, (off, shape, dt) in layout.items()}
+
+
+def main(spec_text: str, slot: int, conn) -> None:
+    """The worker's loop (the target of multiprocessing.Process); returns when the parent closes
+    its end of the pipe or goes away."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        worker = Worker(json.loads(spec_text), slot)
+    except Exception as e:    # noqa: BLE001 -- told to the parent, which raises it as one message
+        conn.send_bytes(ERROR + f"{type(e).__name__}: {e}".encode())
+        return
+    conn.send_bytes(OK + bytes(16))
+    while True:
+        try:
+            message = conn.recv_bytes()
+        except (EOFError, OSError):          # the parent closed the pipe or died: stop
+            return
+        try:
+            reply = OK + worker.step(message)
+        except Exception as e:  # noqa: BLE001
+            reply = ERROR + f"{type(e).__name__}: {e}".encode()
+        try:
+            conn.send_bytes(reply)
+        except (BrokenPipeError, OSError):
+            return
+
+
+class Worker:
+    """The model bound to shared memory, and one step on a share of a minibatch."""
+
+    def __init__(self, spec: dict, slot: int):
+        import numpy as np
+        from minifilm.model.config import ModelConfig
+        from minifilm.model.style_model import StyleModel
+        from minifilm.train.objective import objective
+
+        self.np, self.objective = np, objective
+        self.model = StyleModel(ModelConfig.from_dict(spec["model_config"]), np.random.default_rng(0),
+                                dtype=np.dtype(spec["dtype"]))
+        self.segments = [attach(spec["params"]), attach(spec["grads"]), attach(spec["step"])]
+        params, grads, step = self.segments
+        total = spec["total"]
+        data = np.ndarray((total,), dtype=self.model.dtype, buffer=params.buf)
+        grad = np.ndarray((total,), dtype=self.model.dtype, buffer=grads.buf,
+                          offset=slot * total * self.model.dtype.itemsize)
+        for ps, (off, size) in zip(self.model.parameter_sets(), spec["sets"]):
+            ps.bind(data[off:off + size], grad[off:off + size])
+        self.batch = views(step, spec["layout"])
+        self.clip_sites, self.sample_sites = spec["clip_sites"], spec["sample_sites"]
+        loss = spec["loss"]
+        self.loss_kw = {"bll_weight": loss["bll_weight"],
+                        "positions_idx": None if loss["positions_idx"] is None else np.asarray(loss["positions_idx"]),
+                        "parents": None if loss["parents"] is None else np.asarray(loss["parents"]),
+                        "z_mean": np.asarray(loss["z_mean"]), "z_std": np.asarray(loss["z_std"])}
+
+    def step(self, message: bytes) -> bytes:
+        """Forward and backward on rows lo:hi (clips clo:chi) of the step's minibatch; the
+        gradient of (hi - lo) / B x the share's mean loss goes into this worker's slot."""
+        np, b = self.np, self.batch
+        lo, hi, clo, chi, batch, shared = np.frombuffer(message, dtype=np.int64).tolist()
+        self.model.zero_grad()
+        if hi == lo:                                   # a batch smaller than the number of workers
+            return np.zeros(2).tobytes()
+        masks = {site: b["mask." + site][lo:hi] for site in self.sample_sites}
+        masks.update({site: b["mask." + site][clo:chi] for site in self.clip_sites})
+        kw = {"clip_index": b["clip_index"][lo:hi] - clo} if shared else {}
+        pred = self.model.forward(b["x"][lo:hi], b["p"][lo:hi], b["clips"][clo:chi], train=True, masks=masks, **kw)
+        mse, bll, dpred = self.objective(pred, b["z"][lo:hi], **self.loss_kw)
+        share = (hi - lo) / batch
+        dpred *= np.asarray(share, dtype=dpred.dtype)
+        self.model.backward(dpred, need_input_grads=False)
+        return np.array([mse * share, bll * share]).tobytes()
+
+
+if __name__ == "__main__":      # not a command
+    sys.exit(f"{os.path.basename(__file__)}: started by minifilm.train.parallel, not by hand")
