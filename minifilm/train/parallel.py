@@ -38,6 +38,7 @@ import math
 import multiprocessing
 import os
 import signal
+import time
 from multiprocessing import connection, shared_memory
 
 import numpy as np
@@ -108,6 +109,9 @@ class DataParallel:
         self.trainer, self.model, self.workers = trainer, trainer.model, workers
         self.procs, self.conns, self.segments = [], [], []
         self.step_index = 0
+        #: seconds of the parent's own work in gradients() (masks, the minibatch into shared memory,
+        #: summing the slots) and of waiting for the workers; for benchmarks/parallel_training.py
+        self.seconds = {"parent": 0.0, "waiting": 0.0}
         try:
             self._open()
         except BaseException:
@@ -199,6 +203,7 @@ class DataParallel:
         """The gradients of minibatch ``b`` (a trainer.Minibatch) in the model's ``.grad`` buffers,
         computed by the workers; returns (mse, bll) of the whole minibatch. Draws the dropout masks
         from the trainer's generator as one process's forward pass would."""
+        t_start = time.perf_counter()
         rng, p_drop, B = self.trainer.rng, self.model.config.dropout, len(b.x)
         clip_index = b.kw.get("clip_index")
         shared = clip_index is not None
@@ -223,11 +228,15 @@ class DataParallel:
         for conn, part in zip(self.conns, parts):
             conn.send_bytes(np.array([*part, B, int(shared)], dtype=np.int64).tobytes())
         self.step_index += 1
+        t_sent = time.perf_counter()
         losses = self._collect(b.where)
+        t_back = time.perf_counter()
         for ps, sl in zip(self.model.parameter_sets(), self.set_slices):
             np.copyto(ps.grad, self.slots[0, sl])
             for w in range(1, self.workers):
                 ps.grad += self.slots[w, sl]
+        self.seconds["parent"] += (t_sent - t_start) + (time.perf_counter() - t_back)
+        self.seconds["waiting"] += t_back - t_sent
         return float(losses[:, 0].sum()), float(losses[:, 1].sum())
 
     def _collect(self, where: str) -> np.ndarray:
