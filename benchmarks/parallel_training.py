@@ -26,10 +26,12 @@ Columns:
                  /proc/cpuinfo's flags, 8 with avx2, 4 otherwise) x 2 (fma) x 2 FMA units per
                  core (assumed: most current x86 cores; Zen 4 has one 512-bit unit's worth) x the
                  clock (/proc/cpuinfo's "cpu MHz", the current one)
-Rows for more workers are extrapolated (marked ~): the parent's own per-step work (Adam, the
-masks, writing the minibatch, summing the gradient slots) stays serial, the workers' part divides
-by W, and the per-step cost of the messages is the one measured with 2 workers -- Amdahl's law,
-an upper bound for a machine with that many free cores.
+  Adam ms        wall time of the optimiser step (with workers: each updates its part)
+  parent's own   the parent's own work in a step: the dropout masks, the minibatch into shared memory
+Rows for more workers are extrapolated (marked ~): the parent's own work stays serial, the rest
+of the one-process step (gradients, their sum, Adam) divides by W, and what the 2-worker step
+costs beyond those two (messages, waiting for the slower share) stays as measured -- Amdahl's
+law, an estimate for a machine with that many free cores.
 """
 from __future__ import annotations
 
@@ -175,7 +177,7 @@ class Runner:
             mse, bll = t.gradients(b, self.pool)
             t.check_finite(b, mse, bll)
             a0 = time.perf_counter()
-            t.optimizer.step()
+            t.update(self.pool)
             t.step += 1
             s1 = time.perf_counter()
             self.adam += s1 - a0
@@ -220,7 +222,7 @@ def step_table(steps: int, blocks: int) -> None:
     print(f"# one step: {flops / 1e9:.3f} GFLOP; one core's float32 peak {peak:.1f} GFLOP/s = {how}")
     print(f"# largest weight difference, 1 vs 2 workers, after {len(r2.times) + 10} steps: {drift:.1e} (relative)")
     print()
-    print("| workers | step ms | speed-up | CPU / wall | GFLOP/s | % of one core's peak | Adam ms | parent's other work ms |")
+    print("| workers | step ms | speed-up | CPU / wall | GFLOP/s | % of one core's peak | Adam ms | parent's own ms |")
     print("|---|---|---|---|---|---|---|---|")
     for w, r in runners.items():
         ms = statistics.median(per_block[w])
@@ -228,16 +230,18 @@ def step_table(steps: int, blocks: int) -> None:
         print(f"| {w} | {ms * 1e3:.2f} | {one / ms:.2f}x | {r.cpu / r.wall:.2f} | {flops / ms / 1e9:.1f} | "
               f"{100 * flops / ms / 1e9 / peak:.0f} % | {r.adam / len(r.times) * 1e3:.2f} | "
               f"{'-' if w == 1 else f'{parent:.2f}'} |")
-    # Amdahl: serial = Adam + the parent's own work; parallel = the rest of the 1-worker step
-    s = (r2.adam + r2.pool.seconds["parent"]) / len(r2.times)
+    # Amdahl: the parent's own work (masks, writing the minibatch) stays serial; the gradients,
+    # their sum and Adam divide by W; the rest of the 2-worker step (messages, waiting for the
+    # slower share) is taken as a fixed cost per step
+    own = r2.pool.seconds["parent"] / len(r2.times)
     two = statistics.median(per_block[2])
-    p1 = one - runners[1].adam / len(runners[1].times)          # the gradient part, one process
-    messages = max(two - s - p1 / 2, 0.0)
+    work = one                                                   # gradients + Adam, one process
+    messages = max(two - own - work / 2, 0.0)
     for w in (4, 8, 16):
-        ms = s + p1 / w + messages
+        ms = own + work / w + messages
         print(f"| ~{w} | ~{ms * 1e3:.2f} | ~{one / ms:.2f}x | - | ~{flops / ms / 1e9:.1f} | - | - | - |")
-    print(f"\n(extrapolated rows: serial {s * 1e3:.2f} ms + gradients {p1 * 1e3:.2f} ms / W + messages "
-          f"{messages * 1e3:.2f} ms per step)")
+    print(f"\n(extrapolated rows: the parent's own work {own * 1e3:.2f} ms + the one-process step "
+          f"{work * 1e3:.2f} ms / W + messages and waiting {messages * 1e3:.2f} ms per step)")
     steps_per_epoch = STYLES * (FRAMES_PER_STYLE // 32)
     print(f"training of the main job, estimated: 30 epochs x {steps_per_epoch} steps = "
           + ", ".join(f"{w} worker(s) {30 * steps_per_epoch * statistics.median(per_block[w]):.0f} s" for w in runners)

@@ -2,13 +2,20 @@
 minibatch's forward and backward pass.
 
 A worker is started with the 'spawn' method and gets one JSON text: the model's configuration,
-the names and layouts of three shared-memory segments (the parameters every process reads, one
-gradient slot per worker, the minibatch of the step), the loss settings and the dropout sites.
-It builds the model, points its parameters at the shared ones and its gradients at its own slot,
-and then loops: receive (rows lo:hi, clips clo:chi, batch size B, shared clips?) as 6 int64, run
-forward and backward on those rows with the dropout masks the parent drew, leaving the gradient
-of (share / B) x the share's mean loss in its slot, and reply (weighted MSE, weighted BLL) as
-2 float64 -- or the text of an error. No object is ever pickled.
+the names and layouts of two shared-memory segments (one flat segment holding the weights, the
+summed gradient, Adam's two moments and one gradient slot per worker; one holding the step's
+minibatch and dropout masks), its part a:b of the parameter vector, the loss settings and the
+dropout sites. It builds the model, points its weights at the shared ones and its gradients at
+its own slot, and then answers messages (float64 arrays, the first number saying which):
+
+    GRADIENTS lo hi clo chi B shared   forward and backward on rows lo:hi (clips clo:chi) with the
+                                       masks the parent drew; the gradient of (hi - lo) / B x the
+                                       share's mean loss into its slot; reply the weighted MSE, BLL
+    SUM a b                            the summed gradient over a:b = the sum of the W slots there
+    ADAM a b beta1 beta2 (lo hi step_size eps_hat)...   ChunkedAdam's update on a:b of each
+                                       listed set lo:hi (nn/fast_optim.py::adam_span)
+
+Replies are b"ok" + 2 float64, or b"er" + the error's text. No object is ever pickled.
 
 This module imports nothing heavy at the top: the worker ignores SIGINT (Ctrl-C reaches the
 whole process group; the parent decides and stops the workers) before numpy is loaded.
@@ -20,8 +27,10 @@ import os
 import signal
 import sys
 
-#: reply to a step: b"ok" + 2 float64, or b"er" + the error's text (utf-8)
+#: reply to a message: b"ok" + 2 float64, or b"er" + the error's text (utf-8)
 OK, ERROR = b"ok", b"er"
+#: the messages (the first number of each)
+GRADIENTS, SUM, ADAM = 1, 2, 3
 
 
 def attach(name: str):
@@ -55,7 +64,7 @@ def main(spec_text: str, slot: int, conn) -> None:
         except (EOFError, OSError):          # the parent closed the pipe or died: stop
             return
         try:
-            reply = OK + worker.step(message)
+            reply = OK + worker.answer(message)
         except Exception as e:  # noqa: BLE001
             reply = ERROR + f"{type(e).__name__}: {e}".encode()
         try:
@@ -76,14 +85,16 @@ class Worker:
         self.np, self.objective = np, objective
         self.model = StyleModel(ModelConfig.from_dict(spec["model_config"]), np.random.default_rng(0),
                                 dtype=np.dtype(spec["dtype"]))
-        self.segments = [attach(spec["params"]), attach(spec["grads"]), attach(spec["step"])]
-        params, grads, step = self.segments
-        total = spec["total"]
-        data = np.ndarray((total,), dtype=self.model.dtype, buffer=params.buf)
-        grad = np.ndarray((total,), dtype=self.model.dtype, buffer=grads.buf,
-                          offset=slot * total * self.model.dtype.itemsize)
+        from minifilm.nn.fast_optim import CHUNK, adam_span
+        self.adam_span = adam_span
+        self.segments = [attach(spec["flat"]), attach(spec["step"])]
+        flat, step = self.segments
+        total, W, dtype = spec["total"], spec["workers"], self.model.dtype
+        self.data, self.grad, self.m, self.v = np.ndarray((4, total), dtype=dtype, buffer=flat.buf)
+        self.slots = np.ndarray((W, total), dtype=dtype, buffer=flat.buf, offset=4 * total * dtype.itemsize)
         for ps, (off, size) in zip(self.model.parameter_sets(), spec["sets"]):
-            ps.bind(data[off:off + size], grad[off:off + size])
+            ps.bind(self.data[off:off + size], self.slots[slot, off:off + size])
+        self.scratch = np.empty(CHUNK, dtype=dtype)
         self.batch = views(step, spec["layout"])
         self.clip_sites, self.sample_sites = spec["clip_sites"], spec["sample_sites"]
         loss = spec["loss"]
@@ -92,11 +103,31 @@ class Worker:
                         "parents": None if loss["parents"] is None else np.asarray(loss["parents"]),
                         "z_mean": np.asarray(loss["z_mean"]), "z_std": np.asarray(loss["z_std"])}
 
-    def step(self, message: bytes) -> bytes:
+    def answer(self, message: bytes) -> bytes:
+        """Carry out one message (see the module's docstring); returns the 16 bytes of the reply."""
+        np = self.np
+        m = np.frombuffer(message, dtype=np.float64)
+        op = int(m[0])
+        if op == GRADIENTS:
+            return self.gradients(*(int(x) for x in m[1:7]))
+        a, z = int(m[1]), int(m[2])
+        if op == SUM:
+            np.sum(self.slots[:, a:z], axis=0, out=self.grad[a:z])
+        elif op == ADAM:
+            beta1, beta2 = float(m[3]), float(m[4])
+            for lo, hi, step_size, eps_hat in m[5:].reshape(-1, 4).tolist():
+                lo, hi = max(int(lo), a), min(int(hi), z)
+                if lo < hi:
+                    self.adam_span(self.data[lo:hi], self.grad[lo:hi], self.m[lo:hi], self.v[lo:hi], self.scratch,
+                                   beta1, beta2, step_size, eps_hat)
+        else:
+            raise ValueError(f"unknown message {op}")
+        return bytes(16)
+
+    def gradients(self, lo, hi, clo, chi, batch, shared) -> bytes:
         """Forward and backward on rows lo:hi (clips clo:chi) of the step's minibatch; the
         gradient of (hi - lo) / B x the share's mean loss goes into this worker's slot."""
         np, b = self.np, self.batch
-        lo, hi, clo, chi, batch, shared = np.frombuffer(message, dtype=np.int64).tolist()
         self.model.zero_grad()
         if hi == lo:                                   # a batch smaller than the number of workers
             return np.zeros(2).tobytes()

@@ -249,10 +249,18 @@ class Trainer:
             mse, bll = self.gradients(b, pool)
             self.check_finite(b, mse, bll)
             self.optimizer.lr = self.learning_rate(self.epoch + b.index / b.count)
-            self.optimizer.step()
+            self.update(pool)
             self.step += 1
             losses.add(b, mse, bll)
         return losses.summary()
+
+    def update(self, pool=None) -> None:
+        """The optimiser's step (after :meth:`check_finite`); with a pool its workers compute it,
+        each on a part of the parameters (the same numbers: Adam works number by number)."""
+        if pool is not None:
+            pool.update(self.optimizer)
+        else:
+            self.optimizer.step()
 
     def check_finite(self, b: "Minibatch", mse: float, bll: float) -> None:
         """TrainingDiverged naming the minibatch and the quantity when a loss or a network's

@@ -109,3 +109,22 @@ def test_a_worker_killed_mid_run_stops_training_with_one_message_and_leaves_noth
     assert np.array_equal(weights(t), before)          # no update from the broken step
     assert not any(alive(pid) for pid in pids)
     assert leftovers(os.getpid()) == []
+
+
+def test_the_workers_adam_step_is_the_one_process_step_number_for_number():
+    one, two = trainer(), trainer()
+    two.model.gating.params.trainable = one.model.gating.params.trainable = False    # a frozen set stays
+    rng = np.random.default_rng(5)
+    g = [rng.standard_normal(ps.size).astype(ps.dtype) for ps in one.model.parameter_sets()]
+    with DataParallel(two, 2) as pool:
+        for _ in range(3):
+            for t in (one, two):
+                for ps, gi in zip(t.model.parameter_sets(), g):
+                    ps.grad[...] = gi
+            one.update()
+            two.update(pool)
+    assert np.array_equal(weights(two), weights(one))
+    for a, b in zip(one.optimizer.state_dict().values(), two.optimizer.state_dict().values()):
+        assert np.array_equal(a, b)
+    assert two.optimizer.m[0].base is None                 # the moments are private arrays again
+    assert leftovers(os.getpid()) == []
