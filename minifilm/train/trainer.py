@@ -221,8 +221,9 @@ class Trainer:
                                                                self.rng)
             else:
                 clip_idx = draw_clips(data, data.style[idx], self.rng)
-            x, p, z = data.x[idx].astype(dtype), data.p[idx].astype(dtype), data.z[idx].astype(dtype)
-            clips = data.clips[clip_idx].astype(dtype)
+            # the gathers copy already; a cast copies again only when the data are in another dtype
+            x, p, z = (a[idx].astype(dtype, copy=False) for a in (data.x, data.p, data.z))
+            clips = data.clips[clip_idx].astype(dtype, copy=False)
             if self.config.input_noise > 0:
                 x = x + (self.config.input_noise * self.rng.standard_normal(x.shape)).astype(dtype)
                 p = p + (self.config.input_noise * self.rng.standard_normal(p.shape)).astype(dtype)
