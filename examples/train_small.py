@@ -68,7 +68,10 @@ def main(argv=None) -> None:
                         model.backward(dz, need_input_grads=False)   # Ψ, Φ, Ω in reverse, by hand
                     trainer.check_finite(b, mse, bll)            # a NaN or inf stops here, before the update
                     adam.lr = trainer.learning_rate(trainer.epoch + b.index / b.count)
-                    trainer.update(pool)    # adam.step() (nn/fast_optim.py; nn/optim.py: plain), or by the workers
+                    if pool is not None:
+                        pool.update(adam)                        # the same Adam step, each worker on its part
+                    else:
+                        adam.step()                              # minifilm/nn/fast_optim.py (nn/optim.py: plain)
                     trainer.step += 1
                     losses.add(b, mse, bll)
                 record = trainer.end_epoch(losses.summary(), val_data)   # validation MSE / BLL, checkpoint
