@@ -49,6 +49,7 @@ import math
 import multiprocessing
 import os
 import signal
+import threading
 import time
 from multiprocessing import connection, shared_memory
 
@@ -199,6 +200,11 @@ class DataParallel:
         ctx = multiprocessing.get_context("spawn")
         saved = {k: os.environ.get(k) for k in ONE_BLAS_THREAD}
         os.environ.update(ONE_BLAS_THREAD)          # read by the workers' numpy when it loads
+        # A worker started with SIGINT ignored keeps it ignored from its first instruction (Python
+        # then installs no KeyboardInterrupt handler), so a Ctrl-C while it is still importing
+        # prints nothing from it; the parent's own handler is back as soon as the workers exist.
+        main_thread = threading.current_thread() is threading.main_thread()
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main_thread else None
         try:
             for w in range(W):
                 mine, theirs = ctx.Pipe()
@@ -209,6 +215,8 @@ class DataParallel:
                 self.procs.append(proc)
                 self.conns.append(mine)
         finally:
+            if main_thread:     # (None: a handler set outside Python; Python's own takes its place)
+                signal.signal(signal.SIGINT, signal.default_int_handler if previous is None else previous)
             for k, v in saved.items():
                 if v is None:
                     os.environ.pop(k, None)

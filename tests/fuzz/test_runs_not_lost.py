@@ -141,20 +141,24 @@ def running(pid: int) -> bool:
     return not (status.exists() and "zombie" in status.read_text().lower())
 
 
-WORKER_STOPS = [("parent", signal.SIGINT), ("parent", signal.SIGTERM), ("worker", signal.SIGKILL),
-                ("worker", signal.SIGTERM)]
+WORKER_STOPS = [("parent", signal.SIGINT), ("parent", signal.SIGTERM), ("group", signal.SIGINT),
+                ("worker", signal.SIGKILL), ("worker", signal.SIGTERM)]
 
 
 @pytest.mark.parametrize("who,sig", WORKER_STOPS, ids=[f"{w}-{s.name}" for w, s in WORKER_STOPS])
 def test_a_stopped_training_with_workers_leaves_no_process_no_shared_memory(old_run, tmp_path, who, sig):
     before = fingerprint(old_run)
-    proc = start(TRAIN + ["--workers", "2", "--epochs", "400", "--out", old_run])
+    # "group": Ctrl-C in a terminal, SIGINT to the job and its workers at once (own session here)
+    proc = start(TRAIN + ["--workers", "2", "--epochs", "400", "--out", old_run], start_new_session=who == "group")
     seen = wait_for(proc, "    2 worker processes")
     pids = worker_ids(seen)
     wait_for(proc, "        1 ")                            # an epoch done: the workers are mid-run
-    proc.send_signal(sig) if who == "parent" else os.kill(pids[1], sig)
+    if who == "group":
+        os.killpg(proc.pid, sig)
+    else:
+        proc.send_signal(sig) if who == "parent" else os.kill(pids[1], sig)
     rest, _ = proc.communicate(timeout=600)
-    if who == "parent":
+    if who in ("parent", "group"):
         assert proc.returncode == (130 if sig == signal.SIGINT else 143), rest[-800:]
     else:                                                  # one line naming the worker and the signal
         assert proc.returncode == 2, rest[-800:]
