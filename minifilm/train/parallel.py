@@ -32,13 +32,16 @@ their clip and split at clip boundaries, so each worker runs Ψ on its own clips
 clips than workers a clip's Ψ runs in every worker that has samples of it (its gradient is still
 the sum of its samples'). Shares may then be unequal; the weights n_w / B keep the mean right.
 
-Processes: started with 'spawn' (a fresh interpreter: nothing of the parent's threads or locks
-is inherited, and the same code runs on Linux, macOS and Windows), with
+Processes: started with 'spawn' (a fresh interpreter: nothing of the parent's threads, locks or
+BLAS state is inherited, so it is safe whatever the parent runs; and it is the start method every
+platform has), with
 OPENBLAS/OMP/MKL_NUM_THREADS=1 in their environment. They ignore SIGINT; the parent stops them
 when it leaves (finished, Ctrl-C, SIGTERM, an error, a worker that died), and a worker stops by
 itself when the parent's end of its pipe closes. The shared-memory segments are named
 ``minifilm_<parent pid>_<n>`` and unlinked by the parent on the way out. A worker that dies (killed,
-out of memory) stops training with :class:`WorkerDied`, one message, before any update.
+out of memory) stops training with :class:`WorkerDied`, one message; when that happens before
+phase 3 the weights are untouched by the step (during phase 3 they are partly updated, and the
+run stops all the same; the checkpoints already written are whole).
 """
 from __future__ import annotations
 
@@ -280,10 +283,10 @@ class DataParallel:
         scalars = [x for i, step_size, eps_hat in optimizer.advance()
                    for x in (*self.set_spans[i], step_size, eps_hat)]
         self._send([(parallel_worker.ADAM, a, z, optimizer.beta1, optimizer.beta2, *scalars) for a, z in self.spans])
-        self._collect(f"step {self.trainer.step + 1}")
+        self._collect(f"the Adam step {self.trainer.step + 1}", updating=True)
         self.seconds["waiting"] += time.perf_counter() - t0
 
-    def _collect(self, where: str) -> np.ndarray:
+    def _collect(self, where: str, updating: bool = False) -> np.ndarray:
         """(W, 2) float64 replies of every worker; WorkerDied when one ends or reports an error."""
         replies = [None] * self.workers
         waiting = dict(enumerate(self.conns))
@@ -294,24 +297,25 @@ class DataParallel:
                     try:
                         message = conn.recv_bytes()
                     except (EOFError, OSError):
-                        self._died(w, where)
+                        self._died(w, where, updating)
                     if message[:2] != parallel_worker.OK:
                         raise WorkerDied(f"training stopped: worker {w} failed at {where}: "
                                          f"{message[2:].decode(errors='replace')}")
                     replies[w] = np.frombuffer(message[2:], dtype=np.float64)
                     del waiting[w]
                 elif self.procs[w].sentinel in ready:
-                    self._died(w, where)
+                    self._died(w, where, updating)
         return np.stack(replies)
 
-    def _died(self, w: int, where: str):
+    def _died(self, w: int, where: str, updating: bool):
         proc = self.procs[w]
         proc.join(timeout=1.0)
         code = proc.exitcode
         how = (f"was killed by {signal.Signals(-code).name}" if code is not None and code < 0
                else f"exited with code {code}")
         raise WorkerDied(f"training stopped: worker {w} (process {proc.pid}) {how} at {where}; "
-                         "the weights were not updated with that step")
+                         + ("the step's update is incomplete (the checkpoints written so far are whole)" if updating
+                            else "the weights were not updated with that step"))
 
     # ---- the end ---------------------------------------------------------------------------------
     def close(self) -> None:
