@@ -1,6 +1,9 @@
 """The training objective of one minibatch, L = L_mse + w L_bll (Eq. 5-7), as one function that the
-Trainer and the data-parallel workers (parallel_worker.py) both call."""
+Trainer and the data-parallel workers (parallel_worker.py) both call, and the finiteness test the
+Trainer applies to its losses and gradients before an update."""
 from __future__ import annotations
+
+import numpy as np
 
 from minifilm.model.losses import bone_length_loss, mse_loss
 
@@ -18,3 +21,13 @@ def objective(pred, target, bll_weight=1.0, positions_idx=None, parents=None, z_
         bll *= bll_weight
         dpred = dpred + bll_weight * dbll
     return mse, bll, dpred
+
+
+def all_finite(value) -> bool:
+    """Whether every number of ``value`` is finite: the sum first (one pass, no temporary; any NaN or
+    inf makes it NaN or inf), and only when that is not finite -- a NaN, an inf, or finite numbers
+    whose sum overflows -- the exact test, number by number."""
+    value = np.asarray(value)
+    with np.errstate(over="ignore", invalid="ignore"):
+        total = np.sum(value)
+    return bool(np.isfinite(total)) or bool(np.all(np.isfinite(value)))

@@ -58,6 +58,7 @@ from multiprocessing import connection, shared_memory
 
 import numpy as np
 
+from minifilm.model.style_model import StyleModel
 from minifilm.nn.fast_optim import ChunkedAdam
 from minifilm.train import parallel_worker
 
@@ -81,7 +82,6 @@ def usable_cores() -> int:
 def supports(model) -> bool:
     """Data-parallel steps need the paper's StyleModel with its FiLM generator Ψ (the comparison
     variants of minifilm.baselines train in one process)."""
-    from minifilm.model.style_model import StyleModel
     return type(model) is StyleModel and model.film is not None
 
 

@@ -37,13 +37,13 @@ def attach(name: str):
     """The existing shared-memory segment ``name``. The worker shares the parent's resource
     tracker (the 'spawn' start method passes it on), whose record of the segment is a set: the
     worker's registration adds nothing, and the parent's unlink removes it."""
-    from multiprocessing import shared_memory
+    from multiprocessing import shared_memory   # (here: this module's top stays light, see above)
     return shared_memory.SharedMemory(name=name)
 
 
 def views(shm, layout: dict) -> dict:
     """{field: ndarray view into ``shm``} from {field: [byte offset, shape, dtype]}."""
-    import numpy as np
+    import numpy as np   # (here: loaded once the worker ignores SIGINT, see above)
     return {k: np.ndarray(tuple(shape), dtype=np.dtype(dt), buffer=shm.buf, offset=off)
             for k, (off, shape, dt) in layout.items()}
 
@@ -77,6 +77,7 @@ class Worker:
     """The model bound to shared memory, and one step on a share of a minibatch."""
 
     def __init__(self, spec: dict, slot: int):
+        # here, not at the top: loaded once the worker ignores SIGINT (see the module's docstring)
         import numpy as np
         from minifilm.model.config import ModelConfig
         from minifilm.model.style_model import StyleModel
@@ -85,7 +86,7 @@ class Worker:
         self.np, self.objective = np, objective
         self.model = StyleModel(ModelConfig.from_dict(spec["model_config"]), np.random.default_rng(0),
                                 dtype=np.dtype(spec["dtype"]))
-        from minifilm.nn.fast_optim import CHUNK, adam_span
+        from minifilm.nn.fast_optim import CHUNK, adam_span   # (as above)
         self.adam_span = adam_span
         self.segments = [attach(spec["flat"]), attach(spec["step"])]
         flat, step = self.segments

@@ -30,7 +30,8 @@ from minifilm.dataset.stats import NormStats
 from minifilm.model.style_model import StyleModel
 from minifilm.nn.fast_optim import ChunkedAdam
 from minifilm.train.batches import draw_clips, draw_shared_clips, epoch_batches
-from minifilm.train.objective import objective
+from minifilm.train.objective import all_finite, objective
+from minifilm.train.parallel import data_parallel
 from minifilm.train.checkpoint import (NETWORKS, CheckpointError, build_style_model, load_checkpoint,
                                        load_model_arrays, model_arrays, save_checkpoint, subset)
 
@@ -232,8 +233,7 @@ class Trainer:
 
     def gradients(self, b: Minibatch, pool=None):
         """The gradients of minibatch ``b`` into the networks' ``.params.grad``; returns (mse, bll).
-        pool: a :class:`minifilm.train.parallel.DataParallel` to split the work across processes
-        (the same numbers to float32 round-off), or None: in this process."""
+        pool: a minifilm.train.parallel.DataParallel (the same numbers to round-off), or None."""
         if pool is not None:
             return pool.gradients(b)
         self.model.zero_grad()
@@ -335,7 +335,6 @@ class Trainer:
         """Train until `epochs` (default config.epochs) epochs are done in total; returns history.
         workers: processes computing the gradients (minibatches split across them, the same
         results; None: every usable core; see minifilm/train/parallel.py)."""
-        from minifilm.train.parallel import data_parallel
         target = self.config.epochs if epochs is None else epochs
         with data_parallel(self, workers) as pool:
             while self.epoch < target:
@@ -391,16 +390,6 @@ class Trainer:
                 raise CheckpointError(f"checkpoint {path}: epoch {trainer.epoch} and step {trainer.step} must be >= 0")
             trainer.history = list(meta.get("history", []))
         return trainer
-
-
-def all_finite(value) -> bool:
-    """Whether every number of ``value`` is finite: the sum first (one pass, no temporary; any NaN or
-    inf makes it NaN or inf), and only when that is not finite -- a NaN, an inf, or finite numbers
-    whose sum overflows -- the exact test, number by number."""
-    value = np.asarray(value)
-    with np.errstate(over="ignore", invalid="ignore"):
-        total = np.sum(value)
-    return bool(np.isfinite(total)) or bool(np.all(np.isfinite(value)))
 
 
 def _bone_indices(meta: dict, z_dim: int, path):

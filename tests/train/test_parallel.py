@@ -131,7 +131,7 @@ def test_the_workers_adam_step_is_the_one_process_step_number_for_number():
 
 
 def test_all_finite_agrees_with_the_number_by_number_test():
-    from minifilm.train.trainer import all_finite
+    from minifilm.train.objective import all_finite
     big = np.full(10, 3e38, np.float32)                    # finite numbers whose sum overflows
     cases = [np.ones(5, np.float32), big, np.array([1.0, np.nan]), np.array([np.inf, 1.0]),
              np.array([np.inf, -np.inf], np.float32), np.zeros(0), 2.5, float("nan")]
