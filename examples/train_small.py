@@ -31,7 +31,7 @@ for key, value in ONE_BLAS_THREAD.items():
 
 from minifilm.cli import Parser, run_command  # noqa: E402
 from minifilm.cli import train as options  # noqa: E402
-from minifilm.pipeline.train_small import finish, log_epoch, main_job, new_trainer  # noqa: E402
+from minifilm.pipeline.train_small import finish, log_epoch, main_job, new_trainer, workers  # noqa: E402
 from minifilm.train.trainer import EpochLosses  # noqa: E402
 
 
@@ -52,21 +52,30 @@ def main(argv=None) -> None:
         # ---- 4. training: Ω, Φ, Ψ (minifilm/model/), the losses of Eq. (5)-(7), Adam
         trainer = new_trainer(job)                # the model, Adam, the random generator, the history
         model, adam, rng = trainer.model, trainer.optimizer, trainer.rng
-        for _ in range(settings.epochs):
-            t0 = time.perf_counter()
-            losses = EpochLosses(trainer)
-            for b in trainer.minibatches(train_data):   # one style per minibatch, 4 clips of that style
-                model.zero_grad()
-                z = model.forward(b.x, b.p, b.clips, train=True, rng=rng, **b.kw)   # Eq. (4): Φ(x; Ω(p), Ψ(y))
-                mse, bll, dz = trainer.losses(z, b.z)                                # Eq. (5)-(7) and dL/dz
-                model.backward(dz, need_input_grads=False)   # Ψ, Φ, Ω in reverse: every gradient, by hand
-                trainer.check_finite(b, mse, bll)            # a NaN or inf stops here, before the update
-                adam.lr = trainer.learning_rate(trainer.epoch + b.index / b.count)
-                adam.step()                                  # minifilm/nn/fast_optim.py (nn/optim.py: plain)
-                trainer.step += 1
-                losses.add(b, mse, bll)
-            record = trainer.end_epoch(losses.summary(), val_data)   # validation MSE / BLL, checkpoint
-            log_epoch(record, time.perf_counter() - t0)
+        # --workers N (default: every core): each minibatch is split across N processes, each
+        # computing the lines below on its share (minifilm/train/parallel.py); the same numbers
+        with workers(trainer, settings) as pool:
+            for _ in range(settings.epochs):
+                t0 = time.perf_counter()
+                losses = EpochLosses(trainer)
+                for b in trainer.minibatches(train_data):   # one style per minibatch, 4 clips of that style
+                    if pool is not None:
+                        mse, bll = pool.gradients(b)          # the same forward / backward, in the workers
+                    else:
+                        model.zero_grad()
+                        z = model.forward(b.x, b.p, b.clips, train=True, rng=rng, **b.kw)   # Eq. (4)
+                        mse, bll, dz = trainer.losses(z, b.z)                          # Eq. (5)-(7), dL/dz
+                        model.backward(dz, need_input_grads=False)   # Ψ, Φ, Ω in reverse, by hand
+                    trainer.check_finite(b, mse, bll)            # a NaN or inf stops here, before the update
+                    adam.lr = trainer.learning_rate(trainer.epoch + b.index / b.count)
+                    if pool is not None:
+                        pool.update(adam)                        # the same Adam step, each worker on its part
+                    else:
+                        adam.step()                              # minifilm/nn/fast_optim.py (nn/optim.py: plain)
+                    trainer.step += 1
+                    losses.add(b, mse, bll)
+                record = trainer.end_epoch(losses.summary(), val_data)   # validation MSE / BLL, checkpoint
+                log_epoch(record, time.perf_counter() - t0)
 
         # ---- 5. results: test table, loss curve, styles.npz, generated BVH, style recognition, GIF, HTML
         finish(job, trainer)

@@ -50,12 +50,15 @@ def add_arguments(parser) -> None:
     parser.add_argument("--clips-per-batch", type=in_range(1, 4096, int), default=d.clips_per_batch,
                         help="style clips per minibatch, shared by its samples (default "
                              f"{d.clips_per_batch}; 32 = one clip per sample, as the paper)")
+    parser.add_argument("--workers", type=in_range(1, 1024, int),
+                        help="processes computing each minibatch's gradients, one BLAS thread each (default: "
+                             "every core this process may use; the results are the same for any number)")
 
 
 def settings(args) -> Settings:
     clips = None if args.clips_per_batch is None or args.clips_per_batch >= Settings().batch_size else args.clips_per_batch
     s = Settings(seed=args.seed, out=args.out, split=args.split, mirror=args.mirror, clips_per_batch=clips,
-                 fps=args.fps, rig=args.rig)
+                 fps=args.fps, rig=args.rig, workers=args.workers)
     if args.quick:
         s = s.quick()
     changes = {"epochs": args.epochs, "seconds_per_clip": args.seconds, "generate_seconds": args.generate_seconds,

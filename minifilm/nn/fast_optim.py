@@ -58,22 +58,35 @@ class ChunkedAdam(Adam):
         # One scratch chunk per dtype is enough: sets are updated one after the other.
         self._scratch = {p.dtype: np.empty(CHUNK, dtype=p.dtype) for p in self.sets}
 
-    def step(self) -> None:
-        """Update ``.data`` of every trainable set in place from its ``.grad``."""
+    def advance(self) -> list:
+        """Count one step for every trainable set; returns [(set index, step_size, eps_hat)] of
+        those sets, the scalars of :func:`adam_span` (the data-parallel trainer sends them to its
+        workers, which update slices of the buffers: minifilm/train/parallel.py)."""
+        out = []
         for i, p in enumerate(self.sets):
             if not p.trainable:
                 continue
             self.steps[i] += 1
             t = self.steps[i]
             correction = math.sqrt(1 - self.beta2 ** t)
-            step_size = self.lr * correction / (1 - self.beta1 ** t)
-            eps_hat = self.eps * correction
-            m, v, g, w = self.m[i], self.v[i], p.grad, p.data
+            out.append((i, self.lr * correction / (1 - self.beta1 ** t), self.eps * correction))
+        return out
+
+    def step(self) -> None:
+        """Update ``.data`` of every trainable set in place from its ``.grad``."""
+        for i, step_size, eps_hat in self.advance():
+            p = self.sets[i]
             buf = self._scratch.get(p.dtype)
             if buf is None or len(buf) < CHUNK:              # a new dtype, or CHUNK changed
                 buf = self._scratch[p.dtype] = np.empty(CHUNK, dtype=p.dtype)
-            tiny = np.finfo(p.dtype).tiny
-            for lo in range(0, p.size, CHUNK):
-                hi = min(lo + CHUNK, p.size)
-                _adam_chunk(w[lo:hi], g[lo:hi], m[lo:hi], v[lo:hi], buf[: hi - lo],
-                            self.beta1, self.beta2, step_size, eps_hat, tiny)
+            adam_span(p.data, p.grad, self.m[i], self.v[i], buf, self.beta1, self.beta2, step_size, eps_hat)
+
+
+def adam_span(w, g, m, v, buf, beta1, beta2, step_size, eps_hat) -> None:
+    """The update of :class:`ChunkedAdam` on flat arrays w, g, m, v (N,) (a whole set, or any slice
+    of one: every number is updated on its own), CHUNK numbers at a time with ``buf`` (>= CHUNK,
+    same dtype) as scratch."""
+    tiny = np.finfo(w.dtype).tiny
+    for lo in range(0, len(w), CHUNK):
+        hi = min(lo + CHUNK, len(w))
+        _adam_chunk(w[lo:hi], g[lo:hi], m[lo:hi], v[lo:hi], buf[: hi - lo], beta1, beta2, step_size, eps_hat, tiny)

@@ -53,6 +53,21 @@ class Parameters:
             start = stop
         self.trainable = True
 
+    def bind(self, data: np.ndarray, grad: np.ndarray) -> None:
+        """Move the set onto the given flat buffers (N,) of its dtype, e.g. views into shared
+        memory (minifilm/train/parallel.py): the current values are copied into ``data`` and
+        ``grad``, and ``params`` / ``grads`` become views into them."""
+        for name, buf in (("data", data), ("grad", grad)):
+            if buf.shape != (self.size,) or buf.dtype != self.dtype:
+                raise ValueError(f"Parameters.bind: {name} must be ({self.size},) {self.dtype}, "
+                                 f"got {buf.shape} {buf.dtype}")
+        data[...] = self.data
+        grad[...] = self.grad
+        self.data, self.grad = data, grad
+        for name, shape in self.shapes.items():
+            self.params[name] = data[self.slices[name]].reshape(shape)
+            self.grads[name] = grad[self.slices[name]].reshape(shape)
+
     def __repr__(self) -> str:
         inner = ", ".join(f"{n}{s}" for n, s in self.shapes.items())
         return f"Parameters({inner}; size={self.size}, {self.dtype}, trainable={self.trainable})"

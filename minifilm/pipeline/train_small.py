@@ -51,6 +51,7 @@ from minifilm.pipeline.results import (generate_per_style, save_loss_curve, show
                                        style_library, style_recognition, test_table)
 from minifilm.runtime.controller import start_from_dataset
 from minifilm.synthetic import generator as synthetic
+from minifilm.train.parallel import data_parallel
 from minifilm.train.trainer import TrainConfig, Trainer
 
 
@@ -91,6 +92,9 @@ class Settings:
     mirror: bool = False                 # also train on the left/right mirror of every file
     fps: Optional[float] = None          # your own data: resample every file to this rate (None: as recorded)
     rig: Optional[str] = None            # your own data: retarget every file onto this rig first (docs/retargeting.md)
+    # processes computing each minibatch's gradients, one BLAS thread each (minifilm/train/parallel.py);
+    # None: every core this process may use. The results do not depend on it (to float32 round-off)
+    workers: Optional[int] = None
 
     def quick(self) -> "Settings":
         """A much smaller run of every step (seconds instead of minutes)."""
@@ -171,15 +175,30 @@ def log_epoch(record: dict, seconds: float) -> None:
         f"{record['val']['mse']:>9.4f} {record['val']['bll']:>9.4f} {seconds:>6.1f}s")
 
 
+def workers(trainer: Trainer, s: Settings):
+    """``with workers(trainer, s) as pool``: the worker processes of the training (None: train in
+    this process); prints how many and their process ids."""
+    @contextlib.contextmanager
+    def started():
+        with data_parallel(trainer, s.workers) as pool:
+            if pool is None:
+                log("    training in this process (1 worker)")
+            else:
+                log(f"    {pool.workers} worker processes (ids {', '.join(map(str, pool.pids))}), one BLAS thread each")
+            yield pool
+    return started()
+
+
 def train(job: "Job") -> Trainer:
     """Train the small LPN + FiLM model, one line per epoch; checkpoint after every epoch
     (examples/train_small.py writes the same loop out step by step)."""
     trainer = new_trainer(job)
     train_data, val_data = job.ds.train_data("train"), job.ds.train_data("val")
-    for _ in range(job.settings.epochs):
-        t0 = time.perf_counter()
-        record = trainer.end_epoch(trainer.train_epoch(train_data), val_data)
-        log_epoch(record, time.perf_counter() - t0)
+    with workers(trainer, job.settings) as pool:
+        for _ in range(job.settings.epochs):
+            t0 = time.perf_counter()
+            record = trainer.end_epoch(trainer.train_epoch(train_data, pool), val_data)
+            log_epoch(record, time.perf_counter() - t0)
     return trainer
 
 

@@ -27,10 +27,11 @@ import numpy as np
 
 from minifilm.dataset.arrays import TrainData
 from minifilm.dataset.stats import NormStats
-from minifilm.model.losses import bone_length_loss, mse_loss
 from minifilm.model.style_model import StyleModel
 from minifilm.nn.fast_optim import ChunkedAdam
 from minifilm.train.batches import draw_clips, draw_shared_clips, epoch_batches
+from minifilm.train.objective import all_finite, objective
+from minifilm.train.parallel import data_parallel
 from minifilm.train.checkpoint import (NETWORKS, CheckpointError, build_style_model, load_checkpoint,
                                        load_model_arrays, model_arrays, save_checkpoint, subset)
 
@@ -179,18 +180,12 @@ class Trainer:
     # -- losses ------------------------------------------------------------------------
     def losses(self, pred, target):
         """(mse, bll, dpred) for one minibatch."""
-        mse, dpred = mse_loss(pred, target)
-        bll = 0.0
-        if self.positions_idx is not None and self.config.bll_weight:
-            bll, dbll = bone_length_loss(pred, target, self.positions_idx, self.parents,
-                                         self.stats.z_mean, self.stats.z_std)
-            bll *= self.config.bll_weight
-            dpred = dpred + self.config.bll_weight * dbll
-        return mse, bll, dpred
+        return objective(pred, target, self.config.bll_weight, self.positions_idx, self.parents,
+                         self.stats.z_mean, self.stats.z_std)
 
     def _check_finite(self, where, quantities):
         for name, value in quantities:
-            if not np.all(np.isfinite(value)):
+            if not all_finite(value):
                 raise TrainingDiverged(f"step {self.step} ({where}): {name} is not finite "
                                        f"({'nan' if np.any(np.isnan(value)) else 'inf'}); weights not updated")
 
@@ -227,28 +222,46 @@ class Trainer:
                                                                self.rng)
             else:
                 clip_idx = draw_clips(data, data.style[idx], self.rng)
-            x, p, z = data.x[idx].astype(dtype), data.p[idx].astype(dtype), data.z[idx].astype(dtype)
-            clips = data.clips[clip_idx].astype(dtype)
+            # the gathers copy already; a cast copies again only when the data are in another dtype
+            x, p, z = (a[idx].astype(dtype, copy=False) for a in (data.x, data.p, data.z))
+            clips = data.clips[clip_idx].astype(dtype, copy=False)
             if self.config.input_noise > 0:
                 x = x + (self.config.input_noise * self.rng.standard_normal(x.shape)).astype(dtype)
                 p = p + (self.config.input_noise * self.rng.standard_normal(p.shape)).astype(dtype)
             where = f"epoch {self.epoch + 1}, batch {i + 1}, style {self._name(s)}"
             yield Minibatch(i, len(batches), int(s), x, p, z, clips, kw, where)
 
-    def train_epoch(self, data: TrainData):
-        """One epoch of style-balanced minibatches; returns {'mse', 'bll', 'per_style'} means."""
+    def gradients(self, b: Minibatch, pool=None):
+        """The gradients of minibatch ``b`` into the networks' ``.params.grad``; returns (mse, bll).
+        pool: a minifilm.train.parallel.DataParallel (the same numbers to round-off), or None."""
+        if pool is not None:
+            return pool.gradients(b)
+        self.model.zero_grad()
+        pred = self.model.forward(b.x, b.p, b.clips, train=True, rng=self.rng, **b.kw)
+        mse, bll, dpred = self.losses(pred, b.z)
+        self.model.backward(dpred, need_input_grads=False)   # the inputs are data: skip dx, dclip
+        return mse, bll
+
+    def train_epoch(self, data: TrainData, pool=None):
+        """One epoch of style-balanced minibatches; returns {'mse', 'bll', 'per_style'} means.
+        pool: worker processes for the gradients (:meth:`gradients`), or None."""
         losses = EpochLosses(self)
         for b in self.minibatches(data):
-            self.model.zero_grad()
-            pred = self.model.forward(b.x, b.p, b.clips, train=True, rng=self.rng, **b.kw)
-            mse, bll, dpred = self.losses(pred, b.z)
-            self.model.backward(dpred, need_input_grads=False)   # the inputs are data: skip dx, dclip
+            mse, bll = self.gradients(b, pool)
             self.check_finite(b, mse, bll)
             self.optimizer.lr = self.learning_rate(self.epoch + b.index / b.count)
-            self.optimizer.step()
+            self.update(pool)
             self.step += 1
             losses.add(b, mse, bll)
         return losses.summary()
+
+    def update(self, pool=None) -> None:
+        """The optimiser's step (after :meth:`check_finite`); with a pool its workers compute it,
+        each on a part of the parameters (the same numbers: Adam works number by number)."""
+        if pool is not None:
+            pool.update(self.optimizer)
+        else:
+            self.optimizer.step()
 
     def check_finite(self, b: "Minibatch", mse: float, bll: float) -> None:
         """TrainingDiverged naming the minibatch and the quantity when a loss or a network's
@@ -318,11 +331,14 @@ class Trainer:
 
 
     # -- the run -----------------------------------------------------------------------
-    def fit(self, train: TrainData, val: TrainData | None = None, epochs: int | None = None):
-        """Train until `epochs` (default config.epochs) epochs are done in total; returns history."""
+    def fit(self, train: TrainData, val: TrainData | None = None, epochs: int | None = None, workers: int = 1):
+        """Train until `epochs` (default config.epochs) epochs are done in total; returns history.
+        workers: processes computing the gradients (minibatches split across them, the same
+        results; None: every usable core; see minifilm/train/parallel.py)."""
         target = self.config.epochs if epochs is None else epochs
-        while self.epoch < target:
-            self.end_epoch(self.train_epoch(train), val)
+        with data_parallel(self, workers) as pool:
+            while self.epoch < target:
+                self.end_epoch(self.train_epoch(train, pool), val)
         return self.history
 
     # -- checkpoints -------------------------------------------------------------------

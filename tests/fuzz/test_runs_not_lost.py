@@ -4,9 +4,13 @@
 the data is made, while it trains, while it generates; one of them at a random moment of a seeded
 generator): by SIGINT (Ctrl-C), SIGTERM and SIGKILL. Afterwards the earlier run loads and generates
 exactly as before, and no temporary is left where a user looks (a killed process's hidden
-temporary is removed by the next command writing the folder). Two commands writing one folder:
-the second is refused, naming the first's process."""
+temporary is removed by the next command writing the folder). Training with worker processes
+(--workers 2), stopped by SIGINT or SIGTERM, or with a worker killed mid-run: one message, no
+worker left running, no shared-memory segment left in /dev/shm, the earlier run kept. Two commands
+writing one folder: the second is refused, naming the first's process."""
 import hashlib
+import os
+import re
 import random
 import shutil
 import signal
@@ -120,3 +124,50 @@ def test_two_finetunes_of_one_run_the_second_is_refused(old_run, tmp_path):
     assert first.returncode == 0, out[-800:]
     assert r.returncode == 2 and f"in use by process {first.pid}" in r.stderr, r.stderr[-500:]
     assert "First" in RunFolder.load(old_run).styles()
+
+
+def worker_ids(text: str) -> list:
+    found = re.search(r"(\d+) worker processes \(ids ([\d, ]+)\)", text)
+    assert found, text[-800:]
+    return [int(pid) for pid in found.group(2).split(",")]
+
+
+def running(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    status = Path(f"/proc/{pid}/status")
+    return not (status.exists() and "zombie" in status.read_text().lower())
+
+
+WORKER_STOPS = [("parent", signal.SIGINT), ("parent", signal.SIGTERM), ("group", signal.SIGINT),
+                ("worker", signal.SIGKILL), ("worker", signal.SIGTERM)]
+
+
+@pytest.mark.parametrize("who,sig", WORKER_STOPS, ids=[f"{w}-{s.name}" for w, s in WORKER_STOPS])
+def test_a_stopped_training_with_workers_leaves_no_process_no_shared_memory(old_run, tmp_path, who, sig):
+    before = fingerprint(old_run)
+    # "group": Ctrl-C in a terminal, SIGINT to the job and its workers at once (own session here)
+    proc = start(TRAIN + ["--workers", "2", "--epochs", "400", "--out", old_run], start_new_session=who == "group")
+    seen = wait_for(proc, "    2 worker processes")
+    pids = worker_ids(seen)
+    wait_for(proc, "        1 ")                            # an epoch done: the workers are mid-run
+    if who == "group":
+        os.killpg(proc.pid, sig)
+    else:
+        proc.send_signal(sig) if who == "parent" else os.kill(pids[1], sig)
+    rest, _ = proc.communicate(timeout=600)
+    if who in ("parent", "group"):
+        assert proc.returncode == (130 if sig == signal.SIGINT else 143), rest[-800:]
+    else:                                                  # one line naming the worker and the signal
+        assert proc.returncode == 2, rest[-800:]
+        assert re.search(rf"error: training stopped: worker 1 \(process {pids[1]}\) was killed by {sig.name}", rest), rest[-800:]
+    assert "Traceback" not in rest, rest[-2000:]
+    assert not [pid for pid in pids if running(pid)]
+    assert not list(Path("/dev/shm").glob(f"minifilm_{proc.pid}_*"))
+    assert fingerprint(old_run) == before
+    visible = sorted(p.name for p in old_run.parent.iterdir() if not p.name.startswith("."))
+    hidden = [p.name for p in old_run.parent.iterdir() if p.name.startswith(".") and not p.name.endswith(".lock")]
+    assert (visible, hidden) == (["run"], [])
+    generates(old_run, tmp_path)

@@ -1,0 +1,301 @@
+"""Data-parallel training (minifilm/train/parallel.py): step time, CPU time / wall time and achieved
+GFLOP/s for 1 and 2 worker processes, more workers extrapolated, and (--job) the whole main job.
+
+    python benchmarks/parallel_training.py              # a few minutes: the step table, train_small's model
+    python benchmarks/parallel_training.py --quick      # fewer steps (about a minute)
+    python benchmarks/parallel_training.py --job        # also time `python examples/train_small.py`
+                                                        #   with --workers 1 and 2 (several minutes each)
+    python benchmarks/parallel_training.py --profile    # cProfile of the one-process step, top functions
+
+The model and minibatches are those of examples/train_small.py (ModelConfig.small on x 348, z 342,
+clips 120 x 300; batch 32, 4 clips per minibatch, dropout 0.2, Adam), on random normalised data
+of the same shapes (a step's cost does not depend on the values). Each row runs the same seeded
+steps; rows are interleaved in blocks (1 worker, 2 workers, 1, 2, ...) so both see the same
+background load, and the table reports medians over blocks. Every process uses one BLAS thread.
+
+Columns:
+  step ms        median wall time of a whole training step (gradients, check, Adam)
+  speed-up       step time of 1 worker / this row's
+  CPU / wall     (CPU time of the parent + its workers) / wall time, over the timed steps (Linux:
+                 the workers' CPU time from /proc/<pid>/stat)
+  GFLOP/s        floating-point operations of a step (counted from the layer sizes: 2 per
+                 multiply-add of every matrix product and convolution, forward once and backward
+                 twice -- weights and inputs -- except the input gradient of each network's first
+                 layer, which training skips; element-wise work not counted) / step time
+  % of peak      GFLOP/s against ONE core's float32 peak: vector lanes (16 with avx512f in
+                 /proc/cpuinfo's flags, 8 with avx2, 4 otherwise) x 2 (fma) x 2 FMA units per
+                 core (assumed: most current x86 cores; Zen 4 has one 512-bit unit's worth) x the
+                 clock (/proc/cpuinfo's "cpu MHz", the current one)
+  Adam ms        wall time of the optimiser step (with workers: each updates its part)
+  parent's own   the parent's own work in a step: the dropout masks, the minibatch into shared memory
+Rows for more workers are extrapolated (marked ~): the parent's own work stays serial, the rest
+of the one-process step (gradients, their sum, Adam) divides by W, and what the 2-worker step
+costs beyond those two (messages, waiting for the slower share) stays as measured -- Amdahl's
+law, an estimate for a machine with that many free cores.
+"""
+from __future__ import annotations
+
+import os
+
+os.environ.update({"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"})
+
+import argparse  # noqa: E402
+import cProfile  # noqa: E402
+import math  # noqa: E402
+import pstats  # noqa: E402
+import resource  # noqa: E402
+import statistics  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from minifilm.dataset.arrays import TrainData  # noqa: E402
+from minifilm.dataset.stats import NormStats  # noqa: E402
+from minifilm.model.config import ModelConfig  # noqa: E402
+from minifilm.model.style_model import StyleModel  # noqa: E402
+from minifilm.train.parallel import DataParallel  # noqa: E402
+from minifilm.train.trainer import TrainConfig, Trainer  # noqa: E402
+
+STYLES, FRAMES_PER_STYLE = 8, 2400        # about train_small's training split (8 styles x 5 gaits x 8 s)
+
+
+def config() -> ModelConfig:
+    return ModelConfig.small(x_dim=348, z_dim=342, clip_frames=120, clip_channels=300)
+
+
+def random_data(c: ModelConfig, seed: int = 0) -> TrainData:
+    rng = np.random.default_rng(seed)
+    n, clips = STYLES * FRAMES_PER_STYLE, 16 * STYLES
+    f = np.float32
+    return TrainData(x=rng.standard_normal((n, c.x_dim), f), p=rng.standard_normal((n, c.phase_dim), f),
+                     z=rng.standard_normal((n, c.z_dim), f), style=np.arange(n) % STYLES,
+                     clips=rng.standard_normal((clips, c.clip_frames, c.clip_channels), f),
+                     clip_style=np.arange(clips) % STYLES)
+
+
+def new_trainer(c: ModelConfig) -> Trainer:
+    stats = NormStats(x_mean=np.zeros(c.x_dim), x_std=np.ones(c.x_dim), z_mean=np.zeros(c.z_dim),
+                      z_std=np.ones(c.z_dim), p_mean=np.zeros(c.phase_dim), p_std=np.ones(c.phase_dim))
+    positions = np.arange(3 * 23).reshape(23, 3)                  # 23 joints, as the 100STYLE skeleton
+    parents = np.arange(-1, 22)
+    return Trainer(StyleModel(c, np.random.default_rng(0)), stats,
+                   TrainConfig(batch_size=32, lr=5e-4, clips_per_batch=4, seed=0),
+                   positions_idx=positions, parents=parents)
+
+
+def step_flops(c: ModelConfig, batch: int = 32, clips: int = 4) -> float:
+    """Floating-point operations of one training step (see the module's docstring)."""
+    K, H = c.n_experts, c.hidden
+    def dense(rows, n_in, n_out, first=False):
+        return 2.0 * rows * n_in * n_out * (2 if first else 3)
+    omega = (dense(batch, c.phase_dim, c.gating_hidden, True) + dense(batch, c.gating_hidden, c.gating_hidden)
+             + dense(batch, c.gating_hidden, K))
+    phi = (dense(batch, K * c.x_dim, H, True) + dense(batch, K * H, H) + dense(batch, K * H, c.z_dim))
+    T, k, F = c.clip_frames, c.conv_kernel, c.conv_filters
+    psi = (dense(clips * T, k * c.clip_channels, F, True) + dense(clips * (T // 2), k * F, F)
+           + dense(clips, c.flat_dim, c.film_dense) + dense(clips, c.film_dense, c.film_dim))
+    return omega + phi + psi
+
+
+def core_peak() -> tuple[float, str]:
+    """(GFLOP/s, how it was computed) of one core in float32, from /proc/cpuinfo."""
+    flags, mhz = set(), None
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            key, _, value = line.partition(":")
+            if key.strip() == "flags" and not flags:
+                flags = set(value.split())
+            if key.strip() == "cpu MHz" and mhz is None:
+                mhz = float(value)
+    except OSError:
+        pass
+    lanes = 16 if "avx512f" in flags else 8 if "avx2" in flags else 4
+    fma = 2 if "fma" in flags else 1
+    ghz = (mhz or 0.0) / 1000
+    isa = "AVX-512" if lanes == 16 else "AVX2" if lanes == 8 else "SSE"
+    return lanes * fma * 2 * ghz, f"{lanes} lanes ({isa}) x {fma} (FMA) x 2 units x {ghz:.2f} GHz"
+
+
+def cpu_name() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    import platform
+    return platform.processor() or "unknown CPU"
+
+
+def load() -> str:
+    try:
+        return "load average " + " / ".join(f"{x:.2f}" for x in os.getloadavg()) + " (1 / 5 / 15 min)"
+    except OSError:
+        return "load average unknown"
+
+
+def proc_cpu(pids) -> float:
+    """CPU seconds (user + system) of the processes ``pids`` (Linux /proc; 0 elsewhere)."""
+    total, tick = 0.0, os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
+    for pid in pids:
+        try:
+            fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+            total += (int(fields[11]) + int(fields[12])) / tick
+        except (OSError, IndexError, ValueError):
+            pass
+    return total
+
+
+class Runner:
+    """One trainer, in this process (workers 1) or with a DataParallel pool, stepping through the
+    same seeded minibatches."""
+
+    def __init__(self, workers: int, data: TrainData):
+        self.trainer, self.data, self.workers = new_trainer(config()), data, workers
+        self.pool = DataParallel(self.trainer, workers) if workers > 1 else None
+        self.batches = self._batches()
+        self.times, self.wall, self.cpu, self.adam = [], 0.0, 0.0, 0.0
+
+    def _batches(self):
+        while True:
+            yield from self.trainer.minibatches(self.data)
+
+    def run(self, steps: int) -> None:
+        t = self.trainer
+        pids = self.pool.pids if self.pool else []
+        c0, w0 = time.process_time() + proc_cpu(pids), time.perf_counter()
+        for _ in range(steps):
+            s0 = time.perf_counter()
+            b = next(self.batches)
+            mse, bll = t.gradients(b, self.pool)
+            t.check_finite(b, mse, bll)
+            a0 = time.perf_counter()
+            t.update(self.pool)
+            t.step += 1
+            s1 = time.perf_counter()
+            self.adam += s1 - a0
+            self.times.append(s1 - s0)
+        self.wall += time.perf_counter() - w0
+        self.cpu += time.process_time() + proc_cpu(pids) - c0
+
+    def close(self):
+        if self.pool:
+            self.pool.close()
+
+
+def step_table(steps: int, blocks: int) -> None:
+    data = random_data(config())
+    runners = {w: Runner(w, data) for w in (1, 2)}
+    try:
+        for r in runners.values():
+            r.run(10)                                      # warm-up: page faults, caches
+            r.times, r.wall, r.cpu, r.adam = [], 0.0, 0.0, 0.0
+            if r.pool:
+                r.pool.seconds = {"parent": 0.0, "waiting": 0.0}
+        per_block = {w: [] for w in runners}
+        for _ in range(blocks):
+            for w, r in runners.items():
+                n0 = len(r.times)
+                r.run(steps // blocks)
+                per_block[w].append(statistics.median(r.times[n0:]))
+        # a check that the rows computed the same thing
+        w1, w2 = (np.concatenate([p.data for p in runners[w].trainer.model.parameter_sets()]) for w in (1, 2))
+        drift = float(np.abs(w1 - w2).max() / np.abs(w1).max())
+    finally:
+        for r in runners.values():
+            r.close()
+    flops = step_flops(config())
+    peak, how = core_peak()
+    one = statistics.median(per_block[1])
+    n_steps = steps // blocks * blocks
+    r2 = runners[2]
+    print(f"# {cpu_name()}; {os.cpu_count()} logical CPUs, {len(os.sched_getaffinity(0))} usable; {load()}")
+    print(f"# train_small's model ({sum(p.size for p in runners[1].trainer.model.parameter_sets()):,} parameters), "
+          f"batch 32, 4 clips per minibatch; {n_steps} timed steps per row in {blocks} interleaved blocks")
+    print(f"# one step: {flops / 1e9:.3f} GFLOP; one core's float32 peak {peak:.1f} GFLOP/s = {how}")
+    print(f"# largest weight difference, 1 vs 2 workers, after {len(r2.times) + 10} steps: {drift:.1e} (relative)")
+    print()
+    print("| workers | step ms | speed-up | CPU / wall | GFLOP/s | % of one core's peak | Adam ms | parent's own ms |")
+    print("|---|---|---|---|---|---|---|---|")
+    for w, r in runners.items():
+        ms = statistics.median(per_block[w])
+        parent = (r.pool.seconds["parent"] / len(r.times) * 1e3) if r.pool else float("nan")
+        print(f"| {w} | {ms * 1e3:.2f} | {one / ms:.2f}x | {r.cpu / r.wall:.2f} | {flops / ms / 1e9:.1f} | "
+              f"{100 * flops / ms / 1e9 / peak:.0f} % | {r.adam / len(r.times) * 1e3:.2f} | "
+              f"{'-' if w == 1 else f'{parent:.2f}'} |")
+    # Amdahl: the parent's own work (masks, writing the minibatch) stays serial; the gradients,
+    # their sum and Adam divide by W; the rest of the 2-worker step (messages, waiting for the
+    # slower share) is taken as a fixed cost per step
+    own = r2.pool.seconds["parent"] / len(r2.times)
+    two = statistics.median(per_block[2])
+    work = one                                                   # gradients + Adam, one process
+    messages = max(two - own - work / 2, 0.0)
+    for w in (4, 8, 16):
+        ms = own + work / w + messages
+        print(f"| ~{w} | ~{ms * 1e3:.2f} | ~{one / ms:.2f}x | - | ~{flops / ms / 1e9:.1f} | - | - | - |")
+    print(f"\n(extrapolated rows: the parent's own work {own * 1e3:.2f} ms + the one-process step "
+          f"{work * 1e3:.2f} ms / W + messages and waiting {messages * 1e3:.2f} ms per step)")
+    steps_per_epoch = STYLES * (FRAMES_PER_STYLE // 32)
+    print(f"training of the main job, estimated: 30 epochs x {steps_per_epoch} steps = "
+          + ", ".join(f"{w} worker(s) {30 * steps_per_epoch * statistics.median(per_block[w]):.0f} s" for w in runners)
+          + " (validation and the other steps of the job not included)")
+
+
+def job_table() -> None:
+    print("\n| workers | `python examples/train_small.py` wall s | CPU s | CPU / wall |")
+    print("|---|---|---|---|")
+    for w in (1, 2):
+        with tempfile.TemporaryDirectory() as tmp:
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
+            t0 = time.perf_counter()
+            r = subprocess.run([sys.executable, str(ROOT / "examples" / "train_small.py"), "--workers", str(w),
+                                "--out", str(Path(tmp) / "run")], capture_output=True, text=True,
+                               env={**os.environ, "PYTHONPATH": str(ROOT)})
+            wall = time.perf_counter() - t0
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        if r.returncode != 0:
+            print(f"| {w} | failed: {r.stderr.strip().splitlines()[-1:]} | | |")
+            continue
+        cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+        test = [line.strip() for line in r.stdout.splitlines() if line.strip().startswith("mean")]
+        print(f"| {w} | {wall:.0f} | {cpu:.0f} | {cpu / wall:.2f} |  {'; '.join(test)}")
+    print(f"# {load()} after the jobs")
+
+
+def profile(steps: int) -> None:
+    data = random_data(config())
+    r = Runner(1, data)
+    r.run(10)
+    prof = cProfile.Profile()
+    prof.enable()
+    r.run(steps)
+    prof.disable()
+    print(f"# cProfile of {steps} one-process steps; {cpu_name()}; {load()}")
+    pstats.Stats(prof).sort_stats("tottime").print_stats(25)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--quick", action="store_true", help="fewer steps (about a minute)")
+    ap.add_argument("--job", action="store_true", help="also time the whole main job with 1 and 2 workers")
+    ap.add_argument("--profile", action="store_true", help="cProfile of the one-process step only")
+    ap.add_argument("--steps", type=int, help="timed steps per row (default 600, --quick 120)")
+    a = ap.parse_args()
+    steps = a.steps or (120 if a.quick else 600)
+    if a.profile:
+        profile(steps)
+        return
+    step_table(steps, blocks=6)
+    if a.job:
+        job_table()
+
+
+if __name__ == "__main__":
+    main()
