@@ -103,7 +103,9 @@ let stage = null, actor = null, body = null, label = null, floor = null, trail =
 let ahead = null;   // the path ahead: {group, future (dots), ticks (facing), path (line)}
 let heldOut = new Set();
 const orbit = { target: new THREE.Vector3(0, 0.9, 0), radius: 5, azimuth: Math.PI + 0.5, elevation: 0.3 };
-const chase = { offset: 0.5, set: Math.PI + 0.5 };   // azimuth offset from behind the body's facing
+// azimuth offset from behind the body's facing, the azimuth last set, the azimuth it swings
+// towards and the frame that was worked out from
+const chase = { offset: 0.5, set: Math.PI + 0.5, goal: null, aimedAt: null };
 const TRAIL = 600;                                    // the root's last 10 s at 60 fps
 const trailPoints = [];
 
@@ -655,6 +657,7 @@ function tick(now) {
     // ahead of the body, and the camera swung round to look at the character's side.
     chase.offset += angle(orbit.azimuth - chase.set);
     const behind = Math.atan2(f.facing[0], f.facing[1]) + Math.PI + chase.offset;
+    chase.goal = behind; chase.aimedAt = f;
     orbit.azimuth = chase.set + angle(behind - chase.set) * (dt > 0 ? 1 - Math.exp(-dt / CHASE_SECONDS) : 1);
     chase.set = orbit.azimuth;
   }
@@ -722,8 +725,12 @@ Object.assign(demo, {
   },
   // Joint positions the page shows now ((J, 3), metres, world).
   shownJoints: () => actor.joints.map(m => [m.position.x, m.position.y, m.position.z]),
-  // The orbit camera now: azimuth (radians about +y), the point it looks at, the mode, and the
-  // offset of its azimuth from straight behind the facing (0.5 rad in follow mode).
+  // The orbit camera now: azimuth (radians about +y), the point it looks at, the mode, the offset
+  // of its azimuth from straight behind the facing (0.5 rad in follow mode) and the azimuth it
+  // swings towards, with the facing and heading of the frame that goal was worked out from (null
+  // until a frame was drawn in a following mode).
   camera: () => ({ azimuth: orbit.azimuth, target: orbit.target.toArray(), position: stage.camera.position.toArray(),
-                   mode: demo.cameraMode, offset: chase.offset }),
+                   mode: demo.cameraMode, offset: chase.offset, goal: chase.goal,
+                   facing: chase.aimedAt && chase.aimedAt.facing, heading: chase.aimedAt && chase.aimedAt.heading }),
+  shownColour: () => actor.material.color.getHex(),   // the character's colour (sRGB, 0xrrggbb)
 });
