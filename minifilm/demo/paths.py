@@ -55,6 +55,37 @@ def commanded_path(steering, root: np.ndarray, seconds: np.ndarray, scale: float
     return out
 
 
+class PathCache:
+    """:func:`commanded_path`, faster: the same held input gives the same path turned with the
+    heading (the steering's velocity is relative to the heading, and its turning does not depend
+    on where the heading points), so the path is worked out once at heading 0 from the origin,
+    and then only rotated to the heading and moved to the root. Tested equal to the plain one.
+
+    Remembers the paths of the last ``size`` different inputs (held keys, speed scale)."""
+
+    def __init__(self, size: int = 64):
+        self.size = size
+        self._paths: Dict[tuple, np.ndarray] = {}
+
+    def path(self, steering, root: np.ndarray, seconds: np.ndarray, scale: float = 1.0) -> np.ndarray:
+        key = (steering.move, steering.turn, steering.speed, steering.walk_speed, steering.run_speed,
+               steering.turn_rate, round(float(scale), 6), tuple(np.round(seconds, 9)))
+        local = self._paths.get(key)
+        if local is None:
+            if len(self._paths) >= self.size:
+                self._paths.clear()
+            at_zero = copy.copy(steering)
+            at_zero.theta = 0.0
+            local = self._paths[key] = commanded_path(at_zero, np.zeros(2), seconds, float(scale))
+        # heading 0 is +z; heading theta's (sin, cos) and right (-cos, sin) are those of 0 turned by theta
+        c, s = math.cos(steering.theta), math.sin(steering.theta)
+        turned = np.stack([c * local[:, 0] + s * local[:, 1], -s * local[:, 0] + c * local[:, 1]], axis=1)
+        return turned + np.asarray(root, dtype=np.float64)
+
+
+_PATHS = PathCache()
+
+
 def frame_paths(character) -> Dict[str, List[float]]:
     """The frame message's ``future``, ``futureFacing`` and ``path`` for a demo
     :class:`~minifilm.demo.character.Character` (after its step)."""
@@ -62,7 +93,7 @@ def frame_paths(character) -> Dict[str, List[float]]:
     scale = character.reachable / character.commanded if character.commanded > 1e-9 else 1.0
     horizon = future_seconds(character.source.layout)[-1]
     seconds = np.linspace(0.0, horizon, int(round(horizon / PATH_SPACING)) + 1)
-    path = commanded_path(character.steering, st.root[0], seconds, scale if math.isfinite(scale) else 1.0)
+    path = _PATHS.path(character.steering, st.root[0], seconds, scale if math.isfinite(scale) else 1.0)
     return {"future": np.round(st.future_pos[0], 4).reshape(-1).tolist(),
             "futureFacing": np.round(st.future_dir[0], 4).reshape(-1).tolist(),
             "path": np.round(path, 4).reshape(-1).tolist()}

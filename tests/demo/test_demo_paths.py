@@ -9,7 +9,7 @@ import pytest
 from demo_helpers import tiny_source  # noqa: F401  (a fixture)
 from minifilm.demo.calibrations import Calibrations
 from minifilm.demo.character import Character, DemoSettings
-from minifilm.demo.paths import commanded_path
+from minifilm.demo.paths import PathCache, commanded_path
 from minifilm.demo.protocol import InputMessage, encode
 from minifilm.demo.steering import Steering
 
@@ -43,6 +43,18 @@ def test_a_scaled_command_shortens_the_path_and_nothing_held_stays_put():
     np.testing.assert_allclose(commanded_path(s, np.zeros(2), SECONDS, scale=0.5)[-1], [-0.65, 0.0], atol=1e-12)
     s.hold((0.0, 0.0), 1.0, 0.0)                                   # only turning: the root stays
     np.testing.assert_allclose(commanded_path(s, np.array([1.0, 2.0]), SECONDS), np.tile([1.0, 2.0], (11, 1)))
+
+
+def test_the_cached_path_equals_the_plain_one_at_any_heading():
+    rng = np.random.default_rng(3)
+    cache = PathCache(size=4)
+    for _ in range(40):
+        s = Steering(theta=float(rng.uniform(-math.pi, math.pi)))
+        s.hold(tuple(rng.choice([-1.0, 0.0, 0.5, 1.0], 2)), float(rng.choice([-1.0, 0.0, 1.0])), float(rng.uniform(0, 1)))
+        root, scale = rng.normal(size=2) * 5, float(rng.choice([1.0, 0.6]))
+        np.testing.assert_allclose(cache.path(s, root, SECONDS, scale), commanded_path(s, root, SECONDS, scale),
+                                   atol=1e-12)
+    assert len(cache._paths) <= 4                                  # it forgets, it does not grow
 
 
 def test_frames_carry_the_predicted_trajectory_and_the_held_path(tiny_source):
