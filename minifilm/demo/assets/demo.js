@@ -530,9 +530,17 @@ tri.addEventListener('pointerup', e => { if (dragging) { dragging = false; blend
 for (let i = 0; i < 3; i++) $('corner' + i).addEventListener('change', e => { setBlend(dot); e.target.blur(); });
 drawTriangle();
 
-// A short window (800 x 600) cannot show every section: the blend triangle and the recorder start
-// folded (their titles open them), so the settings, the read-outs and the view stay in sight.
-if (window.matchMedia('(max-height: 760px)').matches) for (const id of ['sec-blend', 'sec-record']) $(id).open = false;
+// A window too short for every section (800 x 600, or even 1280 x 900): the recorder, then the
+// blend triangle, then the phase dials start folded (their titles open them) until the rest fits
+// without scrolling, so the settings, the read-outs and the view are all in sight.
+function foldToFit() {
+  const panel = $('panel');
+  for (const id of ['sec-record', 'sec-blend', 'sec-phases']) {
+    if (panel.scrollHeight <= panel.clientHeight) break;
+    $(id).open = false;
+  }
+}
+foldToFit();
 for (const s of document.querySelectorAll('#panel summary')) s.addEventListener('click', e => e.currentTarget.blur());
 
 for (const name of ['footLock', 'fit']) {
