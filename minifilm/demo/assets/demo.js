@@ -100,7 +100,7 @@ ws.addEventListener('message', e => {
 // ---------------------------------------------------------------------------------------------
 
 let stage = null, actor = null, body = null, label = null, floor = null, trail = null, arrow = null, SIZE = 1.7;
-let ahead = null;   // the path ahead: {group, future (dots), ticks (facing), path (line)}
+let ahead = null;   // the path ahead (pathAhead): {group, dots (predicted samples), ticks (their facing), path (the keys' line)}
 let heldOut = new Set();
 const orbit = { target: new THREE.Vector3(0, 0.9, 0), radius: 5, azimuth: Math.PI + 0.5, elevation: 0.3 };
 // azimuth offset from behind the body's facing, the azimuth last set, the azimuth it swings
