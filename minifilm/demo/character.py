@@ -25,6 +25,7 @@ from typing import List, Optional, Tuple
 import numpy as np
 
 from minifilm.demo.calibrations import Calibrations
+from minifilm.demo.paths import frame_paths
 from minifilm.demo.protocol import InputMessage, ResetMessage, SettingsMessage, StyleMessage, weights_dict
 from minifilm.demo.source import DemoSource
 from minifilm.demo.steering import Steering, heading_vector
@@ -235,7 +236,8 @@ class Character:
         input message to the frame that applied it; None before any), ``calibration`` (the speed
         calibration's progress, :meth:`Calibrations.progress`), the style mix now (``weights``, default the mix's) and
         its target and the fingerprint of its FiLM vector
-        (:func:`~minifilm.demo.style_mix.film_digest`), the toggles, and the Controller's step
+        (:func:`~minifilm.demo.style_mix.film_digest`), the network's predicted trajectory and the
+        held input's path (``future``, ``futureFacing``, ``path``: :mod:`minifilm.demo.paths`), the toggles, and the Controller's step
         time (ms; the stage adds ``frameMs``, the whole frame's, and ``t``)."""
         st = self.ctrl.state
         mix = self.mix.weights if weights is None else weights
@@ -259,4 +261,5 @@ class Character:
             "film": self.mix.digest, "footLock": self.foot_lock, "fit": self.fit, "stepMs": round(self.step_ms, 4),
             "calibrated": (not self.calibrations.enabled) or all(self.calibrations.has(n) for n in mix),
         })
+        frame.update(frame_paths(self))       # the predicted trajectory and the held input's path (paths.py)
         return frame

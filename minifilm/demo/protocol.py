@@ -17,7 +17,9 @@ One WebSocket per page; every message is one JSON object in a text frame. Page -
     {"type": "record", "seconds": 10, "gif": true}          the last seconds as BVH (and GIF), answered
                                                             with "recording" (see minifilm/demo/record.py)
 
-Server -> page: ``hello`` (once, what the page needs to draw), ``frame`` (every frame), ``error``
+Server -> page: ``hello`` (once, what the page needs to draw), ``frame`` (every frame: the pose,
+the predicted trajectory and the held input's path, the read-outs; see
+:meth:`~minifilm.demo.character.Character.frame_message`), ``error``
 (a message was refused and dropped; names why), ``notice`` (something happened, e.g. the character
 was reset), ``refused`` (no free character: the connection is closed), ``pong``.
 

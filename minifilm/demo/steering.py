@@ -4,8 +4,8 @@ The user steers a *heading*: the direction the character should face, an angle `
 unit vector ``(sin theta, cos theta)`` on the floor (world x, z; the convention of
 :mod:`minifilm.runtime.control`). Q/E (or the right stick) turn it; WASD (or the left stick) give
 a movement relative to it, so W walks along the heading, S backwards, A/D step sideways, and
-holding nothing stops. The page's camera chases the heading, so on screen W is always "into
-the screen". A 100STYLE character facing +z has its left side towards +x, so its right is the
+holding nothing stops. The page's camera chases the body's facing, which turns after the
+heading, so once the body has turned W is "into the screen". A 100STYLE character facing +z has its left side towards +x, so its right is the
 heading turned by -90 degrees: ``(-cos theta, sin theta)``.
 """
 from __future__ import annotations

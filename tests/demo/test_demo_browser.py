@@ -103,6 +103,14 @@ def settle(page, seconds=0.6):
     page.page.wait_for_timeout(int(seconds * 1000))
 
 
+def unfold(page, section):
+    """Open a folded section of the panel as a user does, with a click on its title (a short
+    window starts with some folded)."""
+    if not page.js(f"document.getElementById('{section}').open"):
+        page.page.click(f"#{section} summary")
+    assert page.js(f"document.getElementById('{section}').open")
+
+
 def right_of(facing):
     return np.array([-facing[1], facing[0]])        # the character's right (see minifilm/demo/steering.py)
 
@@ -165,10 +173,12 @@ def test_choosing_another_style_changes_the_motion(page, released):
 def test_the_blend_triangle_at_a_corner_is_exactly_that_style(page):
     hello = page.js("minifilmDemo.hello")
     names = (hello["styles"] * 3)[:3]
+    unfold(page, "sec-blend")
     page.page.select_option("#corner0", names[0])
     page.page.select_option("#corner1", names[1])
     page.page.select_option("#corner2", names[2])
     page.js("minifilmDemo.send({type: 'settings', fit: true})")          # the corner selects sent a blend
+    page.page.locator("#triangle").scroll_into_view_if_needed()
     x, y = page.js("minifilmDemo.corner(1)")
     page.page.mouse.click(x, y)                                          # a real click on the left corner
     page.wait(f"JSON.stringify(minifilmDemo.frame.weights) === '{{\"{names[1]}\":1}}'")
@@ -379,6 +389,7 @@ def test_the_camera_switch_moves_the_camera(page):
 def test_record_downloads_a_bvh_that_minifilm_reads_back(page, tmp_path):
     from minifilm.motion.bvh import read_bvh
     page.wait("minifilmDemo.frame.n > 330", timeout=60)                 # the character has shown over 5 s
+    unfold(page, "sec-record")
     page.page.select_option("#recordSeconds", "5")
     with page.page.expect_download(timeout=120000) as download:
         page.page.click("#record")

@@ -6,7 +6,8 @@
 // triangle, "settings" for the toggles, "record" for the record button (answered with
 // "recording" (BVH text, which the page downloads) and "recordingGif" (a GIF to save, or why not); protocol:
 // minifilm/demo/protocol.py and record.py). The drawing is the motion player's: scene.js (stage,
-// floor, sticks, labels) and mannequin.js (the shaded body, on by default). For tests and scripts
+// floor, sticks, labels) and mannequin.js (the shaded body, on by default), plus the path ahead
+// (the network's predicted trajectory and where the held keys lead; T). For tests and scripts
 // the page exposes window.minifilmDemo (see the end of this file).
 //
 // What the page shows is only what it has: read-outs say "—" until their first value, the
@@ -19,7 +20,10 @@ import { mannequinKit, poseMannequin, setMannequinVisible } from 'minifilm-manne
 
 const $ = id => document.getElementById(id);
 const DEADZONE = 0.15;       // gamepad sticks rest a little off zero
-const CHASE_SECONDS = 0.5;   // the camera swings behind the heading over about this long
+const CHASE_SECONDS = 0.5;   // the camera swings behind the body's facing over about this long
+// One colour for the character, whatever connection it is: the palette's first (the character's
+// number counts the connections since the server started, so a colour from it changed on every reload).
+const COLOUR = COLOURS[0];
 const NONE = '\u2014';       // a read-out with no data yet
 // The released network's styles 095-099 were fine-tuned on the five styles held out of training
 // (Roadrunner, ShieldedLeft, Skip, Star, WildArms); which id is which is not documented
@@ -33,7 +37,7 @@ const HELD_OUT_IDS = Object.keys(HELD_OUT);
 const demo = {
   ready: false, connected: false, closed: false, hello: null, frame: null, frames: 0,
   refused: null, errors: [], notices: [], latencyMs: null, sent: 0, paused: false, cameraMode: 'follow',
-  recordings: [], lastRecording: null,
+  recordings: [], lastRecording: null, colour: COLOUR,
 };
 window.minifilmDemo = demo;
 
@@ -96,9 +100,12 @@ ws.addEventListener('message', e => {
 // ---------------------------------------------------------------------------------------------
 
 let stage = null, actor = null, body = null, label = null, floor = null, trail = null, arrow = null, SIZE = 1.7;
+let ahead = null;   // the path ahead (pathAhead): {group, dots (predicted samples), ticks (their facing), path (the keys' line)}
 let heldOut = new Set();
 const orbit = { target: new THREE.Vector3(0, 0.9, 0), radius: 5, azimuth: Math.PI + 0.5, elevation: 0.3 };
-const chase = { offset: 0.5, set: Math.PI + 0.5 };   // azimuth offset from behind the heading
+// azimuth offset from behind the body's facing, the azimuth last set, the azimuth it swings
+// towards and the frame that was worked out from
+const chase = { offset: 0.5, set: Math.PI + 0.5, goal: null, aimedAt: null };
 const TRAIL = 600;                                    // the root's last 10 s at 60 fps
 const trailPoints = [];
 
@@ -109,10 +116,11 @@ function setup(h) {
   floor = addFloor(stage.scene, SIZE, 60, 0.5);
   const group = new THREE.Group();
   stage.scene.add(group);
-  const colour = COLOURS[(h.id - 1) % COLOURS.length];
-  actor = skeletonKit(SIZE).build(group, h.parents, colour);
-  body = mannequinKit(SIZE).build(group, h.parents, colour, h.body);   // h.body: the body plan
+  actor = skeletonKit(SIZE).build(group, h.parents, COLOUR);
+  body = mannequinKit(SIZE).build(group, h.parents, COLOUR, h.body);   // h.body: the body plan
   showBody();
+  ahead = pathAhead(stage.scene);
+  showPath();
   const geometry = new THREE.BufferGeometry();
   geometry.setAttribute('position', new THREE.BufferAttribute(new Float32Array(3 * TRAIL), 3));
   trail = new THREE.Line(geometry, new THREE.LineBasicMaterial({ color: 0x8890a0 }));
@@ -194,6 +202,7 @@ function pose() {
   a.needsUpdate = true;
   trail.geometry.setDrawRange(0, trailPoints.length / 3);
   trail.geometry.computeBoundingSphere();
+  if (ahead.group.visible) placePath(f);
   const v = f.velocity, speed = Math.hypot(v[0], v[1]);
   arrow.visible = speed > 1e-3;
   if (arrow.visible) {
@@ -203,10 +212,55 @@ function pose() {
   }
 }
 
+// The path ahead, as AI4Animation's demos draw it: the network's predicted trajectory (a dot at
+// each future sample, 0, 0.2, .., 1 s ahead, with a tick along the facing it predicts there) and,
+// as a green line, where the held keys lead over the same second (minifilm/demo/paths.py).
+// The checkbox or T shows or hides it. Its buffers are made at the first frame (S samples) and
+// then only rewritten: a new buffer every frame would pile up on the GPU.
+function pathAhead(scene) {
+  const group = new THREE.Group();
+  scene.add(group);
+  const material = new THREE.MeshBasicMaterial({ color: 0x2b3040 });
+  return { group, material, dot: new THREE.SphereGeometry(0.02 * SIZE, 10, 6), dots: [], ticks: null, path: null };
+}
+
+function placePath(f) {
+  const S = f.future.length / 2, N = f.path.length / 2, y = 0.006 * SIZE, tick = 0.12 * SIZE;
+  if (!ahead.ticks) {
+    const line = (Kind, n, colour) => {
+      const geometry = new THREE.BufferGeometry();
+      geometry.setAttribute('position', new THREE.BufferAttribute(new Float32Array(3 * n), 3));
+      const l = new Kind(geometry, new THREE.LineBasicMaterial({ color: colour }));
+      l.frustumCulled = false;   // its points move every frame (see the trail in pose())
+      ahead.group.add(l);
+      return l;
+    };
+    ahead.ticks = line(THREE.LineSegments, 2 * S, 0x2b3040);
+    ahead.path = line(THREE.Line, N, 0x2ca02c);
+    for (let s = 0; s < S; s++) { const m = new THREE.Mesh(ahead.dot, ahead.material); ahead.group.add(m); ahead.dots.push(m); }
+  }
+  const t = ahead.ticks.geometry.attributes.position, p = ahead.path.geometry.attributes.position;
+  for (let s = 0; s < S; s++) {
+    const x = f.future[2 * s], z = f.future[2 * s + 1];
+    ahead.dots[s].position.set(x, y, z);
+    t.setXYZ(2 * s, x, y, z);
+    t.setXYZ(2 * s + 1, x + tick * f.futureFacing[2 * s], y, z + tick * f.futureFacing[2 * s + 1]);
+  }
+  for (let k = 0; k < N; k++) p.setXYZ(k, f.path[2 * k], y, f.path[2 * k + 1]);
+  t.needsUpdate = p.needsUpdate = true;
+}
+
+function showPath() {
+  if (!ahead) return;
+  ahead.group.visible = $('path').checked;
+  if (ahead.group.visible && demo.frame) placePath(demo.frame);
+}
+$('path').addEventListener('change', e => { showPath(); e.target.blur(); });
+
 function setLabel(text) {
   const where = label ? label.position.clone() : null;   // a new text keeps its place above the head
   if (label) { stage.scene.remove(label); label.material.map.dispose(); label.material.dispose(); }
-  label = makeLabel(text, COLOURS[(demo.hello.id - 1) % COLOURS.length]);
+  label = makeLabel(text, COLOUR);
   if (where) label.position.copy(where);
   label.userData.text = text;
   stage.scene.add(label);
@@ -241,7 +295,11 @@ const phaseScale = [1e-3, 1e-3, 1e-3, 1e-3];
 
 function readouts() {
   const f = demo.frame;
-  $('commanded').textContent = `${f.commanded.toFixed(2)} m/s` + (f.speedNote ? ` → ${f.reachable.toFixed(2)} (this style's top: ${f.maxSpeed.toFixed(2)})` : '');
+  // each value in its own fixed cell, the note on lines of its own kept for it: nothing moves
+  $('commanded').textContent = `${f.commanded.toFixed(2)} m/s`;
+  $('reachable').textContent = `${f.reachable.toFixed(2)} m/s`;
+  $('speedNote').textContent = f.speedNote || '';
+  $('speedNote').title = f.speedNote || '';
   $('actual').textContent = `${f.speed.toFixed(2)} m/s`;
   $('frametime').textContent = `${median(frameTimes).toFixed(2)} ms`;   // median of the last 60
   // frames that arrived in the last second, once the page has been receiving for a second
@@ -302,6 +360,7 @@ const COMMANDS = {
   KeyP: () => setPaused(!demo.paused), KeyR: () => record(),
   KeyB: () => { $('body').checked = !$('body').checked; showBody(); },
   KeyK: () => { $('sticks').checked = !$('sticks').checked; showBody(); },
+  KeyT: () => { $('path').checked = !$('path').checked; showPath(); },
 };
 
 window.addEventListener('keydown', e => {
@@ -471,6 +530,19 @@ tri.addEventListener('pointerup', e => { if (dragging) { dragging = false; blend
 for (let i = 0; i < 3; i++) $('corner' + i).addEventListener('change', e => { setBlend(dot); e.target.blur(); });
 drawTriangle();
 
+// A window too short for every section (800 x 600, or even 1280 x 900): the recorder, then the
+// blend triangle, then the phase dials start folded (their titles open them) until the rest fits
+// without scrolling, so the settings, the read-outs and the view are all in sight.
+function foldToFit() {
+  const panel = $('panel');
+  for (const id of ['sec-record', 'sec-blend', 'sec-phases']) {
+    if (panel.scrollHeight <= panel.clientHeight) break;
+    $(id).open = false;
+  }
+}
+foldToFit();
+for (const s of document.querySelectorAll('#panel summary')) s.addEventListener('click', e => e.currentTarget.blur());
+
 for (const name of ['footLock', 'fit']) {
   $(name).addEventListener('change', e => { send({ type: 'settings', [name]: e.target.checked }); e.target.blur(); });
 }
@@ -481,10 +553,10 @@ $('reset').addEventListener('click', e => {
 });
 
 // ---------------------------------------------------------------------------------------------
-// Camera modes (follow: behind the heading; front; side; free: after a pan), pause
+// Camera modes (follow: behind the body; front; side; free: after a pan), pause
 // ---------------------------------------------------------------------------------------------
 
-// offset of the camera's azimuth from behind the heading, and its elevation (radians)
+// offset of the camera's azimuth from behind the body's facing, and its elevation (radians)
 const CAMERA = { follow: { offset: 0.5, elevation: 0.3 }, front: { offset: -Math.PI, elevation: 0.1 },
                  side: { offset: -Math.PI / 2, elevation: 0.1 } };
 
@@ -588,9 +660,12 @@ function tick(now) {
   if (demo.frame && CAMERA[demo.cameraMode] && !demo.paused) {
     const f = demo.frame, k = dt > 0 ? 1 - Math.exp(-dt / 0.15) : 1;
     orbit.target.lerp(new THREE.Vector3(f.root[0], 0.5 * SIZE, f.root[1]), k);
-    // behind the heading, plus whatever the user dragged the camera round by
+    // behind the body's facing (the root's, as the network moves it), plus whatever the user
+    // dragged the camera round by. Not the steered heading: on Q/E that runs up to half a turn
+    // ahead of the body, and the camera swung round to look at the character's side.
     chase.offset += angle(orbit.azimuth - chase.set);
-    const behind = Math.atan2(f.heading[0], f.heading[1]) + Math.PI + chase.offset;
+    const behind = Math.atan2(f.facing[0], f.facing[1]) + Math.PI + chase.offset;
+    chase.goal = behind; chase.aimedAt = f;
     orbit.azimuth = chase.set + angle(behind - chase.set) * (dt > 0 ? 1 - Math.exp(-dt / CHASE_SECONDS) : 1);
     chase.set = orbit.azimuth;
   }
@@ -621,6 +696,9 @@ Object.assign(demo, {
     return [r.left + p[0] * r.width / tri.width, r.top + p[1] * r.height / tri.height];
   },
   setToggle(name, on) { $(name).checked = on; $(name).dispatchEvent(new Event('change')); },
+  // The path ahead as drawn: shown or not, its dots (world x, y, z) and the held keys' line.
+  pathAhead: () => ({ visible: ahead.group.visible, dots: ahead.dots.map(m => m.position.toArray()),
+                      path: ahead.path ? [...ahead.path.geometry.attributes.position.array] : [] }),
   setCamera,                              // ('follow' | 'front' | 'side' | 'free')
   setPaused,                              // (bool)
   record,                                 // () -> seq of the record message (null if one is on its way)
@@ -655,7 +733,12 @@ Object.assign(demo, {
   },
   // Joint positions the page shows now ((J, 3), metres, world).
   shownJoints: () => actor.joints.map(m => [m.position.x, m.position.y, m.position.z]),
-  // The orbit camera now: azimuth (radians about +y) and the point it looks at.
+  // The orbit camera now: azimuth (radians about +y), the point it looks at, the mode, the offset
+  // of its azimuth from straight behind the facing (0.5 rad in follow mode) and the azimuth it
+  // swings towards, with the facing and heading of the frame that goal was worked out from (null
+  // until a frame was drawn in a following mode).
   camera: () => ({ azimuth: orbit.azimuth, target: orbit.target.toArray(), position: stage.camera.position.toArray(),
-                   mode: demo.cameraMode }),
+                   mode: demo.cameraMode, offset: chase.offset, goal: chase.goal,
+                   facing: chase.aimedAt && chase.aimedAt.facing, heading: chase.aimedAt && chase.aimedAt.heading }),
+  shownColour: () => actor.material.color.getHex(),   // the character's colour (sRGB, 0xrrggbb)
 });

@@ -12,7 +12,7 @@
 //
 // For tests and scripts the page exposes window.minifilmPlayer (see the end of this file).
 import * as THREE from 'three';
-import { COLOURS, addFloor, createStage, highlightJoint, makeLabel, orbitControls, placeCamera,
+import { COLOURS, addFloor, createStage, highlightJoint, layoutLabels, makeLabel, orbitControls, placeCamera,
          poseSkeleton, setSkeletonVisible, skeletonKit } from 'minifilm-scene';
 import { mannequinKit, poseMannequin, setMannequinVisible } from 'minifilm-mannequin';
 
@@ -195,23 +195,38 @@ function refresh() {
   ui.time.textContent = `${clock.t.toFixed(2)} s  frame ${g + 1}/${N_FRAMES}`;
 }
 
-ui.play.addEventListener('click', () => setPlaying(!clock.playing));
+// Every control gives the focus back after use (a focused checkbox would take Space, a focused
+// select the arrows), and the keys are handled for the whole document: they drive the player
+// wherever the focus is, except while typing in a text field.
+const done = e => e.target.blur();
+ui.play.addEventListener('click', e => { setPlaying(!clock.playing); done(e); });
 ui.scrub.addEventListener('input', () => { setPlaying(false); setFrame(Number(ui.scrub.value)); });
-ui.speed.addEventListener('change', () => { clock.speed = Number(ui.speed.value); });
+ui.scrub.addEventListener('change', done);
+ui.speed.addEventListener('change', e => { clock.speed = Number(ui.speed.value); done(e); });
+ui.follow.addEventListener('change', done);
 for (const name of Object.keys(toggles)) {
-  document.getElementById(name).addEventListener('change', e => { toggles[name] = e.target.checked; refresh(); });
+  document.getElementById(name).addEventListener('change', e => { toggles[name] = e.target.checked; refresh(); done(e); });
 }
-window.addEventListener('keydown', e => {
-  if (e.target.tagName === 'SELECT' || (e.target.tagName === 'INPUT' && e.target.type !== 'range')) return;
-  if (e.code === 'Space') { e.preventDefault(); setPlaying(!clock.playing); }
-  if (e.code === 'KeyB' || e.code === 'KeyK') {
-    const name = e.code === 'KeyB' ? 'body' : 'sticks';
-    window.minifilmPlayer.setToggle(name, !toggles[name]);
-  }
-  if (e.code === 'ArrowRight' || e.code === 'ArrowLeft') {
-    e.preventDefault(); setPlaying(false);
-    setFrame((globalFrame() + (e.code === 'ArrowRight' ? 1 : N_FRAMES - 1)) % N_FRAMES);
-  }
+
+const TEXT_INPUTS = new Set(['text', 'search', 'number', 'email', 'url', 'password', 'tel']);
+function typing(t) {
+  return !!t && (t.isContentEditable || t.tagName === 'TEXTAREA' || (t.tagName === 'INPUT' && TEXT_INPUTS.has(t.type)));
+}
+
+const KEYS = {
+  Space: () => setPlaying(!clock.playing),
+  KeyB: () => window.minifilmPlayer.setToggle('body', !toggles.body),
+  KeyK: () => window.minifilmPlayer.setToggle('sticks', !toggles.sticks),
+  ArrowRight: () => { setPlaying(false); setFrame((globalFrame() + 1) % N_FRAMES); },
+  ArrowLeft: () => { setPlaying(false); setFrame((globalFrame() + N_FRAMES - 1) % N_FRAMES); },
+};
+document.addEventListener('keydown', e => {
+  if (!KEYS[e.code] || typing(e.target) || e.ctrlKey || e.metaKey || e.altKey) return;
+  // no default action: Space would also toggle a focused checkbox or press a focused button, and
+  // the arrows would move a focused slider or select as well as the player
+  e.preventDefault();
+  if (e.repeat && (e.code === 'KeyB' || e.code === 'KeyK' || e.code === 'Space')) return;
+  KEYS[e.code]();
 });
 
 const resize = stage.resize;
@@ -222,12 +237,16 @@ window.addEventListener('resize', resize);
 // ---------------------------------------------------------------------------------------------
 
 const follow = new THREE.Vector3();
+let labelBoxes = [];   // where the names were last drawn (layoutLabels)
 
 function draw(dt) {
   const goal = followPoint(follow);
   // Ease towards the followed point (about 0.15 s) so a switch of mode does not jump.
   if (goal) orbit.target.lerp(goal, dt > 0 ? 1 - Math.exp(-dt / 0.15) : 1);
   placeCamera(camera, orbit);
+  // names of characters side by side are stacked so that none covers another (scene.js)
+  const el = renderer.domElement;
+  labelBoxes = layoutLabels(actors.map(a => a.label), camera, el.clientWidth, el.clientHeight);
   renderer.render(scene, camera);
 }
 
@@ -289,6 +308,16 @@ window.minifilmPlayer = {
     const b = actors[i].body;
     return { plan: b.plan, head: b.head.visible ? b.head.position.toArray() : null,
              limbs: b.limbs.filter(l => l.mesh.visible).map(l => [l.p, l.j, l.r]), balls: b.ballRadius };
+  },
+  // Where each character's name was last drawn: [left, top, right, bottom] px in the canvas
+  // (null: names off or behind the camera).
+  labelBoxes: () => labelBoxes.map(b => (b ? [...b] : null)),
+  // The characters whose name three.js's own ray test finds at canvas px (x, y) (independent of
+  // labelBoxes' arithmetic, to check it).
+  labelsAt(x, y) {
+    const el = renderer.domElement, ray = new THREE.Raycaster();
+    ray.setFromCamera(new THREE.Vector2(2 * x / el.clientWidth - 1, 1 - 2 * y / el.clientHeight), camera);
+    return actors.map((a, i) => (a.label.visible && ray.intersectObject(a.label, false).length ? i : -1)).filter(i => i >= 0);
   },
 };
 

@@ -7,6 +7,8 @@
 //   poseSkeleton(sk, setJoint)             joint spheres and bone cylinders from joint positions
 //   setSkeletonVisible(sk, on)             sticks shown or hidden (the mannequin, mannequin.js, reads them)
 //   makeLabel(text, colour)                a name sprite of constant size on screen
+//   layoutLabels(labels, camera, w, h)     lift labels that would overlap on screen; their boxes
+//   labelBox(label, camera, w, h)          where a label is drawn: [left, top, right, bottom] px
 //   orbitControls(el, orbit, camera, size, onPan) and placeCamera(camera, orbit)
 //
 // Everything is in metres, y up, in the axes of the BVH forward kinematics; ``size`` is the body
@@ -169,6 +171,49 @@ export function makeLabel(text, colour) {
   sprite.center.set(0.5, 0);  // anchored at its bottom edge, just above the head
   sprite.renderOrder = 10;    // drawn last, over the skeletons
   return sprite;
+}
+
+// Where ``label`` (a makeLabel sprite) is drawn on a ``width`` x ``height`` px view, as
+// [left, top, right, bottom] in px from the view's top left; null when it is behind the camera.
+// A sprite without size attenuation is ``scale`` in view space times the depth, so on screen it is
+// scale * (projection's focal factor) * half the view, wherever it stands.
+export function labelBox(label, camera, width, height) {
+  label.updateWorldMatrix(true, false);
+  const p = tmp.setFromMatrixPosition(label.matrixWorld).project(camera);
+  if (p.z > 1 || p.z < -1) return null;
+  const P = camera.projectionMatrix.elements;
+  const w = label.scale.x * P[0] * width / 2, h = label.scale.y * P[5] * height / 2;
+  const x = (p.x + 1) * width / 2, y = (1 - p.y) * height / 2;     // the anchor, in px
+  const c = label.center;
+  return [x - c.x * w, y - (1 - c.y) * h, x + (1 - c.x) * w, y + c.y * h];
+}
+
+const LABEL_GAP = 0.15;   // of a label's height, between labels stacked above one another
+
+// Labels of characters side by side overlap on screen when the camera is far or the window
+// narrow: each visible label, in the given order, is lifted by whole rows (its own height plus a
+// gap) until its box meets no box placed before it, so no two ever overlap, at any window size.
+// Call after the camera is placed, before drawing; returns the boxes (null: hidden or behind).
+export function layoutLabels(labels, camera, width, height) {
+  camera.updateMatrixWorld();
+  const placed = [], boxes = [];
+  for (const label of labels) {
+    label.center.y = 0;
+    let box = label.visible ? labelBox(label, camera, width, height) : null;
+    if (box && !box.every(Number.isFinite)) box = null;
+    if (box) {
+      const rise = (box[3] - box[1]) * (1 + LABEL_GAP);
+      let row = 0;
+      const at = r => [box[0], box[1] - r * rise, box[2], box[3] - r * rise];
+      const free = b => placed.every(q => b[2] <= q[0] || q[2] <= b[0] || b[3] <= q[1] || q[3] <= b[1]);
+      while (rise > 0 && row < 10000 && !free(at(row))) row++;   // ends: high enough, it is above them all
+      label.center.y = -row * (1 + LABEL_GAP);      // in the sprite's own heights: row rows up
+      box = at(row);
+      placed.push(box);
+    }
+    boxes.push(box);
+  }
+  return boxes;
 }
 
 // Orbit camera (our own: spherical coordinates about a target). ``orbit`` = {target (Vector3),
