@@ -13,17 +13,15 @@ Locomotion via Feature-Wise Transformations and Local Motion Phases*, in NumPy +
     python examples/minifilm_in_one_file.py             # synthetic data, made by the package
     python examples/minifilm_in_one_file.py --data DIR  # <Style>_<Gait>.bvh, 100STYLE skeleton
 
-Nothing here imports minifilm. Without --data the package writes synthetic BVH files into a
-temporary folder (examples/make_synthetic.py in a subprocess: `pip install -e .` first); from the
-files on, everything happens in this file. tests/test_companion.py gives this file and the
-package the same weights and compares outputs and every gradient, and compares the phases with
-the package's labelling on real files. Where the package chose a detail the paper leaves open,
-this file makes the same choice and says "as the package"; where this file departs from the
-paper, the line says "PAPER:" and why.
+Nothing here imports minifilm (without --data the package writes synthetic BVH files in a
+subprocess: `pip install -e .` first). tests/test_companion.py gives this file and the package the
+same weights and compares outputs and every gradient, and the phases on real files. Where the
+package chose a detail the paper leaves open, a comment says "as the package"; where this file
+departs from the paper, the line says "PAPER:" and why.
 
 Letters, one meaning each: n rows of a batch; K experts; I, O a layer's input and output widths;
 H hidden width; T frames (of a clip or a file); C channels per frame; J joints. Weights are
-(in, out). The sinusoid of a phase fit is amp·sin(2π(freq·τ + phase)) + offset (Sec. 4.1.4).
+(in, out). A phase fit's sinusoid is amp·sin(2π(freq·τ + phase)) + offset (Sec. 4.1.4).
 """
 import argparse
 import os
@@ -41,39 +39,30 @@ import numpy as np                                      # noqa: E402 (after the 
 from scipy.signal import butter, sosfiltfilt            # noqa: E402
 from scipy.spatial.transform import Rotation            # noqa: E402
 
-
 # ==== 1. Layers: out, cache = f_forward(...); d_inputs = f_backward(d_out, cache) ==============
 def linear_forward(x, W, b):                    # x (n, I), W (I, O), b (O,) -> (n, O)
     return x @ W + b, (x, W)
-
 def linear_backward(d, cache):
     x, W = cache
     return d @ W.T, x.T @ d, d.sum(0)
-
 def elu_forward(x):                             # x if x > 0 else exp(x) - 1 (expm1: exact near 0)
     out = np.where(x > 0, x, np.expm1(np.minimum(x, 0)))
     return out, (x, out)
-
 def elu_backward(d, cache):
     x, out = cache
     return d * np.where(x > 0, 1, out + 1)      # the slope below 0 is exp(x) = out + 1
-
 def relu_forward(x):
     return np.maximum(x, 0), x
-
 def relu_backward(d, x):
     return d * (x > 0)
-
 def softmax_forward(x):                         # over the last axis; minus the max: no overflow
     e = np.exp(x - x.max(-1, keepdims=True))
     y = e / e.sum(-1, keepdims=True)
     return y, y
-
 def softmax_backward(d, y):
     return y * (d - (d * y).sum(-1, keepdims=True))   # (diag(y) - y yᵀ) d, row by row
-
 def dropout_forward(x, site, drop):
-    """Inverted dropout at a named site (the package's site names). drop: None in evaluation, or
+    """Inverted dropout at a named site (the package's names). drop: None in evaluation, or
     {"rate", "masks", "rng"}: a site's keep-mask is drawn once and replayed by later passes."""
     if drop is None:
         return x, None
@@ -81,47 +70,37 @@ def dropout_forward(x, site, drop):
         drop["masks"][site] = drop["rng"].random(x.shape) >= drop["rate"]
     keep = (drop["masks"][site] / (1.0 - drop["rate"])).astype(x.dtype)
     return x * keep, keep
-
 def dropout_backward(d, keep):
     return d if keep is None else d * keep
-
 LN_EPS = 1e-6
-
 def layer_norm_forward(x):
     """The bracket of Eq. (3), (x - μ) / σ per row, with no scale or shift of its own (FiLM's γ, β
     follow). As the package trains: σ unbiased (÷ H-1) and ε = 1e-6 added to σ."""
     centred = x - x.mean(-1, keepdims=True)
     sigma = np.sqrt((centred * centred).sum(-1, keepdims=True) / (x.shape[-1] - 1))
     return centred / (sigma + LN_EPS), (centred, sigma)
-
 def layer_norm_backward(d, cache):
     centred, sigma = cache
     s = sigma + LN_EPS              # y = centred / s, directly and through dσ = centred / ((H-1) σ)
-    H = centred.shape[-1]
-    through_sigma = centred * (d * centred).sum(-1, keepdims=True) / (s * s * (H - 1) * sigma)
-    d_centred = d / s - through_sigma
+    through_sigma = centred * (d * centred).sum(-1, keepdims=True)
+    d_centred = d / s - through_sigma / (s * s * (centred.shape[-1] - 1) * sigma)
     return d_centred - d_centred.mean(-1, keepdims=True)          # through centred = x - mean(x)
-
 def film_forward(h, gamma, beta):
     """FiLM (Perez et al. 2018), the outside of Eq. (3): γ ∘ h + β. h (n, H); γ, β (n, H), or
     (1, H): one style for the whole batch (then their gradients are summed over the batch)."""
     return gamma * h + beta, (h, gamma)
-
 def film_backward(d, cache):
     h, gamma = cache
     if len(gamma) < len(h):                     # one γ, β for the batch: sum over the rows
         return d * gamma, (d * h).sum(0, keepdims=True), d.sum(0, keepdims=True)
     return d * gamma, d * h, d
-
 def expert_forward(x, alpha, W, b):
-    """The gated expert layer (Sec. 4.1), plain: blend the K experts' weights by the gating weights,
-    W = Σ_k α_k W_k for each sample, then multiply. x (n, I), α (n, K), W (K, I, O), b (K, O)
+    """The gated expert layer (Sec. 4.1), plain: blend the K experts' weights by the gating
+    weights, W = Σ_k α_k W_k per sample, then multiply. x (n, I), α (n, K), W (K, I, O), b (K, O)
     -> (n, O). (The package sums the same terms without the (n, I, O) blend: 4-8x faster.)"""
     K, I, O = W.shape
     blend = (alpha @ W.reshape(K, I * O)).reshape(-1, I, O)       # (n, I, O) each sample's W
-    out = np.matmul(x[:, None, :], blend)[:, 0] + alpha @ b
-    return out, (x, alpha, W, b, blend)
-
+    return np.matmul(x[:, None, :], blend)[:, 0] + alpha @ b, (x, alpha, W, b, blend)
 def expert_backward(d, cache):                  # -> dx (n, I), dα (n, K), dW (K, I, O), db (K, O)
     x, alpha, W, b, blend = cache
     K, I, O = W.shape
@@ -129,19 +108,16 @@ def expert_backward(d, cache):                  # -> dx (n, I), dα (n, K), dW (
     d_alpha = d_blend @ W.reshape(K, I * O).T + d @ b.T          # seen by each α_k: <dW, W_k>
     dx = np.matmul(blend, d[:, :, None])[..., 0]
     return dx, d_alpha, (alpha.T @ d_blend).reshape(K, I, O), alpha.T @ d
-
 def conv1d_forward(x, W, b):
     """1-D convolution over time, 'same' zero padding (a cross-correlation, as TF): x (n, T, C),
-    W (width, C, filters) -> (n, T, filters); y[t] = Σ_j Σ_c x[t + j - width//2, c] W[j, c] + b.
-    im2col: each frame's window is one row, and the convolution is one matrix product."""
+    W (width, C, filters) -> (n, T, filters). im2col: each frame's window is one row, and the
+    convolution is one matrix product."""
     width, C, n_filters = W.shape
     n, T, _ = x.shape
     padded = np.pad(x, ((0, 0), (width // 2, width // 2), (0, 0)))
-    windows = np.stack([padded[:, j:j + T] for j in range(width)], axis=2)
-    cols = windows.reshape(n * T, width * C)
+    cols = np.stack([padded[:, j:j + T] for j in range(width)], axis=2).reshape(n * T, width * C)
     out = (cols @ W.reshape(width * C, n_filters) + b).reshape(n, T, n_filters)
     return out, (cols, x.shape, W)
-
 def conv1d_backward(d, cache):
     cols, (n, T, C), W = cache
     width, _, n_filters = W.shape
@@ -152,126 +128,98 @@ def conv1d_backward(d, cache):
         d_padded[:, j:j + T] += d_cols[:, :, j]
     dW = (cols.T @ d_rows).reshape(width, C, n_filters)
     return d_padded[:, width // 2:width // 2 + T], dW, d_rows.sum(0)
-
 def max_pool_forward(x):
-    """Max over pairs of frames, (n, T, C) -> (n, T // 2, C); as the package, an odd last frame is
-    dropped and a tie goes to the first frame of the pair."""
+    """Max over pairs of frames, (n, T, C) -> (n, T // 2, C); as the package, an odd last frame
+    is dropped and a tie goes to the first frame of the pair."""
     end = x.shape[1] // 2 * 2
-    even = x[:, 0:end:2]
-    odd = x[:, 1:end:2]
+    even, odd = x[:, 0:end:2], x[:, 1:end:2]
     return np.maximum(even, odd), (x.shape, even >= odd)
-
 def max_pool_backward(d, cache):
     shape, first_won = cache
     dx = np.zeros(shape, d.dtype)
-    end = 2 * first_won.shape[1]
-    dx[:, 0:end:2] = d * first_won
-    dx[:, 1:end:2] = d * ~first_won
+    dx[:, 0:2 * first_won.shape[1]:2] = d * first_won
+    dx[:, 1:2 * first_won.shape[1]:2] = d * ~first_won
     return dx
 
-
 # ==== 2. Networks Ω, Ψ, Φ and the style model (Eq. 2-4); backward = forward steps reversed =====
-# The sizes, named as the fields of the package's ModelConfig, with the training settings used
-# by main(). x_dim, z_dim and the clip's size come from the data.
+# The sizes (named as the package's ModelConfig) and main()'s training settings. x_dim, z_dim and
+# the clip's size come from the data.
 SMALL = dict(n_experts=4, hidden=128, gating_hidden=32, conv_filters=32, conv_kernel=9,
              film_dense=128, phase_dim=8,
              dropout=0.2,   # PAPER: 0.3; 0.2 keeps a 4x narrower network stepping (as the package)
              lr=5e-4,       # PAPER: 1e-4; a higher rate so that a few minutes train something
              epochs=12)     # PAPER: 90; a few minutes on synthetic data
-PAPER = dict(n_experts=8,   # Sec. 4.3: "the 8 experts we blend"
-             hidden=512,    # Sec. 4.3: Φ's "hidden layers being of dimension 512"
-             gating_hidden=32,     # Sec. 4.3: Ω's "hidden layers of size 32"
-             conv_filters=256,     # Sec. 4.3: Ψ's "256 filters of size 25"
-             conv_kernel=25,
-             film_dense=2048,      # Sec. 4.3: "2048 hidden units"; its output is 4 x 512
-             phase_dim=8,   # Sec. 4.1.4, Eq. (1): 4 bones x (sin, cos)
-             dropout=0.3,   # Sec. 4.3: "a dropout rate of 0.3 everywhere"
-             lr=1e-4,       # Sec. 4.3: Adam "with a learning rate of 1e-4"
-             epochs=90,     # Sec. 4.3: "train for 90 epochs"
-             x_dim=348,     # Sec. 3.2
-             z_dim=342,     # Sec. 3.2
-             clip_frames=240,      # not in the paper: the released network's 4 s at 60 fps
-             clip_channels=300)    # Sec. 3.2: the joint block of x, 25 joints x 12
+PAPER = dict(n_experts=8, hidden=512, gating_hidden=32,          # Sec. 4.3: Φ and Ω
+             conv_filters=256, conv_kernel=25, film_dense=2048,  # Sec. 4.3: Ψ
+             dropout=0.3, lr=1e-4, epochs=90,                    # Sec. 4.3: training
+             phase_dim=8, x_dim=348, z_dim=342, clip_channels=300,   # Sec. 4.1.4, Sec. 3.2
+             clip_frames=240)      # not in the paper: the released network's 4 s at 60 fps
 TABLE_2 = {"Φ + Ω (A.S.N.)": 4_935_928, "Ψ (S.M.N.)": 35_668_530}   # Sec. 5.2.1, LPN FiLM
-
 def param_shapes(cfg):
     """{name: (shape, fan_in, fan_out)} of every weight and bias of Ω, Φ and Ψ."""
-    K = cfg["n_experts"]
-    H = cfg["hidden"]
-    width = cfg["conv_kernel"]
-    n_filters = cfg["conv_filters"]
-    dense = cfg["film_dense"]
+    K, H, n_filters = cfg["n_experts"], cfg["hidden"], cfg["conv_filters"]
     gate = [cfg["phase_dim"], cfg["gating_hidden"], cfg["gating_hidden"], K]
     motion = [cfg["x_dim"], H, H, cfg["z_dim"]]
     shapes = {}
     for layer in range(3):
-        fans = gate[layer:layer + 2]
-        shapes[f"omega.W{layer}"] = (tuple(fans), *fans)
-        shapes[f"omega.b{layer}"] = ((fans[1],), 0, 0)
-        fans = motion[layer:layer + 2]
-        shapes[f"phi.W{layer}"] = ((K, *fans), *fans)            # K experts (K, in, out)
-        shapes[f"phi.b{layer}"] = ((K, fans[1]), 0, 0)
+        fan_in, fan_out = gate[layer:layer + 2]
+        shapes[f"omega.W{layer}"] = ((fan_in, fan_out), fan_in, fan_out)
+        shapes[f"omega.b{layer}"] = ((fan_out,), 0, 0)
+        fan_in, fan_out = motion[layer:layer + 2]
+        shapes[f"phi.W{layer}"] = ((K, fan_in, fan_out), fan_in, fan_out)   # K experts
+        shapes[f"phi.b{layer}"] = ((K, fan_out), 0, 0)
+    width = cfg["conv_kernel"]
     flat = cfg["clip_frames"] // 4 * n_filters                   # frames after two poolings
-    layers = [("conv0", (width, cfg["clip_channels"], n_filters)),
-              ("conv1", (width, n_filters, n_filters)),
-              ("dense0", (flat, dense)),
-              ("dense1", (dense, 4 * H))]
-    for name, shape in layers:
-        fan_in = int(np.prod(shape[:-1]))
-        fan_out = shape[-1] * (shape[0] if len(shape) == 3 else 1)    # TF's fans of a conv
-        shapes[f"psi.{name}_W"] = (shape, fan_in, fan_out)
+    for name, shape in [("conv0", (width, cfg["clip_channels"], n_filters)),
+                        ("conv1", (width, n_filters, n_filters)),
+                        ("dense0", (flat, cfg["film_dense"])),
+                        ("dense1", (cfg["film_dense"], 4 * H))]:
+        fan_out = shape[-1] * (width if name.startswith("conv") else 1)    # TF's conv fans
+        shapes[f"psi.{name}_W"] = (shape, int(np.prod(shape[:-1])), fan_out)
         shapes[f"psi.{name}_b"] = ((shape[-1],), 0, 0)
     return shapes
-
 def count_params(cfg):
-    counts = {"Φ + Ω (A.S.N.)": 0, "Ψ (S.M.N.)": 0}
+    counts = {part: 0 for part in TABLE_2}
     for name, (shape, _, _) in param_shapes(cfg).items():
         counts["Ψ (S.M.N.)" if name.startswith("psi") else "Φ + Ω (A.S.N.)"] += int(np.prod(shape))
     return counts
-
 def init_params(cfg, rng, dtype=np.float32):
     """Glorot-uniform weights, zero biases, except γ's output biases at 1 so that FiLM starts near
     the identity (as the package)."""
     params = {}
     for name, (shape, fan_in, fan_out) in param_shapes(cfg).items():
-        if fan_in == 0:
+        if fan_in == 0:                         # a bias
             params[name] = np.zeros(shape, dtype)
-            continue
-        limit = np.sqrt(6.0 / (fan_in + fan_out)).astype(dtype)
-        params[name] = rng.uniform(-1, 1, shape).astype(dtype) * limit
+        else:
+            limit = np.sqrt(6.0 / (fan_in + fan_out)).astype(dtype)
+            params[name] = rng.uniform(-1, 1, shape).astype(dtype) * limit
     H = cfg["hidden"]
     params["psi.dense1_b"][0:H] = 1.0                            # γ1 (the layout: γ1, β1, γ2, β2)
     params["psi.dense1_b"][2 * H:3 * H] = 1.0                    # γ2
     return params
-
 def omega_forward(params, p, drop):
     """Ω, the gating network (Sec. 4.1): local phases p (n, 8) -> expert weights α (n, K).
     Three dense layers, dropout before each; ELU, ELU, softmax."""
-    h = p
-    caches = []
+    h, caches = p, []
     for layer, activation in enumerate([elu_forward, elu_forward, softmax_forward]):
         h, c_drop = dropout_forward(h, f"gating{layer}", drop)
         h, c_lin = linear_forward(h, params[f"omega.W{layer}"], params[f"omega.b{layer}"])
         h, c_act = activation(h)
         caches.append((c_drop, c_lin, c_act))
     return h, caches
-
 def omega_backward(d_alpha, caches, grads):
     d = d_alpha
-    for layer, activation_backward in [(2, softmax_backward), (1, elu_backward),
-                                       (0, elu_backward)]:
+    for layer, act_backward in [(2, softmax_backward), (1, elu_backward), (0, elu_backward)]:
         c_drop, c_lin, c_act = caches[layer]
-        d, grads[f"omega.W{layer}"], grads[f"omega.b{layer}"] = linear_backward(
-            activation_backward(d, c_act), c_lin)
+        d, dW, db = linear_backward(act_backward(d, c_act), c_lin)
+        grads[f"omega.W{layer}"], grads[f"omega.b{layer}"] = dW, db
         d = dropout_backward(d, c_drop)
     return d
-
 def psi_forward(params, clip, drop):
     """Ψ, the FiLM generator (Eq. 2): style clips (M, T, C) -> [γ1, β1, γ2, β2] (M, 4H). Two blocks
     conv1d -> ReLU -> max-pool, flatten (time-major), dense -> ReLU, dense. As the package and the
     original code, its one dropout is before the last dense layer."""
-    h = clip
-    blocks = []
+    h, blocks = clip, []
     for layer in (0, 1):
         h, c_conv = conv1d_forward(h, params[f"psi.conv{layer}_W"], params[f"psi.conv{layer}_b"])
         h, c_relu = relu_forward(h)
@@ -284,7 +232,6 @@ def psi_forward(params, clip, drop):
     h, c_drop = dropout_forward(h, "film_dense", drop)
     film, c_dense1 = linear_forward(h, params["psi.dense1_W"], params["psi.dense1_b"])
     return film, (blocks, pooled_shape, c_dense0, c_relu, c_drop, c_dense1)
-
 def psi_backward(d_film, cache, grads):
     blocks, pooled_shape, c_dense0, c_relu, c_drop, c_dense1 = cache
     d, grads["psi.dense1_W"], grads["psi.dense1_b"] = linear_backward(d_film, c_dense1)
@@ -296,15 +243,13 @@ def psi_backward(d_film, cache, grads):
         d = relu_backward(max_pool_backward(d, c_pool), c_relu)
         d, grads[f"psi.conv{layer}_W"], grads[f"psi.conv{layer}_b"] = conv1d_backward(d, c_conv)
     return d
-
 def phi_forward(params, x, alpha, film, drop):
     """Φ, motion synthesis: x (n, x_dim), α (n, K), film (n or 1, 4H) -> ẑ (n, z_dim). Hidden
-    layer i = 1, 2 is Eq. (3), h(i) = ELU(γ(i) ∘ LN(F(i)) + β(i)), where the paper's F(i) (the
-    layer's features) is the gated experts applied to h(i-1); the output layer is gated experts
-    alone. As the package: dropout before every layer."""
+    layer i = 1, 2 is Eq. (3), h(i) = ELU(γ(i) ∘ LN(F(i)) + β(i)): the paper's F(i), the layer's
+    features, is the gated experts applied to h(i-1); the output layer is gated experts alone.
+    As the package: dropout before every layer."""
     gammas_betas = np.split(film, 4, axis=1)                      # [γ1, β1, γ2, β2]
-    h = x
-    caches = []
+    h, caches = x, []
     for layer in (0, 1):
         gamma, beta = gammas_betas[2 * layer:2 * layer + 2]
         h, c_drop = dropout_forward(h, f"motion{layer}", drop)
@@ -316,22 +261,19 @@ def phi_forward(params, x, alpha, film, drop):
     h, c_drop = dropout_forward(h, "motion2", drop)
     z, c_exp = expert_forward(h, alpha, params["phi.W2"], params["phi.b2"])
     return z, (caches, c_drop, c_exp)
-
 def phi_backward(dz, cache, grads):             # -> dx, dα, d_film
     caches, c_drop, c_exp = cache
     d, d_alpha, grads["phi.W2"], grads["phi.b2"] = expert_backward(dz, c_exp)
-    d = dropout_backward(d, c_drop)
-    d_film = []
+    d, d_film = dropout_backward(d, c_drop), []
     for layer in (1, 0):
         c_drop, c_exp, c_norm, c_film, c_elu = caches[layer]
         d, d_gamma, d_beta = film_backward(elu_backward(d, c_elu), c_film)
-        d, d_alpha_layer, grads[f"phi.W{layer}"], grads[f"phi.b{layer}"] = expert_backward(
-            layer_norm_backward(d, c_norm), c_exp)
+        d, d_alpha_layer, dW, db = expert_backward(layer_norm_backward(d, c_norm), c_exp)
+        grads[f"phi.W{layer}"], grads[f"phi.b{layer}"] = dW, db
         d = dropout_backward(d, c_drop)
         d_alpha = d_alpha + d_alpha_layer
         d_film = [d_gamma, d_beta] + d_film
     return d, d_alpha, np.concatenate(d_film, axis=1)
-
 def model_forward(params, x, p, clip, drop=None):
     """Eq. (4), ẑ = Φ(x; Ω(p), Ψ(y)): x (n, x_dim), p (n, 8), clip (n, T, C), one per sample, or
     (1, T, C), one for the whole batch (a minibatch holds one style, Sec. 4.3) -> ẑ (n, z_dim)."""
@@ -339,7 +281,6 @@ def model_forward(params, x, p, clip, drop=None):
     film, c_psi = psi_forward(params, clip, drop)
     z, c_phi = phi_forward(params, x, alpha, film, drop)
     return z, (c_omega, c_psi, c_phi)
-
 def model_backward(dz, cache):                  # -> ({name: gradient}, dx, dp, d_clip)
     c_omega, c_psi, c_phi = cache
     grads = {}
@@ -347,23 +288,19 @@ def model_backward(dz, cache):                  # -> ({name: gradient}, dx, dp, 
     dp = omega_backward(d_alpha, c_omega, grads)
     return grads, dx, dp, psi_backward(d_film, c_psi, grads)
 
-
 # ==== 3. Training: L = L_mse + L_bll (Eq. 5-7) on one-style minibatches, and Adam ==============
 def mse_loss(pred, target):
     """Eq. (5) on one minibatch (one style): the mean of (z - ẑ)² over the samples and, as the
     package and the original code, over the features (the paper sums them). -> loss, d_pred."""
     diff = pred - target
     return float(np.mean(diff * diff)), (2.0 / diff.size) * diff
-
 def bone_length_loss(pred, target, pos_cols, parents, z_mean, z_std):
     """Eq. (6)-(7): the mean over samples and bones of | ‖z_bp - z_b‖ - ‖ẑ_bp - ẑ_b‖ |. pos_cols
-    (J, 3): each joint's position columns in z; parents (J,), -1 for the root: as the package,
-    every (parent, joint) pair is a bone, positions are de-normalised first (metres), and |·| at 0
+    (J, 3): each joint's position columns in z; parents (J,), -1 for the root. As the package:
+    every (parent, joint) pair is a bone, positions are de-normalised first (metres), |·| at 0
     has slope 0."""
     child = np.nonzero(parents >= 0)[0]
-    parent = parents[child]
-    std = z_std[pos_cols]
-    mean = z_mean[pos_cols]
+    parent, std, mean = parents[child], z_std[pos_cols], z_mean[pos_cols]
     pos_hat = pred[:, pos_cols] * std + mean                     # (n, J, 3)
     pos = target[:, pos_cols] * std + mean
     bone_hat = pos_hat[:, parent] - pos_hat[:, child]
@@ -377,19 +314,16 @@ def bone_length_loss(pred, target, pos_cols, parents, z_mean, z_std):
     d_pred = np.zeros_like(pred)
     d_pred[:, pos_cols] = d_pos * std
     return float(np.mean(np.abs(diff))), d_pred
-
 def adam_step(params, grads, state, lr, beta1=0.9, beta2=0.999, eps=1e-8):
     """Adam (Kingma & Ba 2014), in place on params; state = {"t": 0, "m": {}, "v": {}}."""
     state["t"] += 1
-    t = state["t"]
     for name, grad in grads.items():
         m = state["m"][name] = beta1 * state["m"].get(name, 0.0) + (1 - beta1) * grad
         v = state["v"][name] = beta2 * state["v"].get(name, 0.0) + (1 - beta2) * grad * grad
         m[np.abs(m) < 1e-30] = 0.0    # a dead unit's m decays to subnormals, slow on many CPUs
-        m_hat = m / (1 - beta1 ** t)
-        v_hat = v / (1 - beta2 ** t)
+        m_hat = m / (1 - beta1 ** state["t"])
+        v_hat = v / (1 - beta2 ** state["t"])
         params[name] -= lr * m_hat / (np.sqrt(v_hat) + eps)
-
 
 # ==== 4. Local phases (Sec. 4.1): contacts, sources, a per-frame sinusoid fit, Eq. (1) =========
 def foot_contacts(toes, fps):
@@ -398,31 +332,24 @@ def foot_contacts(toes, fps):
     is the median height of the slow samples; an 11-frame (at 60 fps) majority vote smooths."""
     vel = np.diff(toes, axis=0, prepend=toes[:1]) * fps
     vel[0] = vel[1]                             # backward differences; frame 0 copies frame 1
-    height = toes[..., 1]
-    slow = np.linalg.norm(vel, axis=-1) <= 0.15
+    height, slow = toes[..., 1], np.linalg.norm(vel, axis=-1) <= 0.15
     enough = slow.sum() >= max(1, 0.02 * height.size)
     floor = np.median(height[slow]) if enough else np.percentile(height, 2.0)
     raw = (slow & (np.abs(height - floor) <= 0.01)).astype(float)
-    half = int(np.floor(10 / 60 * fps / 2 + 0.5))
-    out = raw.copy()
+    half, out = int(np.floor(10 / 60 * fps / 2 + 0.5)), raw.copy()
     for k in range(len(raw)):
         window = raw[max(k - half, 0):k + half + 1]
-        ones = window.sum(0)
-        zeros = len(window) - ones
-        tie_keeps_raw = np.where(zeros > ones, 0.0, raw[k])
-        out[k] = np.where(ones > zeros, 1.0, tie_keeps_raw)
+        votes, against = window.sum(0), len(window) - window.sum(0)
+        out[k] = np.where(votes > against, 1.0, np.where(against > votes, 0.0, raw[k]))  # tie: raw
     return out
-
 def pca_source(local, facing=(0.0, 0.0, 1.0)):
     """Sec. 4.1.3, the contact-free source: the bone's hips-local positions (T, 3), centred,
-    projected on their first principal component, directed forward (so in-sync and opposite limbs
-    differ; as the package, a component exactly sideways is directed by its x)."""
+    projected on their first principal component, directed forward (so in-sync and opposite
+    limbs differ; as the package, a component exactly sideways is directed by its x)."""
     centred = local - local.mean(0)
     pc1 = np.linalg.eigh(centred.T @ centred / (len(centred) - 1))[1][:, -1]   # largest
     along = pc1 @ np.asarray(facing)
-    backwards = along < 0 or (along == 0 and pc1[0] <= 0)
-    return centred @ (-pc1 if backwards else pc1)
-
+    return centred @ (-pc1 if along < 0 or (along == 0 and pc1[0] <= 0) else pc1)
 def butterworth(x, fps, cutoff=4.0):
     """2nd-order Butterworth low-pass run forwards and backwards along axis 0 (as the package:
     edge values padded, the cutoff at most 0.4 fps)."""
@@ -430,40 +357,31 @@ def butterworth(x, fps, cutoff=4.0):
         return x.copy()
     sos = butter(2, min(cutoff, 0.4 * fps) / (fps / 2), output="sos")
     return sosfiltfilt(sos, x, axis=0, padtype="constant", padlen=min(9, len(x) - 1))
-
 def preprocess_source(g, fps):
     """Sec. 4.1.4: normalise in a 1 s window (each frame by its window's mean and std, ends
     repeated; a still window divides by 1), low-pass at 4 Hz, and set values under 1e-3 to 0."""
     half = int(np.floor(fps / 2 + 0.5))
-    padded = np.pad(g, half, mode="edge")
-    windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1)
+    windows = np.lib.stride_tricks.sliding_window_view(np.pad(g, half, mode="edge"), 2 * half + 1)
     std = np.where(windows.std(1) < 1e-6, 1.0, windows.std(1))
     v = butterworth((g - windows.mean(1)) / std, fps)
     v[np.abs(v) < 1e-3] = 0.0
     return v
-
 FREQUENCIES = np.geomspace(0.25, 4.0, 48)       # Hz: the frequency grid of the fit
-
 def sinusoid_basis(tau, freqs, fps):            # (G, E, 3): [sin 2πfτ, cos 2πfτ, 1], τ in frames
     angle = (2 * np.pi / fps) * tau[None, :] * freqs[:, None]
     return np.stack([np.sin(angle), np.cos(angle), np.ones_like(angle)], axis=-1)
-
 def solve_window(basis, w, y, vmin, vmax):
-    """Weighted least squares of y ≈ s·sin(2π freq τ) + c·cos(2π freq τ) + offset for each candidate
-    freq: for a fixed frequency it is linear, a 3x3 system. basis (G, E, 3), w and y (E,). Bounds
-    as the original: offset in [vmin, vmax] (else clipped, (s, c) re-solved) and amp = |(s, c)|
-    ≤ vmax - vmin (else scaled down). -> coef (G, 3) = (s, c, offset), weighted errors (G,)."""
+    """Weighted least squares of y ≈ s·sin(2π freq τ) + c·cos(2π freq τ) + offset per candidate
+    freq: linear for a fixed frequency, a 3x3 system. basis (G, E, 3), w and y (E,). Bounds as
+    the original: offset in [vmin, vmax] (else clipped, (s, c) re-solved) and amp = |(s, c)| ≤
+    vmax - vmin (else scaled down). -> coef (G, 3) = (s, c, offset), weighted errors (G,)."""
     weighted = basis.transpose(0, 2, 1) * w
-    gram = weighted @ basis                                      # Xᵀ W X
-    rhs = weighted @ y                                           # Xᵀ W y
-    yy = np.sum(w * y * y)
-    ridge = 1e-10 * np.trace(gram, axis1=1, axis2=2) + 1e-300    # as the package
-    gram += ridge[:, None, None] * np.eye(3)
-    coef = np.linalg.solve(gram, rhs[..., None])[..., 0]
-    sse = yy - np.sum(coef * rhs, axis=1)
-    amp_max = vmax - vmin
-    offset_out = (coef[:, 2] < vmin) | (coef[:, 2] > vmax)
-    bad = offset_out | (coef[:, 0] ** 2 + coef[:, 1] ** 2 > amp_max ** 2)
+    gram, rhs, yy = weighted @ basis, weighted @ y, np.sum(w * y * y)   # XᵀWX, XᵀWy, yᵀWy
+    gram += (1e-10 * np.trace(gram, axis1=1, axis2=2) + 1e-300)[:, None, None] * np.eye(3)
+    coef = np.linalg.solve(gram, rhs[..., None])[..., 0]         # (a ridge, as the package)
+    sse, amp_max = yy - np.sum(coef * rhs, axis=1), vmax - vmin
+    too_big = coef[:, 0] ** 2 + coef[:, 1] ** 2 > amp_max ** 2
+    bad = (coef[:, 2] < vmin) | (coef[:, 2] > vmax) | too_big
     could_win = sse < np.min(sse[~bad], initial=np.inf)          # as the package: only these
     for i in np.nonzero(bad & could_win)[0]:
         offset = np.clip(coef[i, 2], vmin, vmax)
@@ -473,66 +391,57 @@ def solve_window(basis, w, y, vmin, vmax):
         coef[i, 2] = offset
         sse[i] = yy - 2 * coef[i] @ rhs[i] + coef[i] @ gram[i] @ coef[i]
     return coef, sse
-
-def fit_window_frames(k, n_frames, half, width):
-    """The frames frame k's fit looks at: `width` data frames around k (shifted inwards at the
-    ends) plus `half` frames each side that pull towards the neighbours' fits, weighted
-    (1 - i/half)². -> tau (offsets from k), is_data, frames (clamped), weights, first data frame."""
+def fit_window(k, v, half, width):
+    """What frame k's fit looks at: `width` data frames around k (shifted inwards at the ends),
+    `half` frames each side pulling towards the neighbours' fits with weight (1 - i/half)².
+    -> None if the data is still (skipped), else τ (offsets from k), is_data, the frames
+    (clamped), weights and the bounds (vmin, vmax of every sample looked at)."""
+    n_frames = len(v)
     first = min(max(k - half, 0), n_frames - width)
+    if np.abs(v[first:first + width]).sum() < 1e-3:
+        return None
     frames = np.arange(first - half, first + width + half)
     is_data = (frames >= first) & (frames < first + width)
     outside = np.where(frames < first, first - frames, frames - first - width + 1)
     near = np.where(is_data, 0.0, (1 - outside / half) ** 2) * ((frames >= 0) & (frames < n_frames))
-    return frames - k, is_data, np.clip(frames, 0, n_frames - 1), is_data + near, first
-
+    looked_at = v[max(first - half, 0):first + width + half]
+    return (frames - k, is_data, np.clip(frames, 0, n_frames - 1), is_data + near,
+            looked_at.min(), looked_at.max())
 def fit_sinusoids(v, fps, sweeps=3):
     """Sec. 4.1.4: around every frame k, fit amp·sin(2π(freq·τ + phase)) + offset, τ = t - t_k,
-    to the source v (T,) over 0.5 s, with the neighbours' fits of the previous sweep pulling at the
-    edges (sweep 0 fits the data alone). Per frame: a grid of frequencies, then a parabola through
-    the best three. The paper's a·sin(f t - s) + b is the same curve: a = amp, f = 2π freq (rad/s),
+    to the source v (T,) over 0.5 s, the neighbours' fits of the previous sweep pulling at the
+    edges (sweep 0: the data alone). Per frame a grid of frequencies, then a parabola through the
+    best three. The paper's a·sin(f t - s) + b is the same curve: a = amp, f = 2π freq (rad/s),
     b = offset, s = 2π(freq t_k - phase); its φ = (f t - s) mod 2π is 2π phase at t = t_k.
     PAPER: a genetic algorithm fits it; this (as the package) minimises the same loss
     deterministically, so a run can be repeated. -> amp, freq (Hz), phase (cycles), each (T,)."""
-    n_frames = len(v)
-    half = max(1, int(np.floor(fps / 4 + 0.5)))
-    width = min(2 * half + 1, n_frames)                # 0.5 s of data (as the original: not one second)
+    n_frames, half = len(v), max(1, int(np.floor(fps / 4 + 0.5)))
+    width = min(2 * half + 1, n_frames)         # 0.5 s of data, as the original
     log_freqs = np.log(FREQUENCIES)
-    all_tau = np.arange(-width - 2 * half, width + 2 * half + 1)     # every offset a window uses
+    all_tau = np.arange(-width - 2 * half, width + 2 * half + 1)   # every offset a window uses
     grid_basis = sinusoid_basis(all_tau, FREQUENCIES, fps)
-    windows = []
-    for k in range(n_frames):                          # the windows are the same in every sweep
-        tau, is_data, frames, weights, first = fit_window_frames(k, n_frames, half, width)
-        looked_at = v[max(first - half, 0):first + width + half]     # the bounds' samples
-        still = np.abs(v[first:first + width]).sum() < 1e-3          # skipped: all zero
-        if still:
-            windows.append(None)
-        else:
-            windows.append((tau, is_data, frames, weights, looked_at.min(), looked_at.max()))
+    windows = [fit_window(k, v, half, width) for k in range(n_frames)]   # the same every sweep
     fitted = np.zeros(n_frames)
     for sweep in range(sweeps):
-        coef = np.zeros((n_frames, 3))
-        freq = np.zeros(n_frames)
+        coef, freq = np.zeros((n_frames, 3)), np.zeros(n_frames)
         for k, window in enumerate(windows):
-            if window is None:
+            if window is None:                  # skipped: all parameters 0
                 continue
             tau, is_data, frames, weights, vmin, vmax = window
-            w = weights if sweep else is_data * 1.0                  # sweep 0: the data alone
-            y = np.where(is_data, v[frames], fitted[frames])          # data, then neighbours' fits
+            w = weights if sweep else is_data * 1.0
+            y = np.where(is_data, v[frames], fitted[frames])       # data, then neighbours' fits
             grid_coef, sse = solve_window(grid_basis[:, tau - all_tau[0]], w, y, vmin, vmax)
-            best = np.argmin(sse)
-            shift = 0.0                          # the parabola's minimum, in grid steps
-            curvature = sse[best - 1] - 2 * sse[best] + sse[best + 1] if 0 < best < len(sse) - 1 else 0
-            if curvature > 0:
+            best, shift = np.argmin(sse), 0.0   # shift: the parabola's minimum, in grid steps
+            if 0 < best < len(sse) - 1 and sse[best - 1] - 2 * sse[best] + sse[best + 1] > 0:
+                curvature = sse[best - 1] - 2 * sse[best] + sse[best + 1]
                 shift = np.clip(0.5 * (sse[best - 1] - sse[best + 1]) / curvature, -1, 1)
             f = np.exp(log_freqs[best] + shift * (log_freqs[1] - log_freqs[0]))
-            basis = sinusoid_basis(tau, np.array([f]), fps)
-            refined_coef, refined_sse = solve_window(basis, w, y, vmin, vmax)
+            refined_coef, refined_sse = solve_window(sinusoid_basis(tau, np.array([f]), fps), w, y,
+                                                     vmin, vmax)
             if refined_sse[0] < sse[best]:
-                coef[k] = refined_coef[0]
-                freq[k] = f
+                coef[k], freq[k] = refined_coef[0], f
             else:
-                coef[k] = grid_coef[best]
-                freq[k] = FREQUENCIES[best]
+                coef[k], freq[k] = grid_coef[best], FREQUENCIES[best]
         fitted = coef[:, 1] + coef[:, 2]        # each curve at its own frame: τ = 0
     amp = np.hypot(coef[:, 0], coef[:, 1])
     phase = np.mod(np.arctan2(coef[:, 1], coef[:, 0]) / (2 * np.pi), 1.0)
@@ -540,18 +449,15 @@ def fit_sinusoids(v, fps, sweeps=3):
     # As the package: 0.5 s pins the phase down better than the frequency, so freq is re-read as
     # the slope of the unwrapped phase over the second around each frame (all of it fitted).
     second = int(round(fps / 2))
-    cycles = np.unwrap(2 * np.pi * phase) / (2 * np.pi)
-    t = np.arange(n_frames) / fps
+    cycles, t = np.unwrap(2 * np.pi * phase) / (2 * np.pi), np.arange(n_frames) / fps
     for k in range(second, n_frames - second if second >= 1 else 0):
         around = slice(k - second, k + second + 1)
         if np.all(amp[around] > 0):
             tc = t[around] - t[around].mean()
             freq[k] = np.clip(tc @ cycles[around] / (tc @ tc), FREQUENCIES[0], FREQUENCIES[-1])
     return amp, freq, phase
-
 SLOTS = ("left hand", "right hand", "left foot", "right foot")
 CONTACT_COLUMN = {"left foot": 1, "right foot": 0}       # contacts are [right, left]
-
 def local_phases(pos, rot, fps, hips, bones, contacts, sources=("pca", "pca", "contact", "contact"),
                  facing=(0.0, 0.0, 1.0)):
     """The local phases of the four SLOTS (Sec. 4.1). pos (T, J, 3), rot (T, J, 3, 3) world
@@ -559,19 +465,17 @@ def local_phases(pos, rot, fps, hips, bones, contacts, sources=("pca", "pca", "c
     'contact' source per slot. -> phase (T, 4) cycles, amplitude (T, 4): Eq. (1)'s ‖v_w‖·a, the
     fitted amp times the bone's largest hips-relative speed. As the package, phase and amplitude
     are then smoothed by the 4 Hz filter."""
-    rel = pos[:, bones] - pos[:, hips, None]
-    local = np.einsum("tji,tbj->tbi", rot[:, hips], rel)       # R_hipsᵀ (p - p_hips)
+    local = np.einsum("tji,tbj->tbi", rot[:, hips], pos[:, bones] - pos[:, hips, None])   # hips'
     speed = np.linalg.norm(np.diff(local, axis=0, prepend=local[:1]), axis=-1) * fps
     speed[0] = speed[1]
     n_frames = len(pos)
-    phase = np.zeros((n_frames, 4))
-    amplitude = np.zeros((n_frames, 4))
+    phase, amplitude = np.zeros((n_frames, 4)), np.zeros((n_frames, 4))
     for slot, (name, kind) in enumerate(zip(SLOTS, sources)):
         if kind == "contact":
             g = contacts[:, CONTACT_COLUMN[name]]
         else:
             g = pca_source(local[:, slot], facing)
-        amp, freq, phase_k = fit_sinusoids(preprocess_source(np.asarray(g, float), fps), fps)
+        amp, freq, fitted_phase = fit_sinusoids(preprocess_source(np.asarray(g, float), fps), fps)
         period = np.where(freq > 0, np.floor(fps / np.where(freq > 0, freq, 1) + 0.5), 0)
         half = (period // 2).astype(int)
         for k in range(n_frames):
@@ -579,26 +483,22 @@ def local_phases(pos, rot, fps, hips, bones, contacts, sources=("pca", "pca", "c
             # package, over one fitted period around k (shifted inwards at the ends).
             first = min(max(k - half[k], 0), max(n_frames - 1 - 2 * half[k], 0))
             amp[k] *= speed[first:first + 2 * half[k] + 1, slot].max()
-        angle = 2 * np.pi * phase_k
+        angle = 2 * np.pi * fitted_phase
         sin_cos = butterworth(np.stack([np.sin(angle), np.cos(angle)], 1), fps)
         phase[:, slot] = np.mod(np.arctan2(sin_cos[:, 0], sin_cos[:, 1]) / (2 * np.pi), 1.0)
         zero = np.hypot(sin_cos[:, 0], sin_cos[:, 1]) == 0
         phase[zero | (phase[:, slot] >= 1.0), slot] = 0.0
         amplitude[:, slot] = np.maximum(butterworth(amp, fps), 0.0)
     return phase, amplitude
-
-def phase_vectors(phase, amplitude):            # Eq. (1): amplitude (sin 2πφ, cos 2πφ) -> (T, 8)
-    sin = amplitude * np.sin(2 * np.pi * phase)
-    cos = amplitude * np.cos(2 * np.pi * phase)
-    return np.stack([sin, cos], -1).reshape(-1, 8)                # interleaved: s0 c0 s1 c1 ...
-
+def phase_vectors(phase, amplitude):            # Eq. (1): amp (sin 2πφ, cos 2πφ), s0 c0 s1 c1 ...
+    angle = 2 * np.pi * phase
+    return np.stack([amplitude * np.sin(angle), amplitude * np.cos(angle)], -1).reshape(-1, 8)
 
 # ==== 5. Data: BVH files -> world transforms -> x, z and style clips (Sec. 3.2) ================
 def read_bvh(path, scale=0.01):
     """-> joint names (End Sites named after their parent + "Site"), parents, world positions
     (T, J, 3) in metres (scale: from centimetres), world rotations (T, J, 3, 3), fps."""
-    tokens = Path(path).read_text().split()
-    i = 0
+    tokens, i = Path(path).read_text().split(), 0
     names, parents, offsets, channels, stack = [], [], [], [], []
     while tokens[i] != "MOTION":
         if tokens[i] in ("ROOT", "JOINT", "End"):
@@ -614,47 +514,40 @@ def read_bvh(path, scale=0.01):
         elif tokens[i] == "CHANNELS":
             channels[-1] = tokens[i + 2:i + 2 + int(tokens[i + 1])]
         i += 1
-    n_frames = int(tokens[i + 2])               # "MOTION Frames: n Frame Time: dt" then values
-    fps = 1.0 / float(tokens[i + 5])
+    n_frames, fps = int(tokens[i + 2]), 1.0 / float(tokens[i + 5])   # Frames: T Frame Time: dt
     values = np.array(tokens[i + 6:], dtype=float).reshape(n_frames, -1)
     local_pos = np.tile(np.array(offsets) * scale, (n_frames, 1, 1))
     local_rot = np.tile(np.eye(3), (n_frames, len(names), 1, 1))
-    col = 0
+    col = 0                                     # the first value column of joint j
     for j, joint_channels in enumerate(channels):
-        for k, channel in enumerate(joint_channels):  # position channels replace the offset
+        for k, channel in enumerate(joint_channels):   # position channels replace the offset
             if channel.endswith("position"):
                 local_pos[:, j, "XYZ".index(channel[0])] = values[:, col + k] * scale
         rot_k = [k for k, channel in enumerate(joint_channels) if channel.endswith("rotation")]
         if rot_k:                               # intrinsic rotations in the channels' order
             order = "".join(joint_channels[k][0] for k in rot_k)
-            angles = values[:, [col + k for k in rot_k]]
-            local_rot[:, j] = Rotation.from_euler(order, angles, degrees=True).as_matrix()
+            local_rot[:, j] = Rotation.from_euler(order, values[:, [col + k for k in rot_k]],
+                                                  degrees=True).as_matrix()
         col += len(joint_channels)
-    pos = np.zeros((n_frames, len(names), 3))
-    rot = np.zeros((n_frames, len(names), 3, 3))
+    pos, rot = np.zeros((n_frames, len(names), 3)), np.zeros((n_frames, len(names), 3, 3))
     for j, parent in enumerate(parents):        # forward kinematics, parents first
         if parent < 0:
-            rot[:, j] = local_rot[:, j]
-            pos[:, j] = local_pos[:, j]
+            rot[:, j], pos[:, j] = local_rot[:, j], local_pos[:, j]
         else:
             rot[:, j] = rot[:, parent] @ local_rot[:, j]
-            offset = np.einsum("tij,tj->ti", rot[:, parent], local_pos[:, j])
-            pos[:, j] = pos[:, parent] + offset
+            pos[:, j] = pos[:, parent] + np.einsum("tij,tj->ti", rot[:, parent], local_pos[:, j])
     return names, np.array(parents), pos, rot, fps
-
 HIPS = "Hips"                                   # the 100STYLE skeleton's names
 TOE_TIPS = ("RightToeSite", "LeftToeSite")
 PHASE_BONES = ("LeftWristSite", "RightWristSite", "LeftToe", "RightToe")
-# PAPER: "every 10 frames for 1 second in the future and past" (Sec. 3.2); as the original code
+# PAPER: "every 10 frames for 1 second in the future and past" (Sec. 3.2). As the original code
 # and the package, the past is 1/6 s (10 frames at 60 fps) apart and the future 0.2 s (12 frames):
 # the released network was trained so.
 TRAJECTORY_SECONDS = np.array([-1, -5 / 6, -4 / 6, -3 / 6, -2 / 6, -1 / 6, 0,
                                0.2, 0.4, 0.6, 0.8, 1.0])
-FUTURE = 6                                      # the first of the future samples (0 s included)
-
+FUTURE = 6                                      # the first future sample (0 s included)
 def to_root(v, root_rot, root_pos=None):        # world points or directions -> root frame
     return np.einsum("tji,t...j->t...i", root_rot, v if root_pos is None else v - root_pos[:, None])
-
 def features(pos, rot, fps, hips, joints, p, contacts):
     """In the package's layout (minifilm/features/layout.py): x (n, 48 + 12J) and z (n, 24 + 12J
     + 18) for the frames 1 .. T-2, and clip frames (T, 12J). The root is the hips on the floor,
@@ -671,11 +564,10 @@ def features(pos, rot, fps, hips, joints, p, contacts):
     vel[0] = vel[1]
 
     def joint_block(frames, root):              # (n, 12 J): [position, forward, up, velocity]
-        to_r = root_rot[root]
-        parts = [to_root(pos[frames][:, joints], to_r, root_pos[root]),
-                 to_root(rot[frames][:, joints][..., 2], to_r),
-                 to_root(rot[frames][:, joints][..., 1], to_r),
-                 to_root(vel[frames][:, joints], to_r)]
+        parts = [to_root(pos[frames][:, joints], root_rot[root], root_pos[root]),
+                 to_root(rot[frames][:, joints][..., 2], root_rot[root]),
+                 to_root(rot[frames][:, joints][..., 1], root_rot[root]),
+                 to_root(vel[frames][:, joints], root_rot[root])]
         return np.concatenate(parts, -1).reshape(len(frames), -1)
 
     def trajectory(frames, root):               # (n, 48)
@@ -687,13 +579,11 @@ def features(pos, rot, fps, hips, joints, p, contacts):
         samples = np.concatenate([where[..., [0, 2]], heading[..., [0, 2]]], -1)
         return samples.reshape(len(frames), -1)
 
-    now = np.arange(1, n_frames - 1)
+    now, every = np.arange(1, n_frames - 1), np.arange(n_frames)
     x = np.concatenate([trajectory(now, now), joint_block(now, now)], 1)
-    z_parts = [trajectory(now + 1, now)[:, 4 * FUTURE:], joint_block(now + 1, now), p[now + 1],
-               p[now + 1] - p[now], contacts[now + 1]]
-    all_frames = np.arange(n_frames)
-    return x, p[now], np.concatenate(z_parts, 1), joint_block(all_frames, all_frames)
-
+    z = np.concatenate([trajectory(now + 1, now)[:, 4 * FUTURE:], joint_block(now + 1, now),
+                        p[now + 1], p[now + 1] - p[now], contacts[now + 1]], 1)
+    return x, p[now], z, joint_block(every, every)
 
 # ==== 6. Gradient check: every backward pass against two-sided differences, in float64 =========
 def numerical_gradient(f, x, step=1e-5):        # (f(x + step e_i) - f(x - step e_i)) / 2 step
@@ -706,24 +596,19 @@ def numerical_gradient(f, x, step=1e-5):        # (f(x + step e_i) - f(x - step 
         grad[i] = (f_plus - f()) / (2 * step)
         x[i] = old
     return grad
-
 def rel_error(a, b):
     """max|a - b| / max(|a| + |b|): the worst entry against the largest gradient. (Two-sided
     differences carry ~1e-11 of rounding, which a per-entry ratio would report on tiny entries;
     the package's suite uses a four-point stencil for that.)"""
     return float(np.max(np.abs(a - b)) / max(1e-12, np.max(np.abs(a) + np.abs(b))))
-
 def check_layer(forward, backward, *inputs, rng):
     """L = Σ out ∘ cotangent, so d_out = cotangent: the worst input's error."""
     out, cache = forward(*inputs)
     cotangent = rng.standard_normal(out.shape)
     grads = backward(cotangent, cache)
     grads = grads if isinstance(grads, tuple) else (grads,)
-
-    def loss():
-        return np.sum(forward(*inputs)[0] * cotangent)
+    loss = lambda: np.sum(forward(*inputs)[0] * cotangent)      # noqa: E731
     return max(rel_error(g, numerical_gradient(loss, x)) for x, g in zip(inputs, grads))
-
 def check_model(rng):
     """L_mse + L_bll of Ω + Φ + Ψ at toy sizes, with dropout (fixed masks) and one style clip for
     the batch, as trained below: every parameter, x, p and the clip."""
@@ -742,19 +627,13 @@ def check_model(rng):
         l_bll, d_bll = bone_length_loss(z_hat, z, *bones)
         return l_mse + l_bll, d_mse + d_bll, cache
     grads, dx, dp, d_clip = model_backward(*loss()[1:])
-    grads = dict(grads, x=dx, p=dp, clip=d_clip)
-    arrays = dict(params, x=x, p=p, clip=clip)
+    grads, arrays = dict(grads, x=dx, p=dp, clip=d_clip), dict(params, x=x, p=p, clip=clip)
     return {name: rel_error(grads[name], numerical_gradient(lambda: loss()[0], a))
             for name, a in arrays.items()}
-
 def gradient_check(seed=0, limit=1e-7):         # prints one row per check; True if all pass
     rng = np.random.default_rng(seed)
-
-    def r(*shape):
-        return rng.standard_normal(shape)
-
-    def away(a):                                # away from ReLU's kink at 0
-        return a + 0.1 * np.sign(a)
+    r = lambda *shape: rng.standard_normal(shape)               # noqa: E731
+    away = lambda a: a + 0.1 * np.sign(a)                       # noqa: E731 (from ReLU's kink)
     drop = {"rate": 0.3, "masks": {}, "rng": rng}   # one mask, drawn on the first call
     rows = {"linear": check_layer(linear_forward, linear_backward, r(4, 5), r(5, 3), r(3), rng=rng),
             "ELU": check_layer(elu_forward, elu_backward, away(r(4, 5)), rng=rng),
@@ -777,16 +656,13 @@ def gradient_check(seed=0, limit=1e-7):         # prints one row per check; True
         print(f"  {name:<20} {err:9.2e}  {'ok' if err < limit else 'FAIL'}")
     return all(err < limit for err in rows.values())
 
-
 # ==== 7. Main: BVH files -> labels -> features -> one-style minibatches (Sec. 4.3) -> test MSE ==
 HOP_LIFTED_FOOT = {"LeftHop": 3, "RightHop": 2}   # the slot of the foot a hopping style lifts
-
 def load_folder(folder, clip_seconds=2.0):
     """Label and featurise every <Style>_<Gait>.bvh in folder; each file's first 80 % of rows
     train, the rest test (PAPER: held-out files; a per-file split lets a few files do).
     -> {style: {"train": [x, p, z], "test": [x, p, z], "clips": (m, T, 12J)}}, joint parents."""
-    data = {}
-    errors = []
+    data, errors = {}, []
     for path in sorted(Path(folder).glob("*.bvh")):
         style = path.stem.split("_")[0]
         names, parents, pos, rot, fps = read_bvh(path)
@@ -800,9 +676,8 @@ def load_folder(folder, clip_seconds=2.0):
             sources[HOP_LIFTED_FOOT[style]] = "pca"
         bones = [at[name] for name in PHASE_BONES]
         phase, amplitude = local_phases(pos, rot, fps, at[HIPS], bones, contacts, sources)
-        truth_path = path.with_suffix(".truth.npz")
-        if truth_path.exists():                 # the synthetic generator's true phases
-            with np.load(truth_path, allow_pickle=False) as truth:
+        if path.with_suffix(".truth.npz").exists():   # the synthetic generator's true phases
+            with np.load(path.with_suffix(".truth.npz"), allow_pickle=False) as truth:
                 miss = np.abs(phase - truth["true_phase"]) % 1
                 errors.append(np.minimum(miss, 1 - miss)[truth["phase_active"]])
         # PAPER: x 348, z 342 for 25 joints (Sec. 3.2); the package exports the wrists' End Sites
@@ -815,7 +690,7 @@ def load_folder(folder, clip_seconds=2.0):
         style_data = data.setdefault(style, {"train": [], "test": [], "clips": []})
         style_data["train"].append((x[:cut], p[:cut], z[:cut]))
         style_data["test"].append((x[cut:], p[cut:], z[cut:]))
-        starts = range(0, cut - T + 1, T // 2)                   # a clip every T / 2 frames
+        starts = range(0, cut - T + 1, T // 2)  # a clip every T / 2 frames
         style_data["clips"] += [frames[first:first + T] for first in starts]
     for style_data in data.values():
         for split in ("train", "test"):
@@ -826,13 +701,6 @@ def load_folder(folder, clip_seconds=2.0):
         print(f"[phases] median error against the generator's true phases: {error:.3f} cycles")
     feature_parents = [joints.index(parents[j]) if parents[j] in joints else -1 for j in joints]
     return data, np.array(feature_parents)
-
-def print_paper_size():
-    counts = count_params(PAPER)
-    for part, count in counts.items():
-        print(f"[model] PAPER config {part}: {count:,} parameters; Table 2: {TABLE_2[part]:,}")
-    # Ψ: no choice of the described layers gives Table 2's count (minifilm/model/film_generator.py)
-
 def main():
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -853,7 +721,9 @@ def main():
         sys.exit(f"no .bvh files in {args.data}")
     if not gradient_check(args.seed):
         sys.exit("the gradient check failed")
-    print_paper_size()
+    for part, count in count_params(PAPER).items():   # Ψ: no choice of the described layers
+        print(f"[model] PAPER {part}: {count:,} parameters; "   # gives Table 2's count
+              f"Table 2: {TABLE_2[part]:,}")                   # (minifilm/model/film_generator.py)
     with tempfile.TemporaryDirectory() as tmp:  # the synthetic files live only as long as this
         if args.data is None:
             cmd = [sys.executable, str(Path(__file__).with_name("make_synthetic.py")), tmp,
@@ -869,11 +739,9 @@ def main():
     print(f"[labels] {len(styles)} styles labelled and featurised "
           f"({time.perf_counter() - start:.0f} s so far)")
 
-    # Normalise every column by the training rows' mean and std, the clips by x's joint columns
-    # (as the package).
+    # as the package: every column by the training rows' mean and std, clips by x's joint columns
     stats = []
-    for k in range(3):                          # x, p, z
-        rows = np.concatenate([data[s]["train"][k] for s in styles])
+    for rows in (np.concatenate([data[s]["train"][k] for s in styles]) for k in range(3)):  # x p z
         stats.append((rows.mean(0), np.where(rows.std(0) < 1e-6, 1, rows.std(0))))
     x_joints = slice(4 * len(TRAJECTORY_SECONDS), None)
     for style_data in data.values():
@@ -883,30 +751,24 @@ def main():
         clips = (style_data["clips"] - stats[0][0][x_joints]) / stats[0][1][x_joints]
         style_data["clips"] = clips.astype(np.float32)
     _, T, C = data[styles[0]]["clips"].shape
-    x_dim = len(stats[0][0])
-    z_dim = len(stats[2][0])
+    x_dim, z_dim = len(stats[0][0]), len(stats[2][0])
     z_joints = 4 * (len(TRAJECTORY_SECONDS) - FUTURE)             # z's joint block starts here
     pos_cols = z_joints + 12 * np.arange(len(parents))[:, None] + np.arange(3)
     bones = (pos_cols, parents, *stats[2])
 
     rng = np.random.default_rng(args.seed)
     config = dict(settings, x_dim=x_dim, z_dim=z_dim, clip_frames=T, clip_channels=C)
-    params = init_params(config, rng)
-    adam = {"t": 0, "m": {}, "v": {}}
-    n_params = sum(a.size for a in params.values())
-    print(f"[model] {args.config}: {n_params:,} parameters; x {x_dim}, p 8, z {z_dim}, "
-          f"clips {T} x {C}")
-    # Sec. 4.3: one epoch is one pass through the shortest style
-    steps = min(len(data[s]["train"][0]) for s in styles) // batch
-    for epoch in range(1, epochs + 1):
-        t0 = time.perf_counter()
-        losses = []
+    params, adam = init_params(config, rng), {"t": 0, "m": {}, "v": {}}
+    print(f"[model] {args.config}: {sum(a.size for a in params.values()):,} parameters; "
+          f"x {x_dim}, p 8, z {z_dim}, clips {T} x {C}")
+    steps = min(len(data[s]["train"][0]) for s in styles) // batch   # Sec. 4.3: one epoch is
+    for epoch in range(1, epochs + 1):                               # the shortest style once
+        t0, losses = time.perf_counter(), []
         order = {s: rng.permutation(len(data[s]["train"][0])) for s in styles}
         for step in range(steps):
             for s in styles:                    # one style per minibatch, in a fixed order
-                rows = order[s][step * batch:(step + 1) * batch]
-                x, p, z = (a[rows] for a in data[s]["train"])
-                # PAPER leaves open which clip; one random clip of the style for the minibatch
+                x, p, z = (a[order[s][step * batch:(step + 1) * batch]] for a in data[s]["train"])
+                # the paper leaves open which clip: one random clip of the style per minibatch
                 clip = data[s]["clips"][rng.integers(len(data[s]["clips"]))][None]
                 drop = {"rate": config["dropout"], "masks": {}, "rng": rng}
                 z_hat, cache = model_forward(params, x, p, clip, drop)
