@@ -18,7 +18,7 @@ Steps (each prints what it did):
 
 ``run`` is ``with main_job(...) as job`` (steps 1-3, the locked run folder built aside and swapped
 in at the end), ``train`` (step 4: the Trainer's epochs) and ``finish`` (step 5);
-examples/train_small.py uses ``main_job`` and ``finish`` too and writes step 4's loop out itself.
+examples/train_small.py uses ``main_job``, ``new_trainer`` and ``finish`` too, and shows step 4's epochs.
 
 Everything is written to the run folder --out (default runs/train_small; see run_folder.py):
 data/, model.npz (checkpoint with the normalisation statistics), styles.npz (FiLM vector per
@@ -173,7 +173,7 @@ def log_epoch(record: dict, seconds: float) -> None:
 
 def train(job: "Job") -> Trainer:
     """Train the small LPN + FiLM model, one line per epoch; checkpoint after every epoch
-    (examples/train_small.py writes the same loop out step by step)."""
+    (examples/train_small.py shows the same epochs; a minibatch is Trainer.train_step)."""
     trainer = new_trainer(job)
     train_data, val_data = job.ds.train_data("train"), job.ds.train_data("val")
     for _ in range(job.settings.epochs):
@@ -205,6 +205,11 @@ def check_inputs(s: Settings, data: Optional[Path]) -> None:
     if data is not None:
         resolve_files(data)
         return
+    own_data_only = [name for name, value in (("split", s.split != "auto"), ("mirror", s.mirror),
+                                              ("fps", s.fps is not None), ("rig", s.rig is not None)) if value]
+    if own_data_only:
+        raise InputError(f"{', '.join(own_data_only)}: only with your own data (the synthetic set is made "
+                         "at 60 fps, split 80/10/10 and not mirrored)")
     unknown = [x for x in s.styles if x not in synthetic.STYLES] + [g for g in s.gaits if g not in synthetic.GAITS]
     if unknown:
         raise InputError(f"unknown synthetic styles or gaits {unknown}; styles are {', '.join(synthetic.STYLES)}, "

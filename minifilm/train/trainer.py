@@ -236,19 +236,25 @@ class Trainer:
             yield Minibatch(i, len(batches), int(s), x, p, z, clips, kw, where)
 
     def train_epoch(self, data: TrainData):
-        """One epoch of style-balanced minibatches; returns {'mse', 'bll', 'per_style'} means."""
+        """One epoch of style-balanced minibatches, :meth:`train_step` on each; returns
+        {'mse', 'bll', 'per_style'} means."""
         losses = EpochLosses(self)
         for b in self.minibatches(data):
-            self.model.zero_grad()
-            pred = self.model.forward(b.x, b.p, b.clips, train=True, rng=self.rng, **b.kw)
-            mse, bll, dpred = self.losses(pred, b.z)
-            self.model.backward(dpred, need_input_grads=False)   # the inputs are data: skip dx, dclip
-            self.check_finite(b, mse, bll)
-            self.optimizer.lr = self.learning_rate(self.epoch + b.index / b.count)
-            self.optimizer.step()
-            self.step += 1
+            mse, bll = self.train_step(b)
             losses.add(b, mse, bll)
         return losses.summary()
+
+    def train_step(self, b: "Minibatch"):
+        """One minibatch: forward, the losses, every gradient by hand, Adam. Returns (mse, bll)."""
+        self.model.zero_grad()
+        pred = self.model.forward(b.x, b.p, b.clips, train=True, rng=self.rng, **b.kw)   # Eq. (4)
+        mse, bll, dpred = self.losses(pred, b.z)                  # Eq. (5)-(7) and dL/dz
+        self.model.backward(dpred, need_input_grads=False)   # Ψ, Φ, Ω in reverse; inputs are data
+        self.check_finite(b, mse, bll)                      # a NaN or inf stops before the update
+        self.optimizer.lr = self.learning_rate(self.epoch + b.index / b.count)
+        self.optimizer.step()                               # minifilm/nn/fast_optim.py
+        self.step += 1
+        return mse, bll
 
     def check_finite(self, b: "Minibatch", mse: float, bll: float) -> None:
         """TrainingDiverged naming the minibatch and the quantity when a loss or a network's
