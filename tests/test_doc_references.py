@@ -21,7 +21,7 @@ import pytest
 
 from repo_paths import REPO_ROOT
 
-ROOTS = ("minifilm", "tests", "docs", "benchmarks", "examples", "scripts")
+ROOTS = ("minifilm", "tests", "docs", "benchmarks", "studies", "reports", "examples", "scripts")
 SUFFIXES = (".py", ".md", ".js", ".html", ".css")
 ORIGINAL = REPO_ROOT / "docs" / "original-code.md"
 #: files of other projects cited by name: CS231n's assignment code, nanoGPT, the authors' repository

@@ -247,7 +247,7 @@ def test_the_command_checker_can_fail():
 
 
 # ---------------------------------------------------------------------------- 4. code references
-REF = re.compile(r"`((?:minifilm|examples|benchmarks|scripts|tests|docs)/[\w/.-]+\.(?:py|md|png|csv))"
+REF = re.compile(r"`((?:minifilm|examples|benchmarks|studies|reports|scripts|tests|docs)/[\w/.-]+\.(?:py|md|png|csv))"
                  r"(?:::([\w.]+))?`")
 
 

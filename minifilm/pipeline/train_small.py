@@ -77,7 +77,7 @@ class Settings:
     learning_rate: float = 5e-4
     lr_schedule: str = "constant"        # or "cosine" (TrainConfig.lr_schedule)
     input_noise: float = 0.0             # TrainConfig.input_noise (0: none, the paper)
-    clips_per_batch: Optional[int] = 4   # None: one style clip per sample, as the paper (benchmarks/clip_sharing.py)
+    clips_per_batch: Optional[int] = 4   # None: one style clip per sample, as the paper (studies/clip_sharing.py)
     model: dict = field(default_factory=dict)   # overrides of ModelConfig.small
     generate_seconds: float = 10.0       # length of each generated BVH
     # weight of the user's trajectory in the near future samples (the demo's 0.75 suits the

@@ -5,8 +5,8 @@ measure style with both measures (classifier over seeds, Fréchet rank).
         --styles Aeroplane ArmsBySide ...                       # the trained styles
     minifilm dataset --from-released ../shared/data/released-lpn --out study/held --seconds-per-style 60 \
         --styles Chicken Proud                                  # the held-out styles
-    python benchmarks/dense_study.py --trained study/trained --held study/held --work study/work --epochs 3
-    python benchmarks/dense_study.py ... --reuse-run        # fine-tune and measure again on the trained run
+    python studies/dense_study.py --trained study/trained --held study/held --work study/work --epochs 3
+    python studies/dense_study.py ... --reuse-run        # fine-tune and measure again on the trained run
 
 Steps, each timed (the load is printed beside):
 
