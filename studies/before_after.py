@@ -57,7 +57,7 @@ def import_commit(rev: str, folder: Path):
 
 def fast_conv_pair(package: str):
     """(forward, backward, method choice) of the convolution training runs, in either layout: since
-    issue 25 ``nn/fast_conv.py``'s conv1d_fast_*, before it ``nn/conv.py``'s conv1d_*."""
+    the split of plain and fast kernels ``nn/fast_conv.py``'s conv1d_fast_*, before it ``nn/conv.py``'s conv1d_*."""
     try:
         m = importlib.import_module(f"{package}.nn.fast_conv")
         return m.conv1d_fast_forward, m.conv1d_fast_backward, m._conv1d_method

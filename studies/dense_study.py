@@ -1,4 +1,4 @@
-"""Issue 28 at small scale: train on styles the released network made, teach held-out styles to Ψ alone, and
+"""The dense style space at small scale (reports/2026-12-02_dense_style_space.md): train on styles the released network made, teach held-out styles to Ψ alone, and
 measure style with both measures (classifier over seeds, Fréchet rank).
 
     minifilm dataset --from-released ../shared/data/released-lpn --out study/trained --seconds-per-style 20 \
@@ -71,7 +71,7 @@ VARIANTS = {"teacher": None, "self-fed": SelfFed(), "span": None}
 def onto_span(vector: np.ndarray, trained: np.ndarray) -> np.ndarray:
     """``vector`` (D,) projected onto the affine span of the trained styles' vectors (S, D): the
     nearest combination mean + sum_k c_k (v_k - mean), by least squares (the "span" variant: the
-    new style kept on the trained styles' manifold, one of the routes issue 28 names)."""
+    new style kept on the trained styles' manifold, one of the routes the study tried)."""
     mean = trained.mean(axis=0)
     basis = (trained - mean).T                                        # (D, S)
     coef, *_ = np.linalg.lstsq(basis, vector - mean, rcond=None)

@@ -1,4 +1,4 @@
-"""A new style from a short clip, on real motion capture (issue 18, the paper's Sec. 5.3.2 / Figure 11).
+"""A new style from a short clip, on real motion capture (the paper's Sec. 5.3.2 / Figure 11).
 
     python studies/new_style.py                            # one style held out, 3 epochs (~4 min)
     python studies/new_style.py --all --epochs 30          # every style held out in turn, the main job's training

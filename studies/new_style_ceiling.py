@@ -1,4 +1,4 @@
-"""How far can Ψ-only fine-tuning go? Ceilings for the new style of studies/new_style.py (issue 18).
+"""How far can Ψ-only fine-tuning go? Ceilings for the new style of studies/new_style.py.
 
     python studies/new_style.py --all --epochs 30 --work runs/new_style     # first: runs and fine-tuned styles
     python studies/new_style_ceiling.py --work runs/new_style --all [--oracle]

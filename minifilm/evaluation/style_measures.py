@@ -1,4 +1,4 @@
-"""Measuring style so that it cannot be gamed (issue 28, part 4): a distribution distance beside the classifier.
+"""Measuring style so that it cannot be gamed : a distribution distance beside the classifier.
 
 A classifier can be fooled: a motion that holds one telling pose for a window is "recognised"
 though it moves like nothing in the data, and a different seed of the same classifier may disagree

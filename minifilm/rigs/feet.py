@@ -22,7 +22,7 @@ so they float, sink and slide by a few centimetres. Here:
 3. the thigh and shin rotations are turned by the smallest rotations onto the new knee and ankle.
 
 Why each step moves as little as it does: a clip taken to another rig and back must come back
-within 3 cm (issue 27), and every change here is made on both passes.
+within 3 cm (the target of reports/2026-12-02_retargeting.md), and every change here is made on both passes.
 """
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Toes kept out of the floor in swing (rigs/clearance.py): the 100STYLE foot, twice as long as
-Bandai's, sank its toe tip 5-7 cm below the floor just after toe-off (issue 27)."""
+Bandai's, sank its toe tip 5-7 cm below the floor just after toe-off."""
 import numpy as np
 
 from minifilm.evaluation.retargeting import contact_agreement
