@@ -138,7 +138,7 @@ def main(argv=None) -> None:
 
 def run_command(main: Callable[[], Optional[int]]) -> None:
     """:func:`report_errors` of ``main()`` as a command: the files it is given to read are recorded
-    while it runs, so that none of its outputs replaces one (minifilm/files/targets.py), and SIGTERM
+    while it runs, so that none of its outputs replaces one (minifilm/files/output_targets.py), and SIGTERM
     ends it the way Ctrl-C does, so what it was writing is cleaned up (a run being built, a
     temporary file) and an earlier run stays as it was (the demo sets its own handler)."""
     from minifilm.files import command_inputs   # here: it loads numpy, which must read the BLAS settings first
