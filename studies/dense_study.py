@@ -55,7 +55,7 @@ from minifilm.motion.skeletons import STYLE100, builtin_skeleton  # noqa: E402
 from minifilm.pipeline.from_released import ReleasedDataSettings, calibrate_styles, drive_gaits  # noqa: E402
 from minifilm.runtime.calibration import SpeedCalibration  # noqa: E402
 from minifilm.runtime.controller import Controller  # noqa: E402
-from minifilm.runtime.frames import floor_angle  # noqa: E402
+from minifilm.runtime.root_frames import floor_angle  # noqa: E402
 from minifilm.runtime.released import load_released  # noqa: E402
 from minifilm.synthetic.generator import rest_motion  # noqa: E402
 from minifilm.pipeline.new_style import read_clip, teach_style  # noqa: E402
