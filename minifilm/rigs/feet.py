@@ -4,7 +4,7 @@ After the pose transfer the target's feet follow the source's joint angles on ot
 so they float, sink and slide by a few centimetres. Here:
 
 1. the floor: the target is lifted or lowered as a whole so that where its toe tips rest
-   (:func:`minifilm.phases.contacts.estimate_floor_height`) is y = 0 (``clip.py``);
+   (:func:`minifilm.phases.contacts.estimate_floor_height`) is y = 0 (``retarget_clip.py``);
 2. the contacts (:func:`plant_feet`): the source's foot contacts
    (:func:`minifilm.phases.contacts.foot_contacts` on its toe tips) say when each foot is planted.
    During each contact the target's toe tip stays at one point; the heights of the tips are
