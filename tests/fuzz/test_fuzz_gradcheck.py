@@ -12,7 +12,7 @@ import pytest
 
 import gradcheck_report
 from minifilm.baselines import style_modulation as modulation
-from minifilm.evaluation import gradcheck_suite as suite
+from minifilm.evaluation import gradcheck_table as suite
 from minifilm.model import blocks, losses
 from minifilm.nn import conv, fast_conv, fast_linear
 from minifilm.nn import functional as F
