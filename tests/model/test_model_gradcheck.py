@@ -3,7 +3,7 @@ and the style model (Eq. 2-7) in its three forms, each on seeds 0-4, and the flo
 passes against float64.
 
 The rows of ``minifilm gradcheck`` run here one (row, seed) per test (minifilm/evaluation/
-minifilm/evaluation/gradcheck_table.py gives the method and the limits; gradcheck_networks.py the set-up: toy
+gradcheck_table.py gives the method and the limits; gradcheck_networks.py the set-up: toy
 networks, dropout on with fixed masks, every kink kept MARGIN away and watched by a guard).
 """
 import numpy as np
