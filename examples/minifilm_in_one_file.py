@@ -13,11 +13,9 @@ Locomotion via Feature-Wise Transformations and Local Motion Phases*, in NumPy +
     python examples/minifilm_in_one_file.py             # synthetic data, made by the package
     python examples/minifilm_in_one_file.py --data DIR  # <Style>_<Gait>.bvh, 100STYLE skeleton
 
-Nothing here imports minifilm (without --data the package writes synthetic BVH files in a
-subprocess: `pip install -e .` first). tests/test_companion.py gives this file and the package the
-same weights and compares outputs and every gradient, and the phases on real files. Where the
-package chose a detail the paper leaves open, a comment says "as the package"; where this file
-departs from the paper, the line says "PAPER:" and why.
+Nothing here imports minifilm (without --data the package writes synthetic BVH files: `pip install
+-e .` first); tests/test_companion.py holds this file equal to the package. "As the package": a
+detail the paper leaves open; "PAPER:": where this file departs from the paper, and why.
 
 Letters, one meaning each: n rows of a batch; K experts; I, O a layer's input and output widths;
 H hidden width; T frames (of a clip or a file); C channels per frame; J joints. Weights are
@@ -31,8 +29,7 @@ import tempfile
 import time
 from pathlib import Path
 
-# As `minifilm train`: small matrices gain little from a second BLAS thread, and lose a lot on a
-# busy machine.
+# as `minifilm train`: small matrices gain little from a second BLAS thread, lose a lot when busy
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np                                      # noqa: E402 (after the settings above)
@@ -62,8 +59,7 @@ def softmax_forward(x):                         # over the last axis; minus the 
 def softmax_backward(d, y):
     return y * (d - (d * y).sum(-1, keepdims=True))   # (diag(y) - y yᵀ) d, row by row
 def dropout_forward(x, site, drop):
-    """Inverted dropout at a named site (the package's names). drop: None in evaluation, or
-    {"rate", "masks", "rng"}: a site's keep-mask is drawn once and replayed by later passes."""
+    """Inverted dropout at a named site. drop: None (evaluation) or {"rate", "masks", "rng"}."""
     if drop is None:
         return x, None
     if site not in drop["masks"]:
@@ -109,9 +105,8 @@ def expert_backward(d, cache):                  # -> dx (n, I), dα (n, K), dW (
     dx = np.matmul(blend, d[:, :, None])[..., 0]
     return dx, d_alpha, (alpha.T @ d_blend).reshape(K, I, O), alpha.T @ d
 def conv1d_forward(x, W, b):
-    """1-D convolution over time, 'same' zero padding (a cross-correlation, as TF): x (n, T, C),
-    W (width, C, filters) -> (n, T, filters). im2col: each frame's window is one row, and the
-    convolution is one matrix product."""
+    """'Same'-padded cross-correlation over time (as TF), x (n, T, C), W (width, C, filters) ->
+    (n, T, filters), by im2col: each frame's window is one row, the convolution one product."""
     width, C, n_filters = W.shape
     n, T, _ = x.shape
     padded = np.pad(x, ((0, 0), (width // 2, width // 2), (0, 0)))
@@ -142,8 +137,7 @@ def max_pool_backward(d, cache):
     return dx
 
 # ==== 2. Networks Ω, Ψ, Φ and the style model (Eq. 2-4); backward = forward steps reversed =====
-# The sizes (named as the package's ModelConfig) and main()'s training settings. x_dim, z_dim and
-# the clip's size come from the data.
+# sizes named as the package's ModelConfig, and main()'s settings (the data gives x_dim, z_dim)
 SMALL = dict(n_experts=4, hidden=128, gating_hidden=32, conv_filters=32, conv_kernel=9,
              film_dense=128, phase_dim=8,
              dropout=0.2,   # PAPER: 0.3; 0.2 keeps a 4x narrower network stepping (as the package)
@@ -184,8 +178,7 @@ def count_params(cfg):
         counts["Ψ (S.M.N.)" if name.startswith("psi") else "Φ + Ω (A.S.N.)"] += int(np.prod(shape))
     return counts
 def init_params(cfg, rng, dtype=np.float32):
-    """Glorot-uniform weights, zero biases, except γ's output biases at 1 so that FiLM starts near
-    the identity (as the package)."""
+    """Glorot-uniform weights, zero biases; γ's biases 1: FiLM starts near the identity."""
     params = {}
     for name, (shape, fan_in, fan_out) in param_shapes(cfg).items():
         if fan_in == 0:                         # a bias
@@ -275,8 +268,7 @@ def phi_backward(dz, cache, grads):             # -> dx, dα, d_film
         d_film = [d_gamma, d_beta] + d_film
     return d, d_alpha, np.concatenate(d_film, axis=1)
 def model_forward(params, x, p, clip, drop=None):
-    """Eq. (4), ẑ = Φ(x; Ω(p), Ψ(y)): x (n, x_dim), p (n, 8), clip (n, T, C), one per sample, or
-    (1, T, C), one for the whole batch (a minibatch holds one style, Sec. 4.3) -> ẑ (n, z_dim)."""
+    """Eq. (4), ẑ = Φ(x; Ω(p), Ψ(y)): x (n, x_dim), p (n, 8), clip (n or 1, T, C) -> (n, z_dim)."""
     alpha, c_omega = omega_forward(params, p, drop)
     film, c_psi = psi_forward(params, clip, drop)
     z, c_phi = phi_forward(params, x, alpha, film, drop)
@@ -351,8 +343,7 @@ def pca_source(local, facing=(0.0, 0.0, 1.0)):
     along = pc1 @ np.asarray(facing)
     return centred @ (-pc1 if along < 0 or (along == 0 and pc1[0] <= 0) else pc1)
 def butterworth(x, fps, cutoff=4.0):
-    """2nd-order Butterworth low-pass run forwards and backwards along axis 0 (as the package:
-    edge values padded, the cutoff at most 0.4 fps)."""
+    """2nd-order zero-phase Butterworth low-pass along axis 0 (as the package: edges padded)."""
     if len(x) <= 1:
         return x.copy()
     sos = butter(2, min(cutoff, 0.4 * fps) / (fps / 2), output="sos")
@@ -597,9 +588,8 @@ def numerical_gradient(f, x, step=1e-5):        # (f(x + step e_i) - f(x - step 
         x[i] = old
     return grad
 def rel_error(a, b):
-    """max|a - b| / max(|a| + |b|): the worst entry against the largest gradient. (Two-sided
-    differences carry ~1e-11 of rounding, which a per-entry ratio would report on tiny entries;
-    the package's suite uses a four-point stencil for that.)"""
+    """max|a - b| / max(|a| + |b|): the worst entry against the largest gradient (a per-entry
+    ratio would report the differences' ~1e-11 rounding on tiny entries)."""
     return float(np.max(np.abs(a - b)) / max(1e-12, np.max(np.abs(a) + np.abs(b))))
 def check_layer(forward, backward, *inputs, rng):
     """L = Σ out ∘ cotangent, so d_out = cotangent: the worst input's error."""
