@@ -1,4 +1,4 @@
-"""Input-to-motion latency of the live demo on this machine (issue 17: target <= 100 ms).
+"""Input-to-motion latency of the live demo on this machine (target: at most 100 ms).
 
     python benchmarks/demo_latency.py                   # 150 key changes, 3 runs (about a minute)
     python benchmarks/demo_latency.py --browser         # also through headless Chromium's keyboard

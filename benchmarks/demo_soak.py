@@ -1,4 +1,4 @@
-"""Does the live demo hold 60 fps, without drift or memory growth, with a page connected? (issue 17)
+"""Does the live demo hold 60 fps, without drift or memory growth, with a page connected?
 
     python benchmarks/demo_soak.py                      # 60 s, twice (about 2.5 minutes)
     python benchmarks/demo_soak.py --seconds 600 --repeat 1     # the full ten-minute soak

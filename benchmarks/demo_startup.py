@@ -1,4 +1,4 @@
-"""How long from ``minifilm demo`` starting to its page being served? (issue 26: at most 3 s)
+"""How long from ``minifilm demo`` starting to its page being served? (target: at most 3 s)
 
     python benchmarks/demo_startup.py                    # 3 starts, each with an empty calibration cache
     python benchmarks/demo_startup.py --repo /path/to/other/checkout   # another version (e.g. main)

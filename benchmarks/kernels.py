@@ -11,7 +11,7 @@ filters of width 25), for several batch sizes (clips per step), each layer with 
 as in Ψ; the first layer skips dx as in training. "im2col" is the method the kit had before the
 FFT path (unchanged), so its column is the "before"; "auto" says which one the kit now chooses;
 "plain" is the reader's pair of minifilm/nn/conv.py (np.pad + stacked taps, fresh arrays), for
-comparison (issue 25).
+comparison.
 
 Adam: one ``Adam.step`` over train_small's three parameter sets (707,420 numbers) and over the
 paper's (44,150,520), hot (the numbers still in the cache from the previous step) and cold (a

@@ -1,4 +1,4 @@
-"""Every style of the authors' released network, all in one batch (issue 7's checks).
+"""Every style of the authors' released network, all in one batch: the run-time checks (bone lengths, hips, speed, distance to the path).
 
     python benchmarks/released_styles.py                      # 100 styles, 15 s, skeleton fit, calibrated
     python benchmarks/released_styles.py --minute             # the same for a minute (about 8 minutes)

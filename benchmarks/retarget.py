@@ -1,4 +1,4 @@
-"""Issue 27: retargeting checks on the real data, per source (figures in benchmarks/README.md).
+"""Retargeting checks on the real data, per source (figures in benchmarks/README.md).
 
     python benchmarks/retarget.py                                   # every real file -> 100STYLE, round trips
     python benchmarks/retarget.py --released DIR                    # + 100STYLE-rig clips (e.g. made by

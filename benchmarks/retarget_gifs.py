@@ -1,7 +1,7 @@
-"""Issue 27's pictures: one clip of each real source beside itself on the 100STYLE character.
+"""The retargeting pictures: one clip of each real source beside itself on the 100STYLE character.
 
     python benchmarks/retarget_gifs.py                  # docs/img/retarget_{bandai1,bandai2,cmu}.gif
-    python benchmarks/retarget_gifs.py --out /tmp/gifs  # elsewhere, with the Xia clip too
+    python benchmarks/retarget_gifs.py --out gifs  # elsewhere, with the Xia clip too
     python benchmarks/retarget.py --gifs DIR            # the same, after the retargeting checks
 
 Each clip is read as ``minifilm retarget`` reads it, put on the built-in 100STYLE rig with

@@ -11,7 +11,7 @@ Prints a table:
   * many characters updated together in one batch: frames per second and character-frames per second;
   * the same with every frame put on the 100STYLE skeleton (Controller ``skeleton=``, the default of
     examples/generate_released.py).
-With --quality it instead runs the checks of issue 7 for a minute (or --seconds) per style, all
+With --quality it instead runs the run-time quality checks (bone lengths, hips, speed, distance to the path) for a minute (or --seconds) per style, all
 styles in one batch, along a figure-eight at 1.3 m/s with per-style speed calibration, without and
 with foot locking: bone-length CV, hips range, speed, distance to the path, foot sliding.
 

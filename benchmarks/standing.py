@@ -1,4 +1,4 @@
-"""Does the character stand when nothing is asked, and start again at once? Per style of the released network (issue 26).
+"""Does the character stand when nothing is asked, and start again at once? Per style of the released network.
 
     python benchmarks/standing.py                        # every style, stand-still on (the runtime's default)
     python benchmarks/standing.py --no-hold              # the stand-still without the held body (root and phases only)

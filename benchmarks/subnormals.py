@@ -1,17 +1,17 @@
-"""What subnormal float32 numbers cost on this machine (issue 29), and that training makes none.
+"""What subnormal float32 numbers cost on this machine, and that training makes none.
 
     python benchmarks/subnormals.py --threads 1  # about a minute; one BLAS thread, as training
     python benchmarks/subnormals.py --repeat 50
 
 Many CPUs (Intel's among them) take a slow microcode path for every arithmetic operation on a
-subnormal number (below 1.18e-38 in float32); AMD's Zen cores pay far less. Before issue 29,
+subnormal number (below 1.18e-38 in float32); AMD's Zen cores pay far less. Before the flush,
 train_small's final checkpoint held 189,855 subnormal first moments in Ψ (67 %, the moments of
 units whose gradient had been 0 for hundreds of steps: m shrinks by beta1 a step). This script
 rebuilds that state on train_small's three parameter sets and times, each the minimum of
 ``--repeat`` rounds (each round runs every variant once, so all see the same background load),
 with the weights and moments restored before every run:
 
-* the Adam update without the flush (the kernel before issue 29) on those moments, and on the
+* the Adam update without the flush (the kernel before the flush) on those moments, and on the
   same moments set to 0 — their ratio is what subnormals cost here;
 * the Adam update now (ChunkedAdam, which flushes them) on the same two states;
 * a whole training step (forward, loss, backward, Adam) of train_small's model at batch 32 with
@@ -33,12 +33,12 @@ from minifilm.model.style_model import StyleModel  # noqa: E402
 from minifilm.nn import fast_optim  # noqa: E402
 from minifilm.nn.fast_optim import ChunkedAdam  # noqa: E402
 
-#: the share of Ψ's first moments that were subnormal in train_small's checkpoint before issue 29
+#: the share of Ψ's first moments that were subnormal in train_small's checkpoint before the flush
 PSI_SHARE = 0.67
 
 
 def unflushed_chunk(w, g, m, v, buf, beta1, beta2, step_size, eps_hat, tiny):
-    """The chunk update before issue 29: no flush."""
+    """The chunk update as it was before the flush was added."""
     np.subtract(g, m, out=buf)
     buf *= 1 - beta1
     m += buf

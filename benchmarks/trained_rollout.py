@@ -1,4 +1,4 @@
-"""Minute-long rollouts of a minifilm-trained model, one character per style (issue 7's checks).
+"""Minute-long rollouts of a minifilm-trained model, one character per style: the run-time checks of benchmarks/released_styles.py.
 
     python benchmarks/trained_rollout.py --run runs/train_small
     python benchmarks/trained_rollout.py --run DIR --start mean --fit none --position-bias 0.75 --png out.png

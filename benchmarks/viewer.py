@@ -1,4 +1,4 @@
-"""How fast is the viewer? The targets of issue 16, measured.
+"""How fast is the viewer? Its targets (GIF ≤ 30 s, HTML ≤ 5 MB and ready in ≤ 2 s), measured.
 
 1. GIF: 6 s of 8 characters at 30 fps (8 Bandai clips when ../shared/data is there, else
    synthetic walkers), written with ``write_gif``: target <= 30 s on the 2-core machine.

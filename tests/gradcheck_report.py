@@ -1,11 +1,11 @@
 """The gradient-check rows the tests ran, gathered for one table at the end of the session.
 
-The test modules run the suite's cases (minifilm.evaluation.gradcheck_suite) one (case, seed) per
+The test modules run the suite's cases (minifilm.evaluation.gradcheck_table) one (case, seed) per
 test through :func:`check`; tests/conftest.py prints :func:`table` in pytest's terminal summary,
 the same table ``minifilm gradcheck`` prints. (A module of its own: every test folder may import
 it, and conftest.py reads what they recorded.)
 """
-from minifilm.evaluation.gradcheck_suite import Row, cases, float32_cases, format_table
+from minifilm.evaluation.gradcheck_table import Row, cases, float32_cases, format_table
 from minifilm.nn.gradcheck import worst_error
 
 ROWS: dict = {}

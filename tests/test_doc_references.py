@@ -1,5 +1,4 @@
-"""No reference a reader cannot follow (issue 25 §5; tests/test_docs.py checks README and docs/):
-every file path, ``path::name``, dotted ``minifilm.x.y`` name, Sphinx ``:func:`` / ``:class:`` /
+"""No reference a reader cannot follow (tests/test_docs.py checks README and docs/): every file path, ``path::name``, dotted ``minifilm.x.y`` name, Sphinx ``:func:`` / ``:class:`` /
 ``:meth:`` name and ``§`` section cited in the repository's code, docstrings, comments and docs
 must exist in the repository.
 
@@ -7,7 +6,10 @@ must exist in the repository.
   the repository root; a shorter one (``nn/optim.py``, ``conv.py``) relative to the citing file's
   folder or to ``minifilm/``;
 * ``::name``: a function, class, ``Class.method`` or module-level assignment of that file;
-* ``§N.M``: a section of docs/original-code.md (``issue 24 §5`` cites an issue, not a document).
+* ``§N.M``: a section of docs/original-code.md;
+* and nothing a reader cannot open at all: no issue numbers ("issue 27", "(issue 8)": the repository
+  has no tracker a reader can see), no work sessions or helpers, no absolute machine paths
+  (``/work/…``, ``/home/…``, ``/tmp/…``): a repository's text says what it means in its own words.
 """
 from __future__ import annotations
 
@@ -21,7 +23,7 @@ import pytest
 
 from repo_paths import REPO_ROOT
 
-ROOTS = ("minifilm", "tests", "docs", "benchmarks", "examples", "scripts")
+ROOTS = ("minifilm", "tests", "docs", "benchmarks", "studies", "reports", "examples", "scripts")
 SUFFIXES = (".py", ".md", ".js", ".html", ".css")
 ORIGINAL = REPO_ROOT / "docs" / "original-code.md"
 #: files of other projects cited by name: CS231n's assignment code, nanoGPT, the authors' repository
@@ -33,7 +35,15 @@ PACKAGES = {p.name for p in (REPO_ROOT / "minifilm").iterdir() if p.is_dir()}
 PATH = re.compile(r"(?<![\w/.-])((?:[\w-]+/)*[\w-]+\.(?:py|md|png|csv|js|html|css))(?![\w])(?:::([A-Za-z_][\w.]*\w))?")
 DOTTED = re.compile(r"(?<![\w./-])(minifilm(?:\.\w+)+)")
 ROLE = re.compile(r":(?:func|class|meth):`~?([\w.]+)`")
-SECTION = re.compile(r"(issue\s+\d+\s+|issue\s+\d+,\s+)?§\s?(\d+(?:\.\d+)*)")
+SECTION = re.compile(r"()§\s?(\d+(?:\.\d+)*)")
+#: what no reader can open: an issue number, a work session or helper, a machine's absolute path
+UNFOLLOWABLE = {
+    "an issue number": re.compile(r"\bissues?[\s#-]*\d+", re.IGNORECASE),
+    "a work session": re.compile(r"\b(?:other|previous|this|that|first|second|earlier|later|same)\s+"
+                                 r"sessions?\b|\bsessions'", re.IGNORECASE),
+    "a helper": re.compile(r"\bhelpers?'|\bother helpers\b", re.IGNORECASE),
+    "a machine's absolute path": re.compile(r"(?<![\w.~])/(?:work|home|Users|tmp|root|mnt)/\w"),
+}
 
 
 def repo_files():
@@ -162,7 +172,7 @@ def test_every_reference_in_the_repository_exists():
 def test_the_reference_checker_can_fail(tmp_path):
     bad = REPO_ROOT / "tests" / "_reference_probe.py"        # read only through problems_in
     text = ('"""See minifilm/nn/absent.py, minifilm/nn/optim.py::NoSuchName, nn/optim.py::Adam, '
-            'minifilm.nn.optim.Nope, :func:`_scratch`, §99.9, issue 24 §5 and §12.3."""\n')
+            'minifilm.nn.optim.Nope, :func:`_scratch`, §99.9 and §12.3."""\n')
     try:
         bad.write_text(text, encoding="utf-8")
         found = problems_in(bad)
@@ -171,9 +181,32 @@ def test_the_reference_checker_can_fail(tmp_path):
     joined = "\n".join(found)
     assert "absent.py does not exist" in joined and "defines no NoSuchName" in joined
     assert "Nope" in joined and "_scratch" in joined and "§99.9" in joined
-    assert "Adam" not in joined and "§5" not in joined and "§12.3" not in joined and len(found) == 5
+    assert "Adam" not in joined and "§12.3" not in joined and len(found) == 5
 
 
 @pytest.mark.parametrize("section", ["0.3", "1.1", "2", "3.3", "4.8", "10.2", "12.3", "12.17", "13.1"])
 def test_the_original_code_document_has_the_cited_sections(section):
     assert section in original_sections()
+
+
+def unfollowable(text: str) -> list:
+    """Each issue number, work session, helper or machine path in ``text``: (line, kind, match)."""
+    return [(text.count("\n", 0, m.start()) + 1, kind, m.group(0))
+            for kind, pattern in UNFOLLOWABLE.items() for m in pattern.finditer(text)]
+
+
+def test_no_issue_numbers_sessions_or_machine_paths_in_the_repository():
+    files = [f for f in repo_files() if f != Path(__file__).resolve()]   # this file's text is examples
+    assert len(files) > 150
+    found = [f"{f.relative_to(REPO_ROOT)}:{line}: {kind} ({text!r})"
+             for f in files for line, kind, text in unfollowable(f.read_text(encoding="utf-8"))]
+    assert not found, f"{len(found)} places a reader cannot follow:\n" + "\n".join(found)
+
+
+def test_the_unfollowable_checker_can_fail():
+    text = ("As issue 27 asked (issue 8), measured in the previous session with other helpers' jobs,\n"
+            "data in /work/shared/data and /tmp/run; a scripted session, /proc/self/status, issues.\n")
+    kinds = [kind for _, kind, _ in unfollowable(text)]
+    assert kinds.count("an issue number") == 2 and kinds.count("a work session") == 1
+    assert kinds.count("a helper") == 1 and kinds.count("a machine's absolute path") == 2
+    assert len(kinds) == 6

@@ -134,9 +134,14 @@ def script_options(path: Path) -> frozenset:
 def dispatched_options(source: Path) -> frozenset:
     """Options of the `minifilm` subcommands a script hands its arguments to
     (``main(["train"] + sys.argv[1:])``) or whose options it takes (``from minifilm.cli import train
-    as options`` and ``options.add_arguments(parser)`` in examples/train_small.py)."""
+    as options``), and the settings of a script whose module-level UPPER_CASE values are replaced by
+    ``--name value`` (``override_settings`` in examples/train_small.py: SEED -> --seed)."""
     out = set()
     text = source.read_text(encoding="utf-8")
+    if "def override_settings(" in text:
+        tree = ast.parse(text)
+        out |= {"--" + t.id.lower().replace("_", "-") for node in tree.body if isinstance(node, ast.Assign)
+                for t in node.targets if isinstance(t, ast.Name) and t.id.isupper()}
     names = re.findall(r"main\(\[[\"'](\w+)[\"']\]", text) + re.findall(r"from minifilm\.cli import (\w+) as \w+", text)
     for name in names:
         out |= command_options(name) or set()
@@ -242,7 +247,7 @@ def test_the_command_checker_can_fail():
 
 
 # ---------------------------------------------------------------------------- 4. code references
-REF = re.compile(r"`((?:minifilm|examples|benchmarks|scripts|tests|docs)/[\w/.-]+\.(?:py|md|png|csv))"
+REF = re.compile(r"`((?:minifilm|examples|benchmarks|studies|reports|scripts|tests|docs)/[\w/.-]+\.(?:py|md|png|csv))"
                  r"(?:::([\w.]+))?`")
 
 

@@ -1,5 +1,5 @@
 """minifilm/files: what an output may replace, what an input may be, names from data, one writer
-per run folder (issue 24, families 1-3). Special files are made in the test's own folder (a FIFO,
+per run folder (the fuzz families 1-3). Special files are made in the test's own folder (a FIFO,
 a socket, and, where the test runs as root, a device node of its own): no test points at /dev."""
 import errno
 import os

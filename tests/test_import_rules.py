@@ -140,3 +140,68 @@ def test_no_module_is_much_longer_than_400_lines():
     long = {str(p.relative_to(REPO_ROOT)): n for p in MODULES
             if (n := len(p.read_text(encoding="utf-8").split("\n"))) > 420}
     assert not long, f"modules over about 400 lines (split them by idea): {long}"
+
+
+# ---- no circles: following imports from any module never leads back to it -------------------------
+def module_name(path: Path) -> str:
+    """'minifilm.demo.record' for minifilm/demo/record.py, 'minifilm.files' for its __init__.py."""
+    parts = list(path.relative_to(REPO_ROOT).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def module_graph() -> dict:
+    """{module: the minifilm modules it imports}, every import (inside functions too: an import
+    put off until it runs is still a dependency). ``from minifilm.demo import calibration_worker``
+    is an edge to that module, ``from minifilm.files import atomic_write_text`` to the package."""
+    names = {module_name(p): p for p in MODULES}
+    graph = {}
+    for name, path in names.items():
+        out = set()
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                out |= {f"{node.module}.{a.name}" if f"{node.module}.{a.name}" in names else node.module
+                        for a in node.names}
+            elif isinstance(node, ast.Import):
+                out |= {a.name for a in node.names}
+        graph[name] = {m for m in out if m in names and m != name}
+    return graph
+
+
+def circles(graph: dict) -> list:
+    """The strongly connected parts of ``graph`` with more than one module (Tarjan), each sorted."""
+    index, low, stack, on_stack, found = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            part = []
+            while not part or part[-1] != v:
+                part.append(stack.pop())
+                on_stack.discard(part[-1])
+            if len(part) > 1:
+                found.append(sorted(part))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return sorted(found)
+
+
+def test_the_import_graph_has_no_circle():
+    found = circles(module_graph())
+    assert not found, "modules that import each other, directly or round a circle:\n" + "\n".join(
+        " <-> ".join(part) for part in found)
+
+
+def test_the_circle_finder_can_fail():
+    graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a", "e"}, "e": {"d"}, "f": set()}
+    assert circles(graph) == [["a", "b", "c"], ["d", "e"]]
+    assert circles({"a": {"b"}, "b": set()}) == []

@@ -32,7 +32,7 @@ from minifilm.errors import MissingDependencyError, OutputPathError  # (imports 
 #: name -> (module, one-line help, environment defaults set before the module is imported)
 #: Training runs on one BLAS thread unless told otherwise: its matrices are small, a second thread
 #: gained 10-25 % on an idle 2-core machine, and on a shared one made steps 3-25x slower
-#: (benchmarks/README.md, issue 15).
+#: (benchmarks/README.md).
 ONE_BLAS_THREAD = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 COMMANDS = {
     "train": ("minifilm.cli.train", "the main job: synthetic or your data -> trained model -> generated motion",
@@ -138,7 +138,7 @@ def main(argv=None) -> None:
 
 def run_command(main: Callable[[], Optional[int]]) -> None:
     """:func:`report_errors` of ``main()`` as a command: the files it is given to read are recorded
-    while it runs, so that none of its outputs replaces one (minifilm/files/targets.py), and SIGTERM
+    while it runs, so that none of its outputs replaces one (minifilm/files/output_targets.py), and SIGTERM
     ends it the way Ctrl-C does, so what it was writing is cleaned up (a run being built, a
     temporary file) and an earlier run stays as it was (the demo sets its own handler)."""
     from minifilm.files import command_inputs   # here: it loads numpy, which must read the BLAS settings first

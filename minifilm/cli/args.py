@@ -68,7 +68,7 @@ def output_folder(text: str) -> Path:
 
 
 def input_path(text: str) -> Path:
-    """A file or folder the command reads. It is recorded as an input (minifilm/files/targets.py),
+    """A file or folder the command reads. It is recorded as an input (minifilm/files/output_targets.py),
     so that no output of the same command may replace it: ``view a.bvh --html a.bvh`` is refused
     before any work."""
     p = Path(text)

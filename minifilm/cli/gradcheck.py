@@ -1,13 +1,13 @@
 """The gradient-check suite: every backward pass of the kit and the networks against numerical
 gradients, printed as a table (what each row checks and why the numbers are what they are:
-minifilm/evaluation/gradcheck_suite.py and docs/backprop.md).
+minifilm/evaluation/gradcheck_table.py and docs/backprop.md).
 
     minifilm gradcheck [--seeds 5] [--only TEXT]
 
 The exit code is 1 when any check fails, 0 when all pass.
 """
 from minifilm.cli.args import in_range
-from minifilm.evaluation.gradcheck_suite import run as run_suite
+from minifilm.evaluation.gradcheck_table import run as run_suite
 
 HELP = "check every backward pass against numerical gradients and print the table"
 

@@ -82,7 +82,7 @@ def run(args) -> int:
         if getattr(args, kind) is not None:
             check_writable(getattr(args, kind), flags[kind])
             check_output_tools(getattr(args, kind), kind)
-    if args.on is not None:        # minimal hook for issue 27 (retarget's module draws nothing itself)
+    if args.on is not None:        # minimal hook for retargeting (retarget's module draws nothing itself)
         tracks = tracks_on(args.files, args.on)
     else:
         tracks = []

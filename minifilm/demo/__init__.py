@@ -9,10 +9,10 @@ the motion player's three.js code and sends what the user holds (WASD / arrows, 
 gamepad), the style picked or blended, and the toggles; the character's state lives on the
 server, which steps the runtime Controller at the data's frame rate and streams every frame back.
 
-Files, from the page inwards: ``assets/`` (the page: demo.html, demo.js, demo.css), ``site.py``
+Files, from the page inwards: ``assets/`` (the page: demo.html, demo.js, demo.css), ``page_files.py``
 (the files the server may send), ``server.py`` (HTTP + one WebSocket per page, the
 ``websockets`` package of the ``demo`` extra), ``protocol.py`` (every message both ways, and the
-validation of the page's), ``stage.py`` (the frame loop on its own thread), ``character.py``
+validation of the page's), ``frame_loop.py`` (the frame loop on its own thread), ``character.py``
 (one page's character: Controller, guard against non-finite output), ``steering.py`` (keys and
 sticks to a target facing and velocity), ``style_mix.py`` (smooth style changes and blends),
 ``calibrations.py`` and ``calibration_worker.py`` (speed calibration per style, in a worker

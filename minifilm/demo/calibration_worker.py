@@ -32,13 +32,21 @@ def start(params: str) -> None:
         os.nice(10)
     except OSError:
         pass
-    # after the thread count is set: these import numpy
-    from minifilm.demo.calibrations import measure
+    # after the thread count is set: this imports numpy
     from minifilm.demo.source import DemoSource
-    _SOURCE = (DemoSource.released(params, calibrate=True), measure)
+    _SOURCE = DemoSource.released(params, calibrate=True)
 
 
 def measure_style(name: str):
     """The SpeedCalibration of style ``name`` (in the worker)."""
-    source, measure = _SOURCE
-    return measure(source, name)
+    return measure(_SOURCE, name)
+
+
+def measure(source, name: str):
+    """The SpeedCalibration of style ``name`` of a :class:`~minifilm.demo.source.DemoSource` (in the
+    worker, or in the server's process when there is no worker)."""
+    from minifilm.runtime.calibration import calibrate_speed   # here: numpy loads after the
+    from minifilm.runtime.controller import Controller         # worker's thread count is set
+    ctrl = Controller(source.network, source.layout, fps=source.fps, **source.options)
+    x, p = source.starts.get(name, (None, None))
+    return calibrate_speed(ctrl, source.library[name], phases=p, start_x=x)

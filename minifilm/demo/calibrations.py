@@ -29,16 +29,11 @@ from typing import Dict, Mapping, Optional, Sequence
 import numpy as np
 
 from minifilm.demo import calibration_worker
+from minifilm.demo.calibration_worker import measure   # in the worker process and, with no worker, here
 from minifilm.demo.calibration_cache import CalibrationCache, max_speed
-from minifilm.runtime.calibration import SpeedCalibration, calibrate_speed
-from minifilm.runtime.controller import Controller
+from minifilm.runtime.calibration import SpeedCalibration
 
 
-def measure(source, name: str) -> SpeedCalibration:
-    """The calibration of style ``name`` of a :class:`~minifilm.demo.source.DemoSource`."""
-    ctrl = Controller(source.network, source.layout, fps=source.fps, **source.options)
-    x, p = source.starts.get(name, (None, None))
-    return calibrate_speed(ctrl, source.library[name], phases=p, start_x=x)
 
 
 class Calibrations:

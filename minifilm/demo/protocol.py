@@ -81,6 +81,20 @@ class ResetMessage:
     seq: Optional[int] = None
 
 
+#: The longest stretch a page may ask for by a record message, seconds.
+MAX_RECORD_SECONDS = 30.0
+
+
+@dataclass(frozen=True)
+class RecordMessage:
+    """The page asks for its character's last ``seconds`` as BVH (and GIF if ``gif``); answered by
+    minifilm/demo/record.py::answer_record."""
+
+    seconds: float
+    gif: bool = False
+    seq: Optional[int] = None
+
+
 @dataclass(frozen=True)
 class PingMessage:
     t: float
@@ -143,7 +157,6 @@ def parse_message(data: Union[str, bytes], styles: Collection[str]) -> Message:
         if kind == "reset":
             return ResetMessage(seq)
         if kind == "record":
-            from minifilm.demo.record import MAX_RECORD_SECONDS, RecordMessage   # record.py imports this module
             return RecordMessage(_number(obj["seconds"], "seconds", 0.1, MAX_RECORD_SECONDS),
                                  bool(_flag(obj, "gif")), seq)
         return PingMessage(_number(obj["t"], "t", -1e15, 1e15), seq)

@@ -23,7 +23,6 @@ import subprocess
 import sys
 import tempfile
 import threading
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
@@ -31,7 +30,7 @@ import numpy as np
 
 from minifilm.demo.calibrations import Calibrations
 from minifilm.demo.character import Character, DemoSettings
-from minifilm.demo.protocol import InputMessage, StyleMessage, encode, error
+from minifilm.demo.protocol import MAX_RECORD_SECONDS, InputMessage, RecordMessage, StyleMessage, encode, error  # noqa: F401 (RecordMessage: the server's and the tests' name for it here)
 from minifilm.demo.source import DemoSource
 from minifilm.viewer import Track, write_gif
 from minifilm.motion.bvh_write import format_bvh
@@ -108,21 +107,11 @@ def record_gif(source: DemoSource, settings: DemoSettings, path, seconds: float 
 # The page's record button
 # ---------------------------------------------------------------------------------------------
 
-#: The longest stretch a page may ask for, seconds (and how much every character keeps).
-MAX_RECORD_SECONDS = 30.0
+#: The longest stretch a page may ask for is protocol.MAX_RECORD_SECONDS (every character keeps it).
 #: A root moving further than this in one frame is a reset: the history starts again there.
 JUMP_METRES = 1.0
 GIF_FPS = 15.0
 GIF_TIMEOUT = 180.0      # seconds the GIF may take before the page gets the BVH alone
-
-
-@dataclass(frozen=True)
-class RecordMessage:
-    """The page asks for its character's last ``seconds`` as BVH (and GIF if ``gif``)."""
-
-    seconds: float
-    gif: bool = False
-    seq: Optional[int] = None
 
 
 class FrameHistory:

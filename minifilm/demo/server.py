@@ -18,7 +18,7 @@ frames only the newest, so a slow page skips frames instead of slowing the loop.
 Every WebSocket frame a page sends, control frames included, takes from its budget before the
 transport answers it (``budget.py``).
 
-HTTP: only GET of the site's exact paths (``site.py``). On every bind address, requests must name
+HTTP: only GET of the site's exact paths (``page_files.py``). On every bind address, requests must name
 this server in their ``Host`` header (``hosts.py``: a web page elsewhere cannot reach the server by
 a DNS name that points here), and a WebSocket opened by a browser must come from this server's own
 page (its ``Origin``), so another site open in the same browser cannot drive the character. A
@@ -40,9 +40,9 @@ from minifilm.demo.hosts import HostAllowList, is_loopback, is_unspecified, pars
 from minifilm.demo.protocol import (MAX_MESSAGE_BYTES, PROTOCOL_VERSION, TRANSPORT_MAX_BYTES, PingMessage,
                                     ProtocolError, encode, error, parse_message, pong, refused)
 from minifilm.demo.record import FrameHistory, RecordMessage, answer_record
-from minifilm.demo.site import Site
+from minifilm.demo.page_files import Site
 from minifilm.demo.source import DemoSource
-from minifilm.demo.stage import Stage, StageFull
+from minifilm.demo.frame_loop import Stage, StageFull
 from minifilm.demo.style_mix import film_digest
 from minifilm.viewer.body import body_plan_of_positions
 

@@ -1,5 +1,5 @@
 """Figure 10 and the style metrics of Sec. 5: train the seven variants with one budget on one data
-set and compare them (issue 8).
+set and compare them (the paper's Sec. 5.2, Figure 10 and Table 2).
 
     minifilm compare                        # synthetic data (generated here)
     minifilm compare --data /path/to/bandai2 --split-files --holdout feminine

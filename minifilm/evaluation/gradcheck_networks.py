@@ -2,7 +2,7 @@
 
 Each is a toy-sized float64 network of the paper's structure (a handful of units per layer), in
 training mode with fixed dropout masks, random inputs and a scalar objective, set up per seed by
-minifilm.evaluation.gradcheck_setup (biases shifted so that no ELU / ReLU input lies within
+minifilm.evaluation.gradcheck_problem (biases shifted so that no ELU / ReLU input lies within
 MARGIN of 0 and no layer-norm row has a small σ; clips redrawn away from max-pool ties; loss
 targets away from the bone-length loss's kinks). Per seed:
 
@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from minifilm.baselines.variants import VariantModel, build_variant
-from minifilm.evaluation.gradcheck_setup import (Problem, bll_target, bone_lengths, expert_net_sites, film_generator_sites,
+from minifilm.evaluation.gradcheck_problem import (Problem, bll_target, bone_lengths, expert_net_sites, film_generator_sites,
                                                  gating_sites, motion_sites, projection, training_objective)
 from minifilm.model.config import ModelConfig
 from minifilm.model.film_generator import FilmGenerator

@@ -1,4 +1,4 @@
-"""How faithful a retargeted clip is to its source (issue 27's checks; benchmarks/retarget.py prints them).
+"""How faithful a retargeted clip is to its source (the retargeting checks; benchmarks/retarget.py prints them).
 
 * :func:`bone_direction_errors`: the angle between each mapped bone's world direction in source
   and target, per frame. Mapped bones run between role joints both rigs have (thigh, shin, foot,

@@ -1,4 +1,5 @@
-"""A style classifier for generated motion (the issue's "style recognition accuracy", Sec. 5).
+"""A style classifier for generated motion: its "style recognition accuracy" is how often it names
+the style a character was asked for (Sec. 5).
 
 Trained on real clips of the dataset, applied to windows of generated rollouts: if the model
 reproduces a style, the classifier recognises it. Input = a window of per-frame joint blocks

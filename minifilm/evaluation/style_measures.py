@@ -1,8 +1,8 @@
-"""Measuring style so that it cannot be gamed (issue 28, part 4): a distribution distance beside the classifier.
+"""Measuring style so that it cannot be gamed : a distribution distance beside the classifier.
 
 A classifier can be fooled: a motion that holds one telling pose for a window is "recognised"
 though it moves like nothing in the data, and a different seed of the same classifier may disagree
-(``benchmarks/new_style_ceiling.py`` searched classifier settings and found both). So a style
+(``studies/new_style_ceiling.py`` searched classifier settings and found both). So a style
 counts as *reproduced* only when two different measures agree:
 
 1. the **Fréchet distance** between the distribution of windowed, root-relative pose and velocity

@@ -1,7 +1,7 @@
 """The edge between minifilm and the file system: what it reads, what it writes, and the names it
 makes files from. Every reader and writer in minifilm goes through here.
 
-    targets.py   what an output may replace (never a device, FIFO, read-only file or an input)
+    output_targets.py   what an output may replace (never a device, FIFO, read-only file or an input)
     atomic.py    atomic writes of files and folders: the old one or the new one, never half
     reading.py   reading only regular files, bounded; JSON and .npz archives checked before use
     names.py     the one rule for names that come from data, and safe file names made from them
@@ -15,7 +15,7 @@ from minifilm.files.lock import FolderInUseError, folder_lock
 from minifilm.files.names import MAX_NAME_LENGTH, check_name, child_path, file_name, file_names
 from minifilm.files.reading import (MAX_JSON_BYTES, MAX_NPZ_BYTES, check_regular, open_regular, parse_json,
                                     read_json, read_npz, read_regular_bytes)
-from minifilm.files.targets import command_inputs, folder_target, note_input, output_target
+from minifilm.files.output_targets import command_inputs, folder_target, note_input, output_target
 
 __all__ = ["atomic_directory", "atomic_path", "atomic_savez", "atomic_write", "atomic_write_text", "check_writable",
            "remove_stale_temporaries", "FolderInUseError", "folder_lock", "MAX_NAME_LENGTH", "check_name",

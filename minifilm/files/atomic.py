@@ -10,7 +10,7 @@
 * :func:`check_writable` says, before any long computation, whether a path can be written.
 
 What a target may be (a new path, a regular file, a link to one; never a device, FIFO, socket,
-read-only file or an input of the running command) is decided in :mod:`minifilm.files.targets`,
+read-only file or an input of the running command) is decided in :mod:`minifilm.files.output_targets`,
 and every writer here asks it first. A replaced file keeps its permission bits; a new one gets
 what a plain ``open(path, "w")`` would give (0666 less the umask), not the 0600 of ``tempfile``.
 
@@ -34,7 +34,7 @@ from typing import BinaryIO, Callable, Iterator, Optional, Union
 import numpy as np
 
 from minifilm.errors import OutputPathError
-from minifilm.files.targets import folder_target, output_target
+from minifilm.files.output_targets import folder_target, output_target
 
 PathLike = Union[str, os.PathLike]
 
@@ -88,7 +88,7 @@ def remove_stale_temporaries(target: PathLike) -> int:
 
 def check_writable(path: PathLike, what: str = "output") -> Path:
     """Raise OutputPathError unless a file can be written at ``path``: what is there may be
-    replaced (:func:`minifilm.files.targets.output_target`), and its folder exists (or can be made
+    replaced (:func:`minifilm.files.output_targets.output_target`), and its folder exists (or can be made
     inside an existing, writable folder). Call it before the work that produces the file, so a
     typo costs nothing."""
     path = Path(path)

@@ -25,7 +25,7 @@ from typing import Any, BinaryIO, Dict, Optional, Type
 import numpy as np
 
 from minifilm.errors import InputError
-from minifilm.files.targets import kind_of
+from minifilm.files.output_targets import kind_of
 
 #: The most a JSON file minifilm reads (run.json, a retarget map, a checkpoint's configuration)
 #: may hold: they are a few kilobytes.

@@ -63,7 +63,7 @@ class FilmGenerator:
         self.used_masks: dict = {}
         self._caches = None
         # one workspace per layer: the big im2col matrices and weight gradients are reused from
-        # step to step instead of being mapped afresh (minifilm/nn/scratch.py::scratch)
+        # step to step instead of being mapped afresh (minifilm/nn/workspaces.py::scratch)
         self._work = {"conv0": {}, "conv1": {}, "dense0": {}, "dense1": {}}
 
     def forward(self, clip, train=False, rng=None, masks=None):

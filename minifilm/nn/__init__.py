@@ -8,7 +8,7 @@ in a ``fast_*`` module and is tested equal to the plain one.
     fast_conv.py    the same conv1d fast: reused buffers, or exactly through the FFT (what training runs)
     fast_linear.py  the linear backward with dW in a reused buffer (Ψ's dense layers)
     checks.py       shape checks that name the culprit
-    scratch.py      the fast forms' per-layer workspaces
+    workspaces.py      the fast forms' per-layer workspaces
     params.py       Parameters: named weights as views into one flat buffer; initialisers
     optim.py        Adam, the textbook update over flat buffers, skipping frozen sets
     fast_optim.py   the same Adam in place, chunk by chunk (what training uses)

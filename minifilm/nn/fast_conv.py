@@ -4,7 +4,7 @@ The same 'same'-padded convolution as :func:`minifilm.nn.conv.conv1d_forward`, c
 exact ways, picked per call by a flop model (:func:`_conv1d_method`):
 
 * "im2col": as in conv.py, but the window matrix is one copy of a strided view, and the big
-  buffers come from a per-layer workspace (minifilm/nn/scratch.py::scratch);
+  buffers come from a per-layer workspace (minifilm/nn/workspaces.py::scratch);
 * "fft": with N >= T + k//2 frames of zero padding the DFT's circular convolution equals the
   zero-padded one, so each frequency becomes one (B, C) @ (C, F) product. Nothing is
   approximated: the results differ from im2col's by float rounding only.
@@ -21,7 +21,7 @@ import scipy.fft
 from numpy.lib.stride_tricks import sliding_window_view
 
 from minifilm.nn.checks import check_conv1d_inputs, require, require_grad_shape
-from minifilm.nn.scratch import scratch
+from minifilm.nn.workspaces import scratch
 
 
 def _im2col(x: np.ndarray, k: int, work: dict | None = None, name: str = "cols") -> np.ndarray:
@@ -143,7 +143,7 @@ def conv1d_fast_forward(x: np.ndarray, W: np.ndarray, b: np.ndarray, work: dict 
     """:func:`minifilm.nn.conv.conv1d_forward`, fast. x (B, T, C), W (k, C, F) k odd, b (F,) -> y (B, T, F).
 
     ``method``: "im2col", "fft" or "auto" (:func:`_conv1d_method` picks); the backward pass uses
-    the same one. ``work``: the layer's workspace (see :func:`~minifilm.nn.scratch.scratch`).
+    the same one. ``work``: the layer's workspace (see :func:`~minifilm.nn.workspaces.scratch`).
     """
     k, C, F = W.shape
     check_conv1d_inputs(x, W, b)

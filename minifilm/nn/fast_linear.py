@@ -9,12 +9,12 @@ from __future__ import annotations
 import numpy as np
 
 from minifilm.nn.checks import require_grad_shape
-from minifilm.nn.scratch import scratch
+from minifilm.nn.workspaces import scratch
 
 
 def linear_fast_backward(dout: np.ndarray, cache, work: dict | None):
     """Gradients of :func:`minifilm.nn.functional.linear_forward`: dx (..., I), dW (I, O), db (O,),
-    with dW written into ``work["dW"]`` (see :func:`~minifilm.nn.scratch.scratch`): add it to your
+    with dW written into ``work["dW"]`` (see :func:`~minifilm.nn.workspaces.scratch`): add it to your
     gradients before the layer's next call."""
     x, W = cache
     require_grad_shape("linear_backward", dout, x.shape[:-1] + (W.shape[1],))

@@ -38,7 +38,7 @@ A larger h is not better either: the stencil spans ±2h, and every kink it cross
 0, where ELU's *second* derivative jumps, which spoils any high-order stencil; a max-pool tie;
 |·| at 0) costs an error of order h, and a layer-norm row with a small σ (σ = 0 is a kink) has
 huge high derivatives. So checks keep their inputs far from those points
-(minifilm/evaluation/gradcheck_setup.py explains how) rather than loosening the limit.
+(minifilm/evaluation/gradcheck_problem.py explains how) rather than loosening the limit.
 
 Use float64 only: in float32 the differences drown in rounding (compare float32 backward passes
 with float64 ones instead, as the suite does).

@@ -1,4 +1,4 @@
-"""A 100STYLE-like data set made by the authors' released network (issue 28, step 1).
+"""A 100STYLE-like data set made by the authors' released network (the first step of reports/2026-12-02_dense_style_space.md).
 
     minifilm dataset --from-released ../shared/data/released-lpn --out data/released100
 

@@ -116,7 +116,7 @@ def teach_style(run_path, name: str, files: Sequence, steps: int = 400, lr: floa
     """Fine-tune the run's Ψ on ``files`` and add ``name`` to its style library (see the module
     docstring). ``self_fed``: rollout-aware rounds after the teacher-forced steps (self_fed.py;
     None, the default: teacher forcing alone, as the paper. On the 90-style runs of
-    benchmarks/dense_study.py, SelfFed() lowered the rollout error along the clip by 10-32 % for
+    studies/dense_study.py, SelfFed() lowered the rollout error along the clip by 10-32 % for
     each of five held-out styles but reproduced no more of them on a new path: see
     benchmarks/README.md).
     Raises ValueError naming the file or setting that is wrong; the run folder is then untouched.

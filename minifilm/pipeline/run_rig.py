@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Callable, Union
 
 from minifilm.pipeline.run_folder import RunFolder
-from minifilm.rigs.clip import read_source, retarget_motion
+from minifilm.rigs.retarget_clip import read_source, retarget_motion
 from minifilm.rigs.joint_map import RigError
 from minifilm.rigs.rig import BUILTIN_RIGS, Rig, load_rig, rig_from_template
 

@@ -3,8 +3,8 @@
 Teacher-forced fine-tuning shows Ψ only frames of the clip: every input pose is the clip's own.
 When the network generates, it reads the pose it predicted a frame before, and a small error in a
 new style's pose is read back as a pose of a *trained* style, which the frozen Φ then continues:
-the motion drifts back to the styles Φ knows (exposure bias; measured in benchmarks/new_style_ceiling.py
-and benchmarks/dense_study.py). The remedy here is the DAgger idea, made simple by the clip's path
+the motion drifts back to the styles Φ knows (exposure bias; measured in studies/new_style_ceiling.py
+and studies/dense_study.py). The remedy here is the DAgger idea, made simple by the clip's path
 being known: roll the model out along the clip and train on the states it visits, labelled with
 the clip's next frame.
 

@@ -18,7 +18,7 @@ The paper trains by teacher forcing alone (Sec. 4.3); this is an addition, and n
 cut the rollout error along the training files from 8.6 to 5.1 cm, but doubled the validation MSE
 and lowered the share of styles whose generated motion ranks first by Fréchet distance (34 % ->
 20 %): the file's frame at the same time is a poor label for a state that has drifted, and pulls
-the styles towards one another. ``benchmarks/self_fed_training.py`` runs it on a trained run.
+the styles towards one another. ``studies/self_fed_training.py`` runs it on a trained run.
 """
 from __future__ import annotations
 

@@ -18,7 +18,7 @@ Steps (each prints what it did):
 
 ``run`` is ``with main_job(...) as job`` (steps 1-3, the locked run folder built aside and swapped
 in at the end), ``train`` (step 4: the Trainer's epochs) and ``finish`` (step 5);
-examples/train_small.py uses ``main_job`` and ``finish`` too and writes step 4's loop out itself.
+examples/train_small.py uses ``main_job``, ``new_trainer`` and ``finish`` too, and shows step 4's epochs.
 
 Everything is written to the run folder --out (default runs/train_small; see run_folder.py):
 data/, model.npz (checkpoint with the normalisation statistics), styles.npz (FiLM vector per
@@ -78,7 +78,7 @@ class Settings:
     learning_rate: float = 5e-4
     lr_schedule: str = "constant"        # or "cosine" (TrainConfig.lr_schedule)
     input_noise: float = 0.0             # TrainConfig.input_noise (0: none, the paper)
-    clips_per_batch: Optional[int] = 4   # None: one style clip per sample, as the paper (benchmarks/clip_sharing.py)
+    clips_per_batch: Optional[int] = 4   # None: one style clip per sample, as the paper (studies/clip_sharing.py)
     model: dict = field(default_factory=dict)   # overrides of ModelConfig.small
     generate_seconds: float = 10.0       # length of each generated BVH
     # weight of the user's trajectory in the near future samples (the demo's 0.75 suits the
@@ -191,7 +191,7 @@ def workers(trainer: Trainer, s: Settings):
 
 def train(job: "Job") -> Trainer:
     """Train the small LPN + FiLM model, one line per epoch; checkpoint after every epoch
-    (examples/train_small.py writes the same loop out step by step)."""
+    (examples/train_small.py shows the same epochs; a minibatch is Trainer.train_step)."""
     trainer = new_trainer(job)
     train_data, val_data = job.ds.train_data("train"), job.ds.train_data("val")
     with workers(trainer, job.settings) as pool:
@@ -224,6 +224,11 @@ def check_inputs(s: Settings, data: Optional[Path]) -> None:
     if data is not None:
         resolve_files(data)
         return
+    own_data_only = [name for name, value in (("split", s.split != "auto"), ("mirror", s.mirror),
+                                              ("fps", s.fps is not None), ("rig", s.rig is not None)) if value]
+    if own_data_only:
+        raise InputError(f"{', '.join(own_data_only)}: only with your own data (the synthetic set is made "
+                         "at 60 fps, split 80/10/10 and not mirrored)")
     unknown = [x for x in s.styles if x not in synthetic.STYLES] + [g for g in s.gaits if g not in synthetic.GAITS]
     if unknown:
         raise InputError(f"unknown synthetic styles or gaits {unknown}; styles are {', '.join(synthetic.STYLES)}, "

@@ -15,12 +15,12 @@ Modules, in the order the data flows through them:
 * proportions.py -- how a rig's foot lies flat; its legs' length (the root's scale)
 * tips.py        -- where a toe tip goes near a contact: heights the contact test needs, no slide
 * feet.py        -- the floor, planted contacts, leg IK
-* clip.py        -- one clip onto a rig (``retarget_motion``)
+* retarget_clip.py        -- one clip onto a rig (``retarget_motion``)
 * batch.py       -- a data set's files onto one rig (``minifilm train --rig``)
 
 A run folder as a target, finetune clips and ``view --on`` are in minifilm/pipeline/run_rig.py.
 """
-from minifilm.rigs.clip import read_source, retarget_file, retarget_motion
+from minifilm.rigs.retarget_clip import read_source, retarget_file, retarget_motion
 from minifilm.rigs.joint_map import RigError, Roles
 from minifilm.rigs.rig import BUILTIN_RIGS, Rig, builtin_rig, find_roles, load_rig
 

@@ -4,7 +4,7 @@ After the pose transfer the target's feet follow the source's joint angles on ot
 so they float, sink and slide by a few centimetres. Here:
 
 1. the floor: the target is lifted or lowered as a whole so that where its toe tips rest
-   (:func:`minifilm.phases.contacts.estimate_floor_height`) is y = 0 (``clip.py``);
+   (:func:`minifilm.phases.contacts.estimate_floor_height`) is y = 0 (``retarget_clip.py``);
 2. the contacts (:func:`plant_feet`): the source's foot contacts
    (:func:`minifilm.phases.contacts.foot_contacts` on its toe tips) say when each foot is planted.
    During each contact the target's toe tip stays at one point; the heights of the tips are
@@ -22,7 +22,7 @@ so they float, sink and slide by a few centimetres. Here:
 3. the thigh and shin rotations are turned by the smallest rotations onto the new knee and ankle.
 
 Why each step moves as little as it does: a clip taken to another rig and back must come back
-within 3 cm (issue 27), and every change here is made on both passes.
+within 3 cm (the target of reports/2026-12-02_retargeting.md), and every change here is made on both passes.
 """
 from __future__ import annotations
 

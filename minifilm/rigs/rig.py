@@ -1,6 +1,6 @@
 """A retargeting target: a rig's hierarchy, its roles, its units. ``load_rig`` reads one from a name.
 
-A :class:`Rig` is everything :func:`minifilm.rigs.clip.retarget_motion` needs to know
+A :class:`Rig` is everything :func:`minifilm.rigs.retarget_clip.retarget_motion` needs to know
 about a skeleton to put motion on it: one frame of it (hierarchy, rest offsets, channel order), the
 role of its joints (:class:`~minifilm.rigs.joint_map.Roles`) and the BVH length unit it is
 written in. A target can be

@@ -14,7 +14,7 @@ from typing import Optional, Sequence
 import numpy as np
 
 from minifilm.runtime.control import CommandScript
-from minifilm.runtime.frames import floor_angle
+from minifilm.runtime.root_frames import floor_angle
 
 
 @dataclass

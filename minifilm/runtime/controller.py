@@ -45,7 +45,7 @@ from minifilm.motion.retarget import axes_to_rotation
 from minifilm.motion.skeleton_fit import SkeletonFit
 from minifilm.runtime.calibration import SpeedCalibration
 from minifilm.runtime.control import Script, blend_future_trajectory
-from minifilm.runtime.frames import to_local2, to_local3, to_world2, to_world3, unit2
+from minifilm.runtime.root_frames import to_local2, to_local3, to_world2, to_world3, unit2
 from minifilm.runtime.held_body import leg_chains
 from minifilm.runtime.network import RuntimeNetwork
 from minifilm.runtime.rollout import Rollout

@@ -12,7 +12,7 @@ from typing import Optional, Sequence, Tuple
 import numpy as np
 
 from minifilm.motion.foot_ik import two_bone_ik
-from minifilm.runtime.frames import to_local2, to_local3, to_world2, to_world3, unit2
+from minifilm.runtime.root_frames import to_local2, to_local3, to_world2, to_world3, unit2
 
 #: the toe joints' names tried, [right, left] (the contact columns' order)
 TOE_NAMES = (("RightToe", "LeftToe"), ("RightToeBase", "LeftToeBase"), ("RightFoot", "LeftFoot"))

@@ -37,7 +37,7 @@ class Rollout:
 
     def metrics(self, parents: Sequence[int], path: Optional[np.ndarray] = None,
                 toes: Optional[Sequence[int]] = None, warmup_seconds: float = 1.0) -> List[dict]:
-        """Per character: the checks of the issue, after ``warmup_seconds`` (the start pose is the
+        """Per character: the run-time quality checks, after ``warmup_seconds`` (the start pose is the
         data's mean pose). Keys: bone_cv_max (coefficient of variation of the worst bone, output
         positions), network_bone_cv_max (the same for the network's own positions),
         hips_min / hips_max (m, joint 0 height), speed (mean root speed, m/s), and when given,

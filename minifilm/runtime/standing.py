@@ -72,7 +72,7 @@ from typing import Optional
 
 import numpy as np
 
-from minifilm.runtime.frames import floor_angle
+from minifilm.runtime.root_frames import floor_angle
 from minifilm.runtime.held_body import hold_root, plant_feet, refit_on_feet
 
 #: below this commanded speed (m/s) the command is "stand"

@@ -231,29 +231,36 @@ class Trainer:
             where = f"epoch {self.epoch + 1}, batch {i + 1}, style {self._name(s)}"
             yield Minibatch(i, len(batches), int(s), x, p, z, clips, kw, where)
 
+    def train_epoch(self, data: TrainData, pool=None):
+        """One epoch of style-balanced minibatches, :meth:`train_step` on each; returns
+        {'mse', 'bll', 'per_style'} means. pool: worker processes for the gradients, or None."""
+        losses = EpochLosses(self)
+        for b in self.minibatches(data):
+            mse, bll = self.train_step(b, pool)
+            losses.add(b, mse, bll)
+        return losses.summary()
+
+    def train_step(self, b: "Minibatch", pool=None):
+        """One minibatch: forward, the losses, every gradient by hand, Adam. Returns (mse, bll).
+        pool: a minifilm.train.parallel.DataParallel that splits the gradients and Adam's step
+        across worker processes (the same numbers to round-off), or None: all in this process."""
+        mse, bll = self.gradients(b, pool)
+        self.check_finite(b, mse, bll)                      # a NaN or inf stops before the update
+        self.optimizer.lr = self.learning_rate(self.epoch + b.index / b.count)
+        self.update(pool)
+        self.step += 1
+        return mse, bll
+
     def gradients(self, b: Minibatch, pool=None):
         """The gradients of minibatch ``b`` into the networks' ``.params.grad``; returns (mse, bll).
         pool: a minifilm.train.parallel.DataParallel (the same numbers to round-off), or None."""
         if pool is not None:
             return pool.gradients(b)
         self.model.zero_grad()
-        pred = self.model.forward(b.x, b.p, b.clips, train=True, rng=self.rng, **b.kw)
-        mse, bll, dpred = self.losses(pred, b.z)
-        self.model.backward(dpred, need_input_grads=False)   # the inputs are data: skip dx, dclip
+        pred = self.model.forward(b.x, b.p, b.clips, train=True, rng=self.rng, **b.kw)   # Eq. (4)
+        mse, bll, dpred = self.losses(pred, b.z)                  # Eq. (5)-(7) and dL/dz
+        self.model.backward(dpred, need_input_grads=False)   # Ψ, Φ, Ω in reverse; inputs are data
         return mse, bll
-
-    def train_epoch(self, data: TrainData, pool=None):
-        """One epoch of style-balanced minibatches; returns {'mse', 'bll', 'per_style'} means.
-        pool: worker processes for the gradients (:meth:`gradients`), or None."""
-        losses = EpochLosses(self)
-        for b in self.minibatches(data):
-            mse, bll = self.gradients(b, pool)
-            self.check_finite(b, mse, bll)
-            self.optimizer.lr = self.learning_rate(self.epoch + b.index / b.count)
-            self.update(pool)
-            self.step += 1
-            losses.add(b, mse, bll)
-        return losses.summary()
 
     def update(self, pool=None) -> None:
         """The optimiser's step (after :meth:`check_finite`); with a pool its workers compute it,
@@ -261,7 +268,7 @@ class Trainer:
         if pool is not None:
             pool.update(self.optimizer)
         else:
-            self.optimizer.step()
+            self.optimizer.step()                           # minifilm/nn/fast_optim.py
 
     def check_finite(self, b: "Minibatch", mse: float, bll: float) -> None:
         """TrainingDiverged naming the minibatch and the quantity when a loss or a network's

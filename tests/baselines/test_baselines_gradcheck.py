@@ -7,8 +7,8 @@ import pytest
 
 from gradcheck_report import check
 from minifilm.evaluation import gradcheck_networks as nets
-from minifilm.evaluation.gradcheck_setup import problem_pairs
-from minifilm.evaluation.gradcheck_suite import SEEDS, cases, float32_cases
+from minifilm.evaluation.gradcheck_problem import problem_pairs
+from minifilm.evaluation.gradcheck_table import SEEDS, cases, float32_cases
 from minifilm.baselines.variants import VARIANTS
 from minifilm.model.losses import mse_loss
 

@@ -264,7 +264,7 @@ def test_closing_the_tab_frees_its_character(browser, server):
             c.close()
 
 
-# ---- the page as a user reads it (issue 26) --------------------------------------------------
+# ---- the page as a user reads it ------------------------------------------------------------
 
 DASH = "\u2014"
 

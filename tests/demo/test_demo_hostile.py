@@ -1,4 +1,4 @@
-"""Hostile clients of the demo server (issue 24, section 6), spoken frame by frame over a plain
+"""Hostile clients of the demo server , spoken frame by frame over a plain
 socket (minifilm.demo.client.RawWebSocket): control-frame and continuation floods are counted
 against the page's budget and cut off, logged once; doubled Host or Origin headers are a 400,
 never a 500; the Host / Origin allow-list holds on every bind address; ``--host ''`` is refused

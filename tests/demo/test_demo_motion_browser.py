@@ -1,4 +1,4 @@
-"""The released network's character as a user meets it in the page (issue 26), in headless Chromium
+"""The released network's character as a user meets it in the page, in headless Chromium
 driving the real page of ``minifilm demo`` started as a user starts it (its own process).
 
 Checked, from every frame the page receives (captured off the page's WebSocket): after walking,

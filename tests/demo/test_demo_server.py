@@ -1,4 +1,4 @@
-"""The demo server on an ephemeral 127.0.0.1 port (minifilm/demo/server.py, site.py), driven by a
+"""The demo server on an ephemeral 127.0.0.1 port (minifilm/demo/server.py, page_files.py), driven by a
 Python WebSocket client: it serves its own files and nothing else, refuses other hosts and
 origins, and a page connects, steers, gets an error reply for each bad message without losing
 its connection, and frees its character when it leaves."""
@@ -10,7 +10,7 @@ import pytest
 from demo_helpers import http_get, serve, tiny_source  # noqa: F401  (tiny_source: a fixture)
 from minifilm.demo.client import DemoClient
 from minifilm.demo.protocol import MAX_MESSAGE_BYTES, TRANSPORT_MAX_BYTES
-from minifilm.demo.site import Site
+from minifilm.demo.page_files import Site
 
 websockets = pytest.importorskip("websockets")
 

@@ -1,4 +1,4 @@
-"""The frame loop (minifilm/demo/stage.py): a character per page up to the limit, every member
+"""The frame loop (minifilm/demo/frame_loop.py): a character per page up to the limit, every member
 stepped each frame and its frame delivered, and nothing a character or a page does stops it.
 (No timing is asserted here: the frame rate is measured by benchmarks/demo_soak.py.)"""
 import json
@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from minifilm.demo.stage import Stage, StageFull
+from minifilm.demo.frame_loop import Stage, StageFull
 
 
 class FakeCharacter:

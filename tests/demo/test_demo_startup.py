@@ -1,4 +1,4 @@
-"""Start-up and honest read-outs (issue 26): the calibration cache (minifilm/demo/calibration_cache.py)
+"""Start-up and honest read-outs: the calibration cache (minifilm/demo/calibration_cache.py)
 keyed by the network's files, written atomically, a corrupt one ignored with a warning; the
 demo command serves its page without measuring anything first; a command beyond what the style
 can reach is scaled and said; the frames carry what the page needs for its read-outs."""

@@ -1,4 +1,4 @@
-"""The gradient-check suite itself (minifilm/evaluation/gradcheck_suite.py, ``minifilm gradcheck``):
+"""The gradient-check suite itself (minifilm/evaluation/gradcheck_table.py, ``minifilm gradcheck``):
 it has a row for every backward pass, prints the table, fails loudly (exit code 1) when a
 backward pass is wrong, and forces the FFT convolution when asked. The rows themselves run in
 tests/nn/test_gradcheck.py, tests/model/test_model_gradcheck.py and
@@ -10,7 +10,7 @@ import sys
 
 import pytest
 
-from minifilm.evaluation import gradcheck_suite as suite
+from minifilm.evaluation import gradcheck_table as suite
 from minifilm.nn import fast_conv
 from minifilm.nn import functional as F
 from repo_paths import REPO_ROOT

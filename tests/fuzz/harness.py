@@ -1,4 +1,4 @@
-"""What every fuzz case asserts (issue 19): a correct result or one clear error, nothing else.
+"""What every fuzz case asserts: a correct result or one clear error, nothing else.
 
 ``outcome(call, allowed, mentions)`` runs ``call()`` while tracemalloc (which numpy reports its
 buffers to) records the peak memory, and checks that

@@ -1,4 +1,4 @@
-"""The six families of bad-input defects a probe found (issue 19), one test each, on the cases it
+"""The six families of bad-input defects a probe found, one test each, on the cases it
 listed. The fuzz tests beside this file go wider; these pin the cases that were reported."""
 import re
 import shutil
@@ -210,7 +210,7 @@ def test_family_4_released_folder_is_written_whole(shared_data, tmp_path):
 
 def test_family_4_a_killed_training_leaves_no_run(tmp_path, monkeypatch):
     """A run stopped after its checkpoint leaves nothing that could be taken for a run: it was
-    being built beside its folder, which is never made (issue 24 made this stronger than the
+    being built beside its folder, which is never made (since made stronger than the
     run.json-last rule it replaces)."""
     from dataclasses import replace
 

@@ -102,7 +102,7 @@ OTHER = [
     ("train: out is a file", ["train", "--out", f"{R}/run.json"]),
     ("finetune: clip missing", ["finetune", "--run", R, "--name", "New", f"{T}/nope.bvh"]),
     ("finetune: clip not BVH", ["finetune", "--run", R, "--name", "New", f"{R}/run.json"]),
-    # a clip of another humanoid rig is retargeted (issue 27); one that is no humanoid is refused
+    # a clip of another humanoid rig is retargeted (docs/retargeting.md); one that is no humanoid is refused
     ("finetune: clip of a rig that is no humanoid", ["finetune", "--run", R, "--name", "New", f"{T}/chain.bvh"]),
     ("finetune: clip too short", ["finetune", "--run", R, "--name", "New", f"{T}/short.bvh"]),
     ("finetune: name exists", ["finetune", "--run", R, "--name", "Neutral", f"{R}/data/Neutral_FW.bvh"]),

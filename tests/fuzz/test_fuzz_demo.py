@@ -1,4 +1,4 @@
-"""The demo server under random hostile clients (issue 24, section 6): random sequences of
+"""The demo server under random hostile clients: random sequences of
 WebSocket frames (every opcode, reserved ones included, fragments, floods of control frames) and
 random request headers (doubled, missing, malformed Host and Origin). Whatever is sent, the
 server answers with a 4xx or closes that one connection with a protocol close code, never a 500,

@@ -1,4 +1,4 @@
-"""The gradient-check suite against broken backward passes (issue 24 §5): a NaN, +inf or -inf in
+"""The gradient-check suite against broken backward passes: a NaN, +inf or -inf in
 one entry of a gradient, put into every backward pass of the kit, the blocks, the losses and the
 style modulations at once, must fail every row of ``minifilm gradcheck`` (the rows' errors
 become inf, never NaN, which would compare False with the limit and pass) and the pytest
@@ -12,7 +12,7 @@ import pytest
 
 import gradcheck_report
 from minifilm.baselines import style_modulation as modulation
-from minifilm.evaluation import gradcheck_suite as suite
+from minifilm.evaluation import gradcheck_table as suite
 from minifilm.model import blocks, losses
 from minifilm.nn import conv, fast_conv, fast_linear
 from minifilm.nn import functional as F

@@ -1,4 +1,4 @@
-"""Issue 24, families 1-3 and 7, through the command as a user runs it: names from data never
+"""Bad names and outputs (the fuzz families 1-3 and 7), through the command as a user runs it: names from data never
 become paths or reach the terminal raw, an output never replaces a special file, a read-only file
 or one of the command's inputs, a special file is never read, a header cannot ask for more than
 its file justifies, and every message is one line naming the file.

@@ -1,4 +1,4 @@
-"""Issue 24, family 4: a run is never lost or mixed.
+"""Fuzz family 4: a run is never lost or mixed.
 
 ``minifilm train`` into a folder that holds a run is stopped at points spread over its work (while
 the data is made, while it trains, while it generates; one of them at a random moment of a seeded

@@ -3,7 +3,7 @@ and the style model (Eq. 2-7) in its three forms, each on seeds 0-4, and the flo
 passes against float64.
 
 The rows of ``minifilm gradcheck`` run here one (row, seed) per test (minifilm/evaluation/
-gradcheck_suite.py gives the method and the limits; gradcheck_networks.py the set-up: toy
+gradcheck_table.py gives the method and the limits; gradcheck_networks.py the set-up: toy
 networks, dropout on with fixed masks, every kink kept MARGIN away and watched by a guard).
 """
 import numpy as np
@@ -11,8 +11,8 @@ import pytest
 
 from gradcheck_report import check
 from minifilm.evaluation import gradcheck_networks as nets
-from minifilm.evaluation.gradcheck_setup import MARGIN, PARENTS, POS_IDX, SIGMA_MIN, problem_pairs
-from minifilm.evaluation.gradcheck_suite import FLOAT32_TOLERANCE, SEEDS, cases, float32_cases
+from minifilm.evaluation.gradcheck_problem import MARGIN, PARENTS, POS_IDX, SIGMA_MIN, problem_pairs
+from minifilm.evaluation.gradcheck_table import FLOAT32_TOLERANCE, SEEDS, cases, float32_cases
 from minifilm.model.losses import bone_length_loss, mse_loss
 from minifilm.nn.gradcheck import worst_error
 

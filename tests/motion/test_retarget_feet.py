@@ -1,5 +1,5 @@
 """Planted feet of a retargeted clip (rigs/feet.py, rigs/tips.py): contacts as the source's, planted
-tips that stay put, and round trips that come back with the feet planted on both passes (issue 27)."""
+tips that stay put, and round trips that come back with the feet planted on both passes."""
 import glob
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""Retargeting between rigs (issue 27): roles, chain spreading, pose transfer, feet, the command,
+"""Retargeting between rigs (docs/retargeting.md): roles, chain spreading, pose transfer, feet, the command,
 and one clear error for each kind of bad rig."""
 import json
 import subprocess

@@ -3,7 +3,7 @@
 The kit's rows of ``minifilm gradcheck`` run here, one test per (row, seed): four-point centred
 differences with h = 3e-4, every entry of every input, the objective normalised to 1e-4, the
 elementwise relative error below 1e-7, inputs away from kinks and no stencil evaluation crossing
-one (minifilm/evaluation/gradcheck_suite.py explains the numbers). The first tests show the
+one (minifilm/evaluation/gradcheck_table.py explains the numbers). The first tests show the
 method itself: that it is exact on known functions, that it catches a wrong backward pass, why
 the objective is normalised, and that the kink guard sees a crossed kink.
 """
@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from gradcheck_report import check
-from minifilm.evaluation import gradcheck_kit as kit
-from minifilm.evaluation.gradcheck_suite import SEEDS, cases
+from minifilm.evaluation import gradcheck_cases as kit
+from minifilm.evaluation.gradcheck_table import SEEDS, cases
 from minifilm.nn import functional as F
 from minifilm.nn.gradcheck import (H, LIMIT, SCALE, check_gradients, check_pair, compare_gradients,
                                    numerical_gradient, passed, rel_error, worst_error)

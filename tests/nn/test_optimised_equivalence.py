@@ -1,5 +1,5 @@
 """Speed work must not change results: the optimised layers and the whole style model against plain
-reference formulations written here, in float64, on random inputs, to 1e-10 (issue 9).
+reference formulations written here, in float64, on random inputs, to 1e-10.
 
 The references are deliberately the slow, obvious forms: a loop over the kernel taps with
 scatter-adds for the convolution (not im2col, not the FFT), per-sample blended weights for the experts (not the

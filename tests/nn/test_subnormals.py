@@ -1,4 +1,4 @@
-"""No subnormal float32 numbers in training (issue 29): Adam's moments are flushed to 0 where they
+"""No subnormal float32 numbers in training (reports/2026-12-02_subnormal_floats.md): Adam's moments are flushed to 0 where they
 would fall below the smallest normal number, and nothing else is changed.
 
 Many CPUs take a slow path for every operation on a subnormal number; in train_small's own
@@ -24,7 +24,7 @@ def subnormals(a) -> int:
 
 
 def unflushed_chunk(w, g, m, v, buf, beta1, beta2, step_size, eps_hat, tiny):
-    """The chunk update as it was before issue 29 (no flush): the reference for 'unchanged'."""
+    """The chunk update as it was before the flush was added: the reference for 'unchanged'."""
     np.subtract(g, m, out=buf)
     buf *= 1 - beta1
     m += buf

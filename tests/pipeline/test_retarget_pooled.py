@@ -1,4 +1,4 @@
-"""Files of several rigs pooled into one data set (minifilm train --data ... --rig, issue 27), and a
+"""Files of several rigs pooled into one data set (minifilm train --data ... --rig), and a
 clip of another rig taught to the run (minifilm finetune retargets it and says so)."""
 from dataclasses import replace
 

@@ -1,7 +1,7 @@
-"""A minute-long rollout (3,600 frames) of a model trained by minifilm itself (issue 7's check).
+"""A minute-long rollout (3,600 frames) of a model trained by minifilm itself: the run-time checks.
 
 The model is tiny and trained here for a few seconds on ten seconds of one synthetic style
-walking forwards, so the thresholds are those of the issue for stability (bone lengths, hips
+walking forwards, so the thresholds are the released network's for stability (benchmarks/released_styles.py) (bone lengths, hips
 height) and loose ones for control: the character must keep walking for the whole minute, in the
 commanded direction, near the commanded path. A rollout that freezes into a pose and slides, drifts
 into the floor, stretches its bones or wanders off fails. The minute-long rollouts of the

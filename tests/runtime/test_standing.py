@@ -1,4 +1,4 @@
-"""Standing still at a zero command (minifilm/runtime/standing.py, issue 26).
+"""Standing still at a zero command (minifilm/runtime/standing.py).
 
 The released network, asked to stop after walking, kept walking backwards and sideways at about
 0.4 m/s with its feet stepping. With the runtime's StandStill it stops within a second and stands:

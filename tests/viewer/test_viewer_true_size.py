@@ -96,7 +96,7 @@ def test_view_out_refuses_an_unknown_extension_in_one_line(shared_data, tmp_path
 
 
 def test_view_out_follows_the_output_rules(shared_data, tmp_path):
-    # an input may not be overwritten (files/targets.py), and two GIFs are one too many
+    # an input may not be overwritten (files/output_targets.py), and two GIFs are one too many
     src = tmp_path / "walk.bvh"
     src.write_bytes((shared_data / "bvh/cmu/08_01_trimmed.bvh").read_bytes())
     before = src.read_bytes()

@@ -1,6 +1,6 @@
 """The gradient checks of the kit's pairs, the model's blocks, the losses and the style modulations.
 
-Each function takes a seed and returns a :class:`~minifilm.evaluation.gradcheck_setup.Result`:
+Each function takes a seed and returns a :class:`~minifilm.evaluation.gradcheck_problem.Result`:
 every entry of every input checked against the four-point stencil (minifilm.nn.gradcheck), the
 scalar being ``L = Σ out ∘ r`` (r ~ N(0, 1), summed exactly) for a pair and the loss itself for a
 loss, normalised as the method says. Inputs are drawn away from the kinks (ELU / ReLU inputs at
@@ -18,7 +18,7 @@ import numpy as np
 
 from minifilm.baselines.phase_function import catmull_rom_weights
 from minifilm.baselines.style_modulation import CPResidualAdapter, OneHotShift, ResidualAdapter
-from minifilm.evaluation.gradcheck_setup import (MARGIN, PARENTS, POS_IDX, SIGMA_MIN, Result, bone_lengths,
+from minifilm.evaluation.gradcheck_problem import (MARGIN, PARENTS, POS_IDX, SIGMA_MIN, Result, bone_lengths,
                                                  result_of, shift_away)
 from minifilm.model import blocks
 from minifilm.model.dropout import Dropout

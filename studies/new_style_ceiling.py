@@ -1,7 +1,7 @@
-"""How far can Ψ-only fine-tuning go? Ceilings for the new style of benchmarks/new_style.py (issue 18).
+"""How far can Ψ-only fine-tuning go? Ceilings for the new style of studies/new_style.py.
 
-    python benchmarks/new_style.py --all --epochs 30 --work runs/new_style     # first: runs and fine-tuned styles
-    python benchmarks/new_style_ceiling.py --work runs/new_style --all [--oracle]
+    python studies/new_style.py --all --epochs 30 --work runs/new_style     # first: runs and fine-tuned styles
+    python studies/new_style_ceiling.py --work runs/new_style --all [--oracle]
 
 At run time a style is ONE FiLM vector (Sec. 4.4), so whatever Ψ-only fine-tuning does, the new
 style's motion is Φ(x; Ω(p), f) for a single f (4 x hidden numbers). This script bounds what any
@@ -147,7 +147,7 @@ def one(work: Path, style: str, files, with_oracle: bool) -> None:
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--work", type=Path, required=True, help="the --work folder of benchmarks/new_style.py")
+    ap.add_argument("--work", type=Path, required=True, help="the --work folder of studies/new_style.py")
     ap.add_argument("--data", type=Path, default=DATA / "bandai2")
     ap.add_argument("--holdout", default="feminine")
     ap.add_argument("--all", action="store_true", help="every held-out style found in --work")

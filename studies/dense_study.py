@@ -1,12 +1,12 @@
-"""Issue 28 at small scale: train on styles the released network made, teach held-out styles to Ψ alone, and
+"""The dense style space at small scale (reports/2026-12-02_dense_style_space.md): train on styles the released network made, teach held-out styles to Ψ alone, and
 measure style with both measures (classifier over seeds, Fréchet rank).
 
     minifilm dataset --from-released ../shared/data/released-lpn --out study/trained --seconds-per-style 20 \
         --styles Aeroplane ArmsBySide ...                       # the trained styles
     minifilm dataset --from-released ../shared/data/released-lpn --out study/held --seconds-per-style 60 \
         --styles Chicken Proud                                  # the held-out styles
-    python benchmarks/dense_study.py --trained study/trained --held study/held --work study/work --epochs 3
-    python benchmarks/dense_study.py ... --reuse-run        # fine-tune and measure again on the trained run
+    python studies/dense_study.py --trained study/trained --held study/held --work study/work --epochs 3
+    python studies/dense_study.py ... --reuse-run        # fine-tune and measure again on the trained run
 
 Steps, each timed (the load is printed beside):
 
@@ -55,7 +55,7 @@ from minifilm.motion.skeletons import STYLE100, builtin_skeleton  # noqa: E402
 from minifilm.pipeline.from_released import ReleasedDataSettings, calibrate_styles, drive_gaits  # noqa: E402
 from minifilm.runtime.calibration import SpeedCalibration  # noqa: E402
 from minifilm.runtime.controller import Controller  # noqa: E402
-from minifilm.runtime.frames import floor_angle  # noqa: E402
+from minifilm.runtime.root_frames import floor_angle  # noqa: E402
 from minifilm.runtime.released import load_released  # noqa: E402
 from minifilm.synthetic.generator import rest_motion  # noqa: E402
 from minifilm.pipeline.new_style import read_clip, teach_style  # noqa: E402
@@ -71,7 +71,7 @@ VARIANTS = {"teacher": None, "self-fed": SelfFed(), "span": None}
 def onto_span(vector: np.ndarray, trained: np.ndarray) -> np.ndarray:
     """``vector`` (D,) projected onto the affine span of the trained styles' vectors (S, D): the
     nearest combination mean + sum_k c_k (v_k - mean), by least squares (the "span" variant: the
-    new style kept on the trained styles' manifold, one of the routes issue 28 names)."""
+    new style kept on the trained styles' manifold, one of the routes the study tried)."""
     mean = trained.mean(axis=0)
     basis = (trained - mean).T                                        # (D, S)
     coef, *_ = np.linalg.lstsq(basis, vector - mean, rcond=None)

@@ -1,8 +1,8 @@
 """How long `minifilm dataset --from-released` takes: wall and CPU time for some styles, extrapolated to 100.
 
-    python benchmarks/dense_dataset.py                          # 10 styles x 60 s (the default size)
-    python benchmarks/dense_dataset.py --styles 100             # the whole data set
-    python benchmarks/dense_dataset.py --styles 10 --no-label-check
+    python studies/dense_dataset.py                          # 10 styles x 60 s (the default size)
+    python studies/dense_dataset.py --styles 100             # the whole data set
+    python studies/dense_dataset.py --styles 10 --no-label-check
 
 Writes into a temporary folder (deleted). Prints wall and CPU seconds (the rollout runs on one BLAS
 thread, so CPU seconds are what an idle core would take when the machine is shared), the load, and a

@@ -10,10 +10,14 @@ backward, the layer's workspace, the first layer without dx, the method the kit 
 training step as in ``benchmarks/train_step.py`` (b) (forward with dropout, MSE, backward without
 the clip's gradient, the chunked Adam step) for train_small's model and the paper's, batch 32.
 
-    python benchmarks/before_after.py --before 9fecb8e --threads 1
-    python benchmarks/before_after.py --before main --only conv
+    python studies/before_after.py --before 9fecb8e --threads 1
+    python studies/before_after.py --before main --only conv
 """
-import common  # noqa: F401  (sets the BLAS thread count before numpy is imported)
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))   # the benchmarks' common.py
+import common  # noqa: E402,F401  (sets the BLAS thread count before numpy is imported)
 
 import argparse  # noqa: E402
 import importlib  # noqa: E402
@@ -53,7 +57,7 @@ def import_commit(rev: str, folder: Path):
 
 def fast_conv_pair(package: str):
     """(forward, backward, method choice) of the convolution training runs, in either layout: since
-    issue 25 ``nn/fast_conv.py``'s conv1d_fast_*, before it ``nn/conv.py``'s conv1d_*."""
+    the split of plain and fast kernels ``nn/fast_conv.py``'s conv1d_fast_*, before it ``nn/conv.py``'s conv1d_*."""
     try:
         m = importlib.import_module(f"{package}.nn.fast_conv")
         return m.conv1d_fast_forward, m.conv1d_fast_backward, m._conv1d_method

@@ -1,7 +1,7 @@
 """Clip sharing (TrainConfig.clips_per_batch): training time and quality for 1, 4 and 32 clips per batch.
 
-    python benchmarks/clip_sharing.py                   # a short version (4 epochs each, ~4 min)
-    python benchmarks/clip_sharing.py --epochs 20       # the length the choice was made at (~20 min)
+    python studies/clip_sharing.py                   # a short version (4 epochs each, ~4 min)
+    python studies/clip_sharing.py --epochs 20       # the length the choice was made at (~20 min)
 
 The paper and the original code pair every sample of a minibatch with its own style clip, so Ψ
 runs on 32 clips per step; minibatches hold one style, so a few clips of it could serve the whole

@@ -1,7 +1,7 @@
-"""A new style from a short clip, on real motion capture (issue 18, the paper's Sec. 5.3.2 / Figure 11).
+"""A new style from a short clip, on real motion capture (the paper's Sec. 5.3.2 / Figure 11).
 
-    python benchmarks/new_style.py                            # one style held out, 3 epochs (~4 min)
-    python benchmarks/new_style.py --all --epochs 30          # every style held out in turn, the main job's training
+    python studies/new_style.py                            # one style held out, 3 epochs (~4 min)
+    python studies/new_style.py --all --epochs 30          # every style held out in turn, the main job's training
 
 On the Bandai-Namco-2 data (5 styles, 30 fps): hold one style out, train the main job's model on
 the other four with ``minifilm train``'s pipeline (whole files to train / val / test), then teach

@@ -1,7 +1,7 @@
 """Rollout-aware training of a whole run (minifilm/pipeline/self_fed_training.py), written as a new run folder.
 
-    python benchmarks/self_fed_training.py --run W/run --out W2/run --rounds 3
-    python benchmarks/dense_study.py --trained T --held H --work W2 --reuse-run ...   # measured as any run
+    python studies/self_fed_training.py --run W/run --out W2/run --rounds 3
+    python studies/dense_study.py --trained T --held H --work W2 --reuse-run ...   # measured as any run
 
 The run's checkpoint is resumed (its Adam state too) and trained on for ``--rounds`` rounds on its
 own training rows and the rows its rollouts along them visit; the style library is rebuilt from the

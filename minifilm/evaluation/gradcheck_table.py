@@ -28,7 +28,7 @@ below 1e-7, the objective normalised to a scale of 1e-4. Why those numbers:
 * no stencil may cross a kink: inputs are kept MARGIN = 0.05 ≈ 170 h away from every ELU / ReLU
   switch, max-pool tie and |·| / ‖·‖ zero, and layer-norm rows at σ >= 0.5 (a small σ makes the
   fifth derivative huge), by shifting biases after measuring the pre-activations and redrawing
-  clips or targets (minifilm/evaluation/gradcheck_setup.py). A guard compares the side of every
+  clips or targets (minifilm/evaluation/gradcheck_problem.py). A guard compares the side of every
   kink on every evaluation and the row fails if one changed.
 
 Two rows sit on a kink on purpose and say why the stencil still measures the gradient the code
@@ -45,9 +45,9 @@ from functools import partial
 from typing import Callable, List, Optional, Sequence
 
 from minifilm.baselines.variants import SPECS, VARIANTS
-from minifilm.evaluation import gradcheck_kit as kit
+from minifilm.evaluation import gradcheck_cases as kit
 from minifilm.evaluation import gradcheck_networks as nets
-from minifilm.evaluation.gradcheck_setup import Result, check_problem, float32_errors
+from minifilm.evaluation.gradcheck_problem import Result, check_problem, float32_errors
 from minifilm.nn import fast_conv
 from minifilm.nn.gradcheck import H, LIMIT, worst_error
 
@@ -274,7 +274,7 @@ def run(seeds: Sequence[int] = SEEDS, only: Optional[str] = None, out=print) -> 
     if not pick and not pick32:
         raise ValueError(f"gradcheck: no row's name contains {only!r} (the rows: {', '.join(c.name for c in cases())})")
     out(f"Every backward pass against the four-point centred difference in float64 (h = {H:.0e}, every "
-        f"entry,\nobjective normalised to 1e-4; minifilm/evaluation/gradcheck_suite.py explains), seeds "
+        f"entry,\nobjective normalised to 1e-4; minifilm/evaluation/gradcheck_table.py explains), seeds "
         f"{_span(seeds)}:\n")
     rows = [run_case(c, seeds) for c in pick]
     out(format_table(rows, "backward pass"))
