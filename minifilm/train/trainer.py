@@ -19,8 +19,6 @@ an uninterrupted one would.
 from __future__ import annotations
 
 import math
-import sys
-import time
 from dataclasses import asdict, dataclass, field, fields
 
 import numpy as np
@@ -30,6 +28,7 @@ from minifilm.dataset.stats import NormStats
 from minifilm.model.style_model import StyleModel
 from minifilm.nn.fast_optim import ChunkedAdam
 from minifilm.train.batches import draw_clips, draw_shared_clips, epoch_batches
+from minifilm.train.epoch import EpochLosses, Minibatch
 from minifilm.train.objective import all_finite, objective
 from minifilm.train.parallel import data_parallel
 from minifilm.train.checkpoint import (NETWORKS, CheckpointError, build_style_model, load_checkpoint,
@@ -101,53 +100,6 @@ class TrainConfig:
     def from_dict(cls, d):
         names = {f.name for f in fields(cls)}
         return cls(**{k: v for k, v in d.items() if k in names})
-
-
-@dataclass
-class Minibatch:
-    """One training minibatch (:meth:`Trainer.minibatches`): samples of one style and their clips.
-
-    x (B, x_dim), p (B, phase_dim), z (B, z_dim), clips (M, T, C); kw: the model's extra forward
-    arguments (``clip_index`` (B,) when M clips are shared by the batch, ``style`` ids for the
-    comparison variants); index of count in the epoch; where: "epoch e, batch i, style s"."""
-
-    index: int
-    count: int
-    style: int
-    x: np.ndarray
-    p: np.ndarray
-    z: np.ndarray
-    clips: np.ndarray
-    kw: dict
-    where: str
-
-
-class EpochLosses:
-    """Per-style sums of an epoch's minibatch losses, and the one-line progress display on stderr
-    (config.progress; None: only when stderr is a terminal)."""
-
-    def __init__(self, trainer: "Trainer"):
-        self.trainer, self.sums, self.t0 = trainer, {}, time.time()
-        progress = trainer.config.progress
-        self.show = progress if progress is not None else sys.stderr.isatty()
-
-    def add(self, b: Minibatch, mse: float, bll: float) -> None:
-        acc = self.sums.setdefault(b.style, [0.0, 0.0, 0])
-        acc[0] += mse
-        acc[1] += bll
-        acc[2] += 1
-        if self.show:
-            t = self.trainer
-            rate = (b.index + 1) / max(time.time() - self.t0, 1e-9)
-            sys.stderr.write(f"\repoch {t.epoch + 1}/{t.config.epochs}  batch {b.index + 1}/{b.count}  "
-                             f"loss {mse + bll:.4f}  {rate:.1f} batch/s ")
-            sys.stderr.flush()
-
-    def summary(self) -> dict:
-        """{'mse', 'bll', 'loss', 'per_style'}: means over each style's minibatches, styles equal."""
-        if self.show:
-            sys.stderr.write("\n")
-        return self.trainer._summarise(self.sums)
 
 
 # ---- the trainer --------------------------------------------------------------------------

@@ -132,7 +132,7 @@ def test_the_training_loop_is_written_once(mini_run, tmp_path, capsys):
     assert "trainer.train_epoch" in calls
     assert not [c for c in calls if c.endswith((".forward", ".backward", ".step", ".train_step"))], calls
     epoch_loop = inspect.getsource(Trainer.train_epoch)
-    assert "self.train_step(b)" in epoch_loop and "forward(" not in epoch_loop
+    assert "self.train_step(b, pool)" in epoch_loop and "forward(" not in epoch_loop
     out, _ = mini_run
     # in this process, like mini_run: BLAS's rounding depends on its thread count
     runpy.run_path(str(EXAMPLE), run_name="example")["main"]([*MINI, "--out", str(tmp_path / "ex")])
