@@ -173,7 +173,7 @@ def with_http_front(Connection, answer_holder, budgets: AddressBudgets):
                 status, headers, body = plain(500, "internal error")
             if request.method == "HEAD":
                 body = b""
-            keep = request.keep_alive and status < 400 and not self._peer_done
+            keep = request.keep_alive and status != 400 and status < 500   # 400: the head itself was wrong
             self._send(status, headers, body, keep_alive=keep)
 
         def _send(self, status: int, headers: list, body: bytes, keep_alive: bool) -> None:
