@@ -23,6 +23,7 @@ from minifilm.cli.args import in_range, input_path, positive
 from minifilm.cli.memory import VIEW_BYTES_PER_JOINT_FRAME, add_memory_option, check_memory
 from minifilm.errors import InputError
 from minifilm.files import check_writable
+from minifilm.motion.bvh import bvh_header
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.pipeline.run_rig import load_target
 from minifilm.rigs import read_source, retarget_motion
@@ -114,7 +115,6 @@ def run(args) -> int:
 def check_view_memory(paths: Sequence, max_memory) -> None:
     """InputError before any file is read when the files' tracks would not fit (their headers'
     frames x joints; see minifilm/cli/memory.py)."""
-    from minifilm.motion.bvh import bvh_header
     need, frames = 0, 0
     for path in paths:
         n_frames, _, n_joints = bvh_header(path)
