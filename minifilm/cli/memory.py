@@ -6,8 +6,9 @@ they need from sizes known up front -- frames x joints, from the BVH header or f
 -- and refuse at once, with the estimate, when it is over a limit: by default half of this
 machine's memory (as ``dataset`` does), raised or lowered with ``--max-memory GB``.
 
-The per-frame costs are measured (Python's ``tracemalloc`` peak of the whole command on files
-of 5 s and 200 s, the slope per joint and frame), then rounded up.
+The per-frame costs are measured -- the peak resident memory of the whole command (and Python's
+``tracemalloc`` peak) for 5 s and for 200 s of motion, the slope per joint and frame -- then
+rounded up.
 """
 from __future__ import annotations
 
@@ -16,8 +17,8 @@ from typing import Optional
 from minifilm.cli.args import positive
 from minifilm.errors import InputError
 
-#: bytes per joint and frame of ``generate``'s rollout and BVH (measured ~330 on the released network)
-GENERATE_BYTES_PER_JOINT_FRAME = 400
+#: bytes per joint and frame of ``generate``'s rollout and BVH (measured ~460 on the released network)
+GENERATE_BYTES_PER_JOINT_FRAME = 500
 #: bytes per joint and frame of ``view``'s tracks and HTML page (measured ~470 on a 200 s file)
 VIEW_BYTES_PER_JOINT_FRAME = 550
 
