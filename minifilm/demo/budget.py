@@ -16,6 +16,10 @@ disconnected. :func:`budgeted_connection` hooks the budget in where each frame i
 any reply: a ping over the budget gets no pong, a message over it is dropped whole (all its
 fragments), and a flooding page is failed at once (a close frame, then everything it still sends
 is discarded unparsed), logged in one line.
+
+What a client does between pages -- opening connections, sending HTTP requests -- takes from its
+address's budget, in the same unit (:class:`AddressBudgets`, used by ``http_front.py``): a page's
+own budget ends with its connection, so connection churn was free.
 """
 from __future__ import annotations
 
