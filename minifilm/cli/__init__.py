@@ -125,38 +125,54 @@ def main(argv=None) -> None:
     module_name, text, env = COMMANDS[name]
     for key, value in env.items():     # before numpy is imported (OpenBLAS reads them once)
         os.environ.setdefault(key, value)
-    # Imported only when chosen: a command may need an optional extra (matplotlib, the demo's
-    # server) that the others do without, and `minifilm --help` stays instant.
-    module = importlib.import_module(module_name)
-    parser = Parser(prog=f"minifilm {name}", description=module.__doc__,
-                    formatter_class=argparse.RawDescriptionHelpFormatter)
-    module.add_arguments(parser)
-    # parsing inside run_command too: an argument's type check may meet an OSError (a path name
-    # too long for the file system, a symlink loop) or record an input
-    run_command(lambda: module.run(parser.parse_args(argv[1:])))
+
+    def command():
+        # Imported only when chosen: a command may need an optional extra (matplotlib, the demo's
+        # server) that the others do without, and `minifilm --help` stays instant. Inside
+        # run_command: Ctrl-C while importing is a stop like any other (no traceback), and an
+        # argument's type check may meet an OSError (a path name too long, a symlink loop) or
+        # record an input.
+        module = importlib.import_module(module_name)
+        parser = Parser(prog=f"minifilm {name}", description=module.__doc__,
+                        formatter_class=argparse.RawDescriptionHelpFormatter)
+        module.add_arguments(parser)
+        return module.run(parser.parse_args(argv[1:]))
+    run_command(command)
 
 
 def run_command(main: Callable[[], Optional[int]]) -> None:
     """:func:`report_errors` of ``main()`` as a command: the files it is given to read are recorded
-    while it runs, so that none of its outputs replaces one (minifilm/files/output_targets.py), and SIGTERM
-    ends it the way Ctrl-C does, so what it was writing is cleaned up (a run being built, a
-    temporary file) and an earlier run stays as it was (the demo sets its own handler)."""
-    from minifilm.files import command_inputs   # here: it loads numpy, which must read the BLAS settings first
-    previous = _raise_on_sigterm()
-    try:
+    while it runs, so that none of its outputs replaces one (minifilm/files/output_targets.py), and
+    Ctrl-C and SIGTERM end it by an exception, so what it was writing is cleaned up (a run being
+    built, a temporary file) and an earlier run stays as it was (the demo sets its own handlers)."""
+    previous = _install_stop_handlers()      # first: a stop while importing is a stop too
+
+    def with_inputs():
+        from minifilm.files import command_inputs   # here: it loads numpy, which must read the BLAS settings first
         with command_inputs():
-            report_errors(main)
+            return main()
+    try:
+        report_errors(with_inputs)
     finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+        for signum, handler in previous.items():
+            if handler is not None:         # None: a handler not set from Python, nothing to restore
+                signal.signal(signum, handler)
 
 
-def _raise_on_sigterm():
-    """Make SIGTERM raise :class:`Terminated`; returns the handler it replaced (None when this is
-    not the main thread, where Python cannot set handlers: a caller's thread keeps its own)."""
+def _install_stop_handlers() -> dict:
+    """Make Ctrl-C raise KeyboardInterrupt and SIGTERM raise :class:`Terminated`, whatever this
+    process inherited; returns ``{signal: the handler it replaced}`` (empty when this is not the
+    main thread, where Python cannot set handlers: a caller's thread keeps its own).
+
+    SIGINT is set explicitly, not left to Python: a process started with SIGINT ignored (from a
+    shell script run in the background, ``cmd &`` without job control, or ``nohup``) keeps it
+    ignored, Python then installs no KeyboardInterrupt handler, and Ctrl-C or ``kill -INT`` would
+    be lost: ``train`` would run to its end and replace the earlier run. A user who sends SIGINT
+    to a long command means to stop it."""
     if threading.current_thread() is not threading.main_thread():
-        return None
-    return signal.signal(signal.SIGTERM, _terminate)
+        return {}
+    return {signal.SIGINT: signal.signal(signal.SIGINT, signal.default_int_handler),
+            signal.SIGTERM: signal.signal(signal.SIGTERM, _terminate)}
 
 
 def _terminate(signum, frame):

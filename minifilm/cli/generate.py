@@ -17,12 +17,15 @@ start frames and settings are used (both measured choices, see --fit and --no-ca
 """
 from __future__ import annotations
 
+import argparse
 import time
 from pathlib import Path
 
 import numpy as np
 
 from minifilm.cli.args import in_range, input_path, png_path, positive
+from minifilm.cli.memory import GENERATE_BYTES_PER_JOINT_FRAME, VIEW_BYTES_PER_JOINT_FRAME, add_memory_option, \
+    check_memory
 from minifilm.errors import InputError
 from minifilm.features.layout import FeatureLayout
 from minifilm.files import check_writable
@@ -51,12 +54,12 @@ def add_arguments(ap) -> None:
     src = ap.add_mutually_exclusive_group(required=True)
     src.add_argument("--params", type=input_path, help="the released network's parameter folder")
     src.add_argument("--run", type=input_path, help="a run folder written by minifilm train")
-    ap.add_argument("--style", help="style name (see --list-styles); default: the first style")
-    ap.add_argument("--style2", help="second style, blended with --blend w: (1-w) style + w style2")
+    ap.add_argument("--style", type=style_name, help="style name (see --list-styles); default: the first style")
+    ap.add_argument("--style2", type=style_name, help="second style, blended with --blend w: (1-w) style + w style2")
     ap.add_argument("--blend", type=in_range(0.0, 1.0), help="weight of --style2, in [0, 1] (default 0.5)")
-    ap.add_argument("--style3", help="third style: barycentric blend with --weights w1 w2 w3")
+    ap.add_argument("--style3", type=style_name, help="third style: barycentric blend with --weights w1 w2 w3")
     ap.add_argument("--weights", type=in_range(0.0, 1.0), nargs=3, help="three weights >= 0 summing to 1")
-    ap.add_argument("--switch-to", help="switch to this style at --switch-at seconds (smooth, 1 s)")
+    ap.add_argument("--switch-to", type=style_name, help="switch to this style at --switch-at seconds (smooth, 1 s)")
     ap.add_argument("--switch-at", type=in_range(0.0, 24 * 3600.0),
                     help="seconds (default 10, or half the motion when shorter)")
     ap.add_argument("--script", default="figure8", choices=sorted(SCRIPTS))
@@ -79,6 +82,28 @@ def add_arguments(ap) -> None:
                          "half the motion when it is shorter than 2 s)")
     ap.add_argument("--png-every", type=in_range(1, 100_000, int), default=10, help="frames between drawn figures")
     ap.add_argument("--list-styles", action="store_true", help="print the style names and stop")
+    add_memory_option(ap)
+
+
+#: The fastest --script strafe is walked: it is a sidestepping walk, and sidesteps go at walking pace.
+STRAFE_TOP_SPEED = 1.0
+
+
+def style_name(text: str) -> str:
+    """A style option's name; an argparse error for an empty one (it would be taken for no style)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("give a style name (see --list-styles), not an empty string")
+    return text
+
+
+def script_speed(script: str, speed: float) -> float:
+    """The speed ``script`` is walked at for ``--speed``: strafe's sideways steps at most
+    :data:`STRAFE_TOP_SPEED`, said on stdout when it caps the speed asked for."""
+    if script == "strafe" and speed > STRAFE_TOP_SPEED:
+        print(f"note: --script strafe walks sideways at most {STRAFE_TOP_SPEED:g} m/s: --speed {speed:g} "
+              f"is capped to {STRAFE_TOP_SPEED:g} m/s")
+        return STRAFE_TOP_SPEED
+    return speed
 
 
 class Source:
@@ -165,6 +190,9 @@ def run(args) -> int:
     if n < 2:
         raise InputError(f"--seconds {args.seconds:g}: fewer than two frames at {src.fps:g} fps; "
                          f"give at least {2 / src.fps:.3g} s")
+    per_frame = src.layout.n_joints * (GENERATE_BYTES_PER_JOINT_FRAME + (VIEW_BYTES_PER_JOINT_FRAME if args.html else 0))
+    check_memory(n * per_frame, args.max_memory, f"--seconds {args.seconds:g} ({n:,} frames)",
+                 "generate fewer seconds")
     if args.png_from is None:
         args.png_from = min(1.0, args.seconds / 2)
     if args.png and args.png_from >= args.seconds:
@@ -186,7 +214,7 @@ def run(args) -> int:
         achieved = "; ".join(f"{d:g} deg: {row[1:].round(2).tolist()}" for d, row in zip(cal.directions, cal.achieved))
         print(f"speed calibration ({time.perf_counter() - t0:.1f} s): commands {cal.commanded[1:].round(1).tolist()} m/s "
               f"-> achieved m/s by direction from the facing ({achieved})")
-    speed = min(args.speed, 1.0) if args.script == "strafe" else args.speed
+    speed = script_speed(args.script, args.speed)
     script = make_script(args.script, args.seconds, speed=speed)
     t0 = time.perf_counter()
     r = ctrl.run(script, n, films, calibration=cal, phases=phases, start_x=start_x)

@@ -7,10 +7,11 @@ Any humanoid BVH file: a built-in skeleton (100style, bandai, cmu, cmu-mb) is de
 joint names (or named with ``--skeleton``) and labelled as always; any other humanoid is labelled
 on its hips, wrists and toes found by names or structure, in the unit its legs give
 (minifilm/phases/any_rig.py). ``--style LeftHop`` / ``RightHop`` switches the lifted foot to the
-contact-free source.
+contact-free source; every other style is labelled the same way, so other names are refused.
 """
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
 import numpy as np
@@ -33,11 +34,40 @@ def add_arguments(parser) -> None:
     parser.add_argument("--out", type=png_path, default=Path("phases.png"), help="PNG to write (default phases.png)")
     parser.add_argument("--skeleton", default=None, help="built-in skeleton name (default: detected; "
                         "any other humanoid is found by its names or structure)")
-    parser.add_argument("--style", default=None, help="style name, e.g. LeftHop (chooses the sources)")
+    parser.add_argument("--style", type=hop_style, default=None,
+                        help="LeftHop or RightHop: the lifted foot gets the contact-free source (every other "
+                             "style is labelled as without --style)")
     parser.add_argument("--start", type=seconds_at_least(0.0), default=0.0, help="first second to draw")
     parser.add_argument("--stop", type=seconds_at_least(0.0), default=None, help="last second to draw")
     parser.add_argument("--animation", type=Path, help="also write the motion of the same seconds as an animated GIF "
                         "(contacts highlighted), to watch beside the plot")
+
+
+#: the styles whose labelling differs: the foot that never lands gets the contact-free source
+HOP_STYLES = ("LeftHop", "RightHop")
+
+
+def hop_style(text: str) -> str:
+    """``--style``: one of :data:`HOP_STYLES` (any case); an argparse error for any other name,
+    which would be labelled exactly as without the option."""
+    for name in HOP_STYLES:
+        if text.strip().lower() == name.lower():
+            return name
+    raise argparse.ArgumentTypeError(
+        f"{text[:60]!r}: only {' and '.join(HOP_STYLES)} change how phases are labelled (the foot that never "
+        "lands gets the contact-free source); leave --style out for any other style")
+
+
+def frames_shown(t: np.ndarray, start: float, stop, source) -> np.ndarray:
+    """The mask of the frames at times ``t`` between ``start`` and ``stop`` (None: the end);
+    ValueError naming the file's length when none are."""
+    if stop is not None and stop < start:
+        raise ValueError(f"--stop {stop:g} s comes before --start {start:g} s")
+    keep = (t >= start) & (t <= (t[-1] if stop is None else stop))
+    if not np.any(keep):
+        span = f"from {start:g} s to the end" if stop is None else f"between {start:g} s and {stop:g} s"
+        raise ValueError(f"no frames {span}: {source} lasts {t[-1]:.2f} s")
+    return keep
 
 
 def load(path, skeleton_name=None):
@@ -58,9 +88,7 @@ def run(args) -> int:
         print(f"{Path(args.bvh).name}: {skeleton.name}; unit {unit.how}")
     labels = label(motion, skeleton, args.style)
     t = np.arange(motion.n_frames) / motion.fps
-    keep = (t >= args.start) & (t <= (args.stop if args.stop is not None else t[-1]))
-    if not np.any(keep):
-        raise ValueError(f"no frames between {args.start} s and {args.stop} s ({args.bvh} lasts {t[-1]:.2f} s)")
+    keep = frames_shown(t, args.start, args.stop, args.bvh)
     ph = labels.phases
     view = LocalPhases(*(None if a is None else a[keep] for a in
                          (ph.phase, ph.amplitude, ph.source, ph.fit, ph.frequency)))

@@ -20,8 +20,10 @@ from typing import Sequence
 from pathlib import Path
 
 from minifilm.cli.args import in_range, input_path, positive
+from minifilm.cli.memory import VIEW_BYTES_PER_JOINT_FRAME, add_memory_option, check_memory
 from minifilm.errors import InputError
 from minifilm.files import check_writable
+from minifilm.motion.bvh import bvh_header
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.pipeline.run_rig import load_target
 from minifilm.rigs import read_source, retarget_motion
@@ -66,6 +68,7 @@ def add_arguments(ap) -> None:
     ap.add_argument("--no-trail", action="store_true", help="do not draw the root's trail")
     ap.add_argument("--on", metavar="TARGET", help="draw every file retargeted onto this rig: 100style (the "
                     "standard character), bandai, cmu, a run folder or a BVH file (docs/retargeting.md)")
+    add_memory_option(ap)
 
 
 def run(args) -> int:
@@ -82,6 +85,7 @@ def run(args) -> int:
         if getattr(args, kind) is not None:
             check_writable(getattr(args, kind), flags[kind])
             check_output_tools(getattr(args, kind), kind)
+    check_view_memory(args.files, args.max_memory)
     if args.on is not None:        # minimal hook for retargeting (retarget's module draws nothing itself)
         tracks = tracks_on(args.files, args.on)
     else:
@@ -106,6 +110,19 @@ def run(args) -> int:
         write_mp4(tracks, args.mp4, **kw)
         print(f"wrote {args.mp4}")
     return 0
+
+
+def check_view_memory(paths: Sequence, max_memory) -> None:
+    """InputError before any file is read when the files' tracks would not fit (their headers'
+    frames x joints; see minifilm/cli/memory.py)."""
+    need, frames = 0, 0
+    for path in paths:
+        n_frames, _, n_joints = bvh_header(path)
+        need += n_frames * max(n_joints, 1) * VIEW_BYTES_PER_JOINT_FRAME
+        frames += n_frames
+    what = f"{paths[0]}" if len(paths) == 1 else f"{len(paths)} files"
+    check_memory(need, max_memory, f"drawing {what} ({frames:,} frames)",
+                 "view a shorter part of it (cut the file) or fewer files")
 
 
 def tracks_on(paths: Sequence, target) -> list:

@@ -16,6 +16,10 @@ disconnected. :func:`budgeted_connection` hooks the budget in where each frame i
 any reply: a ping over the budget gets no pong, a message over it is dropped whole (all its
 fragments), and a flooding page is failed at once (a close frame, then everything it still sends
 is discarded unparsed), logged in one line.
+
+What a client does between pages -- opening connections, sending HTTP requests -- takes from its
+address's budget, in the same unit (:class:`AddressBudgets`, used by ``http_front.py``): a page's
+own budget ends with its connection, so connection churn was free.
 """
 from __future__ import annotations
 
@@ -25,6 +29,10 @@ from typing import Callable, Optional
 
 #: Messages a second one page may send (far above what the page itself sends; see above).
 MESSAGES_PER_SECOND = 300
+#: What opening a connection and sending an HTTP request take from the client address's budget,
+#: in messages (:class:`AddressBudgets`): at most 50 connections a second from one address.
+CONNECTION_COST = 6.0
+REQUEST_COST = 1.0
 
 
 class MessageBudget:
@@ -42,13 +50,15 @@ class MessageBudget:
         self.should_warn = False
         self.flooding = False
 
-    def take(self) -> bool:
+    def take(self, cost: float = 1.0) -> bool:
+        """Take ``cost`` messages' worth (1: a message; more for what costs more, see
+        :data:`CONNECTION_COST`)."""
         now = self.clock()
         self.tokens = min(self.rate, self.tokens + (now - self.last) * self.rate)
         self.last = now
         self.should_warn = False
-        if self.tokens >= 1.0:
-            self.tokens -= 1.0
+        if self.tokens >= cost:
+            self.tokens -= cost
             return True
         if now - self.window_start >= 1.0:  # a new second of dropping
             self.window_start, self.dropped_in_window = now, 0
@@ -57,6 +67,53 @@ class MessageBudget:
         self.should_warn = self.dropped_in_window == 1
         self.flooding = self.dropped_in_window > 2 * self.rate
         return False
+
+
+class AddressBudgets:
+    """One :class:`MessageBudget` per client address, for what a client does *between* pages:
+    opening connections and sending HTTP requests (``http_front.py``).
+
+    A page's own budget lives as long as its connection, so a client that opens and closes
+    connections got a fresh one each time: four local clients opening ~180 connections a second
+    each cost the frame loop half its frame rate (accepting a connection, reading its request and
+    setting up the WebSocket machinery costs far more than parsing a message), and no budget saw
+    it. So each address has a budget in the same unit, messages a second: a connection takes
+    :data:`CONNECTION_COST` messages' worth, an HTTP request :data:`REQUEST_COST`. A page load
+    (six files and one WebSocket, on at most seven connections) takes about 50 of the
+    ``rate`` = 300 a second; a client over it has its connections closed unread and its requests
+    answered 503, and is logged once per second of it. All clients on one machine are one address
+    (they cannot be told apart), and addresses whose budget is full again are forgotten.
+    """
+
+    def __init__(self, rate: float = MESSAGES_PER_SECOND, clock: Callable[[], float] = time.monotonic,
+                 max_addresses: int = 4096):
+        self.rate, self.clock, self.max_addresses = float(rate), clock, int(max_addresses)
+        self._budgets = {}
+
+    def take(self, address: str, cost: float):
+        """``(taken, should_warn)`` for ``cost`` messages' worth from ``address``'s budget."""
+        budget = self._budgets.get(address)
+        if budget is None:
+            if len(self._budgets) >= self.max_addresses:
+                self._forget_full()
+            budget = self._budgets[address] = MessageBudget(self.rate, self.clock)
+        taken = budget.take(cost)
+        return taken, budget.should_warn
+
+    def _forget_full(self) -> None:
+        """Drop the addresses that have not spent anything for a second (their budget is full)."""
+        now = self.clock()
+        self._budgets = {a: b for a, b in self._budgets.items() if now - b.last < 1.0}
+        if len(self._budgets) >= self.max_addresses:     # a flood of addresses: start again
+            self._budgets.clear()
+
+
+def address_of(peer) -> str:
+    """The client address of a socket's peer name (``(host, port, ...)``), "?" when unknown."""
+    try:
+        return str(peer[0])
+    except (TypeError, IndexError):
+        return "?"
 
 
 def budgeted_connection(ServerConnection, ProtocolError, Opcode):

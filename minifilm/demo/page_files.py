@@ -58,4 +58,4 @@ class Site:
         no referrer, and the page's policy."""
         return [("Content-Type", content_type), ("Content-Length", str(length)), ("Cache-Control", "no-store"),
                 ("X-Content-Type-Options", "nosniff"), ("Referrer-Policy", "no-referrer"),
-                ("Content-Security-Policy", self.csp), ("Connection", "close")]
+                ("Content-Security-Policy", self.csp)]

@@ -18,8 +18,11 @@ frames only the newest, so a slow page skips frames instead of slowing the loop.
 Every WebSocket frame a page sends, control frames included, takes from its budget before the
 transport answers it (``budget.py``).
 
-HTTP: only GET of the site's exact paths (``page_files.py``). On every bind address, requests must name
-this server in their ``Host`` header (``hosts.py``: a web page elsewhere cannot reach the server by
+HTTP: every connection is read by the front (``http_front.py``) first: only GET of the site's
+exact paths (``page_files.py``), HEAD of them without the body, 405 for other methods, pipelined
+and kept-alive requests answered in order; only ``GET /ws`` reaches ``websockets``. Opening a
+connection and each request take from the client address's budget (``budget.py``). On every bind
+address, requests must name this server in their ``Host`` header (``hosts.py``: a web page elsewhere cannot reach the server by
 a DNS name that points here), and a WebSocket opened by a browser must come from this server's own
 page (its ``Origin``), so another site open in the same browser cannot drive the character. A
 request with no Host, two Host or two Origin headers is answered 400.
@@ -33,9 +36,10 @@ import signal
 import threading
 from typing import Callable, Optional
 
-from minifilm.demo.budget import budgeted_connection
+from minifilm.demo.budget import AddressBudgets, budgeted_connection
 from minifilm.demo.calibrations import Calibrations
 from minifilm.demo.character import Character, DemoSettings
+from minifilm.demo.http_front import REASONS, WEBSOCKET_PATH, plain, with_http_front
 from minifilm.demo.hosts import HostAllowList, is_loopback, is_unspecified, parse_ip  # noqa: F401 (is_loopback: cli)
 from minifilm.demo.protocol import (MAX_MESSAGE_BYTES, PROTOCOL_VERSION, TRANSPORT_MAX_BYTES, PingMessage,
                                     ProtocolError, encode, error, parse_message, pong, refused)
@@ -166,6 +170,11 @@ class DemoServer:
         self._loop = self._stopping = self._thread = None
         self._ready = threading.Event()
         self._error: Optional[BaseException] = None
+        # every connection is read by the HTTP front first (http_front.py); the WebSocket's frames
+        # then take from the page's budget (budget.py)
+        self.address_budgets = AddressBudgets()
+        self.front_connections = set()
+        self.connection_class = with_http_front(self.modules[4], self, self.address_budgets)
         self.logger = logging.getLogger("minifilm.demo.websockets")
         self.logger.setLevel(logging.WARNING)      # not a line per page file or refused request
 
@@ -180,35 +189,44 @@ class DemoServer:
         return is_unspecified(self.host)
 
     # ---- HTTP ---------------------------------------------------------------------------------
-    def _http(self, connection, request):
-        """process_request: the page's files, or None to open the WebSocket at /ws."""
-        hosts, origins = request.headers.get_all("Host"), request.headers.get_all("Origin")
+    def _refusal(self, get_all, path: str, local: str):
+        """(status, text) when a request with headers ``get_all(name)`` for ``path``, arrived at
+        the address ``local``, is refused; None when it may be served."""
+        hosts, origins = get_all("Host"), get_all("Origin")
         if len(hosts) != 1:
-            return self._plain(400, f"a request needs exactly one Host header, got {len(hosts)}")
+            return 400, f"a request needs exactly one Host header, got {len(hosts)}"
         if len(origins) > 1:
-            return self._plain(400, f"a request may have one Origin header, got {len(origins)}")
-        local = _local_address(connection)
-        host = hosts[0]
-        if not self.hosts.allows(host, local):
-            return self._plain(403, f"unexpected Host header {host[:60]!r}: open {self.url} "
-                                    "(or start the demo with --allow-host NAME)")
-        path = request.path.split("?", 1)[0]
-        if path == "/ws":
-            if origins and not self.hosts.allows_origin(origins[0], local):
-                return self._plain(403, "a WebSocket of this demo may only be opened by its own page")
-            return None
-        found = self.site.get(path)
-        if found is None:
-            return self._plain(404, "not found")
-        body, kind = found
-        _, _, Response, Headers, _ = self.modules
-        return Response(200, "OK", Headers(self.site.headers(kind, len(body))), body)
+            return 400, f"a request may have one Origin header, got {len(origins)}"
+        if not self.hosts.allows(hosts[0], local):
+            return 403, (f"unexpected Host header {hosts[0][:60]!r}: open {self.url} "
+                         "(or start the demo with --allow-host NAME)")
+        if path == WEBSOCKET_PATH and origins and not self.hosts.allows_origin(origins[0], local):
+            return 403, "a WebSocket of this demo may only be opened by its own page"
+        return None
 
-    def _plain(self, status: int, text: str):
+    def answer(self, request, local: str):
+        """The HTTP front's answer to a GET or HEAD other than the WebSocket's (``http_front.py``):
+        (status, headers, body) of the page's file, or of why not."""
+        refused = self._refusal(request.get_all, request.path, local)
+        if refused is not None:
+            return plain(*refused)
+        if request.path == WEBSOCKET_PATH:             # HEAD /ws: a WebSocket is opened by GET
+            return plain(426, "the WebSocket is opened with GET and Upgrade: websocket")
+        found = self.site.get(request.path)
+        if found is None:
+            return plain(404, "not found")
+        body, kind = found
+        return 200, self.site.headers(kind, len(body)), body
+
+    def _http(self, connection, request):
+        """process_request of ``websockets``, which the front gives only ``GET /ws``: None to open
+        the WebSocket, or the refusal."""
+        refused = self._refusal(request.headers.get_all, request.path.split("?", 1)[0], _local_address(connection))
+        if refused is None:
+            return None
         _, _, Response, Headers, _ = self.modules
-        body = text.encode("utf-8")
-        reason = {400: "Bad Request", 403: "Forbidden", 404: "Not Found"}[status]
-        return Response(status, reason, Headers(self.site.headers("text/plain; charset=utf-8", len(body))), body)
+        status, headers, body = plain(*refused)
+        return Response(status, REASONS[status], Headers(headers + [("Connection", "close")]), body)
 
     # ---- one page -------------------------------------------------------------------------------
     def hello(self, character: Character) -> str:
@@ -324,7 +342,8 @@ class DemoServer:
         try:
             async with serve(self._connection, self.host, self.port, process_request=self._http,
                              max_size=TRANSPORT_MAX_BYTES, compression=None, server_header=None,
-                             close_timeout=CLOSE_TIMEOUT, create_connection=self.modules[4],
+                             close_timeout=CLOSE_TIMEOUT, create_connection=self.connection_class,
+                             open_timeout=None,     # the front times out openings itself
                              logger=self.logger) as server:
                 self.port = server.sockets[0].getsockname()[1]
                 self.hosts.port = self.port
@@ -333,6 +352,8 @@ class DemoServer:
                 if on_ready is not None:
                     on_ready(self.url)
                 await self._stopping.wait()
+                for connection in list(self.front_connections):   # idle ones kept for a next request
+                    connection.close_http()
         finally:
             self.stage.stop()
             self.calibrations.close()

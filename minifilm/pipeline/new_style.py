@@ -19,7 +19,7 @@ from typing import Callable, List, Optional, Sequence
 import numpy as np
 
 from minifilm.dataset.arrays import TrainData
-from minifilm.features.compute import clip_features, frame_features
+from minifilm.features.compute import clip_features, frame_features, seconds_to_frames
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.editing import mirror, resample
 from minifilm.motion.motion import Motion
@@ -96,9 +96,9 @@ def clip_training_data(motions: Sequence[Motion], files, run: RunFolder, stats, 
             ys.append(clip_features(m, skeleton, clip_seconds, clip_seconds / 2, fps=run.fps))
     clips = np.concatenate(ys)
     if len(clips) == 0:
-        longest = max(m.n_frames for m in motions) / run.fps
-        raise ValueError(f"the clip{'s are' if len(files) > 1 else ' is'} too short for one style clip: the "
-                         f"model reads {clip_seconds:.2f} s windows, the longest file lasts {longest:.2f} s")
+        where = str(files[0]) if len(files) == 1 else f"{len(files)} files"
+        raise ValueError(f"{where}: " + too_short(max(m.n_frames for m in motions), clip_seconds, run.fps,
+                                                 len(files)))
     x, p, z = np.concatenate(xs), np.concatenate(ps), np.concatenate(zs)
     segments = list(zip(xs, ps, zs))
     start = (np.asarray(xs[0][len(xs[0]) // 2], np.float64), np.asarray(ps[0][len(ps[0]) // 2], np.float64))
@@ -167,3 +167,18 @@ def _teach_style(run: RunFolder, name: str, files: Sequence, steps: int, lr: flo
     library.save(run.path / "styles.npz")
     return NewStyleResult(name, seconds, tuned.step, len(data), len(data.clips), before, after, nearest, checkpoint,
                           rollout_errors)
+
+
+def shortest_clip_frames(clip_seconds: float, fps: float) -> int:
+    """Frames a file needs for one style clip: the window's frames and one more (each frame's
+    velocity comes from the frame before it; see ``clip_features_from_arrays``)."""
+    return int(seconds_to_frames(clip_seconds, fps)) + 1
+
+
+def too_short(longest_frames: int, clip_seconds: float, fps: float, n_files: int = 1) -> str:
+    """The message for files too short for one style clip: the real minimum and what they have."""
+    need = shortest_clip_frames(clip_seconds, fps)
+    which = "the longest file has" if n_files > 1 else "the file has"
+    return (f"too short for one style clip: the model reads {clip_seconds:g} s windows, which need at least "
+            f"{need} frames ({need / fps:.3f} s at {fps:g} fps, the window and one frame before it); "
+            f"{which} {longest_frames} ({longest_frames / fps:.3f} s)")
