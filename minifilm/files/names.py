@@ -71,13 +71,18 @@ def file_name(name: str) -> str:
     return safe
 
 
+def same_file_key(file: str) -> str:
+    """What two file names share when a case-folding, normalising disk (macOS, Windows) takes them
+    for one file: minifilm compares the names it makes this way on every system, so a folder
+    written on Linux copies to a Mac whole (``Neutral_FW.bvh`` and ``neutral_FW.bvh`` collide)."""
+    return unicodedata.normalize("NFC", file).casefold()
+
+
 def file_names(names: Iterable[str]) -> Dict[str, str]:
     """name -> a file name (:func:`file_name`) for each of ``names``, distinct even where two
     names would give the same file name or differ only in case (macOS and Windows fold case):
     a later one gets ``-2``, ``-3``, ... (also where they differ only in Unicode normalisation)."""
-    def key(text: str) -> str:          # as a case-folding, normalising disk (macOS) compares names
-        return unicodedata.normalize("NFC", text).casefold()
-
+    key = same_file_key
     taken, result = set(), {}
     for name in names:
         base = candidate = file_name(name)

@@ -33,6 +33,7 @@ from minifilm.dataset.stats import NormStats
 from minifilm.errors import InputError, check_fps
 from minifilm.features.layout import FeatureLayout
 from minifilm.files import atomic_savez, atomic_write_text, check_name, check_regular, note_input, read_json, read_npz
+from minifilm.files.state import RUN_MARKER, RUN_STATE, is_run_entry  # noqa: F401  (is_run_entry: re-exported)
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.motion.motion import Motion
@@ -42,16 +43,11 @@ from minifilm.runtime.style_library import StyleLibrary
 from minifilm.train.checkpoint import CheckpointError, build_style_model, load_checkpoint, load_model_arrays
 
 FORMAT = "minifilm-run-1"
-MANIFEST = "run.json"
+MANIFEST = RUN_MARKER
 #: every name a run folder holds (model-<NAME>.npz: a fine-tuned style's checkpoint): a folder with
-#: anything else in it is not replaced by a new run
-RUN_ENTRIES = {MANIFEST, "model.npz", "styles.npz", "starts.npz", "skeleton.bvh", "loss_curve.png", "data",
-               "cache", "generated"}
-
-
-def is_run_entry(name: str) -> bool:
-    """Whether ``name`` is something a run folder holds (see RUN_ENTRIES)."""
-    return name in RUN_ENTRIES or (name.startswith("model-") and name.endswith(".npz"))
+#: anything else in it is not replaced by a new run; no output of another command replaces them
+#: (minifilm/files/state.py, where they are listed once)
+RUN_ENTRIES = set(RUN_STATE)
 
 
 class RunFolderError(InputError):
