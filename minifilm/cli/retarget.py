@@ -17,7 +17,7 @@ from pathlib import Path
 
 from minifilm.cli.args import in_range, input_path, output_folder
 from minifilm.errors import InputError
-from minifilm.files import check_writable, child_path
+from minifilm.files import check_writable, child_path, shared_file_names
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.pipeline.run_rig import load_target
 from minifilm.rigs import read_source, retarget_motion
@@ -41,10 +41,13 @@ def add_arguments(ap) -> None:
 def run(args) -> int:
     target = load_target(args.to, args.to_map)
     stems = [Path(f).stem for f in args.files]
-    twice = sorted({s for s in stems if stems.count(s) > 1})
-    if twice:
-        raise InputError(f"several source files are called {twice}: their outputs would overwrite each other; "
-                         "retarget them into different --out folders")
+    shared = shared_file_names(stems)      # after the names are made safe: a:b.bvh and a_b.bvh meet in a_b.bvh
+    if shared:
+        made, names = shared[0]
+        given = [str(f) for f, s in zip(args.files, stems) if s in names]
+        raise InputError(f"the source files {', '.join(given)} would all be written to {args.out / (made + '.bvh')} "
+                         "(names are made safe for every file system and compared regardless of case); "
+                         "rename one or retarget them into different --out folders")
     outs = [child_path(args.out, stem, ".bvh") for stem in stems]
     for out in outs:                                    # every output checked before the first is written
         check_writable(out, "retargeted BVH")
