@@ -57,6 +57,8 @@ def cached_key(path: Path) -> Optional[str]:
     """The key stored in a cache file (reads only its small 'meta' entry); None if unreadable."""
     try:
         with open_regular(path, "dataset cache") as f, np.load(f, allow_pickle=False) as d:
+            if len(set(d.files)) != len(d.files):    # two members of one name: rebuilt, never guessed
+                return None
             key = json.loads(str(d["meta"])).get("cache_key")
         return key if isinstance(key, str) else None
     except (OSError, ValueError, KeyError, AttributeError, EOFError, MemoryError, RecursionError,

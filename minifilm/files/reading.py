@@ -10,7 +10,7 @@
   deep enough to exhaust Python's recursion, a file over its limit) into one error naming the file;
 * :func:`read_npz` is the one reader of the ``.npz`` archives minifilm writes: it checks every
   member's declared size against the file and a memory budget *before* allocating, never
-  unpickles, and turns every way an archive can be broken into one error naming the file.
+  unpickles, refuses two members of one name, and turns every way an archive can be broken into one error naming the file.
 """
 from __future__ import annotations
 
@@ -130,6 +130,7 @@ def read_npz(path, what: str = "archive", error: Type[InputError] = InputError,
     try:
         with open_regular(path, what, error=error) as f:
             with zipfile.ZipFile(f) as archive:
+                _check_unique_members(archive, where, error)
                 total = 0
                 for info in archive.infolist():
                     total += _member_bytes(archive, info, where, error)
@@ -143,6 +144,18 @@ def read_npz(path, what: str = "archive", error: Type[InputError] = InputError,
     except (zipfile.BadZipFile, zipfile.LargeZipFile, ValueError, OSError, EOFError, KeyError, MemoryError,
             zlib.error, NotImplementedError) as e:
         raise error(f"{where}: not a readable .npz archive ({type(e).__name__}: {e})") from None
+
+
+def _check_unique_members(archive: zipfile.ZipFile, where: str, error) -> None:
+    """``error`` when two members share a name: a reader would silently take one of them (NumPy the
+    last), so which array the archive holds would depend on the reader. An archive minifilm writes
+    never has two."""
+    seen = set()
+    for name in archive.namelist():
+        if name in seen:
+            raise error(f"{where}: holds two members named {name!r} (a damaged or forged archive; "
+                        "minifilm never writes one)")
+        seen.add(name)
 
 
 def _member_bytes(archive: zipfile.ZipFile, info: zipfile.ZipInfo, where: str, error) -> int:

@@ -189,6 +189,6 @@ def _teach(run: RunFolder, name: str, files: Sequence, steps: int, lr: float, se
     starts = run.starts()
     starts[name] = start
     run.save_starts(starts)
-    library.save(run.path / "styles.npz")
+    run.save_styles(library)
     return NewStyleResult(name, seconds, tuned.step, len(data), len(data.clips), before, after, nearest, checkpoint,
                           rollout_errors)
