@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from minifilm.cli.args import in_range, input_path, output_folder
+from minifilm.cli.args import in_range, input_path, non_empty, output_folder
 from minifilm.errors import InputError
 from minifilm.files import check_writable, child_path, shared_file_names
 from minifilm.motion.bvh_write import write_bvh
@@ -27,7 +27,7 @@ HELP = "put motion of any humanoid rig onto another rig (100style, bandai, cmu, 
 
 def add_arguments(ap) -> None:
     ap.add_argument("files", nargs="+", type=input_path, help="BVH files to retarget (any humanoid rig)")
-    ap.add_argument("--to", required=True, metavar="TARGET",
+    ap.add_argument("--to", required=True, type=non_empty("--to"), metavar="TARGET",
                     help="100style, bandai, cmu, a run folder, or a BVH file whose hierarchy is the rig")
     ap.add_argument("--out", type=output_folder, required=True, help="folder to write the retargeted BVH files into")
     ap.add_argument("--map", type=input_path, help="JSON map of the source files' joint roles (docs/retargeting.md)")

@@ -22,7 +22,7 @@ import numpy as np
 from minifilm.errors import InputError
 from minifilm.files.atomic import atomic_write_text
 from minifilm.files.state import owned_writes
-from minifilm.files.reading import read_regular_bytes
+from minifilm.files.reading import JSON_NUMBERS, read_regular_bytes
 from minifilm.runtime.calibration import SpeedCalibration
 
 #: Changes whenever what a calibration measures changes (commands, directions, seconds, runtime).
@@ -96,7 +96,7 @@ class CalibrationCache:
         if self.path is None or not os.path.lexists(self.path):
             return {}
         try:
-            obj = json.loads(read_regular_bytes(self.path, "calibration cache", max_bytes=MAX_CACHE_BYTES))
+            obj = json.loads(read_regular_bytes(self.path, "calibration cache", max_bytes=MAX_CACHE_BYTES), **JSON_NUMBERS)
             if not isinstance(obj, dict) or obj.get("version") != CALIBRATION_VERSION \
                     or not isinstance(obj.get("styles"), dict):
                 raise ValueError(f"not a {CALIBRATION_VERSION} file")

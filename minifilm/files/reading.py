@@ -89,13 +89,43 @@ def read_regular_bytes(path, what: str = "file", max_bytes: Optional[int] = None
     return data
 
 
+#: the most digits a whole number in a JSON file minifilm reads may have: far more than any count
+#: or seed, far fewer than Python's own limit (4300), whose message points at an interpreter setting
+MAX_JSON_DIGITS = 100
+
+
+def bounded_int(text: str) -> int:
+    """A JSON whole number, at most MAX_JSON_DIGITS digits (``json.loads(parse_int=...)``)."""
+    digits = len(text.lstrip("-"))
+    if digits > MAX_JSON_DIGITS:
+        raise ValueError(f"a whole number of {digits:,} digits ({text[:12]}...), more than the "
+                         f"{MAX_JSON_DIGITS} minifilm reads")
+    return int(text)
+
+
+def finite_float(text: str) -> float:
+    """A JSON number with a fraction or exponent, finite (``1e999`` would become infinity)."""
+    value = float(text)
+    if value in (float("inf"), float("-inf")):
+        raise ValueError(f"the number {text[:40]} is too large for a float")
+    return value
+
+
+def no_constant(name):
+    """``json.loads(parse_constant=...)``: JSON has no NaN or Infinity."""
+    raise ValueError(f"{name} is not a JSON number")
+
+
+#: the number hooks of every JSON parse in minifilm: json.loads(text, **JSON_NUMBERS)
+JSON_NUMBERS = dict(parse_constant=no_constant, parse_int=bounded_int, parse_float=finite_float)
+
+
 def parse_json(text, where: str, error: Type[Exception] = InputError) -> Any:
     """``json.loads(text)``, or ``error`` naming ``where``: bad syntax, a constant JSON does not
-    have (NaN, Infinity), or nesting deep enough to exhaust Python's recursion."""
-    def no_constant(name):
-        raise ValueError(f"{name} is not a JSON number")
+    have (NaN, Infinity), a number too long or too large (:data:`JSON_NUMBERS`), or nesting deep
+    enough to exhaust Python's recursion."""
     try:
-        return json.loads(text, parse_constant=no_constant)
+        return json.loads(text, **JSON_NUMBERS)
     except RecursionError:
         raise error(f"{where}: nested too deeply to be a minifilm file") from None
     except (ValueError, TypeError) as e:        # JSONDecodeError and bad UTF-8 are ValueErrors
