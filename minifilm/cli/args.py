@@ -7,7 +7,8 @@ import math
 import os
 from pathlib import Path
 
-from minifilm.files import note_input
+from minifilm.errors import OutputPathError
+from minifilm.files import check_not_state, note_input
 
 
 def _number(text: str, kind=float):
@@ -101,6 +102,10 @@ def output_folder(text: str) -> Path:
         raise argparse.ArgumentTypeError(f"{text}: {existing} is a file, not a folder")
     if not os.access(existing, os.W_OK | os.X_OK):
         raise argparse.ArgumentTypeError(f"{text}: folder {existing} is not writable")
+    try:                  # a run's data/, cache/ or generated/ is no folder to write into
+        check_not_state(p)
+    except OutputPathError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
     return p
 
 

@@ -18,10 +18,10 @@ from minifilm.files.names import (MAX_NAME_LENGTH, check_name, child_path, file_
 from minifilm.files.reading import (MAX_JSON_BYTES, MAX_NPZ_BYTES, check_regular, open_regular, parse_json,
                                     read_json, read_npz, read_regular_bytes)
 from minifilm.files.state import owned_writes, state_of
-from minifilm.files.targets import command_inputs, folder_target, note_input, output_target
+from minifilm.files.targets import check_not_state, command_inputs, folder_target, note_input, output_target
 
 __all__ = ["atomic_directory", "atomic_path", "atomic_savez", "atomic_write", "atomic_write_text", "check_writable",
            "remove_stale_temporaries", "FolderInUseError", "folder_lock", "MAX_NAME_LENGTH", "check_name",
            "child_path", "file_name", "file_names", "same_file_key", "shared_file_names", "MAX_JSON_BYTES", "MAX_NPZ_BYTES", "check_regular",
            "open_regular", "parse_json", "read_json", "read_npz", "read_regular_bytes", "command_inputs",
-           "folder_target", "note_input", "output_target", "owned_writes", "state_of"]
+           "folder_target", "check_not_state", "note_input", "output_target", "owned_writes", "state_of"]

@@ -78,9 +78,9 @@ def _run_entry(name: str):
 
 
 def state_of(path) -> Optional[str]:
-    """Why ``path`` is one of minifilm's state files (see the module docstring), as 'it is the
-    run's style library (styles.npz) of the run folder R, which only minifilm finetune ...
-    writes', or None when it is not one. ``path`` is looked at as given and where its links lead."""
+    """Why ``path`` is one of minifilm's state files (see the module docstring), as "the run's
+    style library in the run folder R (written by minifilm train and minifilm finetune as part of
+    that run)", or None when it is not one. ``path`` is looked at as given and where its links lead."""
     seen = set()
     for p in (Path(os.path.abspath(path)), Path(os.path.realpath(path))):
         if p in seen:
@@ -95,7 +95,7 @@ def state_of(path) -> Optional[str]:
 def _state_of(path: Path) -> Optional[str]:
     for pattern, what, owner in CACHES:
         if pattern.match(path.name):
-            return f"{what}, which only {owner} {'write' if ' and ' in owner else 'writes'}"
+            return f"{what} (only {owner} write{'' if ' and ' in owner else 's'} one)"
     below = path
     for folder in path.parents:          # R/generated/x.bvh belongs to the run folder R
         entry = below.name
@@ -104,12 +104,11 @@ def _state_of(path: Path) -> Optional[str]:
             if found:
                 what, owner = found
                 inside = "" if below == path else f" (under {entry}/)"
-                return (f"{what}{inside} in the run folder {folder}, which only {owner} "
-                        f"{'write' if ' and ' in owner else 'writes'}")
+                return f"{what}{inside} in the run folder {folder} (written by {owner} as part of that run)"
             return None
         if folder == path.parent and _exists(folder / DATASET_MARKER) and \
                 (entry.casefold() in (DATASET_MARKER, "manifest.csv") or entry.lower().endswith(".bvh")):
-            return f"a file of the data set folder {folder}, which only minifilm dataset --from-released writes"
+            return f"a file of the data set folder {folder} (written by minifilm dataset --from-released as a whole)"
         below = folder
     return None
 

@@ -167,11 +167,19 @@ def folder_target(path, what: str = "output folder") -> Path:
     return Path(os.path.realpath(path))
 
 
-def _check_not_state(path, what: str) -> None:
+def check_not_state(path, what: str = "output") -> None:
+    """OutputPathError when ``path`` (a file or a folder to write into) is state of minifilm's that
+    the running code does not own: the rule of :mod:`minifilm.files.state`, for callers that
+    check an output folder before anything is written into it."""
+    _check_not_state(path, what, f"cannot write into {path}")
+
+
+def _check_not_state(path, what: str, lead: str = "") -> None:
     """OutputPathError when ``path`` is one of minifilm's state files (minifilm/files/state.py)
     that the running command does not own; only while a command runs (see command_inputs)."""
     if not _depth or is_owned(path):
         return
     why = state_of(path)
     if why:
-        raise OutputPathError(f"cannot write {what} to {path}: it is {why}; choose another output path")
+        raise OutputPathError(f"{lead or f'cannot write {what} to {path}'}: it is {why}; "
+                              "choose another output path")
