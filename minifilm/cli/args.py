@@ -46,12 +46,14 @@ FORMATS = {".png": "a PNG picture", ".gif": "an animated GIF", ".bvh": "a BVH fi
            ".htm": "an HTML page", ".mp4": "an MP4 video", ".md": "a markdown text", ".txt": "a text"}
 
 
-def output_file(*suffixes: str):
-    """The type of an option that writes one file in a format named by ``suffixes`` (the first is
-    added when the name has none, as matplotlib adds '.png'); another suffix is refused when the
-    arguments are parsed (``--gif x.png`` would hold a GIF under a PNG's name), and so is a folder,
-    rather than quietly becoming 'folder.gif' beside it. The function carries ``output = "file"``
-    and ``suffixes``: tests find every writing option of every command by them."""
+def output_file(*suffixes: str, add: bool = False):
+    """The type of an option that writes one file in a format named by ``suffixes``: another
+    suffix is refused when the arguments are parsed (``--gif x.png`` would hold a GIF under a
+    PNG's name), and so is a folder, rather than quietly becoming 'folder.gif' beside it. A name
+    without a suffix is kept as it is (``--out /dev/null`` stays /dev/null, and is refused as a
+    device), except that ``add`` adds the first suffix to a new one (matplotlib adds '.png'
+    itself). The function carries ``output = "file"`` and ``suffixes``: tests find every writing
+    option of every command by them."""
     def check(text: str) -> Path:
         p = Path(text)
         if not text or not p.name:
@@ -62,14 +64,14 @@ def output_file(*suffixes: str):
             raise argparse.ArgumentTypeError(
                 f"{text}: {FORMATS.get(suffixes[0], 'a ' + suffixes[0] + ' file')} is written here; give a name "
                 f"ending in {' or '.join(suffixes)}, not {p.suffix}")
-        return p if p.suffix else p.with_suffix(suffixes[0])
+        return p.with_suffix(suffixes[0]) if add and not p.suffix and not os.path.lexists(p) else p
     check.output, check.suffixes = "file", tuple(suffixes)
     check.__name__ = f"output_file{suffixes}"
     return check
 
 
 #: an output picture path; '.png' is added when it has no suffix
-png_path = output_file(".png")
+png_path = output_file(".png", add=True)
 gif_path = output_file(".gif")
 html_path = output_file(".html", ".htm")
 bvh_path = output_file(".bvh")
@@ -114,7 +116,8 @@ output_folder.output = "folder"
 
 def input_path(text: str) -> Path:
     """A file or folder the command reads. It is recorded as an input (minifilm/files/targets.py),
-    so that no output of the same command may replace it: ``view a.bvh --html a.bvh`` is refused
+    so that no output of the same command may replace it: ``generate --skeleton-bvh a.bvh --out a.bvh``
+    is refused
     before any work."""
     p = Path(text)
     note_input(p)

@@ -44,7 +44,7 @@ def run(args) -> int:
     shared = shared_file_names(stems)      # after the names are made safe: a:b.bvh and a_b.bvh meet in a_b.bvh
     if shared:
         made, names = shared[0]
-        given = [str(f) for f, s in zip(args.files, stems) if s in names]
+        given = list(dict.fromkeys(str(f) for f, s in zip(args.files, stems) if s in names))
         raise InputError(f"the source files {', '.join(given)} would all be written to {args.out / (made + '.bvh')} "
                          "(names are made safe for every file system and compared regardless of case); "
                          "rename one or retarget them into different --out folders")

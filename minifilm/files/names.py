@@ -89,16 +89,15 @@ def same_file_key(file: str) -> str:
 def shared_file_names(names: Iterable[str]) -> List[Tuple[str, List[str]]]:
     """The file names (:func:`file_name`) that more than one of ``names`` would be written to, each
     with those names: ``a:b``, ``a_b`` and ``a?b`` all become ``a_b``, ``Neutral`` and ``neutral`` one
-    file on a case-folding disk (:func:`same_file_key`). Empty when every name gets a file of its
-    own. A writer that names files after inputs or styles checks this before writing any."""
+    file on a case-folding disk (:func:`same_file_key`), and a name given twice meets itself.
+    Empty when every name gets a file of its own. A writer that names files after inputs or styles checks this before writing any."""
     groups: Dict[str, List[str]] = {}
     first: Dict[str, str] = {}
     for name in names:
         made = file_name(name)
         key = same_file_key(made)
         first.setdefault(key, made)
-        if name not in groups.setdefault(key, []):
-            groups[key].append(name)
+        groups.setdefault(key, []).append(name)     # the same name twice: two writers of one file too
     return [(first[key], group) for key, group in groups.items() if len(group) > 1]
 
 

@@ -10,7 +10,7 @@ The rule every writer follows (:func:`output_target`):
   it or remove it first). Root ignores permissions, so the file's mode bits are read, not access();
 * a **folder, device, FIFO or socket** is refused: replacing ``/dev/null`` with a regular file (as
   a rename over it would, for root) or hanging on a FIFO is never what an output meant;
-* a file that the **running command reads** is refused (``view a.bvh --html a.bvh``), and so is a
+* a file that the **running command reads** is refused (``generate --skeleton-bvh a.bvh --out a.bvh``), and so is a
   folder that holds one (``train --data runs/x/data --out runs/x``);
 * a **state file** minifilm keeps (a run folder's ``styles.npz``, ``model.npz``, ..., a data set
   cache) is refused unless the code writing it owns it (:mod:`minifilm.files.state`), whatever the
