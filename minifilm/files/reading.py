@@ -176,6 +176,28 @@ def read_npz(path, what: str = "archive", error: Type[InputError] = InputError,
         raise error(f"{where}: not a readable .npz archive ({type(e).__name__}: {e})") from None
 
 
+def read_npz_member(path, name: str, what: str = "archive", error: Type[InputError] = InputError) -> Optional[np.ndarray]:
+    """The one array ``name`` of the .npz at ``path`` (None when it has no such member), checked as
+    :func:`read_npz` checks every member, without reading the others (a checkpoint's small
+    meta.json beside its weights)."""
+    where = f"{what} {path}"
+    try:
+        with open_regular(path, what, error=error) as f, zipfile.ZipFile(f) as archive:
+            _check_unique_members(archive, where, error)
+            try:
+                info = archive.getinfo(name + ".npy")
+            except KeyError:
+                return None
+            _member_bytes(archive, info, where, error)
+            with archive.open(info) as member:
+                return np.lib.format.read_array(member, allow_pickle=False)
+    except error:
+        raise
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, ValueError, OSError, EOFError, MemoryError, zlib.error,
+            NotImplementedError) as e:
+        raise error(f"{where}: not a readable .npz archive ({type(e).__name__}: {e})") from None
+
+
 def _check_unique_members(archive: zipfile.ZipFile, where: str, error) -> None:
     """``error`` when two members share a name: a reader would silently take one of them (NumPy the
     last), so which array the archive holds would depend on the reader. An archive minifilm writes

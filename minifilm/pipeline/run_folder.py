@@ -35,7 +35,9 @@ import numpy as np
 from minifilm.dataset.stats import NormStats
 from minifilm.errors import InputError, check_fps
 from minifilm.features.layout import FeatureLayout
-from minifilm.files import atomic_savez, atomic_write_text, check_name, check_regular, note_input, read_json, read_npz
+from minifilm.files import (atomic_savez, atomic_write_text, check_name, check_regular, note_input, parse_json, read_json,
+                            read_npz)
+from minifilm.files.reading import read_npz_member
 from minifilm.pipeline.run_identity import (CHECKPOINT, RUN_ID, checkpoint_fingerprint, describe_foreign,
                                             foreign_files, new_run_id)
 from minifilm.files.state import RUN_MARKER, RUN_STATE, is_run_entry  # noqa: F401  (is_run_entry: re-exported)
@@ -236,15 +238,39 @@ class RunFolder:
         return value.tolist() if value is not None and value.ndim == 1 and value.dtype.kind == "U" else []
 
     def file_ids(self) -> Dict[str, Optional[str]]:
-        """file -> the run id it carries (None: none, as in runs written before ids existed)."""
-        return {MANIFEST: self.run_id, "styles.npz": self._member_id("styles.npz"),
-                "starts.npz": self._member_id("starts.npz")}
+        """file -> the run id it carries (None: none, as in runs written before ids existed);
+        model.npz carries run.json's when its fingerprint is the one run.json recorded."""
+        ids = {MANIFEST: self.run_id, "styles.npz": self._member_id("styles.npz"),
+               "starts.npz": self._member_id("starts.npz")}
+        if self.checkpoint_id is not None:
+            meta = self._checkpoint_meta()
+            if meta is not None and checkpoint_fingerprint(meta) == self.checkpoint_id:
+                ids["model.npz"] = self.run_id
+        return ids
+
+    def _checkpoint_differs(self) -> bool:
+        """Whether model.npz is known not to be the checkpoint run.json recorded."""
+        if self.checkpoint_id is None:
+            return False
+        meta = self._checkpoint_meta()
+        return meta is not None and checkpoint_fingerprint(meta) != self.checkpoint_id
+
+    def _checkpoint_meta(self) -> Optional[dict]:
+        """model.npz's configuration (its small meta.json member alone), or None when unreadable."""
+        try:
+            text = read_npz_member(self.path / "model.npz", "meta.json", "checkpoint", RunFolderError)
+            meta = None if text is None else parse_json(str(text), "checkpoint meta.json", RunFolderError)
+        except (InputError, OSError):
+            return None
+        return meta if isinstance(meta, dict) else None
 
     def check_files_belong(self) -> None:
         """RunFolderError naming the file of another run when run.json, styles.npz and starts.npz
         do not all carry the same run id."""
         ids = self.file_ids()
         foreign = foreign_files(ids)
+        if foreign and self._checkpoint_differs() and foreign != [MANIFEST]:
+            foreign = sorted(set(foreign) | {"model.npz"})     # it is not run.json's either
         if foreign:
             raise RunFolderError(describe_foreign(self.path, foreign, ids))
 
@@ -261,7 +287,7 @@ class RunFolder:
                                  "a run's files are made together by minifilm train")
         if self.checkpoint_id is None or checkpoint_fingerprint(meta) == self.checkpoint_id:
             return
-        vouching = [f for f, i in self.file_ids().items() if f != MANIFEST and i is not None]
+        vouching = [f for f, i in self.file_ids().items() if f not in (MANIFEST, "model.npz") and i is not None]
         if vouching:
             raise RunFolderError(f"run folder {self.path}: model.npz is not the checkpoint this run was trained "
                                  f"with (another run's, or changed since): run.json and "

@@ -57,14 +57,22 @@ def foreign_files(ids: Dict[str, Optional[str]]) -> List[str]:
 
 def describe_foreign(folder, foreign: List[str], ids: Dict[str, Optional[str]]) -> str:
     """One message: which files of the run folder are of another run, and how that was told."""
-    known = {f: i for f, i in ids.items() if i is not None}
-    shown = ", ".join(f"{f} says run {i}" for f, i in known.items())
+    groups: Dict[str, List[str]] = {}
+    for f, i in ids.items():
+        if i is not None:
+            groups.setdefault(i, []).append(f)
+    shown = "; ".join(f"{' and '.join(files)} of run {i}" for i, files in groups.items())
     if len(foreign) == 1:
         return (f"run folder {folder}: {foreign[0]} is another run's {_WHAT[foreign[0]]} ({shown}); a run's "
                 "files are made together by minifilm train: put back this run's own copy, or use the folder "
                 f"it came from")
-    return (f"run folder {folder}: {' and '.join(foreign)} are of different runs ({shown}); a run's files are "
-            "made together by minifilm train: put back the run's own copies")
+    return (f"run folder {folder}: its files are of different runs ({shown}{_model(foreign, ids)}); a run's files "
+            "are made together by minifilm train: put back the run's own copies")
+
+
+def _model(foreign: List[str], ids: Dict[str, Optional[str]]) -> str:
+    return "; model.npz is not the checkpoint run.json recorded" if "model.npz" in foreign and \
+        ids.get("model.npz") is None else ""
 
 
 _WHAT = {"run.json": "description", "model.npz": "checkpoint", "styles.npz": "style library",
