@@ -68,8 +68,10 @@ def check_name(name, where: str, error: Type[Exception] = InputError) -> str:
 def file_name(name: str) -> str:
     """A file name (without suffix) for ``name`` that is safe on every common file system:
     characters other than letters, digits, space and ``_ . + -`` become ``_``, a leading dot or
-    space becomes ``_`` (no hidden files), and Windows' reserved device names get a ``_`` prefix."""
-    safe = _UNSAFE.sub("_", name)[:MAX_NAME_LENGTH * 2] or "_"
+    space becomes ``_`` (no hidden files), and Windows' reserved device names get a ``_`` prefix.
+    The name is NFC-composed first, so its two Unicode spellings make one file name."""
+    # composed first: 'e' + a combining accent (as macOS stores names) is 'é', not 'e_'
+    safe = _UNSAFE.sub("_", unicodedata.normalize("NFC", name))[:MAX_NAME_LENGTH * 2] or "_"
     if safe[0] in ". ":
         safe = "_" + safe[1:]
     if safe.rstrip(" .") != safe:
