@@ -118,7 +118,7 @@ def test_finetune_replaces_its_own_style_and_keeps_the_run_whole(taught, tmp_pat
                         run / "data" / "Neutral_FW.bvh"], capsys)
     assert code == 0, out.err[-600:]
     code, out = invoke(["generate", "--run", run, "--list-styles"], capsys)
-    assert code == 0 and out.out.split() == ["LeftHop", "Neutral", "A:B"] or "A:B" in out.out, out
+    assert code == 0 and "A:B" in out.out.split(), out
 
 
 # ---- dataset --from-released ------------------------------------------------------------------------

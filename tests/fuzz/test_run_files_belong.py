@@ -8,11 +8,12 @@ import io
 import itertools
 import json
 import shutil
+import warnings
 import zipfile
+from dataclasses import replace
 
 import numpy as np
 import pytest
-from dataclasses import replace
 
 from minifilm.files import read_npz
 from minifilm.errors import InputError
@@ -53,9 +54,8 @@ def with_a_second(path, member):
     data = dict(items)[member]
     array = np.lib.format.read_array(io.BytesIO(data), allow_pickle=False)
     changed = io.BytesIO()
-    np.lib.format.write_array(changed, np.zeros_like(array) if array.dtype.kind != "U" else array[..., None][..., 0],
+    np.lib.format.write_array(changed, np.zeros_like(array) if array.dtype.kind in "fiub" else array,
                               allow_pickle=False)
-    import warnings
     with warnings.catch_warnings(), zipfile.ZipFile(path, "w") as z:
         warnings.simplefilter("ignore")                       # zipfile warns of the duplicate name: the point
         for name, payload in items + [(member, changed.getvalue())]:
