@@ -25,7 +25,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from minifilm.cli.args import in_range, input_path
+from minifilm.cli.args import gif_path, in_range, input_path
 from minifilm.demo.calibration_cache import CalibrationCache
 from minifilm.demo.character import DemoSettings
 from minifilm.demo.record import record_gif
@@ -58,7 +58,7 @@ def add_arguments(ap) -> None:
     ap.add_argument("--no-fit", action="store_true", help="start with the skeleton fit off")
     ap.add_argument("--no-calibrate", action="store_true",
                     help="command the raw speed (the released network then walks slower than asked)")
-    ap.add_argument("--record", type=Path, help="write a scripted session as an animated GIF instead of serving")
+    ap.add_argument("--record", type=gif_path, help="write a scripted session as an animated GIF instead of serving")
     ap.add_argument("--record-seconds", type=in_range(1.0, 60.0), default=5.0, help="length of --record, seconds")
 
 

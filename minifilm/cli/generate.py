@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from minifilm.cli.args import in_range, input_path, png_path, positive
+from minifilm.cli.args import bvh_path, gif_path, html_path, in_range, input_path, png_path, positive
 from minifilm.cli.memory import GENERATE_BYTES_PER_JOINT_FRAME, VIEW_BYTES_PER_JOINT_FRAME, add_memory_option, \
     check_memory
 from minifilm.errors import InputError
@@ -65,7 +65,7 @@ def add_arguments(ap) -> None:
     ap.add_argument("--script", default="figure8", choices=sorted(SCRIPTS))
     ap.add_argument("--speed", type=in_range(0.0, 10.0), default=1.3, help="walking speed, m/s (0-10)")
     ap.add_argument("--seconds", type=positive(float, 3600.0), default=30.0, help="length, seconds")
-    ap.add_argument("--out", type=Path, default=Path("motion.bvh"), help="BVH file to write")
+    ap.add_argument("--out", type=bvh_path, default=Path("motion.bvh"), help="BVH file to write")
     ap.add_argument("--skeleton-bvh", type=input_path,
                     help="BVH whose hierarchy, offsets and channel order the output uses (default: the "
                          "run's skeleton, or the 100STYLE skeleton for the released network)")
@@ -74,8 +74,8 @@ def add_arguments(ap) -> None:
                     help="put each frame on the skeleton and feed that pose back (released default), fit the "
                          "output only (trained-run default), or no fit")
     ap.add_argument("--no-calibrate", action="store_true", help="command the raw speed (no calibration)")
-    ap.add_argument("--gif", type=Path, help="also write the motion as an animated GIF")
-    ap.add_argument("--html", type=Path, help="also write the motion into an offline 3-D HTML player")
+    ap.add_argument("--gif", type=gif_path, help="also write the motion as an animated GIF")
+    ap.add_argument("--html", type=html_path, help="also write the motion into an offline 3-D HTML player")
     ap.add_argument("--png", type=png_path, help="also draw the motion into this PNG")
     ap.add_argument("--png-from", type=in_range(0.0, 24 * 3600.0),
                     help="first drawn frame, seconds (default 1, the first second starting from the mean pose; "

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from minifilm.cli.args import input_path, png_path, seconds_at_least
+from minifilm.cli.args import gif_path, input_path, png_path, seconds_at_least
 from minifilm.files import check_writable
 from minifilm.phases.any_rig import HumanoidRig, load_for_phases
 from minifilm.phases.label import label
@@ -39,7 +39,7 @@ def add_arguments(parser) -> None:
                              "style is labelled as without --style)")
     parser.add_argument("--start", type=seconds_at_least(0.0), default=0.0, help="first second to draw")
     parser.add_argument("--stop", type=seconds_at_least(0.0), default=None, help="last second to draw")
-    parser.add_argument("--animation", type=Path, help="also write the motion of the same seconds as an animated GIF "
+    parser.add_argument("--animation", type=gif_path, help="also write the motion of the same seconds as an animated GIF "
                         "(contacts highlighted), to watch beside the plot")
 
 

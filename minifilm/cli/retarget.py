@@ -15,9 +15,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from minifilm.cli.args import in_range, input_path, output_folder
+from minifilm.cli.args import in_range, input_path, non_empty, output_folder
 from minifilm.errors import InputError
-from minifilm.files import check_writable, child_path
+from minifilm.files import check_writable, child_path, shared_file_names
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.pipeline.run_rig import load_target
 from minifilm.rigs import read_source, retarget_motion
@@ -27,7 +27,7 @@ HELP = "put motion of any humanoid rig onto another rig (100style, bandai, cmu, 
 
 def add_arguments(ap) -> None:
     ap.add_argument("files", nargs="+", type=input_path, help="BVH files to retarget (any humanoid rig)")
-    ap.add_argument("--to", required=True, metavar="TARGET",
+    ap.add_argument("--to", required=True, type=non_empty("--to"), metavar="TARGET",
                     help="100style, bandai, cmu, a run folder, or a BVH file whose hierarchy is the rig")
     ap.add_argument("--out", type=output_folder, required=True, help="folder to write the retargeted BVH files into")
     ap.add_argument("--map", type=input_path, help="JSON map of the source files' joint roles (docs/retargeting.md)")
@@ -41,10 +41,13 @@ def add_arguments(ap) -> None:
 def run(args) -> int:
     target = load_target(args.to, args.to_map)
     stems = [Path(f).stem for f in args.files]
-    twice = sorted({s for s in stems if stems.count(s) > 1})
-    if twice:
-        raise InputError(f"several source files are called {twice}: their outputs would overwrite each other; "
-                         "retarget them into different --out folders")
+    shared = shared_file_names(stems)      # after the names are made safe: a:b.bvh and a_b.bvh meet in a_b.bvh
+    if shared:
+        made, names = shared[0]
+        given = list(dict.fromkeys(str(f) for f, s in zip(args.files, stems) if s in names))
+        raise InputError(f"the source files {', '.join(given)} would all be written to {args.out / (made + '.bvh')} "
+                         "(names are made safe for every file system and compared regardless of case); "
+                         "rename one or retarget them into different --out folders")
     outs = [child_path(args.out, stem, ".bvh") for stem in stems]
     for out in outs:                                    # every output checked before the first is written
         check_writable(out, "retargeted BVH")

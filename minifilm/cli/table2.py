@@ -7,14 +7,14 @@ here, batch 1 through the one inference path (see minifilm/evaluation/table2.py)
 """
 from pathlib import Path
 
-from minifilm.cli.args import in_range
+from minifilm.cli.args import in_range, markdown_path
 from minifilm.evaluation.table2 import report
 
 HELP = "Table 2: parameter counts and run time of the seven models"
 
 
 def add_arguments(ap) -> None:
-    ap.add_argument("--markdown", type=Path, help="also write the table as markdown to this path")
+    ap.add_argument("--markdown", type=markdown_path, help="also write the table as markdown to this path")
     ap.add_argument("--runs", type=in_range(1, 1000, int), default=5, help="timing runs (mean ± std over runs); default 5")
     ap.add_argument("--frames", type=in_range(1, 100_000, int), default=200, help="frames per timing run; default 200")
     ap.add_argument("--styles", type=in_range(1, 100_000, int), default=95, help="training styles (the paper: 95)")

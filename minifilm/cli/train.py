@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from minifilm.cli.args import in_range, input_path, output_folder, positive
+from minifilm.cli.args import in_range, input_path, non_empty, output_folder, positive
 from minifilm.errors import InputError
 from minifilm.pipeline.train_small import Settings
 from minifilm.pipeline.run_rig import load_target
@@ -44,7 +44,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--mirror", action="store_true", help="with --data: also train on every file's mirror")
     parser.add_argument("--fps", type=in_range(1.0, 1000.0), help="with --data: resample every file to this "
                         "frame rate (needed when the files were recorded at different rates)")
-    parser.add_argument("--rig", metavar="TARGET",
+    parser.add_argument("--rig", type=non_empty("--rig"), metavar="TARGET",
                         help="with --data: retarget every file onto this rig first (100style, bandai, cmu, a run "
                              "folder or a BVH file), so files of different skeletons make one data set")
     parser.add_argument("--clips-per-batch", type=in_range(1, 4096, int), default=d.clips_per_batch,

@@ -19,7 +19,7 @@ import tempfile
 from typing import Sequence
 from pathlib import Path
 
-from minifilm.cli.args import in_range, input_path, positive
+from minifilm.cli.args import gif_path, html_path, in_range, input_path, mp4_path, non_empty, positive
 from minifilm.cli.memory import VIEW_BYTES_PER_JOINT_FRAME, add_memory_option, check_memory
 from minifilm.errors import InputError
 from minifilm.files import check_writable
@@ -48,16 +48,21 @@ def output_path(text: str):
         shown = f"'{p.suffix}'" if p.suffix else "no extension"
         raise argparse.ArgumentTypeError(f"{text} has {shown}; --out writes the format its extension names: "
                                          ".gif (animated GIF), .mp4 (video, needs ffmpeg) or .html (3-D player)")
+    if p.is_dir() or not p.stem:
+        raise argparse.ArgumentTypeError(f"{text}: give a file name, not a folder")
     return kind, p
+
+
+output_path.output, output_path.suffixes = "file", tuple(OUTPUT_KINDS)
 
 
 def add_arguments(ap) -> None:
     ap.add_argument("files", nargs="+", type=input_path, help="BVH files, one character each")
     ap.add_argument("--out", type=output_path, action="append", default=[], metavar="FILE",
                     help="file to write, its format named by its extension: .gif, .mp4 or .html (repeatable)")
-    ap.add_argument("--gif", type=Path, help="animated GIF to write")
-    ap.add_argument("--mp4", type=Path, help="MP4 to write (needs ffmpeg on the PATH)")
-    ap.add_argument("--html", type=Path, help="self-contained HTML player to write")
+    ap.add_argument("--gif", type=gif_path, help="animated GIF to write")
+    ap.add_argument("--mp4", type=mp4_path, help="MP4 to write (needs ffmpeg on the PATH)")
+    ap.add_argument("--html", type=html_path, help="self-contained HTML player to write")
     ap.add_argument("--seconds", type=positive(float, 3600.0), help="length of the GIF / MP4 (default: the longest file)")
     ap.add_argument("--every", type=in_range(1, 1000, int),
                     help="keep every n-th frame in the GIF / MP4 (default: all frames, except that a GIF "
@@ -66,7 +71,7 @@ def add_arguments(ap) -> None:
                     help="pixels per character panel in the GIF / MP4 (default 240 300)")
     ap.add_argument("--no-contacts", action="store_true", help="do not highlight the foot contacts")
     ap.add_argument("--no-trail", action="store_true", help="do not draw the root's trail")
-    ap.add_argument("--on", metavar="TARGET", help="draw every file retargeted onto this rig: 100style (the "
+    ap.add_argument("--on", type=non_empty("--on"), metavar="TARGET", help="draw every file retargeted onto this rig: 100style (the "
                     "standard character), bandai, cmu, a run folder or a BVH file (docs/retargeting.md)")
     add_memory_option(ap)
 

@@ -34,7 +34,7 @@ from minifilm.dataset.stats import NormStats
 from minifilm.dataset.survey import check_memory, check_one_rig, most_common_rig, survey
 from minifilm.dataset.validate import check_every_style_trains, check_finite
 from minifilm.errors import DataError
-from minifilm.files import check_name, note_input
+from minifilm.files import check_name, note_input, owned_writes
 from minifilm.features.compute import clip_features_from_arrays, frame_features_from_arrays, motion_arrays
 from minifilm.features.layout import FeatureLayout
 from minifilm.motion.bvh import read_bvh
@@ -138,7 +138,8 @@ def build_dataset(source: Union[str, Path, Sequence[MotionFile]],
     ds.build_seconds = time.perf_counter() - t0
     ds.cache_key = key
     if cache_path is not None:     # overwrites a stale cache of the same dataset
-        ds.save(cache_path)
+        with owned_writes(cache_path):       # the builder owns its caches (minifilm/files/state.py)
+            ds.save(cache_path)
         ds.cache_path = cache_path
     return ds
 

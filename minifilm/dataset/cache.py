@@ -19,6 +19,7 @@ import numpy as np
 from minifilm.dataset.manifest import MotionFile
 from minifilm.dataset.settings import DatasetSettings
 from minifilm.files import open_regular
+from minifilm.files.reading import JSON_NUMBERS
 
 #: Bump when the meaning of the cached arrays changes without any source file changing.
 CACHE_FORMAT = 1
@@ -57,7 +58,9 @@ def cached_key(path: Path) -> Optional[str]:
     """The key stored in a cache file (reads only its small 'meta' entry); None if unreadable."""
     try:
         with open_regular(path, "dataset cache") as f, np.load(f, allow_pickle=False) as d:
-            key = json.loads(str(d["meta"])).get("cache_key")
+            if len(set(d.files)) != len(d.files):    # two members of one name: rebuilt, never guessed
+                return None
+            key = json.loads(str(d["meta"]), **JSON_NUMBERS).get("cache_key")
         return key if isinstance(key, str) else None
     except (OSError, ValueError, KeyError, AttributeError, EOFError, MemoryError, RecursionError,
             zipfile.BadZipFile, zlib.error):

@@ -21,10 +21,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterator, List, Optional, Sequence, Union
 
-from minifilm.files import atomic_write, check_name, check_regular, open_regular
+from minifilm.files import atomic_write, check_name, check_regular, open_regular, read_json
 
 #: 100STYLE gait codes: forwards / backwards / sideways walk and run, idle, transitions.
 STYLE100_GAITS = ("BR", "BW", "FR", "FW", "ID", "SR", "SW")
+#: what dataset.json says of a data set folder that ``minifilm dataset --from-released`` wrote
+MADE_BY = "minifilm dataset --from-released"
 _STYLE100_NAME = re.compile(r"^(?P<style>[A-Za-z0-9]+)_(?P<gait>BR|BW|FR|FW|ID|SR|SW|TR[0-9]*)\.bvh$")
 _BANDAI_NAME = re.compile(r"^dataset-(?P<set>[0-9]+)_(?P<content>[a-z\-]+)_(?P<style>[a-z]+)_(?P<id>[0-9]+)\.bvh$")
 #: the largest CSV read (100STYLE's Frame_Cuts.csv is 8 KB; a manifest of 100,000 files ~10 MB)
@@ -260,6 +262,24 @@ def scan_folder(folder: Union[str, Path]) -> List[MotionFile]:
         raise ValueError(f"{folder}: is a file, not a folder of BVH files or a .csv manifest")
     if not folder.is_dir():
         raise FileNotFoundError(f"{folder}: no such folder")
+    made = made_manifest(folder)
+    if made is not None:
+        return read_manifest(made)
     if any(_BANDAI_NAME.match(p.name) for p in folder.glob("*.bvh")):
         return bandai_files(folder)
     return scan_100style(folder)
+
+
+def made_manifest(folder: Path) -> Optional[Path]:
+    """The manifest of a data set folder made by ``minifilm dataset --from-released`` (its
+    dataset.json says so), or None. Such a folder is read by its manifest, which holds every
+    file's true style name: a style's file name is only its name made safe (``Old Man`` ->
+    ``Old Man_FW.bvh``, ``A:B`` -> ``A_B_FW.bvh``), which the 100STYLE file pattern cannot give back."""
+    marker, manifest = folder / "dataset.json", folder / "manifest.csv"
+    if not (marker.is_file() and manifest.is_file()):
+        return None
+    try:
+        info = read_json(marker, "data set description")
+    except (ValueError, OSError):
+        return None
+    return manifest if isinstance(info, dict) and info.get("made_by") == MADE_BY else None

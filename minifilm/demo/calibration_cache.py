@@ -21,7 +21,8 @@ import numpy as np
 
 from minifilm.errors import InputError
 from minifilm.files.atomic import atomic_write_text
-from minifilm.files.reading import read_regular_bytes
+from minifilm.files.state import owned_writes
+from minifilm.files.reading import JSON_NUMBERS, read_regular_bytes
 from minifilm.runtime.calibration import SpeedCalibration
 
 #: Changes whenever what a calibration measures changes (commands, directions, seconds, runtime).
@@ -95,7 +96,7 @@ class CalibrationCache:
         if self.path is None or not os.path.lexists(self.path):
             return {}
         try:
-            obj = json.loads(read_regular_bytes(self.path, "calibration cache", max_bytes=MAX_CACHE_BYTES))
+            obj = json.loads(read_regular_bytes(self.path, "calibration cache", max_bytes=MAX_CACHE_BYTES), **JSON_NUMBERS)
             if not isinstance(obj, dict) or obj.get("version") != CALIBRATION_VERSION \
                     or not isinstance(obj.get("styles"), dict):
                 raise ValueError(f"not a {CALIBRATION_VERSION} file")
@@ -118,7 +119,8 @@ class CalibrationCache:
         self.entries[name] = _to_json(cal)
         text = json.dumps({"version": CALIBRATION_VERSION, "styles": self.entries}, allow_nan=False)
         try:
-            atomic_write_text(self.path, text, "calibration cache")
+            with owned_writes(self.path):    # the demo owns its cache (minifilm/files/state.py)
+                atomic_write_text(self.path, text, "calibration cache")
         except Exception as e:  # noqa: BLE001 - a read-only or full cache folder must not stop the demo
             print(f"warning: could not write the speed calibration cache {self.path} ({str(e)[:200]})",
                   file=sys.stderr)

@@ -35,6 +35,8 @@ import math
 from dataclasses import dataclass
 from typing import Collection, Dict, Optional, Sequence, Tuple, Union
 
+from minifilm.files.reading import bounded_int, finite_float
+
 PROTOCOL_VERSION = 1
 #: The largest page message the server reads and answers (an error reply above it).
 MAX_MESSAGE_BYTES = 4096
@@ -124,7 +126,8 @@ def parse_message(data: Union[str, bytes], styles: Collection[str]) -> Message:
     if len(data) > MAX_MESSAGE_BYTES or len(data.encode("utf-8")) > MAX_MESSAGE_BYTES:
         raise ProtocolError(f"message of {len(data.encode('utf-8'))} bytes: the limit is {MAX_MESSAGE_BYTES}")
     try:
-        obj = json.loads(data, parse_constant=_no_constant, object_pairs_hook=_unique_keys)
+        obj = json.loads(data, parse_constant=_no_constant, parse_int=bounded_int, parse_float=finite_float,
+                         object_pairs_hook=_unique_keys)
     except (ValueError, RecursionError) as e:
         raise ProtocolError(f"not valid JSON ({str(e)[:120]})") from None
     if not isinstance(obj, dict):

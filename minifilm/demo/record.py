@@ -32,6 +32,7 @@ from minifilm.demo.calibrations import Calibrations
 from minifilm.demo.character import Character, DemoSettings
 from minifilm.demo.protocol import MAX_RECORD_SECONDS, InputMessage, RecordMessage, StyleMessage, encode, error  # noqa: F401 (RecordMessage: the server's and the tests' name for it here)
 from minifilm.demo.source import DemoSource
+from minifilm.files import file_name
 from minifilm.viewer import Track, write_gif
 from minifilm.motion.bvh_write import format_bvh
 from minifilm.motion.retarget import axes_to_rotation, retarget
@@ -212,5 +213,5 @@ def _gif(bvh: str, fps: float, title: str) -> Tuple[Optional[str], str]:
 
 
 def _file_name(title: str) -> str:
-    name = "".join(c if c.isalnum() else "_" for c in title).strip("_")[:40]
-    return name or "recording"
+    """The recorded BVH's file name, from the page's title, made safe by the one rule of names."""
+    return file_name(title.strip()[:40]) if title.strip() else "recording"

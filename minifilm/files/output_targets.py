@@ -10,14 +10,22 @@ The rule every writer follows (:func:`output_target`):
   it or remove it first). Root ignores permissions, so the file's mode bits are read, not access();
 * a **folder, device, FIFO or socket** is refused: replacing ``/dev/null`` with a regular file (as
   a rename over it would, for root) or hanging on a FIFO is never what an output meant;
-* a file that the **running command reads** is refused (``view a.bvh --html a.bvh``), and so is a
-  folder that holds one (``train --data runs/x/data --out runs/x``).
+* a file that the **running command reads** is refused (``generate --skeleton-bvh a.bvh --out a.bvh``), and so is a
+  folder that holds one (``train --data runs/x/data --out runs/x``);
+* a **state file** minifilm keeps (a run folder's ``styles.npz``, ``model.npz``, ..., a data set
+  cache) is refused unless the code writing it owns it (:mod:`minifilm.files.state`), whatever the
+  option that named it.
+
+:func:`output_target` is the one place these rules are applied: every atomic writer asks it, and
+so does :func:`minifilm.files.atomic.check_writable`, which each command calls for each of its
+outputs before the work.
 
 The last rule needs to know the command's inputs: the files and folders a user named for it to
 read. Inside :func:`command_inputs` (the ``minifilm`` command opens one around each subcommand)
 they are recorded where they enter: the command line's input arguments (``minifilm/cli/args.py``)
 and the files a data folder or manifest lists. A command's own state that it reads and writes
-again (a run's ``styles.npz`` when a style is added) is not an input. Outside such a block nothing
+again (a run's ``styles.npz`` when a style is added) is not an input: it is state, which the
+rule of :mod:`minifilm.files.state` protects from every other writer. Outside such a block nothing
 is recorded: a Python user may read a file, edit the motion and write it back in place.
 """
 from __future__ import annotations
@@ -30,6 +38,7 @@ from pathlib import Path
 from typing import Dict, Iterator, Optional, Tuple
 
 from minifilm.errors import OutputPathError
+from minifilm.files.state import is_owned, state_of
 
 _lock = threading.Lock()
 _depth = 0
@@ -113,6 +122,7 @@ def output_target(path, what: str = "output") -> Path:
         raise OutputPathError(f"cannot write {what} to {path}: {e.strerror or e}") from None
     if st is None:
         # a new file (a dangling link is followed to where it points, as a shell would)
+        _check_not_state(path, what)
         return Path(os.path.realpath(path))
     if not stat.S_ISREG(st.st_mode):
         hint = ", give a file name" if stat.S_ISDIR(st.st_mode) else "; give the path of a new or regular file"
@@ -124,6 +134,7 @@ def output_target(path, what: str = "output") -> Path:
     if named is not None:
         raise OutputPathError(f"cannot write {what} to {path}: it is also an input of this command "
                               f"({named}); choose another output path")
+    _check_not_state(path, what)
     real = Path(os.path.realpath(path))
     try:
         same = os.stat(real)
@@ -142,6 +153,7 @@ def folder_target(path, what: str = "output folder") -> Path:
     try:
         st = os.stat(path)
     except (FileNotFoundError, NotADirectoryError):
+        _check_not_state(path, what)
         return Path(os.path.realpath(path))
     except OSError as e:
         raise OutputPathError(f"cannot write {what} {path}: {e.strerror or e}") from None
@@ -151,4 +163,23 @@ def folder_target(path, what: str = "output folder") -> Path:
     if named is not None:
         raise OutputPathError(f"cannot write {what} {path}: it holds an input of this command ({named}), "
                               "which writing the folder anew would remove; choose another folder")
+    _check_not_state(path, what)
     return Path(os.path.realpath(path))
+
+
+def check_not_state(path, what: str = "output") -> None:
+    """OutputPathError when ``path`` (a file or a folder to write into) is state of minifilm's that
+    the running code does not own: the rule of :mod:`minifilm.files.state`, for callers that
+    check an output folder before anything is written into it."""
+    _check_not_state(path, what, f"cannot write into {path}")
+
+
+def _check_not_state(path, what: str, lead: str = "") -> None:
+    """OutputPathError when ``path`` is one of minifilm's state files (minifilm/files/state.py)
+    that the running command does not own; only while a command runs (see command_inputs)."""
+    if not _depth or is_owned(path):
+        return
+    why = state_of(path)
+    if why:
+        raise OutputPathError(f"{lead or f'cannot write {what} to {path}'}: it is {why}; "
+                              "choose another output path")

@@ -10,7 +10,7 @@
   deep enough to exhaust Python's recursion, a file over its limit) into one error naming the file;
 * :func:`read_npz` is the one reader of the ``.npz`` archives minifilm writes: it checks every
   member's declared size against the file and a memory budget *before* allocating, never
-  unpickles, and turns every way an archive can be broken into one error naming the file.
+  unpickles, refuses two members of one name, and turns every way an archive can be broken into one error naming the file.
 """
 from __future__ import annotations
 
@@ -89,13 +89,43 @@ def read_regular_bytes(path, what: str = "file", max_bytes: Optional[int] = None
     return data
 
 
+#: the most digits a whole number in a JSON file minifilm reads may have: far more than any count
+#: or seed, far fewer than Python's own limit (4300), whose message points at an interpreter setting
+MAX_JSON_DIGITS = 100
+
+
+def bounded_int(text: str) -> int:
+    """A JSON whole number, at most MAX_JSON_DIGITS digits (``json.loads(parse_int=...)``)."""
+    digits = len(text.lstrip("-"))
+    if digits > MAX_JSON_DIGITS:
+        raise ValueError(f"a whole number of {digits:,} digits ({text[:12]}...), more than the "
+                         f"{MAX_JSON_DIGITS} minifilm reads")
+    return int(text)
+
+
+def finite_float(text: str) -> float:
+    """A JSON number with a fraction or exponent, finite (``1e999`` would become infinity)."""
+    value = float(text)
+    if value in (float("inf"), float("-inf")):
+        raise ValueError(f"the number {text[:40]} is too large for a float")
+    return value
+
+
+def no_constant(name):
+    """``json.loads(parse_constant=...)``: JSON has no NaN or Infinity."""
+    raise ValueError(f"{name} is not a JSON number")
+
+
+#: the number hooks of every JSON parse in minifilm: json.loads(text, **JSON_NUMBERS)
+JSON_NUMBERS = dict(parse_constant=no_constant, parse_int=bounded_int, parse_float=finite_float)
+
+
 def parse_json(text, where: str, error: Type[Exception] = InputError) -> Any:
     """``json.loads(text)``, or ``error`` naming ``where``: bad syntax, a constant JSON does not
-    have (NaN, Infinity), or nesting deep enough to exhaust Python's recursion."""
-    def no_constant(name):
-        raise ValueError(f"{name} is not a JSON number")
+    have (NaN, Infinity), a number too long or too large (:data:`JSON_NUMBERS`), or nesting deep
+    enough to exhaust Python's recursion."""
     try:
-        return json.loads(text, parse_constant=no_constant)
+        return json.loads(text, **JSON_NUMBERS)
     except RecursionError:
         raise error(f"{where}: nested too deeply to be a minifilm file") from None
     except (ValueError, TypeError) as e:        # JSONDecodeError and bad UTF-8 are ValueErrors
@@ -130,6 +160,7 @@ def read_npz(path, what: str = "archive", error: Type[InputError] = InputError,
     try:
         with open_regular(path, what, error=error) as f:
             with zipfile.ZipFile(f) as archive:
+                _check_unique_members(archive, where, error)
                 total = 0
                 for info in archive.infolist():
                     total += _member_bytes(archive, info, where, error)
@@ -143,6 +174,40 @@ def read_npz(path, what: str = "archive", error: Type[InputError] = InputError,
     except (zipfile.BadZipFile, zipfile.LargeZipFile, ValueError, OSError, EOFError, KeyError, MemoryError,
             zlib.error, NotImplementedError) as e:
         raise error(f"{where}: not a readable .npz archive ({type(e).__name__}: {e})") from None
+
+
+def read_npz_member(path, name: str, what: str = "archive", error: Type[InputError] = InputError) -> Optional[np.ndarray]:
+    """The one array ``name`` of the .npz at ``path`` (None when it has no such member), checked as
+    :func:`read_npz` checks every member, without reading the others (a checkpoint's small
+    meta.json beside its weights)."""
+    where = f"{what} {path}"
+    try:
+        with open_regular(path, what, error=error) as f, zipfile.ZipFile(f) as archive:
+            _check_unique_members(archive, where, error)
+            try:
+                info = archive.getinfo(name + ".npy")
+            except KeyError:
+                return None
+            _member_bytes(archive, info, where, error)
+            with archive.open(info) as member:
+                return np.lib.format.read_array(member, allow_pickle=False)
+    except error:
+        raise
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, ValueError, OSError, EOFError, MemoryError, zlib.error,
+            NotImplementedError) as e:
+        raise error(f"{where}: not a readable .npz archive ({type(e).__name__}: {e})") from None
+
+
+def _check_unique_members(archive: zipfile.ZipFile, where: str, error) -> None:
+    """``error`` when two members share a name: a reader would silently take one of them (NumPy the
+    last), so which array the archive holds would depend on the reader. An archive minifilm writes
+    never has two."""
+    seen = set()
+    for name in archive.namelist():
+        if name in seen:
+            raise error(f"{where}: holds two members named {name!r} (a damaged or forged archive; "
+                        "minifilm never writes one)")
+        seen.add(name)
 
 
 def _member_bytes(archive: zipfile.ZipFile, info: zipfile.ZipInfo, where: str, error) -> int:

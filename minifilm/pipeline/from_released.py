@@ -29,11 +29,12 @@ from typing import Callable, Dict, Iterator, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from minifilm.dataset.manifest import MotionFile, write_manifest
+from minifilm.dataset.manifest import MADE_BY, MotionFile, write_manifest
 from minifilm.errors import InputError
 from minifilm.evaluation.label_agreement import agreement, summarise
 from minifilm.features.layout import FeatureLayout
-from minifilm.files import atomic_directory, atomic_write_text
+from minifilm.dataset.survey import MIN_FRAMES
+from minifilm.files import atomic_directory, atomic_write_text, file_names, read_json
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.motion.foot_ik import FootLocker
 from minifilm.motion.skeletons import STYLE100
@@ -47,6 +48,40 @@ from minifilm.runtime.released import load_released
 from minifilm.synthetic.generator import rest_motion
 
 _OWN_NAME = re.compile(r"^[A-Za-z0-9]+_[A-Z]+[0-9]*\.bvh$|^manifest\.csv$|^dataset\.json$")
+FPS = 60.0
+
+
+def min_seconds_per_style(gaits: Sequence[str] = tuple(GAIT_SHARES)) -> float:
+    """The least ``seconds_per_style`` whose every gait file holds the frames a data set file needs
+    (``MIN_FRAMES`` of minifilm/dataset/survey.py): its shortest gait gets the smallest share."""
+    return MIN_FRAMES / (FPS * min(GAIT_SHARES[g] for g in gaits))
+
+
+def style_file_names(names: Sequence[str]) -> Dict[str, str]:
+    """style -> the stem of its files (``<stem>_<Gait>.bvh``): the style's name made safe for every
+    file system (minifilm/files/names.py), distinct for every style also where two names would
+    give one file name (``A:B`` and ``A_B``; ``Neutral_`` and ``neutral_``, one file on macOS):
+    the later one is numbered (``A_B-2``). The manifest keeps each file's true style name, and
+    ``minifilm dataset`` / ``train --data`` read such a folder by its manifest."""
+    return file_names(names)
+
+
+def previous_output(out: Path) -> set:
+    """The names of the files a previous run of this job wrote into ``out`` (its dataset.json says
+    it made the folder and lists them), so running the same command again replaces them; empty
+    for any other folder."""
+    marker = out / "dataset.json"
+    if not marker.is_file():
+        return set()
+    try:
+        info = read_json(marker, "data set description")
+    except (InputError, OSError):
+        return set()
+    if not isinstance(info, dict) or info.get("made_by") != MADE_BY or not isinstance(info.get("files"), list):
+        return set()
+    names = {row.get("file") for row in info["files"] if isinstance(row, dict)}
+    return {n for n in names if isinstance(n, str) and n.lower().endswith(".bvh") and "/" not in n} | \
+        {"manifest.csv", "dataset.json"}
 
 
 @dataclass
@@ -125,12 +160,18 @@ def make_released_dataset(params: Path, out: Path, settings: ReleasedDataSetting
     """Write the data set into the folder ``out`` (atomically: the whole folder or nothing) and
     return its description (also written as ``out/dataset.json``)."""
     s = settings
-    if s.seconds_per_style <= 0 or s.warmup < 0 or s.batch < 1:
-        raise InputError(f"seconds_per_style {s.seconds_per_style}, warmup {s.warmup}, batch {s.batch}: "
-                         "need seconds > 0, warmup >= 0, batch >= 1")
+    if s.warmup < 0 or s.batch < 1:
+        raise InputError(f"warmup {s.warmup}, batch {s.batch}: need warmup >= 0, batch >= 1")
     unknown_gaits = [g for g in s.gaits if g not in GAIT_SHARES]
-    if unknown_gaits:
-        raise InputError(f"gaits {unknown_gaits}: unknown; known {list(GAIT_SHARES)}")
+    if unknown_gaits or not s.gaits:
+        raise InputError(f"gaits {list(s.gaits)}: unknown or none; known {list(GAIT_SHARES)}")
+    least = min_seconds_per_style(s.gaits)
+    if not s.seconds_per_style >= least:
+        shortest = min(s.gaits, key=GAIT_SHARES.__getitem__)
+        raise InputError(f"--seconds-per-style {s.seconds_per_style:g}: at least {least:g} s, so that the shortest "
+                         f"gait file ({shortest}, {GAIT_SHARES[shortest]:.0%} of it) holds the {MIN_FRAMES} frames "
+                         f"minifilm train needs of every file at {FPS:g} fps (to train with the default 4 s "
+                         "style clips give a minute or so)")
     rel = load_released(params)
     names = list(rel.styles) if s.styles is None else list(s.styles)
     unknown = [n for n in names if n not in rel.styles]
@@ -138,10 +179,12 @@ def make_released_dataset(params: Path, out: Path, settings: ReleasedDataSetting
         raise InputError(f"--styles: {'unknown ' + str(unknown) if unknown else 'each style once, at least one'}; "
                          f"the released network has {' '.join(rel.styles)}")
     films = np.stack([rel.styles[n] for n in names])
+    stems = style_file_names(names)
     layout = FeatureLayout.for_skeleton(STYLE100)
     skeleton = rest_motion()
     joints = root_joint_indices(layout, skeleton)
-    fps = 60.0
+    fps = FPS
+    own = previous_output(Path(out))
     t_start = time.perf_counter()
 
     cals = None
@@ -158,14 +201,15 @@ def make_released_dataset(params: Path, out: Path, settings: ReleasedDataSetting
     files: List[MotionFile] = []
     described: List[dict] = []
     checks: Dict[str, List[dict]] = {n: [] for n in names}
-    with atomic_directory(out, "data set folder", replaceable=lambda name: bool(_OWN_NAME.match(name))) as tmp:
+    with atomic_directory(out, "data set folder",
+                          replaceable=lambda name: name in own or bool(_OWN_NAME.match(name))) as tmp:
         t0 = time.perf_counter()
         for gait, first, r in drive_gaits(ctrl, films, names, s.gaits, s.seconds_per_style, s.seed, s.warmup,
                                           cals, s.batch):
             n = r.positions.shape[1]
             for b, style in enumerate(names[first:first + len(r.positions)]):
                 motion = r.to_motion(skeleton, joints, character=b).slice(w, n)
-                path = tmp / f"{style}_{gait}.bvh"
+                path = tmp / f"{stems[style]}_{gait}.bvh"
                 write_bvh(motion, path, scale=STYLE100.bvh_scale)
                 files.append(MotionFile(out / path.name, style, gait))
                 row = dict(file=path.name, style=style, gait=gait, frames=n - w,
@@ -180,7 +224,7 @@ def make_released_dataset(params: Path, out: Path, settings: ReleasedDataSetting
                 log(f"{gait}: {len(names)} styles x {(n - w) / fps:.1f} s in {time.perf_counter() - t0:.1f} s")
                 t0 = time.perf_counter()
         write_manifest([MotionFile(tmp / f.path.name, f.style, f.gait) for f in files], tmp / "manifest.csv")
-        info = dict(made_by="minifilm dataset --from-released", params=str(params),
+        info = dict(made_by=MADE_BY, params=str(params),
                     settings={k: (list(v) if isinstance(v, (tuple, list)) else v) for k, v in asdict(s).items()},
                     styles=names, gaits=list(s.gaits), fps=fps, files=described)
         if s.check_labels:

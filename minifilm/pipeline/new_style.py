@@ -25,7 +25,8 @@ from minifilm.motion.editing import mirror, resample
 from minifilm.motion.motion import Motion
 from minifilm.motion.skeletons import builtin_skeleton
 from minifilm.phases.label import label
-from minifilm.files import check_name, check_writable, child_path, folder_lock
+from minifilm.files import check_name, check_writable, child_path, folder_lock, owned_writes, same_file_key
+
 from minifilm.pipeline.run_folder import RunFolder
 from minifilm.pipeline.run_rig import retarget_onto_run
 from minifilm.pipeline.self_fed import SelfFed, self_fed_rounds
@@ -47,9 +48,25 @@ class NewStyleResult:
 
 
 def check_new_name(name: str, run: RunFolder, replace: bool) -> None:
+    """``name`` may join the run: a valid name, new (or ``replace``), and its checkpoint's file
+    name (``model-<NAME>.npz`` after :func:`minifilm.files.file_name`) is no other style's, also
+    where the names differ only in the characters made safe (``A:B`` and ``A_B``) or in case
+    (``Proud`` and ``proud``: one file on macOS and Windows), so no style's checkpoint is replaced."""
     check_name(name, "--name")
-    if name in run.styles() and not replace:
+    library = run.styles()
+    if name in library and not replace:
         raise ValueError(f"--name {name!r}: the run already has a style of that name (--replace to overwrite it)")
+    mine = same_file_key(checkpoint_path(run, name).name)
+    for other in library.names:
+        if other != name and same_file_key(checkpoint_path(run, other).name) == mine:
+            raise ValueError(f"--name {name!r}: its checkpoint {checkpoint_path(run, name).name} would be the file of "
+                             f"the style {other!r} ({checkpoint_path(run, other).name}: names are made safe for "
+                             "every file system and compared regardless of case); choose another name")
+
+
+def checkpoint_path(run: RunFolder, name: str) -> Path:
+    """Where the fine-tuned checkpoint of the style ``name`` is kept: RUN/model-<NAME>.npz."""
+    return child_path(run.path, f"model-{name}", ".npz")
 
 
 def read_clip(path, run: RunFolder, log: Callable[[str], None]) -> Motion:
@@ -131,9 +148,17 @@ def _teach_style(run: RunFolder, name: str, files: Sequence, steps: int, lr: flo
                  log: Callable[[str], None], with_mirror: bool, self_fed: Optional[SelfFed]) -> NewStyleResult:
     log(f"[finetune] teaching {run.path} the style {name!r} from {len(files)} file(s)")
     check_new_name(name, run, replace)
-    checkpoint = child_path(run.path, f"model-{name}", ".npz")
-    for written in (checkpoint, run.path / "styles.npz", run.path / "starts.npz"):   # before the work
-        check_writable(written, f"run folder {run.path}:")
+    checkpoint = checkpoint_path(run, name)
+    written = (checkpoint, run.path / "styles.npz", run.path / "starts.npz")
+    with owned_writes(*written):        # finetune owns these files of the run (minifilm/files/state.py)
+        return _teach(run, name, files, steps, lr, seed, log, with_mirror, self_fed, checkpoint, written)
+
+
+def _teach(run: RunFolder, name: str, files: Sequence, steps: int, lr: float, seed: int,
+           log: Callable[[str], None], with_mirror: bool, self_fed: Optional[SelfFed], checkpoint: Path,
+           written) -> NewStyleResult:
+    for path in written:   # before the work
+        check_writable(path, f"run folder {run.path}:")
     files = [Path(f) for f in files]
     if not files:
         raise ValueError("no clip given: name one or more BVH files of the new style")
@@ -164,7 +189,7 @@ def _teach_style(run: RunFolder, name: str, files: Sequence, steps: int, lr: flo
     starts = run.starts()
     starts[name] = start
     run.save_starts(starts)
-    library.save(run.path / "styles.npz")
+    run.save_styles(library)
     return NewStyleResult(name, seconds, tuned.step, len(data), len(data.clips), before, after, nearest, checkpoint,
                           rollout_errors)
 

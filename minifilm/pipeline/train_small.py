@@ -312,7 +312,7 @@ def finish(job: Job, trainer: Trainer) -> dict:
     folder = RunFolder.prepare(work, ds.layout, ds.fps, ds.skeleton, skeleton.bvh_scale, template,
                                s.position_bias)
     library = style_library(trainer, ds)
-    library.save(work / "styles.npz")
+    folder.save_styles(library)
     folder.save_starts({name: start_from_dataset(ds, name) for name in ds.styles})
     rollouts = generate_per_style(trainer, ds, folder, library, template, s.generate_seconds, shown=out)
     result["recognition"] = style_recognition(ds, rollouts, s.seed)

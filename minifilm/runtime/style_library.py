@@ -64,6 +64,8 @@ class StyleLibrary:
 
     def __init__(self, films: Optional[Mapping[str, np.ndarray]] = None, dtype=np.float32):
         self.dtype = np.dtype(dtype)
+        #: the run this library belongs to (its run.json's run_id), or None (a library of its own)
+        self.run_id: Optional[str] = None
         self._films: Dict[str, np.ndarray] = {}
         for name, film in (films or {}).items():
             self.add(name, film)
@@ -121,9 +123,13 @@ class StyleLibrary:
 
     # ------------------------------------------------------------------ files
     def save(self, path: Union[str, os.PathLike]) -> None:
-        """Write ``names`` and ``films`` to an .npz (atomically: temporary file, then rename)."""
+        """Write ``names`` and ``films`` to an .npz (atomically: temporary file, then rename), and
+        ``run_id``, the run the library belongs to, when it has one (minifilm/pipeline/run_identity.py)."""
         films = np.stack([self._films[n] for n in self.names]) if self._films else np.zeros((0, 0))
-        atomic_savez(path, {"names": np.array(self.names, dtype=str), "films": films})
+        arrays = {"names": np.array(self.names, dtype=str), "films": films}
+        if self.run_id is not None:
+            arrays["run_id"] = np.array(self.run_id)
+        atomic_savez(path, arrays)
 
     @classmethod
     def load(cls, path: Union[str, os.PathLike], dim: Optional[int] = None) -> "StyleLibrary":
@@ -155,7 +161,14 @@ class StyleLibrary:
         bad = [n for n, v in zip(listed, films) if not np.all(np.isfinite(v))]
         if bad:
             raise StyleLibraryError(f"{where}: non-finite FiLM values in {bad[:5]}")
-        return cls(dict(zip(listed, films)), dtype=films.dtype)
+        library = cls(dict(zip(listed, films)), dtype=films.dtype)
+        run_id = arrays.get("run_id")
+        if run_id is not None:
+            if run_id.ndim != 0 or run_id.dtype.kind != "U" or not str(run_id).isalnum():
+                raise StyleLibraryError(f"{where}: 'run_id' must be one word of letters and digits, got "
+                                        f"{run_id.dtype} {run_id.shape}")
+            library.run_id = str(run_id)
+        return library
 
     # ------------------------------------------------------------------ mixing
     def blend(self, weights: Union[Mapping[str, float], Sequence[Tuple[str, float]]]) -> np.ndarray:

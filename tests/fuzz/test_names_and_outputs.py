@@ -127,9 +127,11 @@ def test_an_output_that_is_an_input_is_refused_before_the_work(run, tmp_path, ca
     a = tmp_path / "a.bvh"
     shutil.copy(run / "data" / "Neutral_FW.bvh", a)
     original = a.read_bytes()
-    one_error(["view", a, "--html", a], capsys, "a.bvh", "also an input")
+    one_error(["view", a, "--html", a], capsys, "a.bvh", ".html")          # the format, found first
+    (tmp_path / "a.html").symlink_to(a)                                     # an HTML name leading to the input
+    one_error(["view", a, "--html", tmp_path / "a.html"], capsys, "a.html", "also an input")
     one_error(["generate", "--run", run, "--seconds", "1", "--skeleton-bvh", a, "--out", a], capsys, "also an input")
-    one_error(["generate", "--run", run, "--seconds", "1", "--out", run / "model.npz"], capsys, "model.npz",
+    one_error(["generate", "--run", run, "--seconds", "1", "--out", run / "skeleton.bvh"], capsys, "skeleton.bvh",
               "also an input")
     assert a.read_bytes() == original
 

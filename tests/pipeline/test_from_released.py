@@ -210,3 +210,28 @@ def test_batched_calibration_equals_one_style_at_a_time(shared_data):
         alone = calibrate_speed(ctrl, film, commands=(1.0, 3.0), directions=(0.0, 180.0), seconds=3.0, settle=1.5)
         np.testing.assert_allclose(cal.achieved, alone.achieved, rtol=1e-3)
         assert cal.achieved[0, -1] > cal.achieved[0, 1] > 0.3        # a faster command goes faster
+
+
+def test_odd_style_names_each_get_a_file_and_the_same_command_runs_again(shared_data, tmp_path):
+    """Released styles renamed to names that are no file names, or meet in one after safe-making
+    (``A:B`` / ``A_B``, ``Neutral_`` / ``neutral_``): each style gets files of its own, the folder is
+    read back with every style under its true name, and a second run into the same --out replaces
+    the first (it recognises its own output)."""
+    from minifilm.pipeline.from_released import ReleasedDataSettings, make_released_dataset
+    params = tmp_path / "released"
+    params.mkdir()
+    for p in (shared_data / "released-lpn").iterdir():
+        if p.name != "styles.txt":
+            (params / p.name).symlink_to(p)
+    odd = ["A:B", "A_B", "Neutral_", "neutral_", "Old Man"]
+    lines = (shared_data / "released-lpn" / "styles.txt").read_text().splitlines()
+    (params / "styles.txt").write_text("\n".join(f"{line.split()[0]} {odd[i]}" if i < len(odd) else line
+                                                 for i, line in enumerate(lines)) + "\n")
+    s = ReleasedDataSettings(seconds_per_style=0.5, styles=odd, gaits=("FW",), calibrate=False, check_labels=False)
+    out = tmp_path / "made"
+    for _ in range(2):
+        make_released_dataset(params, out, s, log=lambda m: None)
+        assert sorted(f.style for f in scan_folder(out)) == sorted(odd)
+        assert len(list(out.glob("*.bvh"))) == len(odd)
+    assert sorted(p.name for p in out.glob("*.bvh")) == sorted(
+        ["A_B_FW.bvh", "A_B-2_FW.bvh", "Neutral__FW.bvh", "neutral_-2_FW.bvh", "Old Man_FW.bvh"])
