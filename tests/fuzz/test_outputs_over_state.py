@@ -65,6 +65,13 @@ def test_every_path_option_is_marked():
     assert len(FILE_WRITERS) >= 12 and len(FOLDER_WRITERS) >= 6, (FILE_WRITERS, FOLDER_WRITERS)
 
 
+@pytest.fixture(autouse=True)
+def in_a_temporary_folder(tmp_path, monkeypatch):
+    """A command that wrongly succeeds writes its default outputs (motion.bvh, phases.png) into the
+    working folder: let that be a temporary one, never the checkout."""
+    monkeypatch.chdir(tmp_path)
+
+
 @pytest.fixture(scope="module")
 def state(tiny_run, tmp_path_factory):
     """A run folder (whole, with data/, cache/, generated/), a data set folder made by minifilm,
