@@ -50,6 +50,9 @@ def check_new_name(name: str, run: RunFolder, replace: bool) -> None:
     check_name(name, "--name")
     if name in run.styles() and not replace:
         raise ValueError(f"--name {name!r}: the run already has a style of that name (--replace to overwrite it)")
+    if replace and name not in run.styles():
+        raise ValueError(f"--replace: the run has no style {name!r} to replace (its styles: "
+                         f"{', '.join(run.styles().names)}); leave out --replace to add a new style")
 
 
 def read_clip(path, run: RunFolder, log: Callable[[str], None]) -> Motion:
