@@ -22,7 +22,7 @@ from minifilm.runtime.control import distance_to_path
 FLOOR_TOLERANCE = 0.03        # m, the lowest toe's band around the floor
 MIN_STEPS_PER_S = 0.5         # fewer strikes than this while asked to move: not walking
 STEP_RATIO = (0.75, 1.25)     # steps/s against the clip's: within 25 %
-PATH_LIMIT = 0.5              # m, mean distance from the path
+PATH_LIMIT = 1.0              # m, mean distance from the path
 FLOOR_SHARE = 0.9             # share of frames with the lowest toe on the floor
 
 
