@@ -23,7 +23,7 @@ from minifilm.cli.args import in_range, input_path, positive
 from minifilm.errors import InputError
 from minifilm.pipeline.new_style import teach_style
 from minifilm.pipeline.self_fed import SelfFed
-from minifilm.pipeline.teach_released import RECOMMENDED_SECONDS, teach_released
+from minifilm.pipeline.teach_released import RECOMMENDED_SECONDS, SIGMA, report_lines, teach_released
 from minifilm.train.film_fit import FitSettings
 
 HELP = "teach a trained run a new style from a short clip (Ψ only)"
@@ -63,9 +63,28 @@ def run(args) -> int:
               + " -> ".join(f"{e * 100:.1f} cm" for e in r.rollout_errors) + f" (kept {min(r.rollout_errors) * 100:.1f})")
     if r.nearest:
         print(f"    nearest trained style in FiLM space: {r.nearest}")
+    for line in run_warnings(r):
+        print(line)
     print(f"    added to {args.run / 'styles.npz'}; fine-tuned checkpoint {r.checkpoint}")
     print(f"    try: minifilm generate --run {args.run} --style {r.name!r} --out {r.name}.bvh")
     return 0
+
+
+def run_warnings(r) -> list:
+    """The lines that say how far the clip lies from the run's data and whether the style walks."""
+    worst = ", ".join(f"{n} ({s:.0%} of frames)" for n, s in r.worst if s > 0) or "none"
+    lines = [f"    distance from the run's data: {r.share_beyond:.1%} of the clip's normalised input numbers beyond "
+             f"{SIGMA:g} σ (worst: {worst})"]
+    if r.clip_seconds < RECOMMENDED_SECONDS:
+        lines.append(f"    WARNING: the clip lasts {r.clip_seconds:.1f} s; {RECOMMENDED_SECONDS:g}-30 s of walking in the "
+                     "style is recommended (a short clip shows few steps)")
+    if r.share_beyond > 0.01:
+        lines.append("    WARNING: the clip lies far outside the motion the run was trained on; the new style may not walk")
+    if r.check is not None:
+        k = r.check
+        lines.append(f"    rolled out 6 s: {k.steps_per_s:.2f} steps/s (clip {k.clip_steps_per_s:.2f}), hips {k.hips:.2f} m "
+                     f"(clip {k.clip_hips:.2f}), lowest toe on the floor in {k.toe_on_floor:.0%} of frames: {k.words()}")
+    return lines
 
 
 def run_released(args) -> int:
@@ -74,23 +93,8 @@ def run_released(args) -> int:
                          "(the network folder is never written)")
     settings = FitSettings(steps=min(args.steps, 1000), seed=args.seed)
     r = teach_released(args.params, args.name, args.files, args.out, replace=args.replace, settings=settings)
-    c = r.clip
-    print(f"[finetune] {r.name}: FiLM vector fitted through the frozen network in {r.seconds:.1f} s "
-          f"from {c.seconds:.1f} s of motion ({len(c.x)} frames)")
-    if c.seconds < RECOMMENDED_SECONDS:
-        print(f"    WARNING: the clip lasts {c.seconds:.1f} s; {RECOMMENDED_SECONDS:g}-30 s of walking in the style "
-              "is recommended (a short clip shows few steps)")
-    print(f"    distance from the network's data: {r.distance.words()}")
-    print(f"    loss on the clip: {r.distance.start_loss:.4f} at the closest of the network's styles "
-          f"({r.best_known}) -> {r.loss:.4f} fitted; {r.best_known} on its own generated motion: "
-          f"{r.distance.known_losses[0]:.4f}")
-    if r.distance.far():
-        print("    WARNING: the clip lies far outside the motion the network was trained on; the style may not walk")
-    print(f"    nearest of the network's styles in FiLM space: {r.nearest}")
-    k = r.check
-    print(f"    rolled out {6:g} s: {k.steps_per_s:.2f} steps/s (clip {c.steps_per_s:.2f}), hips {k.hips:.2f} m "
-          f"(clip {c.hips:.2f}), lowest toe on the floor in {k.toe_on_floor:.0%} of frames, "
-          f"{k.path_mean:.2f} m from the path: {k.words()}")
+    for line in report_lines(r):
+        print(line)
     print(f"    written to the style pack {args.out}")
     print(f"    try: minifilm generate --params {args.params} --styles {args.out} --style {r.name!r} --out {r.name}.bvh")
     return 0

@@ -61,9 +61,9 @@ class ClipRows:
     sources: List[dict] = field(default_factory=list)
 
 
-def read_clip(path, log: Callable[[str], None] = print) -> Motion:
-    """One BVH file on the 100STYLE skeleton at 60 fps: another rig is retargeted, another frame
-    rate resampled, and each is said."""
+def read_clip(path, log: Callable[[str], None] = print):
+    """One BVH file on the 100STYLE skeleton at 60 fps: -> (Motion, retargeted). Another rig is
+    retargeted, another frame rate resampled, and each is said."""
     motion = read_bvh(path, scale=STYLE100.bvh_scale)
     missing = [n for n in FeatureLayout.for_skeleton(STYLE100).joint_names if n not in motion.names]
     if missing:
@@ -74,7 +74,7 @@ def read_clip(path, log: Callable[[str], None] = print) -> Motion:
     if abs(motion.fps - FPS) > 1e-3 * FPS:
         log(f"    {Path(path).name}: {motion.fps:g} fps resampled to the network's {FPS:g} fps")
         motion = resample(motion, FPS)
-    return motion
+    return motion, bool(missing)
 
 
 def clip_rows(motions: Sequence[Motion], files: Sequence, name: str) -> ClipRows:
@@ -107,6 +107,8 @@ class Distance:
     worst: List[tuple]            # [(feature name, share of rows beyond SIGMA σ)] worst first
     start_loss: float             # loss of the clip's rows at the nearest known style's vector
     known_losses: List[float]     # the known styles' own loss on their own motion, for comparison
+    share_as_read: Optional[float] = None   # share beyond SIGMA before the joint axes were aligned
+    axis_turns: Optional[np.ndarray] = None  # degrees per joint (align_axes), None: not aligned
 
     def far(self) -> bool:
         """Far outside: more than 1 % of the input numbers beyond SIGMA, or a start loss over 3x the
@@ -116,15 +118,20 @@ class Distance:
 
     def words(self) -> str:
         worst = ", ".join(f"{n} ({s:.0%} of frames)" for n, s in self.worst if s > 0) or "none"
-        return (f"{self.share_beyond:.1%} of the clip's normalised input numbers lie beyond {SIGMA:g} σ of the "
+        text = (f"{self.share_beyond:.1%} of the clip's normalised input numbers lie beyond {SIGMA:g} σ of the "
                 f"network's data (worst: {worst})")
+        if self.axis_turns is not None:
+            text += (f"; {self.share_as_read:.1%} as retargeted, before each joint's axes were turned to the "
+                     f"network's convention (median {np.median(self.axis_turns):.0f}°, up to "
+                     f"{np.max(self.axis_turns):.0f}°)")
+        return text
 
 
 def input_distance(x_norm: np.ndarray, layout: FeatureLayout, top: int = 3) -> tuple:
     """(share of values beyond SIGMA, [(name, share of rows)] of the ``top`` worst input features)."""
     far = np.abs(x_norm) > SIGMA
     per_feature = far.mean(axis=0)
-    names = [c.quantity for c in layout.describe("x")]
+    names = [f"{c.joint} {c.quantity}" if c.joint else c.quantity for c in layout.describe("x")]
     order = np.argsort(-per_feature)[:top]
     return float(far.mean()), [(names[i], float(per_feature[i])) for i in order]
 
@@ -149,6 +156,9 @@ class TaughtStyle:
                 "fit": {"loss": self.loss, "start_loss": self.distance.start_loss, "seconds": self.seconds,
                         "nearest_style": self.nearest, "lowest_loss_style": self.best_known,
                         "share_beyond_5_sigma": self.distance.share_beyond,
+                        "share_beyond_5_sigma_as_retargeted": self.distance.share_as_read,
+                        "axis_turns_degrees": None if self.distance.axis_turns is None
+                        else [round(float(a), 1) for a in self.distance.axis_turns],
                         "worst_features": [list(w) for w in self.distance.worst], "candidates": self.candidates},
                 "checks": self.check.to_dict()}
 
@@ -189,13 +199,18 @@ def rollout_score(report, clip: ClipRows) -> float:
 def teach(rel, layout: FeatureLayout, name: str, motions: Sequence[Motion], files: Sequence,
           known: Optional[dict] = None, settings: FitSettings = FitSettings(),
           prior_weights: Sequence[float] = PRIOR_WEIGHTS, choose_by_rollout: bool = True,
-          log: Callable[[str], None] = print) -> TaughtStyle:
+          align: bool = False, log: Callable[[str], None] = print) -> TaughtStyle:
     """Fit ``name`` to the clip(s) on the loaded released network ``rel``; ``known``: the styles
-    the prior is made of (default all of the network's). Nothing is written."""
+    the prior is made of (default all of the network's); ``align``: turn the joint axes to the
+    network's convention (:func:`align_axes`; for retargeted clips). Nothing is written."""
     known = dict(rel.styles if known is None else known)
     names = list(known)
     V = np.stack([known[n] for n in names]).astype(np.float64)
     clip = clip_rows(motions, files, name)
+    share_as_read, turns = None, None
+    if align:
+        share_as_read = input_distance(rel.stats.normalize_x(clip.x), layout)[0]
+        clip.x, clip.z, turns = align_axes(clip.x, clip.z, layout, rel.stats)
     x, p, z = normalised(rel.stats, clip)
     t0 = time.perf_counter()
     rows = FrozenRows(rel.model, x, p, z)
@@ -203,7 +218,7 @@ def teach(rel, layout: FeatureLayout, name: str, motions: Sequence[Motion], file
     losses = np.array([rows.loss(v, sub) for v in V])
     best_known = names[int(np.argmin(losses))]
     share, worst = input_distance(x, layout)
-    distance = Distance(share, worst, float(losses.min()), [])
+    distance = Distance(share, worst, float(losses.min()), [], share_as_read, turns)
     prior = StylePrior.from_vectors(V)
     candidates, films = [], []
     for lam in prior_weights:
@@ -250,8 +265,74 @@ def teach_released(params, name: str, files: Sequence, out, replace: bool = Fals
         raise InputError(f"--replace: the pack {out} has no style {name!r} to replace "
                          f"(it holds: {', '.join(pack.names) or 'none'}); leave out --replace to add a new style")
     log(f"[finetune] teaching the released network {Path(params).name} the style {name!r} from {len(files)} file(s)")
-    motions = [read_clip(f, log) for f in files]
+    read = [read_clip(f, log) for f in files]
+    motions = [m for m, _ in read]
     layout = FeatureLayout.for_skeleton(STYLE100)
-    taught = teach(rel, layout, name, motions, files, settings=settings, log=log)
+    align = any(retargeted for _, retargeted in read)
+    taught = teach(rel, layout, name, motions, files, settings=settings, align=align, log=log)
     pack.with_style(name, taught.film, taught.pack_info(), replace=replace).save(out)
     return taught
+
+
+def report_lines(r: TaughtStyle) -> List[str]:
+    """What ``finetune --params`` prints: the fit, how far the clip lies from the network's data,
+    and whether the new style walks, with a WARNING line for each thing that will not work."""
+    c, k = r.clip, r.check
+    own = r.distance.known_losses[0] if r.distance.known_losses else float("nan")
+    lines = [f"[finetune] {r.name}: FiLM vector fitted through the frozen network in {r.seconds:.1f} s "
+             f"from {c.seconds:.1f} s of motion ({len(c.x)} frames)"]
+    if c.seconds < RECOMMENDED_SECONDS:
+        lines.append(f"    WARNING: the clip lasts {c.seconds:.1f} s; {RECOMMENDED_SECONDS:g}-30 s of walking in the "
+                     "style is recommended (a short clip shows few steps)")
+    lines.append(f"    distance from the network's data: {r.distance.words()}")
+    lines.append(f"    loss on the clip: {r.distance.start_loss:.4f} at the closest of the network's styles "
+                 f"({r.best_known}) -> {r.loss:.4f} fitted; {r.best_known} on its own generated motion: {own:.4f}")
+    if r.distance.far():
+        lines.append("    WARNING: the clip lies far outside the motion the network was trained on; "
+                     "the new style may not walk like it")
+    lines.append(f"    nearest of the network's styles in FiLM space: {r.nearest}")
+    lines.append(f"    rolled out {CHECK_SECONDS:g} s: {k.steps_per_s:.2f} steps/s (clip {c.steps_per_s:.2f}), hips "
+                 f"{k.hips:.2f} m (clip {c.hips:.2f}), lowest toe on the floor in {k.toe_on_floor:.0%} of frames, "
+                 f"{k.path_mean:.2f} m from the path: {k.words()}")
+    return lines
+
+
+def align_axes(x: np.ndarray, z: np.ndarray, layout: FeatureLayout, stats) -> tuple:
+    """Turn each joint's forward/up axes by one constant rotation so their mean over the clip
+    matches the network's mean (its input statistics): a retargeted skeleton's joint frames are
+    not the 100STYLE capture's, and differ from them by a fixed rotation per joint.
+
+    x (N, x_dim), z (N, z_dim) raw rows -> (x, z) copies with the axes turned, and the rotation
+    angle per joint (degrees, (J,)). Positions and velocities are untouched. For joint j with
+    root-space frames A(t) (columns: up x forward, up, forward), the rotation O maximises
+    Σ_t Σ_c  (A(t) O e_c) · b_c  for the network's mean axes b_c (orthogonal Procrustes)."""
+    x, z = np.array(x, np.float64), np.array(z, np.float64)
+    angles = np.zeros(layout.n_joints)
+    fx, ux = layout.joint_columns("x", "forward"), layout.joint_columns("x", "up")
+    fz, uz = layout.joint_columns("z", "forward"), layout.joint_columns("z", "up")
+    mean = stats.x_mean
+    for j in range(layout.n_joints):
+        b_up, b_fwd = mean[ux[j]], mean[fx[j]]
+        O = _procrustes(_frames(x[:, fx[j]], x[:, ux[j]]), b_up, b_fwd)
+        angles[j] = np.degrees(np.arccos(np.clip((np.trace(O) - 1) / 2, -1, 1)))
+        for rows, fc, uc in ((x, fx[j], ux[j]), (z, fz[j], uz[j])):
+            turned = _frames(rows[:, fc], rows[:, uc]) @ O
+            rows[:, uc], rows[:, fc] = turned[:, :, 1], turned[:, :, 2]
+    return x, z, angles
+
+
+def _frames(forward: np.ndarray, up: np.ndarray) -> np.ndarray:
+    """(N, 3) forward and up axes -> (N, 3, 3) orthonormal frames [up x forward, up, forward]."""
+    f = forward / np.linalg.norm(forward, axis=1, keepdims=True)
+    u = up - np.sum(up * f, axis=1, keepdims=True) * f
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    return np.stack([np.cross(u, f), u, f], axis=2)
+
+
+def _procrustes(A: np.ndarray, b_up: np.ndarray, b_fwd: np.ndarray) -> np.ndarray:
+    """The rotation O (3, 3) that best maps e_up, e_fwd through A(t) O onto b_up, b_fwd."""
+    M = np.einsum("nki,k->i", A, b_up)[:, None] * np.array([0.0, 1.0, 0.0])[None] \
+        + np.einsum("nki,k->i", A, b_fwd)[:, None] * np.array([0.0, 0.0, 1.0])[None]
+    U, _, Vt = np.linalg.svd(M)
+    d = np.sign(np.linalg.det(U @ Vt))
+    return U @ np.diag([1.0, 1.0, d]) @ Vt
