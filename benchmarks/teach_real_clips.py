@@ -30,6 +30,9 @@ from minifilm.pipeline.teach_released import candidate_rollouts, read_clip, teac
 from minifilm.runtime.released import load_released  # noqa: E402
 from minifilm.runtime.walk_checks import count_strikes, lowest_toe  # noqa: E402
 from minifilm.phases.label import label  # noqa: E402
+from minifilm.motion.bvh_write import write_bvh  # noqa: E402
+from minifilm.runtime.controller import root_joint_indices  # noqa: E402
+from minifilm.synthetic.generator import rest_motion  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data"
@@ -56,6 +59,8 @@ def main() -> None:
     ap.add_argument("--files", type=int, default=3)
     ap.add_argument("--seconds", type=float, default=20.0)
     ap.add_argument("--json", type=Path)
+    ap.add_argument("--out", type=Path, help="write <style>_clip.bvh (retargeted) and <style>_taught.bvh here, "
+                                             "to see side by side: minifilm view A.bvh B.bvh --gif both.gif")
     args = ap.parse_args()
     rel = load_released(args.params)
     layout = FeatureLayout.for_skeleton(STYLE100)
@@ -84,6 +89,12 @@ def main() -> None:
                    own_loss=taught.distance.known_losses[0], loss=taught.loss, nearest=taught.nearest,
                    best_known=taught.best_known, clip=clip, result=result, words=taught.check.words())
         rows.append(row)
+        if args.out:
+            args.out.mkdir(parents=True, exist_ok=True)
+            skeleton = rest_motion()
+            write_bvh(motions[0], args.out / f"{style}_clip.bvh", scale=STYLE100.bvh_scale)
+            write_bvh(r.to_motion(skeleton, root_joint_indices(layout, skeleton)), args.out / f"{style}_taught.bvh",
+                      scale=STYLE100.bvh_scale)
         print(f"{style}: {len(files)} files, {taught.clip.seconds:.1f} s, taught in {seconds:.1f} s; beyond 5 σ "
               f"{taught.distance.share_as_read:.1%} as retargeted -> {taught.distance.share_beyond:.1%} aligned; loss "
               f"{taught.distance.start_loss:.3f} ({taught.best_known}) -> {taught.loss:.3f} (own {row['own_loss']:.3f})",

@@ -34,6 +34,8 @@ def main() -> None:
     ap.add_argument("--styles", nargs="*", help="style names (default every 10th of the network's)")
     ap.add_argument("--seconds", type=float, default=30.0)
     ap.add_argument("--steps", type=int, default=300)
+    ap.add_argument("--prior-weights", type=float, nargs="+", default=[0.3, 1.0, 3.0],
+                    help="one fit per weight, the rollouts choose (default: finetune's 0.3 1 3)")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args()
     rel = load_released(args.params)
@@ -45,7 +47,7 @@ def main() -> None:
     print(f"{'style':16s} {'film rank':>9s} {'output rank':>11s} {'loss rank':>9s}  nearest (film / output)   "
           f"{'teach s':>7s}  steps/s (clip)  walks")
     for name, motion in zip(names, motions):
-        r = refit(rel, name, motion, FitSettings(steps=args.steps))
+        r = refit(rel, name, motion, FitSettings(steps=args.steps), prior_weights=tuple(args.prior_weights))
         rows.append(r)
         print(f"{name:16s} {r['film_rank']:9d} {r['output_rank']:11d} {r['loss_rank']:9d}  "
               f"{r['nearest_film']} / {r['nearest_output']:12s} {r['seconds']:7.1f}  "

@@ -77,7 +77,7 @@ def read_clip(path, log: Callable[[str], None] = print):
     return motion, bool(missing)
 
 
-def clip_rows(motions: Sequence[Motion], files: Sequence, name: str) -> ClipRows:
+def clip_rows(motions: Sequence[Motion], files: Sequence, name: str, require_steps: bool = True) -> ClipRows:
     """Rows of every file (labelled with minifilm's contacts and local phases), concatenated, and
     plain figures of the clip (steps per second, hip height, root speed)."""
     xs, ps, zs, sources, strikes, hips, speeds = [], [], [], [], 0, [], []
@@ -93,7 +93,7 @@ def clip_rows(motions: Sequence[Motion], files: Sequence, name: str) -> ClipRows
     seconds = sum(m.n_frames for m in motions) / FPS
     if sum(len(x) for x in xs) < 10:
         raise ClipError(f"{files[0]}: too short to teach a style ({seconds:.2f} s)")
-    if strikes < 2:
+    if strikes < 2 and require_steps:
         raise ClipError(f"{', '.join(str(f) for f in files)}: fewer than two foot steps in {seconds:.1f} s (a style "
                         "is learnt from locomotion: walk or run in it for a few steps)")
     return ClipRows(np.concatenate(xs), np.concatenate(ps), np.concatenate(zs), seconds, strikes / seconds,
@@ -184,7 +184,7 @@ def own_loss(rel, rollout, character: int, film: np.ndarray, name: str) -> float
     from_layout = FeatureLayout.for_skeleton(STYLE100)
     motion = rollout.to_motion(skeleton, root_joint_indices(from_layout, skeleton), character=character)
     motion = motion.slice(int(FPS), motion.n_frames)              # after the start from the mean pose
-    own = clip_rows([motion], [f"{name} (generated)"], name)
+    own = clip_rows([motion], [f"{name} (generated)"], name, require_steps=False)   # it may not step
     x, p, z = normalised(rel.stats, own)
     return FrozenRows(rel.model, x, p, z).loss(film)
 
