@@ -199,14 +199,14 @@ def rollout_score(report, clip: ClipRows) -> float:
 def teach(rel, layout: FeatureLayout, name: str, motions: Sequence[Motion], files: Sequence,
           known: Optional[dict] = None, settings: FitSettings = FitSettings(),
           prior_weights: Sequence[float] = PRIOR_WEIGHTS, choose_by_rollout: bool = True,
-          align: bool = False, log: Callable[[str], None] = print) -> TaughtStyle:
+          align: bool = False, require_steps: bool = True, log: Callable[[str], None] = print) -> TaughtStyle:
     """Fit ``name`` to the clip(s) on the loaded released network ``rel``; ``known``: the styles
     the prior is made of (default all of the network's); ``align``: turn the joint axes to the
     network's convention (:func:`align_axes`; for retargeted clips). Nothing is written."""
     known = dict(rel.styles if known is None else known)
     names = list(known)
     V = np.stack([known[n] for n in names]).astype(np.float64)
-    clip = clip_rows(motions, files, name)
+    clip = clip_rows(motions, files, name, require_steps)
     share_as_read, turns = None, None
     if align:
         share_as_read = input_distance(rel.stats.normalize_x(clip.x), layout)[0]

@@ -63,3 +63,19 @@ def test_the_network_folder_is_only_read(params, pack):
     before = sorted(p.name for p in params.iterdir())
     assert "styles.npz" not in before and "pack.json" not in before
     assert np.isfinite(load_released(params).styles["Neutral"]).all()
+
+
+def test_the_demo_source_holds_the_pack_styles_and_does_not_cache_them(params, pack, tmp_path):
+    from minifilm.demo.calibration_cache import CalibrationCache
+    from minifilm.demo.calibrations import Calibrations
+    from minifilm.demo.source import DemoSource
+    from minifilm.runtime.calibration import SpeedCalibration
+    source = DemoSource.released(params, calibrate=True, pack=pack)
+    assert source.library.names[-1] == "Mine" and len(source.library) == 101
+    assert source.pack_names == ("Mine",) and "style pack" in source.name
+    cache = CalibrationCache(params, where=tmp_path)
+    cal = SpeedCalibration(np.array([0.0, 1.0]), np.array([[0.0, 1.0]]), (0.0,))
+    calibrations = Calibrations(source, background=False, cache=cache, log=lambda m: None)
+    calibrations._store("Mine", cal)
+    calibrations._store("Neutral", cal)
+    assert set(cache.entries) == {"Neutral"}
