@@ -8,7 +8,8 @@ import pytest
 
 from minifilm.features.layout import FeatureLayout
 from minifilm.motion.skeletons import STYLE100
-from minifilm.pipeline.teach_released import (ClipRows, Distance, TaughtStyle, align_axes, input_distance,
+from minifilm.pipeline.joint_axes import align_axes
+from minifilm.pipeline.teach_released import (ClipRows, Distance, TaughtStyle, input_distance,
                                               report_lines)
 from minifilm.runtime.walk_checks import WalkReport
 

@@ -2,7 +2,6 @@
 checked against numerical differences, the precomputed path equal to the model's own forward
 pass, the prior's coordinates, and a small known-answer fit (a hidden style found again)."""
 import numpy as np
-import pytest
 
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
