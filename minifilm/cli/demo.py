@@ -4,6 +4,7 @@
     minifilm demo --run runs/train_small                    # a run folder written by minifilm train
     minifilm demo --params DIR --port 0                     # any free port (the URL is printed)
     minifilm demo --params DIR --record demo.gif            # no server: a scripted session as a GIF
+    minifilm demo --params DIR --styles PACK                # with styles taught by finetune --params
 
 Prints the URL of a page on this machine (127.0.0.1; --host opts in to another interface). On
 every interface the server answers only requests that name it (this machine's names and
@@ -32,6 +33,7 @@ from minifilm.demo.record import record_gif
 from minifilm.demo.hosts import check_name, is_loopback
 from minifilm.demo.server import DemoServer, check_bind_host
 from minifilm.demo.source import DemoSource
+from minifilm.errors import InputError
 from minifilm.files import check_writable
 
 HELP = "steer a character live in the browser (released network or a trained run)"
@@ -41,6 +43,8 @@ def add_arguments(ap) -> None:
     src = ap.add_mutually_exclusive_group(required=True)
     src.add_argument("--params", type=input_path, help="the released network's parameter folder")
     src.add_argument("--run", type=input_path, help="a run folder written by minifilm train")
+    ap.add_argument("--styles", type=input_path,
+                    help="with --params: a style pack folder (minifilm finetune --params ... --out PACK)")
     ap.add_argument("--host", default="127.0.0.1",
                     help="interface to listen on (default 127.0.0.1, this machine only; another opens the demo "
                          "to whoever can reach that interface)")
@@ -67,8 +71,10 @@ def run(args) -> int:
     allow = [check_name(n) for n in args.allow_host]
     if args.record is not None:
         check_writable(args.record, "--record")
-    source = DemoSource.released(args.params, calibrate=not args.no_calibrate) if args.params is not None \
-        else DemoSource.run_folder(args.run)
+    if args.styles is not None and args.params is None:
+        raise InputError("--styles (a style pack) is for --params; a run folder keeps its styles itself")
+    source = DemoSource.released(args.params, calibrate=not args.no_calibrate, pack=args.styles) \
+        if args.params is not None else DemoSource.run_folder(args.run)
     settings = DemoSettings(style=args.style or source.default_style(), walk_speed=args.walk_speed,
                             run_speed=args.run_speed, turn_rate_deg=args.turn_rate, foot_lock=args.foot_lock,
                             fit=not args.no_fit)

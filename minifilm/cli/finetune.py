@@ -1,6 +1,12 @@
-"""Teach a trained run a new style from a short clip: fine-tune Ψ alone (Sec. 5.3.2, Figure 11).
+"""Teach a network a new style from a short clip: fine-tune Ψ alone (Sec. 5.3.2, Figure 11), or,
+for the authors' released network (which ships without Ψ), fit the style's FiLM vector itself.
 
     minifilm finetune --run runs/train_small --name Proud proud_walk.bvh [more.bvh ...]
+    minifilm finetune --params ../shared/data/released-lpn --name Strut --out my-styles strut.bvh
+
+With --params the network folder is only read: the new style goes into the style pack folder
+--out (made, or extended when it exists), which ``minifilm generate / demo --params NET --styles
+PACK`` read beside the network's own styles (docs/teaching-released.md).
 
 The clips (10-30 s of walking or running in the new style, on the run's skeleton or on any other
 humanoid rig, which is retargeted onto it and said so (docs/retargeting.md); another frame rate
@@ -14,8 +20,11 @@ from __future__ import annotations
 from pathlib import Path
 
 from minifilm.cli.args import in_range, input_path, positive
+from minifilm.errors import InputError
 from minifilm.pipeline.new_style import teach_style
 from minifilm.pipeline.self_fed import SelfFed
+from minifilm.pipeline.teach_released import RECOMMENDED_SECONDS, SIGMA, report_lines, teach_released
+from minifilm.train.film_fit import FitSettings
 
 HELP = "teach a trained run a new style from a short clip (Ψ only)"
 ROLLOUT_ROUNDS = 0     # teacher forcing alone (the paper); benchmarks/README.md has the comparison
@@ -23,7 +32,10 @@ ROLLOUT_ROUNDS = 0     # teacher forcing alone (the paper); benchmarks/README.md
 
 def add_arguments(ap) -> None:
     ap.add_argument("files", nargs="+", type=input_path, help="BVH file(s) of the new style")
-    ap.add_argument("--run", type=Path, required=True, help="a run folder written by minifilm train")
+    src = ap.add_mutually_exclusive_group(required=True)
+    src.add_argument("--run", type=Path, help="a run folder written by minifilm train")
+    src.add_argument("--params", type=input_path, help="the released network's parameter folder (only read)")
+    ap.add_argument("--out", type=Path, help="with --params: the style pack folder to write or extend")
     ap.add_argument("--name", required=True, help="the new style's name")
     ap.add_argument("--replace", action="store_true", help="replace a style of the same name")
     ap.add_argument("--steps", type=in_range(1, 100_000, int), default=400, help="fine-tuning steps (default 400)")
@@ -36,6 +48,10 @@ def add_arguments(ap) -> None:
 
 
 def run(args) -> int:
+    if args.params is not None:
+        return run_released(args)
+    if args.out is not None:
+        raise InputError("--out is for --params (a style pack); a run folder keeps its styles itself")
     r = teach_style(args.run, args.name, args.files, steps=args.steps, lr=args.lr, seed=args.seed,
                     replace=args.replace,
                     self_fed=SelfFed(rounds=args.rollout_rounds) if args.rollout_rounds else None)
@@ -47,6 +63,38 @@ def run(args) -> int:
               + " -> ".join(f"{e * 100:.1f} cm" for e in r.rollout_errors) + f" (kept {min(r.rollout_errors) * 100:.1f})")
     if r.nearest:
         print(f"    nearest trained style in FiLM space: {r.nearest}")
+    for line in run_warnings(r):
+        print(line)
     print(f"    added to {args.run / 'styles.npz'}; fine-tuned checkpoint {r.checkpoint}")
     print(f"    try: minifilm generate --run {args.run} --style {r.name!r} --out {r.name}.bvh")
+    return 0
+
+
+def run_warnings(r) -> list:
+    """The lines that say how far the clip lies from the run's data and whether the style walks."""
+    worst = ", ".join(f"{n} ({s:.0%} of frames)" for n, s in r.worst if s > 0) or "none"
+    lines = [f"    distance from the run's data: {r.share_beyond:.1%} of the clip's normalised input numbers beyond "
+             f"{SIGMA:g} σ (worst: {worst})"]
+    if r.clip_seconds < RECOMMENDED_SECONDS:
+        lines.append(f"    WARNING: the clip lasts {r.clip_seconds:.1f} s; {RECOMMENDED_SECONDS:g}-30 s of walking in the "
+                     "style is recommended (a short clip shows few steps)")
+    if r.share_beyond > 0.01:
+        lines.append("    WARNING: the clip lies far outside the motion the run was trained on; the new style may not walk")
+    if r.check is not None:
+        k = r.check
+        lines.append(f"    rolled out 6 s: {k.steps_per_s:.2f} steps/s (clip {k.clip_steps_per_s:.2f}), hips {k.hips:.2f} m "
+                     f"(clip {k.clip_hips:.2f}), lowest toe on the floor in {k.toe_on_floor:.0%} of frames: {k.words()}")
+    return lines
+
+
+def run_released(args) -> int:
+    if args.out is None:
+        raise InputError("--params needs --out PACK: the style pack folder the new style is written into "
+                         "(the network folder is never written)")
+    settings = FitSettings(steps=min(args.steps, 1000), seed=args.seed)
+    r = teach_released(args.params, args.name, args.files, args.out, replace=args.replace, settings=settings)
+    for line in report_lines(r):
+        print(line)
+    print(f"    written to the style pack {args.out}")
+    print(f"    try: minifilm generate --params {args.params} --styles {args.out} --style {r.name!r} --out {r.name}.bvh")
     return 0

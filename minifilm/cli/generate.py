@@ -7,6 +7,7 @@
     minifilm generate --params DIR --style Neutral --switch-to Zombie --switch-at 10 --out switch.bvh
     minifilm generate --params DIR --style Old --seconds 10 --gif old.gif --html old.html
     minifilm generate --params DIR --list-styles
+    minifilm generate --params DIR --styles PACK --style Strut --out strut.bvh    # a style taught with finetune --params
 
 Scripts: straight, figure8, walk_run_stop, strafe, stop_and_go (minifilm/runtime/control.py). Every frame is put
 on the source skeleton (rigid bones aimed at the predicted joints, the demo's arm IK for the whole
@@ -40,6 +41,8 @@ from minifilm.runtime.control import SCRIPTS, distance_to_path, make_script
 from minifilm.runtime.controller import Controller, root_joint_indices
 from minifilm.runtime.released import load_released
 from minifilm.runtime.style_library import StyleLibrary
+from minifilm.runtime.style_pack import load_pack, with_pack
+from minifilm.runtime.walk_checks import walk_report
 from minifilm.synthetic.generator import rest_motion
 from minifilm.viewer.builders import tracks_from_rollout
 from minifilm.viewer.deps import check_output_tools
@@ -54,6 +57,9 @@ def add_arguments(ap) -> None:
     src = ap.add_mutually_exclusive_group(required=True)
     src.add_argument("--params", type=input_path, help="the released network's parameter folder")
     src.add_argument("--run", type=input_path, help="a run folder written by minifilm train")
+    ap.add_argument("--styles", type=input_path,
+                    help="with --params: a style pack folder (minifilm finetune --params ... --out PACK) whose "
+                         "styles join the network's own")
     ap.add_argument("--style", type=style_name, help="style name (see --list-styles); default: the first style")
     ap.add_argument("--style2", type=style_name, help="second style, blended with --blend w: (1-w) style + w style2")
     ap.add_argument("--blend", type=in_range(0.0, 1.0), help="weight of --style2, in [0, 1] (default 0.5)")
@@ -110,14 +116,18 @@ class Source:
     """What drives the character: network, layout, styles, skeleton, settings and start frames."""
 
     def __init__(self, args):
-        self.starts = {}
+        self.starts, self.pack = {}, None
         if args.params is not None:
             rel = load_released(args.params)
-            self.network, self.library = rel.network, StyleLibrary(rel.styles)
+            if args.styles is not None:
+                self.pack = load_pack(args.styles, film_dim=4 * rel.model.config.hidden, reserved=rel.styles)
+            self.network, self.library = rel.network, with_pack(rel.styles, self.pack)
             self.layout, self.fps, self.bvh_scale = FeatureLayout.for_skeleton(STYLE100), 60.0, STYLE100.bvh_scale
             self.skeleton = rest_motion()
             self.fit, self.calibrate, self.options = args.fit or "feedback", not args.no_calibrate, {}
         else:
+            if args.styles is not None:
+                raise InputError("--styles (a style pack) is for --params; a run folder keeps its styles itself")
             run = RunFolder.load(args.run)
             self.network, self.library = run.network(), run.styles()
             self.layout, self.fps, self.bvh_scale = run.layout, run.fps, run.bvh_scale
@@ -173,6 +183,23 @@ def style_condition(args, lib: StyleLibrary, n: int, fps: float):
         films = lib.schedule([(0.0, {style: 1.0}), (switch_at, args.switch_to)], n, fps)
         label += f" -> {args.switch_to} at {switch_at:g} s"
     return films, film, label
+
+
+def walk_problems(args, src, r, script, names, parents, k0) -> list:
+    """The failures a user must be told about, in words: no stepping, feet off the floor, the path
+    lost, bones stretching; for a pack style also steps/s and hip height against its clip's."""
+    if not all(t in names for t in ("RightToe", "LeftToe")):
+        return []
+    clip = {}
+    if src.pack is not None and args.style in src.pack.info and not (args.style2 or args.switch_to):
+        clip = src.pack.info[args.style].get("clip", {})
+    rep = walk_report(r, 0, [names.index("RightToe"), names.index("LeftToe")], script.path,
+                      clip_steps_per_s=clip.get("steps_per_s"), clip_hips=clip.get("hips"))
+    problems = rep.problems() if args.speed > 0.2 else []
+    cv = bone_length_cv(r.network_positions[0, k0:], parents).max()
+    if cv > 0.1:
+        problems.append(f"the predicted bones stretch by {cv:.0%} (coefficient of variation of the worst bone)")
+    return problems
 
 
 def run(args) -> int:
@@ -237,6 +264,9 @@ def run(args) -> int:
           f"hips {hips.min():.2f}-{hips.max():.2f} m, bone CV max "
           f"{bone_length_cv(r.network_positions[0, k0:], parents).max():.1%} as predicted "
           f"({bone_length_cv(r.positions[0, k0:], parents).max():.1%} output){sliding}")
+    problems = walk_problems(args, src, r, script, names, parents, k0)
+    if problems:
+        print("  WARNING: " + "; ".join(problems))
     if args.gif or args.html:
         toes = toes if len(toes) == 2 else None
         track = tracks_from_rollout(r, parents, [label], names, toes)

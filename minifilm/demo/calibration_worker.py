@@ -14,7 +14,7 @@ import time
 _SOURCE = None
 
 
-def start(params: str) -> None:
+def start(params: str, pack: str = "") -> None:
     """Worker initialiser: one BLAS thread, nice 10 (the frame loop comes first), the released
     network, and a watch on the server: the worker ends when the server has gone, however it went
     (killed, it cannot shut its pool down)."""
@@ -34,7 +34,7 @@ def start(params: str) -> None:
         pass
     # after the thread count is set: this imports numpy
     from minifilm.demo.source import DemoSource
-    _SOURCE = DemoSource.released(params, calibrate=True)
+    _SOURCE = DemoSource.released(params, calibrate=True, pack=pack or None)
 
 
 def measure_style(name: str):

@@ -83,7 +83,8 @@ class Calibrations:
 
     def _load_cache(self, first) -> None:
         if self.cache is not None:
-            cached = self.cache.load()
+            # a pack's styles are measured anew each start: a style of that name may have been re-taught
+            cached = {n: c for n, c in self.cache.load().items() if n not in self.source.pack_names}
             with self._lock:
                 self._cal.update(cached)
                 self._memo.clear()
@@ -147,7 +148,8 @@ class Calibrations:
                 # spawn, not fork: the server has threads running, which a fork would copy mid-step
                 self._pool = concurrent.futures.ProcessPoolExecutor(
                     max_workers=1, mp_context=multiprocessing.get_context("spawn"),
-                    initializer=calibration_worker.start, initargs=(str(self.source.params),))
+                    initializer=calibration_worker.start, initargs=(str(self.source.params),
+                                                                         str(self.source.pack or "")))
             for name in todo:
                 future = self._pool.submit(calibration_worker.measure_style, name)
                 future.add_done_callback(lambda f, n=name: self._done(n, f))
@@ -185,7 +187,7 @@ class Calibrations:
                   f"{f', {waited:.0f} s' if waited >= 1 else ''})")
 
     def _store(self, name: str, cal: SpeedCalibration) -> None:
-        if self.cache is not None and not self._closed:
+        if self.cache is not None and not self._closed and name not in self.source.pack_names:
             self.cache.put(name, cal)
 
     def command(self, velocity: np.ndarray, facing: np.ndarray, weights: Mapping[str, float]) -> np.ndarray:

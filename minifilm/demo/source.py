@@ -24,6 +24,7 @@ from minifilm.motion.skeletons import STYLE100
 from minifilm.pipeline.run_folder import RunFolder
 from minifilm.runtime.network import RuntimeNetwork
 from minifilm.runtime.released import load_released
+from minifilm.runtime.style_pack import load_pack, with_pack
 from minifilm.runtime.style_library import StyleLibrary
 from minifilm.synthetic.generator import rest_motion
 
@@ -36,6 +37,7 @@ class DemoSource:
     calibrate: map the user's m/s through a per-style speed calibration.
     starts: style -> (x (x_dim,), p (8,)) raw start frame; styles without one start from the mean pose.
     params: the released folder (for a calibration worker that loads the network itself).
+    pack: a style pack folder whose styles join the released network's (its worker loads it too).
     """
 
     name: str
@@ -49,13 +51,17 @@ class DemoSource:
     options: dict = field(default_factory=dict)
     starts: Dict[str, Tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
     params: Optional[Path] = None
+    pack: Optional[Path] = None
+    pack_names: Tuple[str, ...] = ()
 
     @classmethod
-    def released(cls, params, calibrate: bool = True) -> "DemoSource":
+    def released(cls, params, calibrate: bool = True, pack=None) -> "DemoSource":
         rel = load_released(params)
-        return cls(f"released network ({Path(params).name})", rel.network, FeatureLayout.for_skeleton(STYLE100),
-                   60.0, StyleLibrary(rel.styles), rest_motion(), feed_back_fit=True, calibrate=calibrate,
-                   params=Path(params))
+        styles = load_pack(pack, film_dim=4 * rel.model.config.hidden, reserved=rel.styles) if pack else None
+        name = f"released network ({Path(params).name})" + (f" with the style pack {Path(pack).name}" if pack else "")
+        return cls(name, rel.network, FeatureLayout.for_skeleton(STYLE100), 60.0, with_pack(rel.styles, styles),
+                   rest_motion(), feed_back_fit=True, calibrate=calibrate, params=Path(params),
+                   pack=Path(pack) if pack else None, pack_names=tuple(styles.names) if styles else ())
 
     @classmethod
     def run_folder(cls, path) -> "DemoSource":

@@ -30,6 +30,10 @@ from minifilm.files import check_name, check_writable, child_path, folder_lock, 
 from minifilm.pipeline.run_folder import RunFolder
 from minifilm.pipeline.run_rig import retarget_onto_run
 from minifilm.pipeline.self_fed import SelfFed, self_fed_rounds
+from minifilm.runtime.control import CommandScript
+from minifilm.runtime.network import RuntimeNetwork
+from minifilm.runtime.walk_checks import walk_report
+from minifilm.pipeline.teach_released import input_distance
 from minifilm.train.finetune import finetune
 from minifilm.train.trainer import TrainConfig, Trainer
 
@@ -45,6 +49,10 @@ class NewStyleResult:
     nearest: str              # the trained style whose FiLM vector is closest to the new one
     checkpoint: Path
     rollout_errors: list = field(default_factory=list)   # m, before each self-fed round and after the last
+    clip_seconds: float = 0.0
+    share_beyond: float = 0.0     # share of the clip's normalised input numbers beyond 5 σ of the run's data
+    worst: list = field(default_factory=list)              # [(feature, share of rows)] worst first
+    check: object = None          # WalkReport of the new style rolled out (runtime/walk_checks.py)
 
 
 def check_new_name(name: str, run: RunFolder, replace: bool) -> None:
@@ -56,6 +64,9 @@ def check_new_name(name: str, run: RunFolder, replace: bool) -> None:
     library = run.styles()
     if name in library and not replace:
         raise ValueError(f"--name {name!r}: the run already has a style of that name (--replace to overwrite it)")
+    if replace and name not in library:
+        raise ValueError(f"--replace: the run has no style {name!r} to replace (its styles: "
+                         f"{', '.join(library.names)}); leave out --replace to add a new style")
     mine = same_file_key(checkpoint_path(run, name).name)
     for other in library.names:
         if other != name and same_file_key(checkpoint_path(run, other).name) == mine:
@@ -182,6 +193,8 @@ def _teach(run: RunFolder, name: str, files: Sequence, steps: int, lr: float, se
     after = tuned.evaluate(data)["loss"]
 
     library.add_from_clips(name, tuned.model, data.clips)   # existing styles: stored vectors untouched
+    share, worst = input_distance(data.x, run.layout)
+    check = rollout_check(run, tuned.model, stats, library[name], start, segments)
     others = [n for n in library.names if n != name]
     nearest = min(others, key=lambda n: float(np.linalg.norm(library[n] - library[name]))) if others else ""
     # styles.npz last: the new style exists for a reader only once its checkpoint and start are there
@@ -191,7 +204,7 @@ def _teach(run: RunFolder, name: str, files: Sequence, steps: int, lr: float, se
     run.save_starts(starts)
     run.save_styles(library)
     return NewStyleResult(name, seconds, tuned.step, len(data), len(data.clips), before, after, nearest, checkpoint,
-                          rollout_errors)
+                          rollout_errors, sum(m.n_frames for m in motions) / run.fps, share, worst, check)
 
 
 def shortest_clip_frames(clip_seconds: float, fps: float) -> int:
@@ -207,3 +220,25 @@ def too_short(longest_frames: int, clip_seconds: float, fps: float, n_files: int
     return (f"too short for one style clip: the model reads {clip_seconds:g} s windows, which need at least "
             f"{need} frames ({need / fps:.3f} s at {fps:g} fps, the window and one frame before it); "
             f"{which} {longest_frames} ({longest_frames / fps:.3f} s)")
+
+
+def rollout_check(run: RunFolder, model, stats, film, start, segments, seconds: float = 6.0):
+    """The new style walked straight ahead at the clip's speed from its start frame: a WalkReport
+    against the clip's steps per second and hip height."""
+    names = list(run.layout.joint_names)
+    if not all(t in names for t in ("RightToe", "LeftToe")):
+        return None
+    x, _, z = segments[0]
+    cols = run.layout.joint_columns("x", "position")
+    clip_hips = float(np.median(x[:, cols[0, 1]]))
+    traj = run.layout.trajectory_columns("x", len(run.layout.trajectory_seconds) - 1)
+    speed = float(np.clip(np.median(np.hypot(x[:, traj[0]], x[:, traj[1]])) / run.layout.trajectory_seconds[-1], 0.3, 4))
+    contacts = np.concatenate([seg[2][:, run.layout.z_contacts] for seg in segments])
+    clip_steps = count_steps(contacts) / (len(contacts) / run.fps)
+    ctrl = run.controller(RuntimeNetwork.from_model(model, stats))
+    n = int(round(seconds * run.fps))
+    r = ctrl.run(CommandScript([(0.0, speed, 0.0, 0.0), (seconds, speed, 0.0, 0.0)]), n, film,
+                 phases=start[1][None], start_x=start[0])
+    path = np.array([[0.0, 0.0], [0.0, 2 * speed * seconds]])
+    return walk_report(r, 0, [names.index("RightToe"), names.index("LeftToe")], path,
+                       clip_steps_per_s=clip_steps, clip_hips=clip_hips)

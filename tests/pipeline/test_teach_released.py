@@ -1,0 +1,90 @@
+"""Teaching the released network (minifilm/pipeline/teach_released.py): the joint-axis alignment
+undoes a known per-joint rotation, the printed report warns in words on a short clip, a clip far
+from the data and a style that does not walk, and a small known-answer re-fit on the real network."""
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from minifilm.features.layout import FeatureLayout
+from minifilm.motion.skeletons import STYLE100
+from minifilm.pipeline.joint_axes import align_axes
+from minifilm.pipeline.teach_released import (ClipRows, Distance, TaughtStyle, input_distance,
+                                              report_lines)
+from minifilm.runtime.walk_checks import WalkReport
+
+LAYOUT = FeatureLayout.for_skeleton(STYLE100)
+
+
+def rotation(axis, degrees):
+    a = np.asarray(axis, float) / np.linalg.norm(axis)
+    t = np.radians(degrees)
+    K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    return np.eye(3) + np.sin(t) * K + (1 - np.cos(t)) * K @ K
+
+
+def test_align_axes_undoes_a_constant_rotation_per_joint():
+    rng = np.random.default_rng(0)
+    J = LAYOUT.n_joints
+    fx, ux = LAYOUT.joint_columns("x", "forward"), LAYOUT.joint_columns("x", "up")
+    fz, uz = LAYOUT.joint_columns("z", "forward"), LAYOUT.joint_columns("z", "up")
+    x_mean = np.zeros(LAYOUT.x_dim)
+    truth = [rotation(rng.normal(size=3), rng.uniform(0, 40)) for _ in range(J)]
+    for j in range(J):
+        x_mean[ux[j]], x_mean[fx[j]] = truth[j][:, 1], truth[j][:, 2]
+    N = 50
+    x, z = rng.normal(size=(N, LAYOUT.x_dim)), rng.normal(size=(N, LAYOUT.z_dim))
+    offsets = [rotation(rng.normal(size=3), 150) for _ in range(J)]      # the retargeted rig's convention
+    for j in range(J):
+        wobble = [rotation(rng.normal(size=3), 3) for _ in range(N)]
+        for rows, f, u in ((x, fx[j], ux[j]), (z, fz[j], uz[j])):
+            frames = np.stack([truth[j] @ w @ offsets[j].T for w in wobble])   # network frame · offset⁻¹
+            rows[:, u], rows[:, f] = frames[:, :, 1], frames[:, :, 2]
+    before_pos = x[:, LAYOUT.joint_columns("x", "position")].copy()
+    x2, z2, angles = align_axes(x, z, LAYOUT, SimpleNamespace(x_mean=x_mean))
+    for j in range(J):
+        assert np.allclose(x2[:, fx[j]].mean(0), x_mean[fx[j]], atol=0.02)
+        assert np.allclose(z2[:, uz[j]].mean(0), x_mean[ux[j]], atol=0.02)
+    assert np.all(np.abs(angles - 150) < 3)
+    np.testing.assert_array_equal(x2[:, LAYOUT.joint_columns("x", "position")], before_pos)
+
+
+def test_input_distance_names_the_joint_and_feature():
+    x = np.zeros((10, LAYOUT.x_dim))
+    col = LAYOUT.joint_columns("x", "forward")[3, 0]
+    x[:, col] = 9.0
+    share, worst = input_distance(x, LAYOUT)
+    assert share == pytest.approx(1 / LAYOUT.x_dim)
+    assert worst[0][0].startswith(LAYOUT.joint_names[3]) and "forward axis" in worst[0][0] and worst[0][1] == 1.0
+
+
+def taught(seconds, share, start_loss, own, check):
+    clip = ClipRows(np.zeros((int(seconds * 60), 3)), None, None, seconds, 1.7, 0.92, 1.2, [])
+    return TaughtStyle("Mine", np.zeros(4), 3.0, clip, Distance(share, [("Hips up axis x", 0.4)], start_loss, [own]),
+                       0.05, "Old", "Old", check, [])
+
+
+def test_the_report_warns_in_words():
+    walks = WalkReport(1.6, 0.97, 0.92, 0.2, 1.7, 0.92)
+    fine = "\n".join(report_lines(taught(30.0, 0.0, 0.05, 0.04, walks)))
+    assert "WARNING" not in fine and "it walks" in fine
+    short = "\n".join(report_lines(taught(2.5, 0.0, 0.05, 0.04, walks)))
+    assert "WARNING: the clip lasts 2.5 s" in short
+    far = "\n".join(report_lines(taught(30.0, 0.05, 2.0, 0.04, walks)))
+    assert "far outside" in far and "5.0% of the clip's normalised input numbers" in far
+    stands = WalkReport(0.1, 0.5, 0.92, 3.0, 1.7, 0.92)
+    bad = "\n".join(report_lines(taught(30.0, 0.0, 0.05, 0.04, stands)))
+    assert "hardly steps" in bad and "leave the floor" in bad and "leaves the path" in bad
+
+
+def test_a_released_style_is_found_again_from_its_own_motion(shared_data):
+    """The small version of benchmarks/teach_released.py: one style, 10 s, one prior weight; the
+    hidden vector's predictions must be the closest to the fitted one's among the 100."""
+    from minifilm.pipeline.refit_released import generated_motions, refit
+    from minifilm.runtime.released import load_released
+    from minifilm.train.film_fit import FitSettings
+    rel = load_released(shared_data / "released-lpn")
+    motion, = generated_motions(rel, ["Zombie"], 10.0)
+    r = refit(rel, "Zombie", motion, FitSettings(steps=80), prior_weights=(1.0,))
+    assert r["loss_rank"] == 1
+    assert r["output_rank"] == 1, r
