@@ -329,6 +329,7 @@ class Controller:
         st.phases = 0.5 * z[:, L.z_phases] + 0.5 * (st.phases + z[:, L.z_phase_updates])
         if idle is not None:            # standing: the amplitudes decay towards a still body's
             st.phases = st.phases * self.stand.phase_factor(idle, 1.0 / self.fps)[:, None]
+            st.phases = self.stand.idle_phases(st.phases, st.rest_seconds)   # held: a slow sway, not a statue
         st.contacts = z[:, L.z_contacts]
         # root history, then move the root by the predicted delta (future sample 0 of the next frame)
         st.history_pos = np.concatenate([st.history_pos[:, 1:], root[:, None]], axis=1)
