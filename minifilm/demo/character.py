@@ -70,6 +70,11 @@ class DemoSettings:
     foot_lock: bool = False
     fit: bool = True
 
+    def __post_init__(self):
+        if not self.run_speed >= self.walk_speed:
+            raise ValueError(f"the running speed (--run-speed {self.run_speed:g} m/s) must be at least the "
+                             f"walking speed (--walk-speed {self.walk_speed:g} m/s): Shift runs faster, not slower")
+
 
 class Character:
     """A character of the stage, identified by ``ident``; see the module docstring."""
