@@ -100,6 +100,7 @@ class Character:
         self.input_ms: Optional[float] = None     # input -> frame latency of the last held-input change
         self._input_at: Optional[Tuple[int, float]] = None
         self._roots = collections.deque(maxlen=max(2, int(round(SPEED_WINDOW * source.fps)) + 1))
+        self._timed_roots = collections.deque(maxlen=4 * int(round(SPEED_WINDOW * source.fps)) + 2)  # (time, root) per batch
         self.set_fit(settings.fit)
         self.set_foot_lock(settings.foot_lock)
         self.reset()
@@ -123,6 +124,7 @@ class Character:
         self.ctrl.reset(where[None], heading_vector(theta)[None], phases=None if p is None else p[None], start_x=x)
         self.steering.reset(theta)
         self._roots.clear()
+        self._timed_roots.clear()
 
     # ---- input ------------------------------------------------------------------------------
     def submit(self, message) -> None:
@@ -149,9 +151,22 @@ class Character:
             self.ack = message.seq
 
     # ---- one frame --------------------------------------------------------------------------
-    def step(self) -> Tuple[dict, List[str]]:
-        """Advance one frame; returns the frame message (a dict, see :meth:`frame_message`) and
-        notices for the page (empty unless the guard reset the character)."""
+    def step(self, steps: int = 1, now: Optional[float] = None) -> Tuple[dict, List[str]]:
+        """Advance ``steps`` frames (a batch when the frame loop is behind the clock); returns the
+        last one's frame message (a dict, see :meth:`frame_message`) and the notices for the page
+        (empty unless the guard reset the character). ``now``: the wall time (seconds, monotonic)
+        the stage ran the batch at, so the speed read-out is in metres per real second (None:
+        per simulated second, e.g. a recording made faster than real time)."""
+        notices: List[str] = []
+        for _ in range(max(1, int(steps))):
+            notices += self._advance()
+        when = self.frame_no * self.dt if now is None else float(now)
+        self._timed_roots.append((when, self.ctrl.state.root[0].copy()))
+        return self.frame_message(self.mix.weights), notices
+
+    def _advance(self) -> List[str]:
+        """One network step: the page's messages applied, the steering and the style mix advanced,
+        the Controller's frame made and checked. Returns the notices."""
         while self.pending:
             self._apply(self.pending.popleft())
         notices = []
@@ -180,7 +195,7 @@ class Character:
             notices.append(f"{problem}: the character was reset where it stood")
         self.frame_no += 1
         self._roots.append(self.ctrl.state.root[0].copy())
-        return self.frame_message(weights), notices
+        return notices
 
     def _reachable(self, velocity: np.ndarray, facing: np.ndarray, weights) -> np.ndarray:
         """The held velocity, scaled down to ``REACHABLE`` of the fastest the mix was measured to go
@@ -222,7 +237,16 @@ class Character:
         self.steering.hold(*held)
 
     def actual_speed(self) -> float:
-        """Mean root speed (m/s) over the last ``SPEED_WINDOW`` seconds."""
+        """Mean root speed (m/s) over the last ``SPEED_WINDOW`` seconds or more of the times
+        :meth:`step` was given (wall time in the demo: metres per real second, however many steps
+        the loop managed); before that much has passed, over the frames' own time."""
+        timed = list(self._timed_roots)
+        if len(timed) >= 2:
+            t_end, end = timed[-1]
+            start = next(((t, r) for t, r in reversed(timed[:-1]) if t_end - t >= SPEED_WINDOW), None)
+            if start is not None:
+                d = end - start[1]
+                return math.hypot(d[0], d[1]) / (t_end - start[0])
         if len(self._roots) < 2:
             return 0.0
         d = self._roots[-1] - self._roots[0]
@@ -235,13 +259,14 @@ class Character:
         calibration: what the keys ask), ``reachable`` (that speed scaled to what the mix can do,
         the speed the character is steered at), ``maxSpeed`` (the fastest the mix was measured to
         go that way) and ``speedNote`` (says so when the command was scaled), the measured speed (``speed``: the character's own root
-        over the last quarter second), ``sentFps`` (frames the server actually sent this page in
+        over the last quarter second of wall time, metres per real second), ``sentFps`` (frames the server actually sent this page in
         the last second; None during the first), ``inputMs`` (from the server receiving the last
         input message to the frame that applied it; None before any), ``calibration`` (the speed
         calibration's progress, :meth:`Calibrations.progress`), the style mix now (``weights``, default the mix's) and
         its target and the fingerprint of its FiLM vector
         (:func:`~minifilm.demo.style_mix.film_digest`), the toggles, and the Controller's step
-        time (ms; the stage adds ``frameMs``, the whole frame's, and ``t``)."""
+        time (ms; the stage adds ``frameMs``, the whole batch's, ``t``, and how the loop keeps up with the
+        clock: ``steps`` in this batch, ``behind``, ``dropped`` and ``stepsPerSecond``, see ``stage.py``)."""
         st = self.ctrl.state
         mix = self.mix.weights if weights is None else weights
         # every number of the frame rounded in one pass (0.1 mm, 1e-4 of a phase), then cut up
