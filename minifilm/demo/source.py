@@ -9,6 +9,8 @@ The two differ in the settings ``minifilm generate`` measured for them (its ``So
 * a run folder written by ``minifilm train`` (``--run``): its own skeleton, fit as an output
   post-process only, its position bias, start frames per style, no calibration (a small model
   does not survive the commands far outside its data that calibration asks for).
+
+Both turn the body towards the steered heading while walking (``runtime/heading.py``).
 """
 from __future__ import annotations
 
@@ -22,6 +24,7 @@ from minifilm.features.layout import FeatureLayout
 from minifilm.motion.motion import Motion
 from minifilm.motion.skeletons import STYLE100
 from minifilm.pipeline.run_folder import RunFolder
+from minifilm.runtime.heading import HeadingFollow
 from minifilm.runtime.network import RuntimeNetwork
 from minifilm.runtime.released import load_released
 from minifilm.runtime.style_library import StyleLibrary
@@ -55,14 +58,15 @@ class DemoSource:
         rel = load_released(params)
         return cls(f"released network ({Path(params).name})", rel.network, FeatureLayout.for_skeleton(STYLE100),
                    60.0, StyleLibrary(rel.styles), rest_motion(), feed_back_fit=True, calibrate=calibrate,
-                   params=Path(params))
+                   options={"heading_follow": HeadingFollow()}, params=Path(params))
 
     @classmethod
     def run_folder(cls, path) -> "DemoSource":
         run = RunFolder.load(path)
         return cls(f"trained run ({Path(path).name})", run.network(), run.layout, run.fps, run.styles(),
                    run.template(), feed_back_fit=False, calibrate=False,
-                   options={"position_bias": run.position_bias}, starts=run.starts())
+                   options={"position_bias": run.position_bias, "heading_follow": HeadingFollow()},
+                   starts=run.starts())
 
     def default_style(self) -> str:
         return "Neutral" if "Neutral" in self.library else self.library.names[0]

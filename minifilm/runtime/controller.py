@@ -46,6 +46,7 @@ from minifilm.motion.skeleton_fit import SkeletonFit
 from minifilm.runtime.calibration import SpeedCalibration
 from minifilm.runtime.control import Script, blend_future_trajectory
 from minifilm.runtime.frames import to_local2, to_local3, to_world2, to_world3, unit2
+from minifilm.runtime.heading import HeadingFollow
 from minifilm.runtime.held_body import leg_chains
 from minifilm.runtime.network import RuntimeNetwork
 from minifilm.runtime.rollout import Rollout
@@ -122,13 +123,17 @@ class Controller:
             facing kept, feet planted by leg IK, its own velocities fed back); None: the paper's
             loop unchanged at every command (the released network then keeps walking at about
             0.4 m/s when asked to stop). While anything is asked the two are the same, bit for bit.
+        heading_follow: while a movement is asked, turn each predicted frame towards the target
+            facing by what the network's own turn leaves (:class:`~minifilm.runtime.heading.HeadingFollow`,
+            the demo's setting: a slowly turning network otherwise never follows a heading that
+            keeps turning); None: the paper's loop.
     """
 
     def __init__(self, network: RuntimeNetwork, layout: FeatureLayout, fps: float = 60.0,
                  velocity_blend: float = 0.5, future_smoothing: float = 0.15,
                  position_bias: float = 0.75, direction_bias: float = 1.25, foot_locker=None,
                  skeleton: Optional[SkeletonFit] = None, feed_back_fit: bool = False,
-                 stand: Optional[StandStill] = StandStill()):
+                 stand: Optional[StandStill] = StandStill(), heading_follow: Optional[HeadingFollow] = None):
         if network.x_dim != layout.x_dim or network.z_dim != layout.z_dim:
             raise ValueError(f"Controller: network sizes (x {network.x_dim}, z {network.z_dim}) do not match "
                              f"the layout (x {layout.x_dim}, z {layout.z_dim})")
@@ -141,6 +146,8 @@ class Controller:
                              f"the layout has {layout.n_joints}")
         self.skeleton, self.feed_back_fit = skeleton, bool(feed_back_fit)
         self.stand = stand
+        self.heading_follow = heading_follow
+        self._target = None
         self.legs = leg_chains(layout.joint_names, layout.parents)     # (2, 4) or None: no legs to hold
         L = layout
         ts = np.asarray(L.trajectory_seconds)
@@ -276,6 +283,7 @@ class Controller:
             raise NonFiniteOutputError(f"the network's output for character {b} is not finite (the motion "
                                        "diverged: its style vector or speed is far outside the training data, "
                                        "or the network's weights are corrupt)")
+        self._target = (np.asarray(target_facing, dtype=np.float64), np.asarray(target_velocity, dtype=np.float64))
         self._apply_output(z, idle)
         return self.frame()
 
@@ -316,6 +324,11 @@ class Controller:
             # turning too; the predicted body and trajectory are moved back with the root
             new_pos, new_dir, jpos, (jfwd, jup, jvel) = self.stand.hold_prediction(
                 st, new_pos, new_dir, jpos, (jfwd, jup, jvel))
+        if self.heading_follow is not None and self._target is not None:     # heading.py: the body follows the heading
+            facing_target, velocity_target = self._target
+            moving = np.linalg.norm(velocity_target, axis=-1) > 1e-6
+            new_pos, new_dir, jpos, (jfwd, jup, jvel) = self.heading_follow.apply(
+                facing_target, moving, new_pos, new_dir, jpos, (jfwd, jup, jvel), 1.0 / self.fps)
         if self.velocity_blend < 1.0:
             integrated = st.joint_pos + jvel / self.fps
             jpos = self.velocity_blend * jpos + (1 - self.velocity_blend) * integrated
