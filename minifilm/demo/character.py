@@ -40,6 +40,8 @@ SPEED_WINDOW = 0.25       # seconds over which the shown actual speed is measure
 #: shown a perfect run trajectory, and 2.5 m/s is 3.4 standard deviations out in its training
 #: rows: benchmarks/run_speed.py, reports/released_run_speed.md.)
 REACHABLE = 1.0
+#: seconds over which Shift's run feed (``Controller.run_feed``) is blended in and out
+RUN_BLEND = 0.3
 
 
 class RateCounter:
@@ -104,6 +106,7 @@ class Character:
         self._input_at: Optional[Tuple[int, float]] = None
         self._roots = collections.deque(maxlen=max(2, int(round(SPEED_WINDOW * source.fps)) + 1))
         self._timed_roots = collections.deque(maxlen=4 * int(round(SPEED_WINDOW * source.fps)) + 2)  # (time, root) per batch
+        self.run_feed = 0.0              # weight of Shift's perfect run in the trajectory input
         self.set_fit(settings.fit)
         self.set_foot_lock(settings.foot_lock)
         self.reset()
@@ -126,6 +129,8 @@ class Character:
         x, p = self.source.starts.get(self.mix.dominant()[0], (None, None))
         self.ctrl.reset(where[None], heading_vector(theta)[None], phases=None if p is None else p[None], start_x=x)
         self.steering.reset(theta)
+        self.run_feed = 0.0
+        self.ctrl.run_feed = None
         self._roots.clear()
         self._timed_roots.clear()
 
@@ -178,6 +183,7 @@ class Character:
         film = self.mix.advance(self.dt)
         weights = self.mix.weights
         velocity = self.steered = self._reachable(velocity, facing, weights)
+        self._feed_run(weights)
         pressed = self._input_at
         if pressed is not None and self.ack is not None and self.ack >= pressed[0]:
             self.input_ms, self._input_at = 1e3 * (time.monotonic() - pressed[1]), None
@@ -199,6 +205,24 @@ class Character:
         self.frame_no += 1
         self._roots.append(self.ctrl.state.root[0].copy())
         return notices
+
+    def _feed_run(self, weights) -> None:
+        """Shift held while moving: blend in a perfect run as the network's trajectory input (the
+        released network runs only when shown one: its own past says "walking", and it walks at
+        1.8 m/s at most; shown a run, Neutral runs at 2.07 m/s with flight phases,
+        benchmarks/run_speed.py). The speed is the network's own for the style, the note says so."""
+        speed = self.source.run_feed_speed
+        if not speed:
+            return
+        running = self.steering.speed >= 0.5 and self.commanded > 1e-6
+        self.run_feed = min(1.0, max(0.0, self.run_feed + (1 if running else -1) * self.dt / RUN_BLEND))
+        self.ctrl.run_feed = np.array([self.run_feed]) if self.run_feed > 0 else None
+        self.ctrl.run_feed_speed = speed
+        if running:
+            name = " + ".join(n for n, w in sorted(weights.items(), key=lambda nw: -nw[1]) if w > 0.01)
+            top = "" if self.max_speed is None else f"; walking it goes at most {self.max_speed:.2f} m/s"
+            self.speed_note = (f"Shift: {name} runs at this network's own running pace for it (the actual "
+                               f"speed; reports/released_run_speed.md){top}")
 
     def _reachable(self, velocity: np.ndarray, facing: np.ndarray, weights) -> np.ndarray:
         """The held velocity, scaled down to ``REACHABLE`` of the fastest the mix was measured to go

@@ -39,6 +39,9 @@ class DemoSource:
     calibrate: map the user's m/s through a per-style speed calibration.
     starts: style -> (x (x_dim,), p (8,)) raw start frame; styles without one start from the mean pose.
     params: the released folder (for a calibration worker that loads the network itself).
+    run_feed_speed: m/s of the perfect run fed as the trajectory input while Shift is held
+        (``Controller.run_feed``): the released network runs only when shown a run; None: Shift
+        is only a faster command.
     """
 
     name: str
@@ -52,13 +55,14 @@ class DemoSource:
     options: dict = field(default_factory=dict)
     starts: Dict[str, Tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
     params: Optional[Path] = None
+    run_feed_speed: Optional[float] = None
 
     @classmethod
     def released(cls, params, calibrate: bool = True) -> "DemoSource":
         rel = load_released(params)
         return cls(f"released network ({Path(params).name})", rel.network, FeatureLayout.for_skeleton(STYLE100),
                    60.0, StyleLibrary(rel.styles), rest_motion(), feed_back_fit=True, calibrate=calibrate,
-                   options={"heading_follow": HeadingFollow()}, params=Path(params))
+                   options={"heading_follow": HeadingFollow()}, params=Path(params), run_feed_speed=8.0)
 
     @classmethod
     def run_folder(cls, path) -> "DemoSource":

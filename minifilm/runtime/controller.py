@@ -148,6 +148,10 @@ class Controller:
         self.stand = stand
         self.heading_follow = heading_follow
         self._target = None
+        #: (B,) weights in [0, 1] of a perfect run fed as the trajectory input (:meth:`_run_trajectory`;
+        #: the demo's Shift); None: the paper's input
+        self.run_feed: Optional[np.ndarray] = None
+        self.run_feed_speed = 8.0
         self.legs = leg_chains(layout.joint_names, layout.parents)     # (2, 4) or None: no legs to hold
         L = layout
         ts = np.asarray(L.trajectory_seconds)
@@ -246,6 +250,8 @@ class Controller:
         tp = np.concatenate([past_p, st.future_pos], axis=1) - root[:, None]   # (B, 12, 2)
         td = np.concatenate([past_d, st.future_dir], axis=1)
         f = face[:, None]
+        if self.run_feed is not None and self._target is not None and np.any(self.run_feed > 0):
+            tp, td = self._run_trajectory(tp, td)
         traj = np.concatenate([to_local2(tp, f), to_local2(td, f)], axis=-1)  # (B, 12, 4)
         x = np.empty((B, L.x_dim))
         x[:, self.x_traj_cols] = traj
@@ -257,6 +263,24 @@ class Controller:
         x[:, self.x_cols["up"]] = to_local3(st.joint_up, face)
         x[:, self.x_cols["velocity"]] = to_local3(st.joint_vel, face)
         return x
+
+    def _run_trajectory(self, tp: np.ndarray, td: np.ndarray):
+        """The trajectory input (B, 12, 2) positions relative to the root and directions, blended
+        by ``run_feed`` (B,) into a perfect straight run at ``run_feed_speed`` m/s along the target
+        velocity: the past samples behind the root, the future ahead, all facing the target.
+
+        Told only its own past, the released network never runs: its past says it is walking, and
+        it goes on walking (Neutral tops out at 1.8 m/s however far ahead the future is put).
+        Shown a run, its own root step runs at the speed it learnt for the style (2.06 m/s for
+        Neutral; benchmarks/run_speed.py). The state's history and future are not changed."""
+        facing, velocity = self._target
+        w = self.run_feed[:, None, None]
+        speed = np.linalg.norm(velocity, axis=-1, keepdims=True)
+        way = np.where(speed > 1e-9, velocity / np.maximum(speed, 1e-9), facing)          # (B, 2)
+        times = np.r_[-self.past_frames / self.fps, np.asarray(self.layout.trajectory_seconds)[CURRENT_SAMPLE:]]
+        ideal_p = way[:, None] * (self.run_feed_speed * times)[None, :, None]
+        ideal_d = np.broadcast_to(facing[:, None], td.shape)
+        return (1 - w) * tp + w * ideal_p, unit2((1 - w) * td + w * ideal_d, td)
 
     def step(self, target_facing: np.ndarray, target_velocity: np.ndarray, film: np.ndarray) -> dict:
         """Advance every character by one frame.
@@ -274,6 +298,7 @@ class Controller:
         idle = None
         if self.stand is not None:      # standing.py: a zero command stops and stands
             idle = self.stand.begin_frame(st, target_velocity, target_facing, 1.0 / self.fps)
+        self._target = (np.asarray(target_facing, dtype=np.float64), np.asarray(target_velocity, dtype=np.float64))
         x = self.build_input()
         # overflow is caught just below as one clear error, not as a screen of RuntimeWarnings
         with np.errstate(over="ignore", invalid="ignore"):
@@ -283,7 +308,6 @@ class Controller:
             raise NonFiniteOutputError(f"the network's output for character {b} is not finite (the motion "
                                        "diverged: its style vector or speed is far outside the training data, "
                                        "or the network's weights are corrupt)")
-        self._target = (np.asarray(target_facing, dtype=np.float64), np.asarray(target_velocity, dtype=np.float64))
         self._apply_output(z, idle)
         return self.frame()
 
