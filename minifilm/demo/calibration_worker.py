@@ -15,8 +15,8 @@ _SOURCE = None
 
 
 def start(params: str) -> None:
-    """Worker initialiser: one BLAS thread, nice 10 and SCHED_IDLE where there is one (the frame
-    loop comes first: a measurement never slows the first minute of a page), the released
+    """Worker initialiser: one BLAS thread, nice 10 (the frame loop comes first; not SCHED_IDLE,
+    which on a busy shared machine starved the measurement for minutes), the released
     network, and a watch on the server: the worker ends when the server has gone, however it went
     (killed, it cannot shut its pool down)."""
     global _SOURCE
@@ -32,10 +32,6 @@ def start(params: str) -> None:
     try:
         os.nice(10)
     except OSError:
-        pass
-    try:            # Linux: run only on what the frame loop leaves of the cores
-        os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
-    except (AttributeError, OSError):
         pass
     # after the thread count is set: these import numpy
     from minifilm.demo.calibrations import measure

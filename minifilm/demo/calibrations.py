@@ -17,9 +17,8 @@ A mix of styles is commanded with the mix of their commands, ``sum_s w_s command
 same linear mixing the FiLM vectors get. Only the styles of a mix with at least
 ``MEASURED_WEIGHT`` of it are measured for it (heaviest first): a style with a few per cent of a
 blend moves its command by a few per cent, and a blend of all 100 styles would otherwise queue
-100 measurements (about ten minutes here). The worker runs at the lowest priority the system has
-(SCHED_IDLE where there is one), so it only gets the cores the frame loop leaves; the terminal is
-told how many styles are queued and about how long they take at the pace measured so far.
+100 measurements (about ten minutes here). The terminal is told how many styles are queued and
+about how long they take at the pace measured so far.
 """
 from __future__ import annotations
 
