@@ -76,16 +76,17 @@ def closed_loop(ctrl, film, fps):
     return float(s[i]), COMMANDS[i], float(flight[i])
 
 
-def shift_run(ctrl, film, fps, feed_speed):
-    """(m/s, flight share) of the demo's Shift: the run feed at ``feed_speed`` m/s, straight ahead."""
-    n = int(round(SECONDS * fps))
-    ctrl.run_feed, ctrl.run_feed_speed = np.ones(1), feed_speed
-    try:
-        r = ctrl.run([CommandScript([(0, feed_speed, 0, 0), (SECONDS, feed_speed, 0, 0)])], n, film)
-    finally:
-        ctrl.run_feed = None
+def shift_run(source, films, feed_speed):
+    """(m/s, flight share) per style of the demo's Shift, all styles in one batch with the demo's
+    settings (its sources' options: the heading follow): the run feed at ``feed_speed`` m/s."""
+    ctrl = Controller(source.network, source.layout, fps=source.fps,
+                      skeleton=Controller.skeleton_for(source.layout, source.skeleton), feed_back_fit=True,
+                      **source.options)
+    fps, n = source.fps, int(round(SECONDS * source.fps))
+    ctrl.run_feed, ctrl.run_feed_speed = np.ones(len(films)), feed_speed
+    r = ctrl.run([CommandScript([(0, feed_speed, 0, 0), (SECONDS, feed_speed, 0, 0)]) for _ in films], n, films)
     k0 = int(round(SETTLE * fps))
-    return float(speeds(r.root_positions, fps)[0]), float(np.mean(np.all(r.contacts[0, k0:] < 0.5, axis=-1)))
+    return speeds(r.root_positions, fps), np.mean(np.all(r.contacts[:, k0:] < 0.5, axis=-1), axis=1)
 
 
 def ideal_run(ctrl, film, fps):
@@ -140,11 +141,13 @@ def main(argv=None) -> int:
     ]
     print("\n".join(lines), flush=True)
     ratios, shift = [], []
-    for name in styles:
+    shift_speeds, shift_flight = shift_run(source, np.stack([source.library[n] for n in styles]),
+                                           source.run_feed_speed)
+    for i, name in enumerate(styles):
         film = source.library[name]
         top, cmd, fl = closed_loop(ctrl, film, source.fps)
         ceil, v, fl2 = ideal_run(ctrl, film, source.fps)
-        run, fl3 = shift_run(ctrl, film, source.fps, source.run_feed_speed)
+        run, fl3 = shift_speeds[i], shift_flight[i]
         ratios.append(top / ceil)
         shift.append(run / ceil)
         row = (f"| {name} | {top:.2f} ({cmd:g}) | {fl:.0%} | {ceil:.2f} ({v:g}) | {fl2:.0%} | {run:.2f} | {fl3:.0%} "
