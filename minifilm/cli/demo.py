@@ -68,6 +68,9 @@ def add_arguments(ap) -> None:
 
 def run(args) -> int:
     host = check_bind_host(args.host)           # before loading anything: a clear error at once
+    if args.run_speed < args.walk_speed:
+        raise ValueError(f"--run-speed {args.run_speed:g} is slower than --walk-speed {args.walk_speed:g}: "
+                         "Shift runs, so the running speed must be at least the walking speed")
     allow = [check_name(n) for n in args.allow_host]
     if args.record is not None:
         check_writable(args.record, "--record")

@@ -6,7 +6,10 @@ One JSON file per network in the user's cache folder (``$XDG_CACHE_HOME/minifilm
 another network, a changed file or a changed measurement never reads an old entry. Written
 atomically (``minifilm/files/atomic.py``) after each style is measured; a file that cannot be read
 (corrupt, truncated, wrong shapes, not a regular file) is ignored with one warning and rewritten.
-Nothing in it is trusted beyond numbers of the right shapes.
+Nothing in it is trusted that the measurement could not have written: the commands and
+directions must be exactly those measured (``CALIBRATION_COMMANDS``, ``CALIBRATION_DIRECTIONS``),
+the speeds finite, at most ``MAX_PLAUSIBLE_SPEED`` and not all zero. A file that fails (zeros,
+1e300, reordered commands) is refused with one warning and every style in it measured again.
 """
 from __future__ import annotations
 
@@ -23,10 +26,14 @@ from minifilm.errors import InputError
 from minifilm.files.atomic import atomic_write_text
 from minifilm.files.state import owned_writes
 from minifilm.files.reading import JSON_NUMBERS, read_regular_bytes
-from minifilm.runtime.calibration import SpeedCalibration
+from minifilm.runtime.calibration import CALIBRATION_COMMANDS, CALIBRATION_DIRECTIONS, SpeedCalibration
 
 #: Changes whenever what a calibration measures changes (commands, directions, seconds, runtime).
-CALIBRATION_VERSION = "speed-calibration-2"
+CALIBRATION_VERSION = "speed-calibration-3"
+#: m/s: no character measured goes faster (a sprinter's 10 m/s, and some); more is not a measurement
+MAX_PLAUSIBLE_SPEED = 12.0
+#: m/s: a style whose fastest forward speed is below this did not move: not a measurement either
+MIN_TOP_SPEED = 0.05
 #: A cache file larger than this is not read (100 styles take about 60 KB).
 MAX_CACHE_BYTES = 8 * 1024 * 1024
 
@@ -68,8 +75,14 @@ def _from_json(entry) -> SpeedCalibration:
         raise ValueError(f"shapes commanded {c.shape}, achieved {a.shape}, directions {d.shape} do not fit")
     if not (np.all(np.isfinite(c)) and np.all(np.isfinite(a)) and np.all(np.isfinite(d))):
         raise ValueError("numbers must be finite")
-    if np.any(c <= 0) or np.any(a < 0) or np.any(d < 0) or np.any(d > 180):
-        raise ValueError("speeds must be positive and directions in [0, 180] degrees")
+    if c.tolist() != list(CALIBRATION_COMMANDS) or d.tolist() != list(CALIBRATION_DIRECTIONS):
+        raise ValueError(f"commands {c.tolist()[:12]} and directions {d.tolist()} are not the measured "
+                         f"{list(CALIBRATION_COMMANDS)} and {list(CALIBRATION_DIRECTIONS)}")
+    if np.any(a < 0) or np.any(a > MAX_PLAUSIBLE_SPEED):
+        raise ValueError(f"achieved speeds must be within 0-{MAX_PLAUSIBLE_SPEED:g} m/s, found "
+                         f"{a.min():.3g}..{a.max():.3g}")
+    if a[0].max() < MIN_TOP_SPEED:
+        raise ValueError(f"the forward speeds are all under {MIN_TOP_SPEED} m/s: the character never moved")
     return SpeedCalibration(c, a, tuple(d.tolist()))
 
 

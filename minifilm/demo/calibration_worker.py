@@ -15,7 +15,8 @@ _SOURCE = None
 
 
 def start(params: str, pack: str = "") -> None:
-    """Worker initialiser: one BLAS thread, nice 10 (the frame loop comes first), the released
+    """Worker initialiser: one BLAS thread, nice 10 (the frame loop comes first; not SCHED_IDLE,
+    which on a busy shared machine starved the measurement for minutes), the released
     network, and a watch on the server: the worker ends when the server has gone, however it went
     (killed, it cannot shut its pool down)."""
     global _SOURCE

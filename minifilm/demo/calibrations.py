@@ -14,7 +14,11 @@ one there), and before any is there the speed is commanded as asked (the network
 slower than asked; the frames say ``calibrated: false``).
 
 A mix of styles is commanded with the mix of their commands, ``sum_s w_s command_s(speed)``, the
-same linear mixing the FiLM vectors get.
+same linear mixing the FiLM vectors get. Only the styles of a mix with at least
+``MEASURED_WEIGHT`` of it are measured for it (heaviest first): a style with a few per cent of a
+blend moves its command by a few per cent, and a blend of all 100 styles would otherwise queue
+100 measurements (about ten minutes here). The terminal is told how many styles are queued and
+about how long they take at the pace measured so far.
 """
 from __future__ import annotations
 
@@ -33,7 +37,20 @@ from minifilm.demo.calibration_worker import measure   # in the worker process a
 from minifilm.demo.calibration_cache import CalibrationCache, max_speed
 from minifilm.runtime.calibration import SpeedCalibration
 
+#: a style with less of a mix than this is not measured for it (a stand-in's calibration serves)
+MEASURED_WEIGHT = 0.1
+#: seconds one style's measurement is assumed to take before any has been timed (2-3 s of CPU,
+#: more at the lowest priority on a busy machine)
+FIRST_PACE = 20.0
 
+
+
+
+def estimate(seconds: float) -> str:
+    """How long, said plainly: "20 s", "3 min"."""
+    if seconds < 90:
+        return f"{max(5, int(round(seconds / 5.0)) * 5)} s"
+    return f"{int(round(seconds / 60.0))} min"
 
 
 class Calibrations:
@@ -64,6 +81,7 @@ class Calibrations:
         self.requested = 0                  # styles asked to be measured
         self.measuring: Optional[str] = None
         self._started: Dict[str, float] = {}
+        self._paces = []                    # seconds each measurement took (the estimate's pace)
         if not self.enabled:
             return
         if self._background:
@@ -123,6 +141,13 @@ class Calibrations:
                 tops.append(w * max_speed(cal, direction))
         return float(sum(tops))
 
+    @staticmethod
+    def needed(weights: Mapping[str, float]):
+        """The styles of a mix worth measuring for it: at least ``MEASURED_WEIGHT``, heaviest first
+        (the mix's heaviest style whatever its weight)."""
+        ranked = sorted(weights.items(), key=lambda nw: -nw[1])
+        return [n for i, (n, w) in enumerate(ranked) if w >= MEASURED_WEIGHT or i == 0]
+
     def has(self, name: str) -> bool:
         with self._lock:
             return name in self._cal
@@ -156,8 +181,13 @@ class Calibrations:
             if self.measuring is None and todo:
                 self.measuring = todo[0]
                 self._started[todo[0]] = time.monotonic()
-        self._log(f"minifilm demo: measuring the speed calibration of {', '.join(todo)} in the background "
-                  "(a minute or less; the page works meanwhile)")
+        with self._lock:
+            queued = self.requested - self.measured
+            pace = sum(self._paces) / len(self._paces) if self._paces else FIRST_PACE
+        shown = ", ".join(todo[:5]) + (f" and {len(todo) - 5} more" if len(todo) > 5 else "")
+        self._log(f"minifilm demo: measuring the speed calibration of {shown} in the background "
+                  f"({queued} style(s) queued, about {estimate(queued * pace)}"
+                  f"{' at the pace so far' if self._paces else ''}; the page works meanwhile)")
 
     def _done(self, name: str, future) -> None:
         try:
@@ -177,6 +207,8 @@ class Calibrations:
             self._memo.clear()
             self.measured += 1
             waited = time.monotonic() - self._started.pop(name, time.monotonic())
+            if waited > 0:
+                self._paces = (self._paces + [waited])[-5:]
             queued = [n for n in self._asked if n not in self._cal]
             self.measuring = queued[0] if queued else None
             if self.measuring is not None:

@@ -36,8 +36,13 @@ from minifilm.runtime.controller import Controller
 MAX_REACH = 20.0          # metres from the root: further means the network's output blew up
 SPEED_WINDOW = 0.25       # seconds over which the shown actual speed is measured
 #: a command is scaled to this share of the fastest the style was measured to go (its speed
-#: calibration), so what is asked can be reached (the released Neutral tops out at 1.8 m/s forwards)
-REACHABLE = 0.95
+#: calibration), so what is asked can be reached: Shift drives the style at its top. (The released
+#: network's Neutral runs at most 1.8 m/s in the loop, about 87 % of the 2.06 m/s it reaches when
+#: shown a perfect run trajectory, and 2.5 m/s is 3.4 standard deviations out in its training
+#: rows: benchmarks/run_speed.py, reports/released_run_speed.md.)
+REACHABLE = 1.0
+#: seconds over which Shift's run feed (``Controller.run_feed``) is blended in and out
+RUN_BLEND = 0.3
 
 
 class RateCounter:
@@ -71,6 +76,11 @@ class DemoSettings:
     foot_lock: bool = False
     fit: bool = True
 
+    def __post_init__(self):
+        if not self.run_speed >= self.walk_speed:
+            raise ValueError(f"the running speed (--run-speed {self.run_speed:g} m/s) must be at least the "
+                             f"walking speed (--walk-speed {self.walk_speed:g} m/s): Shift runs faster, not slower")
+
 
 class Character:
     """A character of the stage, identified by ``ident``; see the module docstring."""
@@ -96,6 +106,8 @@ class Character:
         self.input_ms: Optional[float] = None     # input -> frame latency of the last held-input change
         self._input_at: Optional[Tuple[int, float]] = None
         self._roots = collections.deque(maxlen=max(2, int(round(SPEED_WINDOW * source.fps)) + 1))
+        self._timed_roots = collections.deque(maxlen=4 * int(round(SPEED_WINDOW * source.fps)) + 2)  # (time, root) per batch
+        self.run_feed = 0.0              # weight of Shift's perfect run in the trajectory input
         self.set_fit(settings.fit)
         self.set_foot_lock(settings.foot_lock)
         self.reset()
@@ -118,7 +130,10 @@ class Character:
         x, p = self.source.starts.get(self.mix.dominant()[0], (None, None))
         self.ctrl.reset(where[None], heading_vector(theta)[None], phases=None if p is None else p[None], start_x=x)
         self.steering.reset(theta)
+        self.run_feed = 0.0
+        self.ctrl.run_feed = None
         self._roots.clear()
+        self._timed_roots.clear()
 
     # ---- input ------------------------------------------------------------------------------
     def submit(self, message) -> None:
@@ -133,7 +148,7 @@ class Character:
         elif isinstance(message, StyleMessage):
             weights = dict(message.weights)
             self.mix.change(weights, message.seconds)
-            self.calibrations.request(weights)
+            self.calibrations.request(self.calibrations.needed(weights))
         elif isinstance(message, SettingsMessage):
             if message.fit is not None:
                 self.set_fit(message.fit)
@@ -145,9 +160,22 @@ class Character:
             self.ack = message.seq
 
     # ---- one frame --------------------------------------------------------------------------
-    def step(self) -> Tuple[dict, List[str]]:
-        """Advance one frame; returns the frame message (a dict, see :meth:`frame_message`) and
-        notices for the page (empty unless the guard reset the character)."""
+    def step(self, steps: int = 1, now: Optional[float] = None) -> Tuple[dict, List[str]]:
+        """Advance ``steps`` frames (a batch when the frame loop is behind the clock); returns the
+        last one's frame message (a dict, see :meth:`frame_message`) and the notices for the page
+        (empty unless the guard reset the character). ``now``: the wall time (seconds, monotonic)
+        the stage ran the batch at, so the speed read-out is in metres per real second (None:
+        per simulated second, e.g. a recording made faster than real time)."""
+        notices: List[str] = []
+        for _ in range(max(1, int(steps))):
+            notices += self._advance()
+        when = self.frame_no * self.dt if now is None else float(now)
+        self._timed_roots.append((when, self.ctrl.state.root[0].copy()))
+        return self.frame_message(self.mix.weights), notices
+
+    def _advance(self) -> List[str]:
+        """One network step: the page's messages applied, the steering and the style mix advanced,
+        the Controller's frame made and checked. Returns the notices."""
         while self.pending:
             self._apply(self.pending.popleft())
         notices = []
@@ -156,6 +184,7 @@ class Character:
         film = self.mix.advance(self.dt)
         weights = self.mix.weights
         velocity = self.steered = self._reachable(velocity, facing, weights)
+        self._feed_run(weights)
         pressed = self._input_at
         if pressed is not None and self.ack is not None and self.ack >= pressed[0]:
             self.input_ms, self._input_at = 1e3 * (time.monotonic() - pressed[1]), None
@@ -176,7 +205,25 @@ class Character:
             notices.append(f"{problem}: the character was reset where it stood")
         self.frame_no += 1
         self._roots.append(self.ctrl.state.root[0].copy())
-        return self.frame_message(weights), notices
+        return notices
+
+    def _feed_run(self, weights) -> None:
+        """Shift held while moving: blend in a perfect run as the network's trajectory input (the
+        released network runs only when shown one: its own past says "walking", and it walks at
+        1.8 m/s at most; shown a run, Neutral runs at 2.07 m/s with flight phases,
+        benchmarks/run_speed.py). The speed is the network's own for the style, the note says so."""
+        speed = self.source.run_feed_speed
+        if not speed:
+            return
+        running = self.steering.speed >= 0.5 and self.commanded > 1e-6
+        self.run_feed = min(1.0, max(0.0, self.run_feed + (1 if running else -1) * self.dt / RUN_BLEND))
+        self.ctrl.run_feed = np.array([self.run_feed]) if self.run_feed > 0 else None
+        self.ctrl.run_feed_speed = speed
+        if running:
+            name = " + ".join(n for n, w in sorted(weights.items(), key=lambda nw: -nw[1]) if w > 0.01)
+            top = "" if self.max_speed is None else f"; walking it goes at most {self.max_speed:.2f} m/s"
+            self.speed_note = (f"Shift: {name} runs at this network's own running pace for it (the actual "
+                               f"speed; reports/released_run_speed.md){top}")
 
     def _reachable(self, velocity: np.ndarray, facing: np.ndarray, weights) -> np.ndarray:
         """The held velocity, scaled down to ``REACHABLE`` of the fastest the mix was measured to go
@@ -193,8 +240,9 @@ class Character:
             return velocity
         self.reachable = REACHABLE * top
         name = " + ".join(n for n, w in sorted(weights.items(), key=lambda nw: -nw[1]) if w > 0.01)
-        self.speed_note = (f"{name} goes at most {top:.2f} m/s this way (its speed calibration): "
-                           f"the {speed:.2f} m/s asked for is scaled to {self.reachable:.2f}")
+        self.speed_note = (f"{name} goes at most {top:.2f} m/s this way: that is as fast as this network "
+                           f"runs it (measured, see reports/released_run_speed.md), so the {speed:.2f} m/s "
+                           f"asked for is driven at {self.reachable:.2f}")
         return velocity * (self.reachable / speed)
 
     def _check(self) -> Optional[str]:
@@ -218,7 +266,16 @@ class Character:
         self.steering.hold(*held)
 
     def actual_speed(self) -> float:
-        """Mean root speed (m/s) over the last ``SPEED_WINDOW`` seconds."""
+        """Mean root speed (m/s) over the last ``SPEED_WINDOW`` seconds or more of the times
+        :meth:`step` was given (wall time in the demo: metres per real second, however many steps
+        the loop managed); before that much has passed, over the frames' own time."""
+        timed = list(self._timed_roots)
+        if len(timed) >= 2:
+            t_end, end = timed[-1]
+            start = next(((t, r) for t, r in reversed(timed[:-1]) if t_end - t >= SPEED_WINDOW), None)
+            if start is not None:
+                d = end - start[1]
+                return math.hypot(d[0], d[1]) / (t_end - start[0])
         if len(self._roots) < 2:
             return 0.0
         d = self._roots[-1] - self._roots[0]
@@ -231,14 +288,16 @@ class Character:
         calibration: what the keys ask), ``reachable`` (that speed scaled to what the mix can do,
         the speed the character is steered at), ``maxSpeed`` (the fastest the mix was measured to
         go that way) and ``speedNote`` (says so when the command was scaled), the measured speed (``speed``: the character's own root
-        over the last quarter second), ``sentFps`` (frames the server actually sent this page in
+        over the last quarter second of wall time, metres per real second), ``sentFps`` (frames the server actually sent this page in
         the last second; None during the first), ``inputMs`` (from the server receiving the last
         input message to the frame that applied it; None before any), ``calibration`` (the speed
         calibration's progress, :meth:`Calibrations.progress`), the style mix now (``weights``, default the mix's) and
         its target and the fingerprint of its FiLM vector
         (:func:`~minifilm.demo.style_mix.film_digest`), the network's predicted trajectory and the
-        held input's path (``future``, ``futureFacing``, ``path``: :mod:`minifilm.demo.paths`), the toggles, and the Controller's step
-        time (ms; the stage adds ``frameMs``, the whole frame's, and ``t``)."""
+        held input's path (``future``, ``futureFacing``, ``path``: :mod:`minifilm.demo.paths`), the
+        toggles, and the Controller's step time (ms; the stage adds ``frameMs``, the whole batch's,
+        ``t``, and how the loop keeps up with the clock: ``steps`` in this batch, ``behind``,
+        ``dropped`` and ``stepsPerSecond``, see ``stage.py``)."""
         st = self.ctrl.state
         mix = self.mix.weights if weights is None else weights
         # every number of the frame rounded in one pass (0.1 mm, 1e-4 of a phase), then cut up
@@ -259,7 +318,8 @@ class Character:
             "calibration": self.calibrations.progress(),
             "weights": weights_dict(mix.items()), "target": weights_dict(self.mix.target.items()),
             "film": self.mix.digest, "footLock": self.foot_lock, "fit": self.fit, "stepMs": round(self.step_ms, 4),
-            "calibrated": (not self.calibrations.enabled) or all(self.calibrations.has(n) for n in mix),
+            "calibrated": (not self.calibrations.enabled) or all(self.calibrations.has(n)
+                                                                for n in self.calibrations.needed(mix)),
         })
         frame.update(frame_paths(self))       # the predicted trajectory and the held input's path (paths.py)
         return frame

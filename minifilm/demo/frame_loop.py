@@ -1,12 +1,17 @@
 """The frame loop: every connected character stepped at the data's frame rate, on a thread of its own.
 
-The loop keeps absolute deadlines (frame k is due at ``start + k / fps``), so it does not drift:
-sleeping too long once makes the next wait shorter, and frames that fell behind (the process was
-not scheduled for a while: the cores are shared) are run at once until the loop is back on time,
-so the character's time keeps up with the clock. A page shows the newest frame, so after such a
-stall the character is where it would have been, as after any stall. Only after a stall of more
-than ``MAX_CATCH_UP`` frames (a suspended laptop, a debugger) does the schedule restart from now
-instead of running them all. With nobody connected the thread sleeps and costs nothing.
+Simulation time follows the clock (:class:`FrameClock`): network step k is due at
+``start + k / fps``, so the character covers its metres per *real* second. Each pass of the loop
+runs every step that has fallen due since the last one, as a batch, and sends the page only the
+last frame of the batch (making and sending a frame costs about as much as a step: when the
+machine is busy, batching is what lets it keep up). A page shows the newest frame (it may
+interpolate between them), so after a stall the character is where it would have been. A batch
+is at most ``MAX_BATCH`` steps; after a longer stall (a suspended laptop, a debugger, a machine
+that cannot keep up at all) the steps beyond it are dropped and counted, and every frame tells
+its page how many steps the loop is behind the clock (``behind``), how many it dropped in the
+last second (``dropped``) and how many steps it ran in the last second of wall time
+(``stepsPerSecond``): the page says so instead of showing slow motion as real time. With
+nobody connected the thread sleeps and costs nothing.
 
 Its own thread, apart from the network's event loop, so that what a page does (a slow
 connection, a burst of messages, the download of the page) does not wait for a frame, nor a frame
@@ -31,10 +36,65 @@ from minifilm.demo.protocol import encode, notice
 
 #: ``deliver(text, is_frame)``: hand a message to a page; must not block.
 Deliver = Callable[[str, bool], None]
-#: Frames the loop may run late to catch up with the clock (a quarter of a second at 60 fps); after
-#: a longer stall it restarts its schedule instead. (With 4, stalls of 70-85 ms on this shared
-#: 2-core machine made the loop lose 8 frames in 10 minutes: benchmarks/demo_soak.py.)
-MAX_CATCH_UP = 15
+#: Steps the loop may run in one batch to catch up with the clock (half a second at 60 fps); the
+#: steps due beyond it are dropped (and reported). (A limit of 4 lost 8 frames in 10 minutes to the
+#: 70-85 ms stalls of a shared 2-core machine, benchmarks/demo_soak.py; 15 lost whole seconds at
+#: load 7, where every pass fell further behind.)
+MAX_BATCH = 30
+
+class FrameClock:
+    """When the network steps are due: step k at ``start + k * period`` (seconds of ``clock``).
+
+    ``due(now)`` says how many steps to run now (0: wait until ``next_due``), at most
+    ``max_batch``; the steps beyond that are dropped (``dropped`` counts them, the schedule moves
+    on). ``ran(n)`` records that n steps were run. ``behind(now)``: steps due and not yet run.
+    ``rate(now)``: steps run in the last second of the clock. Pure arithmetic on the times it is
+    given, so tests drive it with a fake clock.
+    """
+
+    def __init__(self, period: float, max_batch: int = MAX_BATCH):
+        if not period > 0 or max_batch < 1:
+            raise ValueError(f"FrameClock: period must be > 0 and max_batch >= 1, got {period}, {max_batch}")
+        self.period, self.max_batch = float(period), int(max_batch)
+        self.next_due = None
+        self.dropped = 0
+        self._ran = collections.deque(maxlen=4096)          # (time, steps) of each batch
+        self._drops = collections.deque(maxlen=4096)        # (time, steps dropped)
+
+    def restart(self, now: float) -> None:
+        """Step 0 is due at ``now`` (the first page joined, or the loop woke from sleeping)."""
+        self.next_due = now
+
+    def due(self, now: float) -> int:
+        if self.next_due is None:
+            self.restart(now)
+        if now < self.next_due:
+            return 0
+        n = int((now - self.next_due) // self.period) + 1
+        if n > self.max_batch:
+            lost = n - self.max_batch
+            self.dropped += lost
+            self._drops.append((now, lost))
+            self.next_due += lost * self.period
+            n = self.max_batch
+        return n
+
+    def ran(self, n: int, now: float) -> None:
+        self.next_due += n * self.period
+        self._ran.append((now, n))
+
+    def behind(self, now: float) -> int:
+        """Steps due at ``now`` that have not been run (0 when on time)."""
+        if self.next_due is None or now < self.next_due:
+            return 0
+        return int((now - self.next_due) // self.period) + 1
+
+    def rate(self, now: float, window: float = 1.0) -> int:
+        """Steps run in the last ``window`` seconds."""
+        return sum(n for t, n in self._ran if now - t < window)
+
+    def recently_dropped(self, now: float, window: float = 1.0) -> int:
+        return sum(n for t, n in self._drops if now - t < window)
 
 
 class StageFull(RuntimeError):
@@ -49,10 +109,10 @@ class Stage:
         fps: frames per second (the data's: 60 for the released network).
         clock: seconds, monotonic (``time.perf_counter``).
 
-    Statistics (for tests and debugging): ``ticks`` frames run, ``behind`` frames started over a
-    period late (then caught up), ``restarts`` times the schedule restarted after a long stall and
-    ``skipped`` the frames so lost, ``frame_ms`` the last step times (ms), ``errors`` unexpected
-    errors the loop survived.
+    Statistics (for tests and debugging): ``ticks`` passes of the loop (one frame sent per
+    character each), ``steps`` network steps run, ``behind`` passes that ran more than one step
+    (a batch, catching up), ``restarts`` passes that had to drop steps and ``skipped`` the steps so
+    dropped, ``frame_ms`` the last passes' times (ms), ``errors`` unexpected errors the loop survived.
     """
 
     def __init__(self, make_character: Callable[[int], object], fps: float, max_characters: int = 4,
@@ -67,7 +127,8 @@ class Stage:
         self._thread = None
         self._next_ident = 1
         self.start_time = clock()
-        self.ticks = self.behind = self.restarts = self.skipped = self.errors = 0
+        self.ticks = self.steps = self.behind = self.restarts = self.skipped = self.errors = 0
+        self.frames = FrameClock(self.period)
         self.frame_ms = collections.deque(maxlen=600)        # bounded: the loop runs for hours
 
     # ---- members ----------------------------------------------------------------------------
@@ -104,18 +165,22 @@ class Stage:
             return len(self._members)
 
     # ---- frames -----------------------------------------------------------------------------
-    def tick(self, now: float = None) -> None:
-        """One frame of every character, delivered to its page."""
+    def tick(self, now: float = None, steps: int = 1) -> None:
+        """``steps`` network steps of every character (a batch when the loop is behind the clock),
+        the last one's frame delivered to its page."""
         now = self.clock() if now is None else now
         with self._lock:
             members = list(self._members.values())
         t = round(now - self.start_time, 6)
+        timing = {"steps": steps, "behind": self.frames.behind(now),
+                  "dropped": self.frames.recently_dropped(now), "stepsPerSecond": self.frames.rate(now)}
         for character, deliver in members:
             try:
                 t0 = self.clock()
-                frame, notices = character.step()
+                frame, notices = character.step(steps=steps, now=now)
                 frame["frameMs"] = round(1e3 * (self.clock() - t0), 4)
                 frame["t"] = t
+                frame.update(timing)
                 self.frame_ms.append(frame["frameMs"])
                 for text in notices:
                     deliver(notice(text), False)
@@ -123,6 +188,7 @@ class Stage:
             except Exception:  # noqa: BLE001 - the loop outlives any one character's failure
                 self._report()
         self.ticks += 1
+        self.steps += steps
 
     def _report(self) -> None:
         self.errors += 1
@@ -144,29 +210,27 @@ class Stage:
             self._thread = None
 
     def _run(self) -> None:
-        due = None
+        clock = self.frames
         while not self._stop.is_set():
             try:
                 if not self.count:
                     self._wake.wait(0.5)
                     self._wake.clear()
-                    due = None
+                    clock.next_due = None           # the schedule starts again with the next page
                     continue
                 now = self.clock()
-                if due is None:
-                    due = now
-                elif now < due:
-                    time.sleep(due - now)
-                    now = self.clock()
-                late = now - due
-                if late > MAX_CATCH_UP * self.period:    # a long stall: do not run all it missed
+                dropped = clock.dropped
+                n = clock.due(now)
+                if n == 0:
+                    time.sleep(max(clock.next_due - now, 0.0))
+                    continue
+                if clock.dropped > dropped:
                     self.restarts += 1
-                    self.skipped += int(late / self.period)
-                    due = now
-                elif late > self.period:
+                    self.skipped += clock.dropped - dropped
+                if n > 1:
                     self.behind += 1
-                self.tick(now)
-                due += self.period
+                self.tick(now, steps=n)
+                clock.ran(n, now)
             except Exception:  # noqa: BLE001 - see the module docstring: the loop never dies
                 self._report()
                 time.sleep(self.period)

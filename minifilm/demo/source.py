@@ -9,6 +9,8 @@ The two differ in the settings ``minifilm generate`` measured for them (its ``So
 * a run folder written by ``minifilm train`` (``--run``): its own skeleton, fit as an output
   post-process only, its position bias, start frames per style, no calibration (a small model
   does not survive the commands far outside its data that calibration asks for).
+
+Both turn the body towards the steered heading while walking (``runtime/heading.py``).
 """
 from __future__ import annotations
 
@@ -22,6 +24,7 @@ from minifilm.features.layout import FeatureLayout
 from minifilm.motion.motion import Motion
 from minifilm.motion.skeletons import STYLE100
 from minifilm.pipeline.run_folder import RunFolder
+from minifilm.runtime.heading import HeadingFollow
 from minifilm.runtime.network import RuntimeNetwork
 from minifilm.runtime.released import load_released
 from minifilm.runtime.style_pack import load_pack, with_pack
@@ -38,6 +41,9 @@ class DemoSource:
     starts: style -> (x (x_dim,), p (8,)) raw start frame; styles without one start from the mean pose.
     params: the released folder (for a calibration worker that loads the network itself).
     pack: a style pack folder whose styles join the released network's (its worker loads it too).
+    run_feed_speed: m/s of the perfect run fed as the trajectory input while Shift is held
+        (``Controller.run_feed``): the released network runs only when shown a run; None: Shift
+        is only a faster command.
     """
 
     name: str
@@ -53,6 +59,7 @@ class DemoSource:
     params: Optional[Path] = None
     pack: Optional[Path] = None
     pack_names: Tuple[str, ...] = ()
+    run_feed_speed: Optional[float] = None
 
     @classmethod
     def released(cls, params, calibrate: bool = True, pack=None) -> "DemoSource":
@@ -60,7 +67,8 @@ class DemoSource:
         styles = load_pack(pack, film_dim=4 * rel.model.config.hidden, reserved=rel.styles) if pack else None
         name = f"released network ({Path(params).name})" + (f" with the style pack {Path(pack).name}" if pack else "")
         return cls(name, rel.network, FeatureLayout.for_skeleton(STYLE100), 60.0, with_pack(rel.styles, styles),
-                   rest_motion(), feed_back_fit=True, calibrate=calibrate, params=Path(params),
+                   rest_motion(), feed_back_fit=True, calibrate=calibrate,
+                   options={"heading_follow": HeadingFollow()}, params=Path(params), run_feed_speed=8.0,
                    pack=Path(pack) if pack else None, pack_names=tuple(styles.names) if styles else ())
 
     @classmethod
@@ -68,7 +76,8 @@ class DemoSource:
         run = RunFolder.load(path)
         return cls(f"trained run ({Path(path).name})", run.network(), run.layout, run.fps, run.styles(),
                    run.template(), feed_back_fit=False, calibrate=False,
-                   options={"position_bias": run.position_bias}, starts=run.starts())
+                   options={"position_bias": run.position_bias, "heading_follow": HeadingFollow()},
+                   starts=run.starts())
 
     def default_style(self) -> str:
         return "Neutral" if "Neutral" in self.library else self.library.names[0]

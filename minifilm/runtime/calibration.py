@@ -16,6 +16,13 @@ import numpy as np
 from minifilm.runtime.control import CommandScript
 from minifilm.runtime.root_frames import floor_angle
 
+#: commanded speeds (m/s) a calibration measures: far beyond the user's speeds, because the
+#: network follows the commanded future only partly (the released Neutral runs at its fastest,
+#: about 1.8 m/s, at 12-24 m/s commanded; benchmarks/run_speed.py)
+CALIBRATION_COMMANDS = (0.5, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0)
+#: directions of travel (degrees from the facing) a calibration measures
+CALIBRATION_DIRECTIONS = (0.0, 90.0, 180.0)
+
 
 @dataclass
 class SpeedCalibration:
@@ -93,8 +100,8 @@ class PerCharacterCalibration:
 
 
 def calibrate_speed(controller, film: np.ndarray,
-                    commands: Sequence[float] = (0.5, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0),
-                    directions: Sequence[float] = (0.0, 90.0, 180.0),
+                    commands: Sequence[float] = CALIBRATION_COMMANDS,
+                    directions: Sequence[float] = CALIBRATION_DIRECTIONS,
                     seconds: float = 8.0, settle: float = 4.0, phases: Optional[np.ndarray] = None,
                     start_x: Optional[np.ndarray] = None) -> SpeedCalibration:
     """Move at each commanded speed in each direction (degrees from the facing: 0 forwards, 90

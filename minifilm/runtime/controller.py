@@ -46,6 +46,7 @@ from minifilm.motion.skeleton_fit import SkeletonFit
 from minifilm.runtime.calibration import SpeedCalibration
 from minifilm.runtime.control import Script, blend_future_trajectory
 from minifilm.runtime.root_frames import to_local2, to_local3, to_world2, to_world3, unit2
+from minifilm.runtime.heading import HeadingFollow
 from minifilm.runtime.held_body import leg_chains
 from minifilm.runtime.network import RuntimeNetwork
 from minifilm.runtime.rollout import Rollout
@@ -122,13 +123,17 @@ class Controller:
             facing kept, feet planted by leg IK, its own velocities fed back); None: the paper's
             loop unchanged at every command (the released network then keeps walking at about
             0.4 m/s when asked to stop). While anything is asked the two are the same, bit for bit.
+        heading_follow: while a movement is asked, turn each predicted frame towards the target
+            facing by what the network's own turn leaves (:class:`~minifilm.runtime.heading.HeadingFollow`,
+            the demo's setting: a slowly turning network otherwise never follows a heading that
+            keeps turning); None: the paper's loop.
     """
 
     def __init__(self, network: RuntimeNetwork, layout: FeatureLayout, fps: float = 60.0,
                  velocity_blend: float = 0.5, future_smoothing: float = 0.15,
                  position_bias: float = 0.75, direction_bias: float = 1.25, foot_locker=None,
                  skeleton: Optional[SkeletonFit] = None, feed_back_fit: bool = False,
-                 stand: Optional[StandStill] = StandStill()):
+                 stand: Optional[StandStill] = StandStill(), heading_follow: Optional[HeadingFollow] = None):
         if network.x_dim != layout.x_dim or network.z_dim != layout.z_dim:
             raise ValueError(f"Controller: network sizes (x {network.x_dim}, z {network.z_dim}) do not match "
                              f"the layout (x {layout.x_dim}, z {layout.z_dim})")
@@ -141,6 +146,12 @@ class Controller:
                              f"the layout has {layout.n_joints}")
         self.skeleton, self.feed_back_fit = skeleton, bool(feed_back_fit)
         self.stand = stand
+        self.heading_follow = heading_follow
+        self._target = None
+        #: (B,) weights in [0, 1] of a perfect run fed as the trajectory input (:meth:`_run_trajectory`;
+        #: the demo's Shift); None: the paper's input
+        self.run_feed: Optional[np.ndarray] = None
+        self.run_feed_speed = 8.0
         self.legs = leg_chains(layout.joint_names, layout.parents)     # (2, 4) or None: no legs to hold
         L = layout
         ts = np.asarray(L.trajectory_seconds)
@@ -239,6 +250,8 @@ class Controller:
         tp = np.concatenate([past_p, st.future_pos], axis=1) - root[:, None]   # (B, 12, 2)
         td = np.concatenate([past_d, st.future_dir], axis=1)
         f = face[:, None]
+        if self.run_feed is not None and self._target is not None and np.any(self.run_feed > 0):
+            tp, td = self._run_trajectory(tp, td)
         traj = np.concatenate([to_local2(tp, f), to_local2(td, f)], axis=-1)  # (B, 12, 4)
         x = np.empty((B, L.x_dim))
         x[:, self.x_traj_cols] = traj
@@ -250,6 +263,24 @@ class Controller:
         x[:, self.x_cols["up"]] = to_local3(st.joint_up, face)
         x[:, self.x_cols["velocity"]] = to_local3(st.joint_vel, face)
         return x
+
+    def _run_trajectory(self, tp: np.ndarray, td: np.ndarray):
+        """The trajectory input (B, 12, 2) positions relative to the root and directions, blended
+        by ``run_feed`` (B,) into a perfect straight run at ``run_feed_speed`` m/s along the target
+        velocity: the past samples behind the root, the future ahead, all facing the target.
+
+        Told only its own past, the released network never runs: its past says it is walking, and
+        it goes on walking (Neutral tops out at 1.8 m/s however far ahead the future is put).
+        Shown a run, its own root step runs at the speed it learnt for the style (2.06 m/s for
+        Neutral; benchmarks/run_speed.py). The state's history and future are not changed."""
+        facing, velocity = self._target
+        w = self.run_feed[:, None, None]
+        speed = np.linalg.norm(velocity, axis=-1, keepdims=True)
+        way = np.where(speed > 1e-9, velocity / np.maximum(speed, 1e-9), facing)          # (B, 2)
+        times = np.r_[-self.past_frames / self.fps, np.asarray(self.layout.trajectory_seconds)[CURRENT_SAMPLE:]]
+        ideal_p = way[:, None] * (self.run_feed_speed * times)[None, :, None]
+        ideal_d = np.broadcast_to(facing[:, None], td.shape)
+        return (1 - w) * tp + w * ideal_p, unit2((1 - w) * td + w * ideal_d, td)
 
     def step(self, target_facing: np.ndarray, target_velocity: np.ndarray, film: np.ndarray) -> dict:
         """Advance every character by one frame.
@@ -267,6 +298,7 @@ class Controller:
         idle = None
         if self.stand is not None:      # standing.py: a zero command stops and stands
             idle = self.stand.begin_frame(st, target_velocity, target_facing, 1.0 / self.fps)
+        self._target = (np.asarray(target_facing, dtype=np.float64), np.asarray(target_velocity, dtype=np.float64))
         x = self.build_input()
         # overflow is caught just below as one clear error, not as a screen of RuntimeWarnings
         with np.errstate(over="ignore", invalid="ignore"):
@@ -316,6 +348,11 @@ class Controller:
             # turning too; the predicted body and trajectory are moved back with the root
             new_pos, new_dir, jpos, (jfwd, jup, jvel) = self.stand.hold_prediction(
                 st, new_pos, new_dir, jpos, (jfwd, jup, jvel))
+        if self.heading_follow is not None and self._target is not None:     # heading.py: the body follows the heading
+            facing_target, velocity_target = self._target
+            moving = np.linalg.norm(velocity_target, axis=-1) > 1e-6
+            new_pos, new_dir, jpos, (jfwd, jup, jvel) = self.heading_follow.apply(
+                facing_target, moving, new_pos, new_dir, jpos, (jfwd, jup, jvel), 1.0 / self.fps)
         if self.velocity_blend < 1.0:
             integrated = st.joint_pos + jvel / self.fps
             jpos = self.velocity_blend * jpos + (1 - self.velocity_blend) * integrated
@@ -329,6 +366,7 @@ class Controller:
         st.phases = 0.5 * z[:, L.z_phases] + 0.5 * (st.phases + z[:, L.z_phase_updates])
         if idle is not None:            # standing: the amplitudes decay towards a still body's
             st.phases = st.phases * self.stand.phase_factor(idle, 1.0 / self.fps)[:, None]
+            st.phases = self.stand.idle_phases(st.phases, st.rest_seconds)   # held: a slow sway, not a statue
         st.contacts = z[:, L.z_contacts]
         # root history, then move the root by the predicted delta (future sample 0 of the next frame)
         st.history_pos = np.concatenate([st.history_pos[:, 1:], root[:, None]], axis=1)

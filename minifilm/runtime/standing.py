@@ -105,6 +105,11 @@ class StandStill:
         to where the network has them in one frame).
     turn_wait: seconds an idle character may go on turning towards the target facing (see
         ``TURN_RATE``) before it is held all the same.
+    idle_amplitude, idle_hz: once held, the phases are eased (with the hold) into a slow cycle of
+        this amplitude (the data's walking phases have amplitudes near 2) and frequency, the left
+        and right limbs half a cycle apart (:meth:`idle_phases`): the network's experts keep
+        blending and the held body sways and breathes instead of freezing (0: the still phases of
+        before, a statue). Measured in ``benchmarks/idle.py``.
     """
 
     settle: float = 0.5
@@ -114,12 +119,18 @@ class StandStill:
     lower_speed: float = 0.5
     release: float = 0.15
     turn_wait: float = 1.0
+    idle_amplitude: float = 0.3
+    idle_hz: float = 0.3
 
     def __post_init__(self):
         for name in ("settle", "phase_tau", "contact_height", "lower_speed", "release", "turn_wait"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and v > 0 and np.isfinite(v)):
                 raise ValueError(f"StandStill: {name} must be a positive finite number, got {v!r}")
+        for name in ("idle_amplitude", "idle_hz"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and v >= 0 and np.isfinite(v)):
+                raise ValueError(f"StandStill: {name} must be a finite number >= 0, got {v!r}")
 
     @staticmethod
     def still(target_velocity: np.ndarray) -> np.ndarray:
@@ -166,6 +177,27 @@ class StandStill:
     def phase_factor(self, idle: np.ndarray, dt: float) -> np.ndarray:
         """(B,) the factor the phases (amplitude times (sin, cos)) are multiplied by this frame."""
         return np.where(idle, np.exp(-dt / self.phase_tau), 1.0)
+
+    def idle_phases(self, phases: np.ndarray, rest_seconds: np.ndarray) -> np.ndarray:
+        """The phases (B, 8) of held characters eased into the idle cycle.
+
+        Still phases give the gating network a still input: the network (never trained on the
+        idle clips) then settles into one fixed pose, and no joint moves by even 0.1 mm. So once
+        the body is held the phases are blended, by the hold weight, into
+        ``a (sin phi_k, cos phi_k)`` with ``phi_k = 2 pi f t + offset_k``: amplitude
+        ``idle_amplitude``, frequency ``idle_hz``, t the seconds at rest, the offsets 0, pi, 0,
+        pi for the left hand, right hand, left foot, right foot (the phase vector's order). The
+        feet and the root stay held; the rest of the body follows the network. Rows not held
+        are returned unchanged, bit for bit.
+        """
+        h = self.hold_weight(rest_seconds)
+        if self.idle_amplitude <= 0 or not np.any(h > 0):
+            return phases
+        t = np.asarray(rest_seconds, dtype=np.float64)[:, None]
+        phi = 2 * np.pi * self.idle_hz * t + np.array([0.0, np.pi, 0.0, np.pi])      # (B, 4)
+        cycle = self.idle_amplitude * np.stack([np.sin(phi), np.cos(phi)], axis=-1).reshape(len(t), 8)
+        blended = (1.0 - h)[:, None] * phases + h[:, None] * cycle
+        return np.where((h > 0)[:, None], blended, phases)
 
     # ------------------------------------------------------------------ the controller's hooks
     def begin_frame(self, st, target_velocity: np.ndarray, target_facing: np.ndarray, dt: float) -> np.ndarray:

@@ -93,3 +93,26 @@ def test_sigterm_ends_the_server_at_once_with_calibrations_queued(released_sourc
         assert not any(Path(f"/proc/{pid}").exists() for pid in workers), "the worker outlived the server"
     finally:
         demo.stop()
+
+
+def test_only_the_styles_that_matter_in_a_mix_are_measured_heaviest_first():
+    assert Calibrations.needed({"A": 0.05, "B": 0.45, "C": 0.5}) == ["C", "B"]
+    everything = {f"S{i:03d}": 0.01 for i in range(100)}            # a blend of all 100 styles
+    assert Calibrations.needed(everything) == ["S000"]               # one stand-in, not ten minutes of them
+    assert Calibrations.needed({"Solo": 1.0}) == ["Solo"]
+
+
+def test_the_terminal_is_told_how_many_styles_are_queued_and_about_how_long(released_source):
+    import concurrent.futures
+
+    class NoWorker:                     # the pool's interface, without a process
+        def submit(self, fn, name):
+            return concurrent.futures.Future()
+    logs = []
+    cal = Calibrations(released_source, background=False, log=logs.append)
+    cal._pool, cal._paces = NoWorker(), [6.0]
+    cal.requested = 100
+    cal._submit([f"S{i}" for i in range(100)])
+    assert "100 style(s) queued, about 10 min at the pace so far" in logs[-1] and "and 95 more" in logs[-1]
+    assert "minute or less" not in logs[-1]
+    assert calibrations.estimate(12.0) == "10 s" and calibrations.estimate(600.0) == "10 min"

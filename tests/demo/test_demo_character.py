@@ -94,3 +94,28 @@ def test_the_guard_resets_a_character_whose_frame_went_wrong(tiny_source, fault,
     for _ in range(10):                                              # and it goes on, W still held
         frame, notices = ch.step()
         assert notices == [] and all_finite(frame) and frame["commanded"] == pytest.approx(1.3)
+
+
+def test_a_batch_of_steps_is_the_same_motion_as_single_steps_and_sends_the_last_frame(tiny_source):
+    one, batched = character(tiny_source), character(tiny_source)
+    for ch in (one, batched):
+        ch.submit(InputMessage((0.0, 1.0), 0.0, 0.0, seq=1))
+    for _ in range(6):
+        frame_one, _ = one.step()
+    frame_batched, notices = batched.step(steps=6)
+    assert notices == [] and frame_batched["n"] == frame_one["n"] == 6
+    assert frame_batched["positions"] == frame_one["positions"] and frame_batched["root"] == frame_one["root"]
+
+
+def test_the_speed_read_out_is_in_metres_per_second_of_the_time_the_stage_gives(tiny_source):
+    ch = character(tiny_source)
+    ch.submit(InputMessage((0.0, 1.0), 0.0, 0.0, seq=1))
+    roots = []
+    for k in range(20):                     # 6 steps per 0.2 s of wall time: half of real time
+        frame, _ = ch.step(steps=6, now=0.2 * k)
+        roots.append(np.array(frame["root"]))
+    # the read-out covers the last quarter second or more: here the last two passes, 0.4 s
+    expected = np.linalg.norm(roots[-1] - roots[-3]) / 0.4
+    assert frame["speed"] == pytest.approx(expected, rel=1e-3, abs=2e-4)
+    simulated = np.linalg.norm(roots[-1] - roots[-3]) / (12 / tiny_source.fps)
+    assert expected > 0.05 and frame["speed"] < 0.6 * simulated      # not the simulated seconds' speed

@@ -32,11 +32,21 @@ def test_help_names_the_controls_and_options(module):
 @pytest.mark.parametrize("argv", [["--params", "{missing}"], ["--run", "{missing}"], ["--run", "{run}", "--port", "70000"],
                                   ["--run", "{run}", "--port", "http"], ["--run", "{run}", "--max-characters", "0"],
                                   ["--run", "{run}", "--walk-speed", "nan"], ["--run", "{run}", "--style", "Ninja"],
-                                  ["--run", "{run}", "--record", "{run}/run.json/demo.gif"], []])
+                                  ["--run", "{run}", "--record", "{run}/run.json/demo.gif"],
+                                  ["--run", "{run}", "--walk-speed", "3", "--run-speed", "1"], []])
 def test_bad_input_is_one_line_and_exit_code_2(argv, tmp_path, tiny_run):
     proc = minifilm(*[a.format(missing=tmp_path / "missing", run=tiny_run) for a in argv])
     assert proc.returncode == 2, proc.stderr
     assert proc.stderr.startswith("error: ") and proc.stderr.count("\n") == 1, proc.stderr
+
+
+def test_a_run_speed_below_the_walk_speed_is_refused_naming_both(tiny_run):
+    proc = minifilm("--run", tiny_run, "--walk-speed", "3", "--run-speed", "1", "--port", "0")
+    assert proc.returncode == 2 and "--run-speed 1" in proc.stderr and "--walk-speed 3" in proc.stderr, proc.stderr
+    from minifilm.demo.character import DemoSettings
+    with pytest.raises(ValueError, match="--run-speed 1 m/s"):
+        DemoSettings(style="Neutral", walk_speed=3.0, run_speed=1.0)
+    assert DemoSettings(style="Neutral", walk_speed=2.0, run_speed=2.0).run_speed == 2.0
 
 
 def test_a_port_in_use_is_reported_in_one_line(tiny_run):

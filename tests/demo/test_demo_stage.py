@@ -14,10 +14,10 @@ class FakeCharacter:
     def __init__(self, ident, fail=False):
         self.ident, self.fail, self.n = ident, fail, 0
 
-    def step(self):
+    def step(self, steps=1, now=None):
         if self.fail:
             raise RuntimeError("a bug in one character")
-        self.n += 1
+        self.n += steps
         return {"type": "frame", "n": self.n}, (["reset"] if self.n == 2 else [])
 
 
@@ -84,3 +84,54 @@ def test_the_loop_runs_on_its_own_thread_and_stops():
     n = len(got)
     time.sleep(0.1)                                    # six frames' time: nothing more arrives
     assert len(got) == n
+
+
+# ---- the clock: simulation time follows wall time (a fake clock: nothing here is timed) -------------
+
+from minifilm.demo.stage import MAX_BATCH, FrameClock  # noqa: E402
+
+
+def test_on_time_one_step_is_due_per_period_and_none_before():
+    c = FrameClock(1 / 60)
+    assert c.due(10.0) == 1
+    c.ran(1, 10.0)
+    assert c.due(10.0 + 0.5 / 60) == 0 and c.behind(10.0 + 0.5 / 60) == 0
+    assert c.due(10.0 + 1 / 60) == 1
+    c.ran(1, 10.0 + 1 / 60)
+    assert c.next_due == pytest.approx(10.0 + 2 / 60)
+
+
+def test_a_slow_machine_gets_the_steps_it_missed_as_one_batch_so_60_steps_run_per_wall_second():
+    c, now, ran = FrameClock(1 / 60), 0.0, 0
+    c.restart(0.0)
+    while now < 10.0:                    # the loop only gets to run every 50 ms (a busy machine)
+        n = c.due(now)
+        c.ran(n, now)
+        ran += n
+        now += 0.05
+    assert 2 <= n <= 4 and c.dropped == 0                   # about three steps a pass
+    assert ran == pytest.approx(60 * 10.0, abs=3)          # the simulation kept up with the clock
+    assert c.rate(now - 0.05) == pytest.approx(60, abs=3)
+
+
+def test_a_stall_longer_than_a_batch_drops_the_rest_and_says_so():
+    c = FrameClock(1 / 60)
+    c.restart(0.0)
+    c.ran(c.due(0.0), 0.0)
+    assert c.behind(2.0) == 120                             # two seconds without a pass
+    n = c.due(2.0)
+    assert n == MAX_BATCH and c.dropped == 120 - MAX_BATCH and c.recently_dropped(2.5) == 120 - MAX_BATCH
+    c.ran(n, 2.0)
+    assert c.behind(2.0) == 0 and c.recently_dropped(3.5) == 0
+    with pytest.raises(ValueError):
+        FrameClock(0.0)
+
+
+def test_a_batch_steps_every_character_that_many_times_and_sends_one_frame_with_the_timing():
+    stage = Stage(FakeCharacter, fps=60)
+    got, deliver = inbox()
+    stage.join(deliver)
+    stage.tick(now=1.0, steps=4)
+    frames = [m for m, is_frame in got if is_frame]
+    assert [f["n"] for f in frames] == [4] and frames[0]["steps"] == 4
+    assert {"behind", "dropped", "stepsPerSecond"} <= set(frames[0]) and stage.steps == 4 and stage.ticks == 1

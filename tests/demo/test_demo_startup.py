@@ -17,12 +17,15 @@ from minifilm.demo.calibrations import Calibrations
 from minifilm.demo.character import REACHABLE, Character, DemoSettings, RateCounter
 from minifilm.demo.protocol import InputMessage
 from minifilm.demo.server import held_out
-from minifilm.runtime.calibration import SpeedCalibration
+from minifilm.runtime.calibration import CALIBRATION_COMMANDS, CALIBRATION_DIRECTIONS, SpeedCalibration
 
 
 def fake(name="Neutral", k=1.0):
-    return SpeedCalibration(np.array([1.0, 2.0, 4.0]), k * np.array([[0.5, 1.0, 1.8], [0.4, 0.8, 1.2], [0.4, 0.7, 1.0]]),
-                            (0.0, 90.0, 180.0))
+    """A calibration at the commands and directions really measured: forwards up to 1.8 m/s,
+    sideways 1.2, backwards 1.0."""
+    c = np.array(CALIBRATION_COMMANDS)
+    achieved = np.stack([np.minimum(0.45 * c, top) for top in (1.8, 1.2, 1.0)])
+    return SpeedCalibration(c, k * achieved, CALIBRATION_DIRECTIONS)
 
 
 @pytest.fixture
@@ -108,6 +111,45 @@ def test_cached_styles_are_not_measured_again(released_source, tmp_path, monkeyp
     cal = Calibrations(released_source, first=["Neutral"], background=False, cache=CalibrationCache(RELEASED, tmp_path))
     assert measured == ["Neutral"] and cal.has("Neutral")
     assert cal.progress() == {"state": "done", "done": 0, "total": 0, "measuring": None, "known": 1}
+
+
+def tampered(how):
+    """The cache entry of fake() changed as a hostile or broken file would change it."""
+    entry = {"commanded": list(CALIBRATION_COMMANDS), "achieved": fake().achieved[:, 1:].tolist(),
+             "directions": list(CALIBRATION_DIRECTIONS)}
+    if how == "zeros":
+        entry["achieved"] = np.zeros_like(fake().achieved[:, 1:]).tolist()
+    elif how == "huge":
+        entry["achieved"] = (np.ones_like(fake().achieved[:, 1:]) * 1e300).tolist()
+    elif how == "unsorted":
+        entry["commanded"] = entry["commanded"][::-1]
+    elif how == "other commands":
+        entry["commanded"] = [v * 2 for v in entry["commanded"]]
+    elif how == "negative":
+        entry["achieved"][1][3] = -0.5
+    elif how == "directions":
+        entry["directions"] = [0.0, 45.0, 180.0]
+    return entry
+
+
+@pytest.mark.parametrize("how", ["zeros", "huge", "unsorted", "other commands", "negative", "directions"])
+def test_a_tampered_cache_is_refused_and_measured_again(released_source, tmp_path, monkeypatch, capsys, how):
+    measured = []
+    monkeypatch.setattr(calibrations, "measure", lambda source, name: measured.append(name) or fake())
+    cache = CalibrationCache(RELEASED, tmp_path)
+    cache.path.write_text(json.dumps({"version": CALIBRATION_VERSION, "styles": {"Neutral": tampered(how)}}))
+    cal = Calibrations(released_source, first=["Neutral"], background=False, cache=CalibrationCache(RELEASED, tmp_path))
+    assert measured == ["Neutral"], how                        # not taken from the file: measured again
+    assert "warning: ignoring the speed calibration cache" in capsys.readouterr().err
+    assert max_speed(cal._cal["Neutral"], 0.0) == pytest.approx(1.8)
+    again = CalibrationCache(RELEASED, tmp_path).load()        # and the file now holds the measurement
+    np.testing.assert_allclose(again["Neutral"].achieved, fake().achieved)
+
+
+def test_an_untampered_entry_is_read_back():
+    assert tampered("none")["commanded"] == list(CALIBRATION_COMMANDS)
+    from minifilm.demo.calibration_cache import _from_json
+    np.testing.assert_allclose(_from_json(tampered("none")).achieved, fake().achieved)
 
 
 def test_max_speed_reads_the_fastest_measured_per_direction():

@@ -200,3 +200,36 @@ def test_it_walks_off_at_once_after_standing_and_its_feet_are_let_go_smoothly(re
         jumps[release] = step.max(axis=(1, 2))
     assert jumps[StandStill().release].max() < 0.01, jumps
     assert jumps[1e-3][1] > 0.03, jumps                  # the test can tell
+
+
+def test_held_rows_ease_into_a_slow_idle_cycle_and_moving_rows_keep_their_phases_bit_for_bit():
+    s = StandStill(settle=0.5, idle_amplitude=0.3, idle_hz=0.25)
+    phases = np.arange(16, dtype=float).reshape(2, 8) / 7.0
+    out = s.idle_phases(phases, np.array([2.0, 0.0]))          # row 0 held for 2 s, row 1 moving
+    assert np.array_equal(out[1], phases[1])
+    amp = np.linalg.norm(out[0].reshape(4, 2), axis=-1)
+    assert np.allclose(amp, 0.3)
+    angle = np.arctan2(out[0, 0::2], out[0, 1::2])              # (sin, cos) pairs
+    expected = 2 * np.pi * 0.25 * 2.0 + np.array([0.0, np.pi, 0.0, np.pi])
+    assert np.allclose(np.cos(angle - expected), 1.0)           # the left and right limbs half a cycle apart
+    half = s.idle_phases(phases, np.array([0.25, 0.0]))[0]      # half-way through the hold: a blend
+    assert not np.allclose(half, phases[0]) and not np.allclose(np.linalg.norm(half.reshape(4, 2), axis=-1), 0.3)
+    assert np.array_equal(StandStill(idle_amplitude=0.0).idle_phases(phases, np.array([2.0, 2.0])), phases)
+    with pytest.raises(ValueError, match="idle_amplitude"):
+        StandStill(idle_amplitude=-1.0)
+
+
+def test_an_idle_character_stands_with_its_feet_planted_and_is_not_a_statue(released):
+    styles = ["Neutral", "Proud", "ShieldedRight"]
+    body = Controller.skeleton_for(released.layout, released.skeleton)
+    ctrl = Controller(released.network, released.layout, skeleton=body, feed_back_fit=True)
+    from minifilm.runtime.control import CommandScript
+    scripts = [CommandScript([(0, 2, 0, 0), (1.0, 2, 0, 0), (1.0 + 1e-6, 0, 0, 0), (7.0, 0, 0, 0)]) for _ in styles]
+    r = ctrl.run(scripts, 7 * 60, np.stack([released.library[s] for s in styles]))
+    pos, root = r.positions[:, 120:420], r.root_positions[:, 120:420]       # 5 s from 1 s after the stop
+    names = list(released.layout.joint_names)
+    feet = [names.index(n) for n in ("RightToe", "LeftToe", "RightAnkle", "LeftAnkle")]
+    moved = np.linalg.norm(pos - pos[:, :1], axis=-1).max(axis=1)          # (B, J) metres
+    assert np.all(np.linalg.norm(np.diff(root, axis=1), axis=-1).sum(axis=1) / 5.0 < 0.05)
+    assert np.all(moved[:, feet].max(axis=1) <= 0.02)
+    assert np.all(moved.max(axis=1) >= 0.01), moved.max(axis=1)

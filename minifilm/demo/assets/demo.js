@@ -308,6 +308,7 @@ function readouts() {
   demo.framesPerSecond = now - firstArrival >= 1000 ? arrivals.length : null;
   $('fps').textContent = demo.framesPerSecond === null ? NONE : `${demo.framesPerSecond} / s`;
   $('latency').textContent = demo.latencyMs === null ? NONE : `${demo.latencyMs.toFixed(0)} ms`;
+  realTime(f);
   showPicked(f.target);
   const text = mixText(f.weights);
   if (!label || label.userData.text !== text) setLabel(text);
@@ -318,6 +319,17 @@ function readouts() {
   $('mix').textContent = `now ${mix.join(' · ')}` + (arrived ? '' : ` → ${target}`) +
     (f.calibrated ? '' : f.calibration && f.calibration.state === 'measuring' ? ` (speed calibration: ${f.calibration.done} of ${f.calibration.total} measured, ${f.calibration.measuring || ''} on its way)` : ' (speed calibration on its way)');
   for (let k = 0; k < 4; k++) dial(k, f.phases[2 * k], f.phases[2 * k + 1]);
+}
+
+// Does the simulation keep up with the clock (the server batches steps when it falls behind,
+// stage.py)? Network steps per wall second, and the steps it is behind or dropped.
+function realTime(f) {
+  if (f.stepsPerSecond === undefined) return;
+  const late = (f.dropped || 0) > 0;
+  $('realtime').textContent = `${f.stepsPerSecond} steps / s` +
+    (late ? `: ${f.dropped} dropped in the last second, slow motion (the machine is too busy)`
+      : f.behind > 0 ? `, ${f.behind} behind, catching up` : '');
+  $('realtime').classList.toggle('warn', late);
 }
 
 // A hand at the phase angle (2 pi phase clockwise from the top), as long as the amplitude
