@@ -27,7 +27,7 @@ from minifilm.demo.source import DemoSource  # noqa: E402
 from minifilm.runtime.calibration import PerCharacterCalibration, calibrate_speed  # noqa: E402
 from minifilm.runtime.control import CommandScript  # noqa: E402
 from minifilm.runtime.controller import Controller  # noqa: E402
-from minifilm.runtime.frames import floor_angle  # noqa: E402
+from minifilm.runtime.root_frames import floor_angle  # noqa: E402
 
 
 def turned(directions: np.ndarray) -> np.ndarray:

@@ -297,7 +297,7 @@ class Character:
         held input's path (``future``, ``futureFacing``, ``path``: :mod:`minifilm.demo.paths`), the
         toggles, and the Controller's step time (ms; the stage adds ``frameMs``, the whole batch's,
         ``t``, and how the loop keeps up with the clock: ``steps`` in this batch, ``behind``,
-        ``dropped`` and ``stepsPerSecond``, see ``stage.py``)."""
+        ``dropped`` and ``stepsPerSecond``, see ``frame_loop.py``)."""
         st = self.ctrl.state
         mix = self.mix.weights if weights is None else weights
         # every number of the frame rounded in one pass (0.1 mm, 1e-4 of a phase), then cut up

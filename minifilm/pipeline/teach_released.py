@@ -27,7 +27,7 @@ from minifilm.motion.editing import resample
 from minifilm.motion.motion import Motion
 from minifilm.motion.skeletons import STYLE100
 from minifilm.phases.label import label
-from minifilm.rigs.clip import read_source, retarget_motion
+from minifilm.rigs.retarget_clip import read_source, retarget_motion
 from minifilm.rigs.rig import load_rig
 from minifilm.runtime.control import CommandScript
 from minifilm.runtime.controller import Controller, root_joint_indices

@@ -23,7 +23,7 @@ from typing import Sequence
 
 import numpy as np
 
-from minifilm.runtime.frames import to_world2, to_world3
+from minifilm.runtime.root_frames import to_world2, to_world3
 
 
 def rotate_about(centre: np.ndarray, angle: np.ndarray, positions: np.ndarray, directions: np.ndarray,

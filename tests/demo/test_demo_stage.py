@@ -88,7 +88,7 @@ def test_the_loop_runs_on_its_own_thread_and_stops():
 
 # ---- the clock: simulation time follows wall time (a fake clock: nothing here is timed) -------------
 
-from minifilm.demo.stage import MAX_BATCH, FrameClock  # noqa: E402
+from minifilm.demo.frame_loop import MAX_BATCH, FrameClock  # noqa: E402
 
 
 def test_on_time_one_step_is_due_per_period_and_none_before():

@@ -52,7 +52,7 @@ def test_walking_with_the_heading_turning_the_released_body_follows_it(shared_da
     from minifilm.demo.source import DemoSource
     from minifilm.runtime.control import CommandScript
     from minifilm.runtime.controller import Controller
-    from minifilm.runtime.frames import floor_angle
+    from minifilm.runtime.root_frames import floor_angle
     src = DemoSource.released(need_data(shared_data / "released-lpn", "the released network"), calibrate=False)
     styles = ["Neutral", "Old"]
     films = np.stack([src.library[s] for s in styles])
