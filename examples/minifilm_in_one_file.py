@@ -1,14 +1,9 @@
 """minifilm in one file: Mason, Starke & Komura 2022, *Real-Time Style Modelling of Human
 Locomotion via Feature-Wise Transformations and Local Motion Phases*, in NumPy + SciPy.
-
- 1. layers    forward/backward pairs: linear, ELU, ReLU, softmax, dropout, layer norm, FiLM,
-              the gated expert layer (Sec. 4.1), conv1d by im2col, max-pool
- 2. networks  Ω (gating), Ψ (FiLM generator, Eq. 2), Φ (Eq. 3), ẑ = Φ(x; Ω(p), Ψ(y)) (Eq. 4)
- 3. training  the losses (Eq. 5-7) and Adam in its textbook m̂ / v̂ form
- 4. phases    foot contacts, the contact and PCA sources, a per-frame sinusoid fit, Eq. (1)
- 5. data      a small BVH reader and the x / z / clip features (Sec. 3.2)
- 6. checking  two-sided numerical gradients of every layer and of the whole model
- 7. main      label, featurise, train on one-style minibatches (Sec. 4.3), print the test MSE
+ 1 layers (forward/backward pairs); 2 the networks Ω (gating), Ψ (FiLM generator, Eq. 2), Φ (Eq. 3)
+ and ẑ = Φ(x; Ω(p), Ψ(y)) (Eq. 4); 3 the losses (Eq. 5-7) and Adam; 4 local phases (Sec. 4.1,
+ Eq. 1); 5 a BVH reader and the x / z / clip features (Sec. 3.2); 6 gradient checks; 7 main: label,
+ featurise, train on one-style minibatches (Sec. 4.3), print the test MSE.
 
     python examples/minifilm_in_one_file.py             # synthetic data, made by the package
     python examples/minifilm_in_one_file.py --data DIR  # <Style>_<Gait>.bvh, 100STYLE skeleton
@@ -16,7 +11,6 @@ Locomotion via Feature-Wise Transformations and Local Motion Phases*, in NumPy +
 Nothing here imports minifilm (without --data the package writes synthetic BVH files: `pip install
 -e .` first); tests/test_companion.py holds this file equal to the package. "As the package": a
 detail the paper leaves open; "PAPER:": where this file departs from the paper, and why.
-
 Letters, one meaning each: n rows of a batch; K experts; I, O a layer's input and output widths;
 H hidden width; T frames (of a clip or a file); C channels per frame; J joints. Weights are
 (in, out). A phase fit's sinusoid is amp·sin(2π(freq·τ + phase)) + offset (Sec. 4.1.4).
@@ -42,32 +36,30 @@ def linear_forward(x, W, b):                    # x (n, I), W (I, O), b (O,) -> 
 def linear_backward(d, cache):
     x, W = cache
     return d @ W.T, x.T @ d, d.sum(0)
+def slope_backward(d, slope):                   # an elementwise layer: d_in = d_out ∘ its slope
+    return d * slope
 def elu_forward(x):                             # x if x > 0 else exp(x) - 1 (expm1: exact near 0)
     out = np.where(x > 0, x, np.expm1(np.minimum(x, 0)))
-    return out, (x, out)
-def elu_backward(d, cache):
-    x, out = cache
-    return d * np.where(x > 0, 1, out + 1)      # the slope below 0 is exp(x) = out + 1
+    return out, np.where(x > 0, 1, out + 1)     # the slope below 0 is exp(x) = out + 1
 def relu_forward(x):
-    return np.maximum(x, 0), x
-def relu_backward(d, x):
-    return d * (x > 0)
+    return np.maximum(x, 0), x > 0
+def dropout_forward(x, site, drop):
+    """Inverted dropout at a named site. drop: None (evaluation) or {"rate", "masks", "rng"}."""
+    if drop is None:
+        return x, 1.0
+    if site not in drop["masks"]:
+        drop["masks"][site] = drop["rng"].random(x.shape) >= drop["rate"]
+    keep = (drop["masks"][site] / (1.0 - drop["rate"])).astype(x.dtype)
+    return x * keep, keep
+elu_backward = slope_backward
+relu_backward = slope_backward
+dropout_backward = slope_backward
 def softmax_forward(x):                         # over the last axis; minus the max: no overflow
     e = np.exp(x - x.max(-1, keepdims=True))
     y = e / e.sum(-1, keepdims=True)
     return y, y
 def softmax_backward(d, y):
     return y * (d - (d * y).sum(-1, keepdims=True))   # (diag(y) - y yᵀ) d, row by row
-def dropout_forward(x, site, drop):
-    """Inverted dropout at a named site. drop: None (evaluation) or {"rate", "masks", "rng"}."""
-    if drop is None:
-        return x, None
-    if site not in drop["masks"]:
-        drop["masks"][site] = drop["rng"].random(x.shape) >= drop["rate"]
-    keep = (drop["masks"][site] / (1.0 - drop["rate"])).astype(x.dtype)
-    return x * keep, keep
-def dropout_backward(d, keep):
-    return d if keep is None else d * keep
 LN_EPS = 1e-6
 def layer_norm_forward(x):
     """The bracket of Eq. (3), (x - μ) / σ per row, with no scale or shift of its own (FiLM's γ, β
@@ -150,8 +142,8 @@ PAPER = dict(n_experts=8, hidden=512, gating_hidden=32,          # Sec. 4.3: Φ 
              clip_frames=240)      # not in the paper: the released network's 4 s at 60 fps
 TABLE_2 = {"Φ + Ω (A.S.N.)": 4_935_928, "Ψ (S.M.N.)": 35_668_530}   # Sec. 5.2.1, LPN FiLM
 def param_shapes(cfg):
-    """{name: (shape, fan_in, fan_out)} of every weight and bias of Ω, Φ and Ψ."""
-    K, H, n_filters = cfg["n_experts"], cfg["hidden"], cfg["conv_filters"]
+    """{name: (shape, fan_in, fan_out)} of every weight and bias (fan_in 0) of Ω, Φ and Ψ."""
+    K, H, n_filters, width = cfg["n_experts"], cfg["hidden"], cfg["conv_filters"], cfg["conv_kernel"]
     gate = [cfg["phase_dim"], cfg["gating_hidden"], cfg["gating_hidden"], K]
     motion = [cfg["x_dim"], H, H, cfg["z_dim"]]
     shapes = {}
@@ -162,7 +154,6 @@ def param_shapes(cfg):
         fan_in, fan_out = motion[layer:layer + 2]
         shapes[f"phi.W{layer}"] = ((K, fan_in, fan_out), fan_in, fan_out)   # K experts
         shapes[f"phi.b{layer}"] = ((K, fan_out), 0, 0)
-    width = cfg["conv_kernel"]
     flat = cfg["clip_frames"] // 4 * n_filters                   # frames after two poolings
     for name, shape in [("conv0", (width, cfg["clip_channels"], n_filters)),
                         ("conv1", (width, n_filters, n_filters)),
@@ -172,18 +163,12 @@ def param_shapes(cfg):
         shapes[f"psi.{name}_W"] = (shape, int(np.prod(shape[:-1])), fan_out)
         shapes[f"psi.{name}_b"] = ((shape[-1],), 0, 0)
     return shapes
-def count_params(cfg):
-    counts = {part: 0 for part in TABLE_2}
-    for name, (shape, _, _) in param_shapes(cfg).items():
-        counts["Ψ (S.M.N.)" if name.startswith("psi") else "Φ + Ω (A.S.N.)"] += int(np.prod(shape))
-    return counts
 def init_params(cfg, rng, dtype=np.float32):
     """Glorot-uniform weights, zero biases; γ's biases 1: FiLM starts near the identity."""
     params = {}
     for name, (shape, fan_in, fan_out) in param_shapes(cfg).items():
-        if fan_in == 0:                         # a bias
-            params[name] = np.zeros(shape, dtype)
-        else:
+        params[name] = np.zeros(shape, dtype)
+        if fan_in > 0:                          # a weight
             limit = np.sqrt(6.0 / (fan_in + fan_out)).astype(dtype)
             params[name] = rng.uniform(-1, 1, shape).astype(dtype) * limit
     H = cfg["hidden"]
@@ -200,12 +185,11 @@ def omega_forward(params, p, drop):
         h, c_act = activation(h)
         caches.append((c_drop, c_lin, c_act))
     return h, caches
-def omega_backward(d_alpha, caches, grads):
-    d = d_alpha
+def omega_backward(d, caches, grads):           # d: dα -> dp
     for layer, act_backward in [(2, softmax_backward), (1, elu_backward), (0, elu_backward)]:
         c_drop, c_lin, c_act = caches[layer]
-        d, dW, db = linear_backward(act_backward(d, c_act), c_lin)
-        grads[f"omega.W{layer}"], grads[f"omega.b{layer}"] = dW, db
+        d, grads[f"omega.W{layer}"], grads[f"omega.b{layer}"] = linear_backward(
+            act_backward(d, c_act), c_lin)
         d = dropout_backward(d, c_drop)
     return d
 def psi_forward(params, clip, drop):
@@ -219,8 +203,8 @@ def psi_forward(params, clip, drop):
         h, c_pool = max_pool_forward(h)
         blocks.append((c_conv, c_relu, c_pool))
     pooled_shape = h.shape                                       # (M, T // 4, filters)
-    h, c_dense0 = linear_forward(h.reshape(len(h), -1), params["psi.dense0_W"],
-                                 params["psi.dense0_b"])
+    flat = h.reshape(len(h), -1)
+    h, c_dense0 = linear_forward(flat, params["psi.dense0_W"], params["psi.dense0_b"])
     h, c_relu = relu_forward(h)
     h, c_drop = dropout_forward(h, "film_dense", drop)
     film, c_dense1 = linear_forward(h, params["psi.dense1_W"], params["psi.dense1_b"])
@@ -289,8 +273,7 @@ def mse_loss(pred, target):
 def bone_length_loss(pred, target, pos_cols, parents, z_mean, z_std):
     """Eq. (6)-(7): the mean over samples and bones of | ‖z_bp - z_b‖ - ‖ẑ_bp - ẑ_b‖ |. pos_cols
     (J, 3): each joint's position columns in z; parents (J,), -1 for the root. As the package:
-    every (parent, joint) pair is a bone, positions are de-normalised first (metres), |·| at 0
-    has slope 0."""
+    every (parent, joint) pair is a bone, positions de-normalised first (metres), |·|' (0) = 0."""
     child = np.nonzero(parents >= 0)[0]
     parent, std, mean = parents[child], z_std[pos_cols], z_mean[pos_cols]
     pos_hat = pred[:, pos_cols] * std + mean                     # (n, J, 3)
@@ -324,15 +307,17 @@ def foot_contacts(toes, fps):
     is the median height of the slow samples; an 11-frame (at 60 fps) majority vote smooths."""
     vel = np.diff(toes, axis=0, prepend=toes[:1]) * fps
     vel[0] = vel[1]                             # backward differences; frame 0 copies frame 1
-    height, slow = toes[..., 1], np.linalg.norm(vel, axis=-1) <= 0.15
+    height = toes[..., 1]
+    slow = np.linalg.norm(vel, axis=-1) <= 0.15
     enough = slow.sum() >= max(1, 0.02 * height.size)
     floor = np.median(height[slow]) if enough else np.percentile(height, 2.0)
     raw = (slow & (np.abs(height - floor) <= 0.01)).astype(float)
-    half, out = int(np.floor(10 / 60 * fps / 2 + 0.5)), raw.copy()
+    half = int(np.floor(10 / 60 * fps / 2 + 0.5))
+    out = raw.copy()
     for k in range(len(raw)):
-        window = raw[max(k - half, 0):k + half + 1]
-        votes, against = window.sum(0), len(window) - window.sum(0)
-        out[k] = np.where(votes > against, 1.0, np.where(against > votes, 0.0, raw[k]))  # tie: raw
+        votes = raw[max(k - half, 0):k + half + 1]
+        margin = 2 * votes.sum(0) - len(votes)  # for minus against; a tie keeps the raw value
+        out[k] = np.where(margin > 0, 1.0, np.where(margin < 0, 0.0, raw[k]))
     return out
 def pca_source(local, facing=(0.0, 0.0, 1.0)):
     """Sec. 4.1.3, the contact-free source: the bone's hips-local positions (T, 3), centred,
@@ -367,12 +352,14 @@ def solve_window(basis, w, y, vmin, vmax):
     the original: offset in [vmin, vmax] (else clipped, (s, c) re-solved) and amp = |(s, c)| ≤
     vmax - vmin (else scaled down). -> coef (G, 3) = (s, c, offset), weighted errors (G,)."""
     weighted = basis.transpose(0, 2, 1) * w
-    gram, rhs, yy = weighted @ basis, weighted @ y, np.sum(w * y * y)   # XᵀWX, XᵀWy, yᵀWy
+    gram = weighted @ basis                     # XᵀWX
+    rhs = weighted @ y                          # XᵀWy
     gram += (1e-10 * np.trace(gram, axis1=1, axis2=2) + 1e-300)[:, None, None] * np.eye(3)
     coef = np.linalg.solve(gram, rhs[..., None])[..., 0]         # (a ridge, as the package)
-    sse, amp_max = yy - np.sum(coef * rhs, axis=1), vmax - vmin
-    too_big = coef[:, 0] ** 2 + coef[:, 1] ** 2 > amp_max ** 2
-    bad = (coef[:, 2] < vmin) | (coef[:, 2] > vmax) | too_big
+    yy = np.sum(w * y * y)
+    sse = yy - np.sum(coef * rhs, axis=1)
+    amp_max = vmax - vmin
+    bad = (coef[:, 2] < vmin) | (coef[:, 2] > vmax) | (np.hypot(coef[:, 0], coef[:, 1]) > amp_max)
     could_win = sse < np.min(sse[~bad], initial=np.inf)          # as the package: only these
     for i in np.nonzero(bad & could_win)[0]:
         offset = np.clip(coef[i, 2], vmin, vmax)
@@ -383,10 +370,10 @@ def solve_window(basis, w, y, vmin, vmax):
         sse[i] = yy - 2 * coef[i] @ rhs[i] + coef[i] @ gram[i] @ coef[i]
     return coef, sse
 def fit_window(k, v, half, width):
-    """What frame k's fit looks at: `width` data frames around k (shifted inwards at the ends),
-    `half` frames each side pulling towards the neighbours' fits with weight (1 - i/half)².
-    -> None if the data is still (skipped), else τ (offsets from k), is_data, the frames
-    (clamped), weights and the bounds (vmin, vmax of every sample looked at)."""
+    """Frame k's fit: `width` data frames around k (shifted inwards at the ends), `half` frames each
+    side pulling towards the neighbours' fits with weight (1 - i/half)². -> None if the data is
+    still (skipped), else τ (offsets from k), is_data, the frames (clamped), the weights and the
+    bounds (vmin, vmax of every sample looked at)."""
     n_frames = len(v)
     first = min(max(k - half, 0), n_frames - width)
     if np.abs(v[first:first + width]).sum() < 1e-3:
@@ -427,8 +414,8 @@ def fit_sinusoids(v, fps, sweeps=3):
                 curvature = sse[best - 1] - 2 * sse[best] + sse[best + 1]
                 shift = np.clip(0.5 * (sse[best - 1] - sse[best + 1]) / curvature, -1, 1)
             f = np.exp(log_freqs[best] + shift * (log_freqs[1] - log_freqs[0]))
-            refined_coef, refined_sse = solve_window(sinusoid_basis(tau, np.array([f]), fps), w, y,
-                                                     vmin, vmax)
+            refined_basis = sinusoid_basis(tau, np.array([f]), fps)
+            refined_coef, refined_sse = solve_window(refined_basis, w, y, vmin, vmax)
             if refined_sse[0] < sse[best]:
                 coef[k], freq[k] = refined_coef[0], f
             else:
@@ -454,8 +441,7 @@ def local_phases(pos, rot, fps, hips, bones, contacts, sources=("pca", "pca", "c
     """The local phases of the four SLOTS (Sec. 4.1). pos (T, J, 3), rot (T, J, 3, 3) world
     transforms; hips and bones (4) joint indices; contacts (T, 2) [right, left]; a 'pca' or
     'contact' source per slot. -> phase (T, 4) cycles, amplitude (T, 4): Eq. (1)'s ‖v_w‖·a, the
-    fitted amp times the bone's largest hips-relative speed. As the package, phase and amplitude
-    are then smoothed by the 4 Hz filter."""
+    fitted amp times the bone's largest hips-relative speed; as the package, both smoothed at 4 Hz."""
     local = np.einsum("tji,tbj->tbi", rot[:, hips], pos[:, bones] - pos[:, hips, None])   # hips'
     speed = np.linalg.norm(np.diff(local, axis=0, prepend=local[:1]), axis=-1) * fps
     speed[0] = speed[1]
@@ -507,26 +493,23 @@ def read_bvh(path, scale=0.01):
         i += 1
     n_frames, fps = int(tokens[i + 2]), 1.0 / float(tokens[i + 5])   # Frames: T Frame Time: dt
     values = np.array(tokens[i + 6:], dtype=float).reshape(n_frames, -1)
-    local_pos = np.tile(np.array(offsets) * scale, (n_frames, 1, 1))
-    local_rot = np.tile(np.eye(3), (n_frames, len(names), 1, 1))
+    pos = np.tile(np.array(offsets) * scale, (n_frames, 1, 1))      # local, made world below
+    rot = np.tile(np.eye(3), (n_frames, len(names), 1, 1))
     col = 0                                     # the first value column of joint j
     for j, joint_channels in enumerate(channels):
         for k, channel in enumerate(joint_channels):   # position channels replace the offset
             if channel.endswith("position"):
-                local_pos[:, j, "XYZ".index(channel[0])] = values[:, col + k] * scale
+                pos[:, j, "XYZ".index(channel[0])] = values[:, col + k] * scale
         rot_k = [k for k, channel in enumerate(joint_channels) if channel.endswith("rotation")]
         if rot_k:                               # intrinsic rotations in the channels' order
             order = "".join(joint_channels[k][0] for k in rot_k)
-            local_rot[:, j] = Rotation.from_euler(order, values[:, [col + k for k in rot_k]],
-                                                  degrees=True).as_matrix()
+            euler = values[:, [col + k for k in rot_k]]
+            rot[:, j] = Rotation.from_euler(order, euler, degrees=True).as_matrix()
         col += len(joint_channels)
-    pos, rot = np.zeros((n_frames, len(names), 3)), np.zeros((n_frames, len(names), 3, 3))
-    for j, parent in enumerate(parents):        # forward kinematics, parents first
-        if parent < 0:
-            rot[:, j], pos[:, j] = local_rot[:, j], local_pos[:, j]
-        else:
-            rot[:, j] = rot[:, parent] @ local_rot[:, j]
-            pos[:, j] = pos[:, parent] + np.einsum("tij,tj->ti", rot[:, parent], local_pos[:, j])
+    for j, parent in enumerate(parents):        # forward kinematics, parents first; roots stay
+        if parent >= 0:
+            pos[:, j] = pos[:, parent] + np.einsum("tij,tj->ti", rot[:, parent], pos[:, j])
+            rot[:, j] = rot[:, parent] @ rot[:, j]
     return names, np.array(parents), pos, rot, fps
 HIPS = "Hips"                                   # the 100STYLE skeleton's names
 TOE_TIPS = ("RightToeSite", "LeftToeSite")
@@ -591,8 +574,10 @@ def rel_error(a, b):
     """max|a - b| / max(|a| + |b|): the worst entry against the largest gradient (a per-entry
     ratio would report the differences' ~1e-11 rounding on tiny entries)."""
     return float(np.max(np.abs(a - b)) / max(1e-12, np.max(np.abs(a) + np.abs(b))))
-def check_layer(forward, backward, *inputs, rng):
-    """L = Σ out ∘ cotangent, so d_out = cotangent: the worst input's error."""
+def check_layer(forward, backward, shapes, rng):
+    """Random inputs of these shapes, kept 0.1 from 0 (ReLU's kink); L = Σ out ∘ cotangent, so
+    d_out = cotangent. -> the worst input's error."""
+    inputs = [a + 0.1 * np.sign(a) for a in map(rng.standard_normal, shapes)]
     out, cache = forward(*inputs)
     cotangent = rng.standard_normal(out.shape)
     grads = backward(cotangent, cache)
@@ -622,24 +607,20 @@ def check_model(rng):
             for name, a in arrays.items()}
 def gradient_check(seed=0, limit=1e-7):         # prints one row per check; True if all pass
     rng = np.random.default_rng(seed)
-    r = lambda *shape: rng.standard_normal(shape)               # noqa: E731
-    away = lambda a: a + 0.1 * np.sign(a)                       # noqa: E731 (from ReLU's kink)
     drop = {"rate": 0.3, "masks": {}, "rng": rng}   # one mask, drawn on the first call
-    rows = {"linear": check_layer(linear_forward, linear_backward, r(4, 5), r(5, 3), r(3), rng=rng),
-            "ELU": check_layer(elu_forward, elu_backward, away(r(4, 5)), rng=rng),
-            "ReLU": check_layer(relu_forward, relu_backward, away(r(4, 5)), rng=rng),
-            "softmax": check_layer(softmax_forward, softmax_backward, r(4, 5), rng=rng),
-            "dropout": check_layer(lambda x: dropout_forward(x, "d", drop), dropout_backward,
-                                   r(4, 5), rng=rng),
-            "layer norm": check_layer(layer_norm_forward, layer_norm_backward, r(4, 6), rng=rng),
-            "FiLM": check_layer(film_forward, film_backward, r(4, 6), r(4, 6), r(4, 6), rng=rng),
-            "FiLM, one style": check_layer(film_forward, film_backward, r(4, 6), r(1, 6), r(1, 6),
-                                           rng=rng),
-            "gated experts": check_layer(expert_forward, expert_backward, r(4, 5), r(4, 3),
-                                         r(3, 5, 2), r(3, 2), rng=rng),
-            "conv1d": check_layer(conv1d_forward, conv1d_backward, r(2, 7, 3), r(3, 3, 4), r(4),
-                                  rng=rng),
-            "max-pool": check_layer(max_pool_forward, max_pool_backward, r(2, 7, 3), rng=rng)}
+    layers = [("linear", linear_forward, linear_backward, [(4, 5), (5, 3), (3,)]),
+              ("ELU", elu_forward, elu_backward, [(4, 5)]),
+              ("ReLU", relu_forward, relu_backward, [(4, 5)]),
+              ("softmax", softmax_forward, softmax_backward, [(4, 5)]),
+              ("dropout", lambda x: dropout_forward(x, "d", drop), dropout_backward, [(4, 5)]),
+              ("layer norm", layer_norm_forward, layer_norm_backward, [(4, 6)]),
+              ("FiLM", film_forward, film_backward, [(4, 6), (4, 6), (4, 6)]),
+              ("FiLM, one style", film_forward, film_backward, [(4, 6), (1, 6), (1, 6)]),
+              ("gated experts", expert_forward, expert_backward, [(4, 5), (4, 3), (3, 5, 2), (3, 2)]),
+              ("conv1d", conv1d_forward, conv1d_backward, [(2, 7, 3), (3, 3, 4), (4,)]),
+              ("max-pool", max_pool_forward, max_pool_backward, [(2, 7, 3)])]
+    rows = {name: check_layer(forward, backward, shapes, rng)
+            for name, forward, backward, shapes in layers}
     rows.update({f"model: {name}": err for name, err in check_model(rng).items()})
     print(f"gradient check (float64, two-sided differences; passes under {limit:g}):")
     for name, err in rows.items():
@@ -711,9 +692,11 @@ def main():
         sys.exit(f"no .bvh files in {args.data}")
     if not gradient_check(args.seed):
         sys.exit("the gradient check failed")
-    for part, count in count_params(PAPER).items():   # Ψ: no choice of the described layers
-        print(f"[model] PAPER {part}: {count:,} parameters; "   # gives Table 2's count
-              f"Table 2: {TABLE_2[part]:,}")                   # (minifilm/model/film_generator.py)
+    counts = dict.fromkeys(TABLE_2, 0)          # Ψ: no choice of the described layers gives
+    for name, (shape, _, _) in param_shapes(PAPER).items():   # Table 2's count (the package's
+        counts["Ψ (S.M.N.)" if name[:3] == "psi" else "Φ + Ω (A.S.N.)"] += int(np.prod(shape))
+    for part, count in counts.items():          # minifilm/model/film_generator.py says more)
+        print(f"[model] PAPER {part}: {count:,} parameters; Table 2: {TABLE_2[part]:,}")
     with tempfile.TemporaryDirectory() as tmp:  # the synthetic files live only as long as this
         if args.data is None:
             cmd = [sys.executable, str(Path(__file__).with_name("make_synthetic.py")), tmp,
@@ -726,8 +709,7 @@ def main():
             print("[data]", made.stdout.strip().splitlines()[-1])
         data, parents = load_folder(args.data or tmp)
     styles = sorted(data)
-    print(f"[labels] {len(styles)} styles labelled and featurised "
-          f"({time.perf_counter() - start:.0f} s so far)")
+    print(f"[labels] {len(styles)} styles labelled ({time.perf_counter() - start:.0f} s so far)")
 
     # as the package: every column by the training rows' mean and std, clips by x's joint columns
     stats = []
