@@ -675,10 +675,11 @@ def main():
         sys.exit(f"no .bvh files in {args.data}")
     if not gradient_check(args.seed):
         sys.exit("the gradient check failed")
-    counts = dict.fromkeys(TABLE_2, 0)          # Ψ: no choice of the described layers gives
-    for name, (shape, _, _) in param_shapes(PAPER).items():   # Table 2's count (the package's
-        counts["Ψ (S.M.N.)" if name[:3] == "psi" else "Φ + Ω (A.S.N.)"] += int(np.prod(shape))
-    for part, count in counts.items():          # minifilm/model/film_generator.py says more)
+    # Ψ: no reading of the layers Sec. 4.3 describes gives Table 2's count (see the package's
+    counts = dict.fromkeys(TABLE_2, 0)          # minifilm/model/film_generator.py)
+    for name, (shape, _, _) in param_shapes(PAPER).items():
+        counts["Ψ (S.M.N.)" if name.startswith("psi") else "Φ + Ω (A.S.N.)"] += int(np.prod(shape))
+    for part, count in counts.items():
         print(f"[model] PAPER {part}: {count:,} parameters; Table 2: {TABLE_2[part]:,}")
     with tempfile.TemporaryDirectory() as tmp:  # the synthetic files live only as long as this
         if args.data is None:
