@@ -1,14 +1,8 @@
 """minifilm in one file: Mason, Starke & Komura 2022, *Real-Time Style Modelling of Human
 Locomotion via Feature-Wise Transformations and Local Motion Phases*, in NumPy + SciPy.
-
- 1. layers    forward/backward pairs: linear, ELU, ReLU, softmax, dropout, layer norm, FiLM,
-              the gated expert layer (Sec. 4.1), conv1d by im2col, max-pool
- 2. networks  Ω (gating), Ψ (FiLM generator, Eq. 2), Φ (Eq. 3), ẑ = Φ(x; Ω(p), Ψ(y)) (Eq. 4)
- 3. training  the losses (Eq. 5-7) and Adam in its textbook m̂ / v̂ form
- 4. phases    foot contacts, the contact and PCA sources, a per-frame sinusoid fit, Eq. (1)
- 5. data      a small BVH reader and the x / z / clip features (Sec. 3.2)
- 6. checking  two-sided numerical gradients of every layer and of the whole model
- 7. main      label, featurise, train on one-style minibatches (Sec. 4.3), print the test MSE
+ 1 layers; 2 the networks Ω (gating), Ψ (FiLM generator, Eq. 2), Φ (Eq. 3), ẑ = Φ(x; Ω(p), Ψ(y))
+ (Eq. 4); 3 the losses (Eq. 5-7), Adam; 4 local phases (Sec. 4.1, Eq. 1); 5 a BVH reader, the
+ x / z / clip features (Sec. 3.2); 6 gradient checks; 7 main: label, featurise, train (Sec. 4.3).
 
     python examples/minifilm_in_one_file.py             # synthetic data, made by the package
     python examples/minifilm_in_one_file.py --data DIR  # <Style>_<Gait>.bvh, 100STYLE skeleton
@@ -16,7 +10,6 @@ Locomotion via Feature-Wise Transformations and Local Motion Phases*, in NumPy +
 Nothing here imports minifilm (without --data the package writes synthetic BVH files: `pip install
 -e .` first); tests/test_companion.py holds this file equal to the package. "As the package": a
 detail the paper leaves open; "PAPER:": where this file departs from the paper, and why.
-
 Letters, one meaning each: n rows of a batch; K experts; I, O a layer's input and output widths;
 H hidden width; T frames (of a clip or a file); C channels per frame; J joints. Weights are
 (in, out). A phase fit's sinusoid is amp·sin(2π(freq·τ + phase)) + offset (Sec. 4.1.4).
@@ -42,32 +35,29 @@ def linear_forward(x, W, b):                    # x (n, I), W (I, O), b (O,) -> 
 def linear_backward(d, cache):
     x, W = cache
     return d @ W.T, x.T @ d, d.sum(0)
+def slope_backward(d, slope):                   # an elementwise layer: d_in = d_out ∘ its slope
+    return d * slope
 def elu_forward(x):                             # x if x > 0 else exp(x) - 1 (expm1: exact near 0)
     out = np.where(x > 0, x, np.expm1(np.minimum(x, 0)))
-    return out, (x, out)
-def elu_backward(d, cache):
-    x, out = cache
-    return d * np.where(x > 0, 1, out + 1)      # the slope below 0 is exp(x) = out + 1
+    return out, np.where(x > 0, 1, out + 1)     # the slope below 0 is exp(x) = out + 1
 def relu_forward(x):
-    return np.maximum(x, 0), x
-def relu_backward(d, x):
-    return d * (x > 0)
+    return np.maximum(x, 0), x > 0
+def dropout_forward(x, site, drop):             # inverted; drop None (evaluation) or a dict:
+    if drop is None:                            # {"rate", "masks": {site: mask}, "rng"}
+        return x, 1.0
+    if site not in drop["masks"]:
+        drop["masks"][site] = drop["rng"].random(x.shape) >= drop["rate"]
+    keep = (drop["masks"][site] / (1.0 - drop["rate"])).astype(x.dtype)
+    return x * keep, keep
+elu_backward = slope_backward
+relu_backward = slope_backward
+dropout_backward = slope_backward
 def softmax_forward(x):                         # over the last axis; minus the max: no overflow
     e = np.exp(x - x.max(-1, keepdims=True))
     y = e / e.sum(-1, keepdims=True)
     return y, y
 def softmax_backward(d, y):
     return y * (d - (d * y).sum(-1, keepdims=True))   # (diag(y) - y yᵀ) d, row by row
-def dropout_forward(x, site, drop):
-    """Inverted dropout at a named site. drop: None (evaluation) or {"rate", "masks", "rng"}."""
-    if drop is None:
-        return x, None
-    if site not in drop["masks"]:
-        drop["masks"][site] = drop["rng"].random(x.shape) >= drop["rate"]
-    keep = (drop["masks"][site] / (1.0 - drop["rate"])).astype(x.dtype)
-    return x * keep, keep
-def dropout_backward(d, keep):
-    return d if keep is None else d * keep
 LN_EPS = 1e-6
 def layer_norm_forward(x):
     """The bracket of Eq. (3), (x - μ) / σ per row, with no scale or shift of its own (FiLM's γ, β
@@ -82,8 +72,8 @@ def layer_norm_backward(d, cache):
     d_centred = d / s - through_sigma / (s * s * (centred.shape[-1] - 1) * sigma)
     return d_centred - d_centred.mean(-1, keepdims=True)          # through centred = x - mean(x)
 def film_forward(h, gamma, beta):
-    """FiLM (Perez et al. 2018), the outside of Eq. (3): γ ∘ h + β. h (n, H); γ, β (n, H), or
-    (1, H): one style for the whole batch (then their gradients are summed over the batch)."""
+    """FiLM (Perez et al. 2018), the outside of Eq. (3): γ ∘ h + β. h (n, H); γ, β (n, H) or
+    (1, H): one style for the whole batch."""
     return gamma * h + beta, (h, gamma)
 def film_backward(d, cache):
     h, gamma = cache
@@ -91,9 +81,8 @@ def film_backward(d, cache):
         return d * gamma, (d * h).sum(0, keepdims=True), d.sum(0, keepdims=True)
     return d * gamma, d * h, d
 def expert_forward(x, alpha, W, b):
-    """The gated expert layer (Sec. 4.1), plain: blend the K experts' weights by the gating
-    weights, W = Σ_k α_k W_k per sample, then multiply. x (n, I), α (n, K), W (K, I, O), b (K, O)
-    -> (n, O). (The package sums the same terms without the (n, I, O) blend: 4-8x faster.)"""
+    """The gated expert layer (Sec. 4.1), plain: W = Σ_k α_k W_k per sample, then x W. x (n, I),
+    α (n, K), W (K, I, O), b (K, O) -> (n, O). (The package skips the blend: 4-8x faster.)"""
     K, I, O = W.shape
     blend = (alpha @ W.reshape(K, I * O)).reshape(-1, I, O)       # (n, I, O) each sample's W
     return np.matmul(x[:, None, :], blend)[:, 0] + alpha @ b, (x, alpha, W, b, blend)
@@ -105,8 +94,8 @@ def expert_backward(d, cache):                  # -> dx (n, I), dα (n, K), dW (
     dx = np.matmul(blend, d[:, :, None])[..., 0]
     return dx, d_alpha, (alpha.T @ d_blend).reshape(K, I, O), alpha.T @ d
 def conv1d_forward(x, W, b):
-    """'Same'-padded cross-correlation over time (as TF), x (n, T, C), W (width, C, filters) ->
-    (n, T, filters), by im2col: each frame's window is one row, the convolution one product."""
+    """'Same' cross-correlation over time (as TF), x (n, T, C), W (width, C, filters) -> (n, T,
+    filters), by im2col: each frame's window is one row, the convolution one product."""
     width, C, n_filters = W.shape
     n, T, _ = x.shape
     padded = np.pad(x, ((0, 0), (width // 2, width // 2), (0, 0)))
@@ -123,11 +112,9 @@ def conv1d_backward(d, cache):
         d_padded[:, j:j + T] += d_cols[:, :, j]
     dW = (cols.T @ d_rows).reshape(width, C, n_filters)
     return d_padded[:, width // 2:width // 2 + T], dW, d_rows.sum(0)
-def max_pool_forward(x):
-    """Max over pairs of frames, (n, T, C) -> (n, T // 2, C); as the package, an odd last frame
-    is dropped and a tie goes to the first frame of the pair."""
-    end = x.shape[1] // 2 * 2
-    even, odd = x[:, 0:end:2], x[:, 1:end:2]
+def max_pool_forward(x):                        # pairs of frames: (n, T, C) -> (n, T // 2, C)
+    end = x.shape[1] // 2 * 2                   # as the package: an odd last frame is dropped,
+    even, odd = x[:, 0:end:2], x[:, 1:end:2]    # a tie goes to the first frame of the pair
     return np.maximum(even, odd), (x.shape, even >= odd)
 def max_pool_backward(d, cache):
     shape, first_won = cache
@@ -149,21 +136,18 @@ PAPER = dict(n_experts=8, hidden=512, gating_hidden=32,          # Sec. 4.3: Φ 
              phase_dim=8, x_dim=348, z_dim=342, clip_channels=300,   # Sec. 4.1.4, Sec. 3.2
              clip_frames=240)      # not in the paper: the released network's 4 s at 60 fps
 TABLE_2 = {"Φ + Ω (A.S.N.)": 4_935_928, "Ψ (S.M.N.)": 35_668_530}   # Sec. 5.2.1, LPN FiLM
-def param_shapes(cfg):
-    """{name: (shape, fan_in, fan_out)} of every weight and bias of Ω, Φ and Ψ."""
+def param_shapes(cfg):                          # {name: (shape, fan_in, fan_out)}; a bias: 0, 0
     K, H, n_filters = cfg["n_experts"], cfg["hidden"], cfg["conv_filters"]
     gate = [cfg["phase_dim"], cfg["gating_hidden"], cfg["gating_hidden"], K]
     motion = [cfg["x_dim"], H, H, cfg["z_dim"]]
     shapes = {}
     for layer in range(3):
-        fan_in, fan_out = gate[layer:layer + 2]
-        shapes[f"omega.W{layer}"] = ((fan_in, fan_out), fan_in, fan_out)
-        shapes[f"omega.b{layer}"] = ((fan_out,), 0, 0)
-        fan_in, fan_out = motion[layer:layer + 2]
-        shapes[f"phi.W{layer}"] = ((K, fan_in, fan_out), fan_in, fan_out)   # K experts
-        shapes[f"phi.b{layer}"] = ((K, fan_out), 0, 0)
-    width = cfg["conv_kernel"]
+        for net, widths, experts in [("omega", gate, ()), ("phi", motion, (K,))]:
+            fan_in, fan_out = widths[layer:layer + 2]
+            shapes[f"{net}.W{layer}"] = ((*experts, fan_in, fan_out), fan_in, fan_out)
+            shapes[f"{net}.b{layer}"] = ((*experts, fan_out), 0, 0)
     flat = cfg["clip_frames"] // 4 * n_filters                   # frames after two poolings
+    width = cfg["conv_kernel"]
     for name, shape in [("conv0", (width, cfg["clip_channels"], n_filters)),
                         ("conv1", (width, n_filters, n_filters)),
                         ("dense0", (flat, cfg["film_dense"])),
@@ -172,18 +156,12 @@ def param_shapes(cfg):
         shapes[f"psi.{name}_W"] = (shape, int(np.prod(shape[:-1])), fan_out)
         shapes[f"psi.{name}_b"] = ((shape[-1],), 0, 0)
     return shapes
-def count_params(cfg):
-    counts = {part: 0 for part in TABLE_2}
-    for name, (shape, _, _) in param_shapes(cfg).items():
-        counts["Ψ (S.M.N.)" if name.startswith("psi") else "Φ + Ω (A.S.N.)"] += int(np.prod(shape))
-    return counts
 def init_params(cfg, rng, dtype=np.float32):
     """Glorot-uniform weights, zero biases; γ's biases 1: FiLM starts near the identity."""
     params = {}
     for name, (shape, fan_in, fan_out) in param_shapes(cfg).items():
-        if fan_in == 0:                         # a bias
-            params[name] = np.zeros(shape, dtype)
-        else:
+        params[name] = np.zeros(shape, dtype)
+        if fan_in > 0:                          # a weight
             limit = np.sqrt(6.0 / (fan_in + fan_out)).astype(dtype)
             params[name] = rng.uniform(-1, 1, shape).astype(dtype) * limit
     H = cfg["hidden"]
@@ -191,8 +169,8 @@ def init_params(cfg, rng, dtype=np.float32):
     params["psi.dense1_b"][2 * H:3 * H] = 1.0                    # γ2
     return params
 def omega_forward(params, p, drop):
-    """Ω, the gating network (Sec. 4.1): local phases p (n, 8) -> expert weights α (n, K).
-    Three dense layers, dropout before each; ELU, ELU, softmax."""
+    """Ω, the gating network (Sec. 4.1): local phases p (n, 8) -> expert weights α (n, K); three
+    dense layers, dropout before each; ELU, ELU, softmax."""
     h, caches = p, []
     for layer, activation in enumerate([elu_forward, elu_forward, softmax_forward]):
         h, c_drop = dropout_forward(h, f"gating{layer}", drop)
@@ -200,8 +178,7 @@ def omega_forward(params, p, drop):
         h, c_act = activation(h)
         caches.append((c_drop, c_lin, c_act))
     return h, caches
-def omega_backward(d_alpha, caches, grads):
-    d = d_alpha
+def omega_backward(d, caches, grads):           # d: dα -> dp
     for layer, act_backward in [(2, softmax_backward), (1, elu_backward), (0, elu_backward)]:
         c_drop, c_lin, c_act = caches[layer]
         d, dW, db = linear_backward(act_backward(d, c_act), c_lin)
@@ -219,8 +196,8 @@ def psi_forward(params, clip, drop):
         h, c_pool = max_pool_forward(h)
         blocks.append((c_conv, c_relu, c_pool))
     pooled_shape = h.shape                                       # (M, T // 4, filters)
-    h, c_dense0 = linear_forward(h.reshape(len(h), -1), params["psi.dense0_W"],
-                                 params["psi.dense0_b"])
+    flat = h.reshape(len(h), -1)
+    h, c_dense0 = linear_forward(flat, params["psi.dense0_W"], params["psi.dense0_b"])
     h, c_relu = relu_forward(h)
     h, c_drop = dropout_forward(h, "film_dense", drop)
     film, c_dense1 = linear_forward(h, params["psi.dense1_W"], params["psi.dense1_b"])
@@ -237,10 +214,9 @@ def psi_backward(d_film, cache, grads):
         d, grads[f"psi.conv{layer}_W"], grads[f"psi.conv{layer}_b"] = conv1d_backward(d, c_conv)
     return d
 def phi_forward(params, x, alpha, film, drop):
-    """Φ, motion synthesis: x (n, x_dim), α (n, K), film (n or 1, 4H) -> ẑ (n, z_dim). Hidden
-    layer i = 1, 2 is Eq. (3), h(i) = ELU(γ(i) ∘ LN(F(i)) + β(i)): the paper's F(i), the layer's
-    features, is the gated experts applied to h(i-1); the output layer is gated experts alone.
-    As the package: dropout before every layer."""
+    """Φ: x (n, x_dim), α (n, K), film (n or 1, 4H) -> ẑ (n, z_dim). Hidden layer i = 1, 2 is
+    Eq. (3), h(i) = ELU(γ(i) ∘ LN(F(i)) + β(i)): the paper's F(i), the layer's features, is the
+    gated experts on h(i-1); the output layer is gated experts alone; dropout before each layer."""
     gammas_betas = np.split(film, 4, axis=1)                      # [γ1, β1, γ2, β2]
     h, caches = x, []
     for layer in (0, 1):
@@ -287,10 +263,8 @@ def mse_loss(pred, target):
     diff = pred - target
     return float(np.mean(diff * diff)), (2.0 / diff.size) * diff
 def bone_length_loss(pred, target, pos_cols, parents, z_mean, z_std):
-    """Eq. (6)-(7): the mean over samples and bones of | ‖z_bp - z_b‖ - ‖ẑ_bp - ẑ_b‖ |. pos_cols
-    (J, 3): each joint's position columns in z; parents (J,), -1 for the root. As the package:
-    every (parent, joint) pair is a bone, positions are de-normalised first (metres), |·| at 0
-    has slope 0."""
+    """Eq. (6)-(7): the mean over samples and bones of | ‖z_bp - z_b‖ - ‖ẑ_bp - ẑ_b‖ |; pos_cols
+    (J, 3) each joint's columns in z, parents (J,), -1 for the root; positions in metres."""
     child = np.nonzero(parents >= 0)[0]
     parent, std, mean = parents[child], z_std[pos_cols], z_mean[pos_cols]
     pos_hat = pred[:, pos_cols] * std + mean                     # (n, J, 3)
@@ -319,31 +293,31 @@ def adam_step(params, grads, state, lr, beta1=0.9, beta2=0.999, eps=1e-8):
 
 # ==== 4. Local phases (Sec. 4.1): contacts, sources, a per-frame sinusoid fit, Eq. (1) =========
 def foot_contacts(toes, fps):
-    """Sec. 4.1.2: a toe tip is in contact when slow (|v| ≤ 0.15 m/s) AND near the floor
-    (|y - floor| ≤ 0.01 m). toes (T, 2, 3) [right, left] -> (T, 2) 0/1. As the package: the floor
-    is the median height of the slow samples; an 11-frame (at 60 fps) majority vote smooths."""
+    """Sec. 4.1.2: toes (T, 2, 3) [right, left] -> (T, 2) 1 when slow (|v| ≤ 0.15 m/s) AND near
+    the floor (≤ 0.01 m). As the package: the floor is the slow samples' median height, and an
+    11-frame (at 60 fps) majority vote smooths."""
     vel = np.diff(toes, axis=0, prepend=toes[:1]) * fps
     vel[0] = vel[1]                             # backward differences; frame 0 copies frame 1
-    height, slow = toes[..., 1], np.linalg.norm(vel, axis=-1) <= 0.15
+    height = toes[..., 1]
+    slow = np.linalg.norm(vel, axis=-1) <= 0.15
     enough = slow.sum() >= max(1, 0.02 * height.size)
     floor = np.median(height[slow]) if enough else np.percentile(height, 2.0)
     raw = (slow & (np.abs(height - floor) <= 0.01)).astype(float)
-    half, out = int(np.floor(10 / 60 * fps / 2 + 0.5)), raw.copy()
+    half = int(np.floor(10 / 60 * fps / 2 + 0.5))
+    out = raw.copy()
     for k in range(len(raw)):
-        window = raw[max(k - half, 0):k + half + 1]
-        votes, against = window.sum(0), len(window) - window.sum(0)
-        out[k] = np.where(votes > against, 1.0, np.where(against > votes, 0.0, raw[k]))  # tie: raw
+        votes = raw[max(k - half, 0):k + half + 1]
+        margin = 2 * votes.sum(0) - len(votes)  # for minus against; a tie keeps the raw value
+        out[k] = np.where(margin > 0, 1.0, np.where(margin < 0, 0.0, raw[k]))
     return out
 def pca_source(local, facing=(0.0, 0.0, 1.0)):
-    """Sec. 4.1.3, the contact-free source: the bone's hips-local positions (T, 3), centred,
-    projected on their first principal component, directed forward (so in-sync and opposite
-    limbs differ; as the package, a component exactly sideways is directed by its x)."""
+    """Sec. 4.1.3: hips-local positions (T, 3), centred, on their first principal component,
+    directed forward (as the package, one exactly sideways by its x)."""
     centred = local - local.mean(0)
     pc1 = np.linalg.eigh(centred.T @ centred / (len(centred) - 1))[1][:, -1]   # largest
     along = pc1 @ np.asarray(facing)
     return centred @ (-pc1 if along < 0 or (along == 0 and pc1[0] <= 0) else pc1)
-def butterworth(x, fps, cutoff=4.0):
-    """2nd-order zero-phase Butterworth low-pass along axis 0 (as the package: edges padded)."""
+def butterworth(x, fps, cutoff=4.0):            # 2nd-order zero-phase low-pass along axis 0
     if len(x) <= 1:
         return x.copy()
     sos = butter(2, min(cutoff, 0.4 * fps) / (fps / 2), output="sos")
@@ -362,15 +336,17 @@ def sinusoid_basis(tau, freqs, fps):            # (G, E, 3): [sin 2πfτ, cos 2�
     angle = (2 * np.pi / fps) * tau[None, :] * freqs[:, None]
     return np.stack([np.sin(angle), np.cos(angle), np.ones_like(angle)], axis=-1)
 def solve_window(basis, w, y, vmin, vmax):
-    """Weighted least squares of y ≈ s·sin(2π freq τ) + c·cos(2π freq τ) + offset per candidate
-    freq: linear for a fixed frequency, a 3x3 system. basis (G, E, 3), w and y (E,). Bounds as
-    the original: offset in [vmin, vmax] (else clipped, (s, c) re-solved) and amp = |(s, c)| ≤
-    vmax - vmin (else scaled down). -> coef (G, 3) = (s, c, offset), weighted errors (G,)."""
+    """Weighted least squares of y ≈ s·sin(2π freq τ) + c·cos(2π freq τ) + offset, a 3x3 system
+    per candidate freq; basis (G, E, 3), w and y (E,). As the original: offset in [vmin, vmax]
+    (else clipped), amp = |(s, c)| ≤ vmax - vmin. -> coef (G, 3) = (s, c, offset), errors (G,)."""
     weighted = basis.transpose(0, 2, 1) * w
-    gram, rhs, yy = weighted @ basis, weighted @ y, np.sum(w * y * y)   # XᵀWX, XᵀWy, yᵀWy
+    gram = weighted @ basis                     # XᵀWX; then XᵀWy
+    rhs = weighted @ y
     gram += (1e-10 * np.trace(gram, axis1=1, axis2=2) + 1e-300)[:, None, None] * np.eye(3)
     coef = np.linalg.solve(gram, rhs[..., None])[..., 0]         # (a ridge, as the package)
-    sse, amp_max = yy - np.sum(coef * rhs, axis=1), vmax - vmin
+    yy = np.sum(w * y * y)
+    sse = yy - np.sum(coef * rhs, axis=1)
+    amp_max = vmax - vmin
     too_big = coef[:, 0] ** 2 + coef[:, 1] ** 2 > amp_max ** 2
     bad = (coef[:, 2] < vmin) | (coef[:, 2] > vmax) | too_big
     could_win = sse < np.min(sse[~bad], initial=np.inf)          # as the package: only these
@@ -383,10 +359,9 @@ def solve_window(basis, w, y, vmin, vmax):
         sse[i] = yy - 2 * coef[i] @ rhs[i] + coef[i] @ gram[i] @ coef[i]
     return coef, sse
 def fit_window(k, v, half, width):
-    """What frame k's fit looks at: `width` data frames around k (shifted inwards at the ends),
-    `half` frames each side pulling towards the neighbours' fits with weight (1 - i/half)².
-    -> None if the data is still (skipped), else τ (offsets from k), is_data, the frames
-    (clamped), weights and the bounds (vmin, vmax of every sample looked at)."""
+    """Frame k's fit: `width` data frames around k (shifted inwards at the ends), `half` frames
+    each side pulling towards the neighbours' fits, weight (1 - i/half)². -> None if still, else
+    τ (offsets from k), is_data, the frames (clamped), weights, vmin, vmax (bounds)."""
     n_frames = len(v)
     first = min(max(k - half, 0), n_frames - width)
     if np.abs(v[first:first + width]).sum() < 1e-3:
@@ -427,8 +402,8 @@ def fit_sinusoids(v, fps, sweeps=3):
                 curvature = sse[best - 1] - 2 * sse[best] + sse[best + 1]
                 shift = np.clip(0.5 * (sse[best - 1] - sse[best + 1]) / curvature, -1, 1)
             f = np.exp(log_freqs[best] + shift * (log_freqs[1] - log_freqs[0]))
-            refined_coef, refined_sse = solve_window(sinusoid_basis(tau, np.array([f]), fps), w, y,
-                                                     vmin, vmax)
+            refined_basis = sinusoid_basis(tau, np.array([f]), fps)
+            refined_coef, refined_sse = solve_window(refined_basis, w, y, vmin, vmax)
             if refined_sse[0] < sse[best]:
                 coef[k], freq[k] = refined_coef[0], f
             else:
@@ -451,11 +426,9 @@ SLOTS = ("left hand", "right hand", "left foot", "right foot")
 CONTACT_COLUMN = {"left foot": 1, "right foot": 0}       # contacts are [right, left]
 def local_phases(pos, rot, fps, hips, bones, contacts, sources=("pca", "pca", "contact", "contact"),
                  facing=(0.0, 0.0, 1.0)):
-    """The local phases of the four SLOTS (Sec. 4.1). pos (T, J, 3), rot (T, J, 3, 3) world
-    transforms; hips and bones (4) joint indices; contacts (T, 2) [right, left]; a 'pca' or
+    """Sec. 4.1: pos (T, J, 3), rot (T, J, 3, 3) world; hips, bones (4) joints; a 'pca' or
     'contact' source per slot. -> phase (T, 4) cycles, amplitude (T, 4): Eq. (1)'s ‖v_w‖·a, the
-    fitted amp times the bone's largest hips-relative speed. As the package, phase and amplitude
-    are then smoothed by the 4 Hz filter."""
+    fitted amp times the bone's largest hips-relative speed; as the package, both smoothed."""
     local = np.einsum("tji,tbj->tbi", rot[:, hips], pos[:, bones] - pos[:, hips, None])   # hips'
     speed = np.linalg.norm(np.diff(local, axis=0, prepend=local[:1]), axis=-1) * fps
     speed[0] = speed[1]
@@ -507,26 +480,23 @@ def read_bvh(path, scale=0.01):
         i += 1
     n_frames, fps = int(tokens[i + 2]), 1.0 / float(tokens[i + 5])   # Frames: T Frame Time: dt
     values = np.array(tokens[i + 6:], dtype=float).reshape(n_frames, -1)
-    local_pos = np.tile(np.array(offsets) * scale, (n_frames, 1, 1))
-    local_rot = np.tile(np.eye(3), (n_frames, len(names), 1, 1))
+    pos = np.tile(np.array(offsets) * scale, (n_frames, 1, 1))      # local, made world below
+    rot = np.tile(np.eye(3), (n_frames, len(names), 1, 1))
     col = 0                                     # the first value column of joint j
     for j, joint_channels in enumerate(channels):
         for k, channel in enumerate(joint_channels):   # position channels replace the offset
             if channel.endswith("position"):
-                local_pos[:, j, "XYZ".index(channel[0])] = values[:, col + k] * scale
+                pos[:, j, "XYZ".index(channel[0])] = values[:, col + k] * scale
         rot_k = [k for k, channel in enumerate(joint_channels) if channel.endswith("rotation")]
         if rot_k:                               # intrinsic rotations in the channels' order
             order = "".join(joint_channels[k][0] for k in rot_k)
-            local_rot[:, j] = Rotation.from_euler(order, values[:, [col + k for k in rot_k]],
-                                                  degrees=True).as_matrix()
+            euler = values[:, [col + k for k in rot_k]]
+            rot[:, j] = Rotation.from_euler(order, euler, degrees=True).as_matrix()
         col += len(joint_channels)
-    pos, rot = np.zeros((n_frames, len(names), 3)), np.zeros((n_frames, len(names), 3, 3))
-    for j, parent in enumerate(parents):        # forward kinematics, parents first
-        if parent < 0:
-            rot[:, j], pos[:, j] = local_rot[:, j], local_pos[:, j]
-        else:
-            rot[:, j] = rot[:, parent] @ local_rot[:, j]
-            pos[:, j] = pos[:, parent] + np.einsum("tij,tj->ti", rot[:, parent], local_pos[:, j])
+    for j, parent in enumerate(parents):        # forward kinematics, parents first; roots stay
+        if parent >= 0:
+            pos[:, j] = pos[:, parent] + np.einsum("tij,tj->ti", rot[:, parent], pos[:, j])
+            rot[:, j] = rot[:, parent] @ rot[:, j]
     return names, np.array(parents), pos, rot, fps
 HIPS = "Hips"                                   # the 100STYLE skeleton's names
 TOE_TIPS = ("RightToeSite", "LeftToeSite")
@@ -540,11 +510,10 @@ FUTURE = 6                                      # the first future sample (0 s i
 def to_root(v, root_rot, root_pos=None):        # world points or directions -> root frame
     return np.einsum("tji,t...j->t...i", root_rot, v if root_pos is None else v - root_pos[:, None])
 def features(pos, rot, fps, hips, joints, p, contacts):
-    """In the package's layout (minifilm/features/layout.py): x (n, 48 + 12J) and z (n, 24 + 12J
-    + 18) for the frames 1 .. T-2, and clip frames (T, 12J). The root is the hips on the floor,
-    facing the hips' +z; 12 trajectory samples [x, z, dir x, dir z] from -1 s to +1 s; per joint
-    [position, forward, up, velocity] relative to the root. z: the next frame's future trajectory
-    and joints relative to the current root, its phases p, their change, its contacts."""
+    """As minifilm/features/layout.py: x (n, 48 + 12J), z (n, 24 + 12J + 18) for frames 1 .. T-2,
+    clip frames (T, 12J). The root: the hips on the floor, facing the hips' +z. z: the next
+    frame's future trajectory and joints in the current root's frame, phases p, their change,
+    contacts."""
     n_frames = len(pos)
     facing = rot[:, hips, :, 2] * [1, 0, 1]
     facing /= np.linalg.norm(facing, axis=1, keepdims=True)
@@ -587,14 +556,12 @@ def numerical_gradient(f, x, step=1e-5):        # (f(x + step e_i) - f(x - step 
         grad[i] = (f_plus - f()) / (2 * step)
         x[i] = old
     return grad
-def rel_error(a, b):
-    """max|a - b| / max(|a| + |b|): the worst entry against the largest gradient (a per-entry
-    ratio would report the differences' ~1e-11 rounding on tiny entries)."""
+def rel_error(a, b):                            # the worst entry against the largest gradient
     return float(np.max(np.abs(a - b)) / max(1e-12, np.max(np.abs(a) + np.abs(b))))
-def check_layer(forward, backward, *inputs, rng):
-    """L = Σ out ∘ cotangent, so d_out = cotangent: the worst input's error."""
+def check_layer(forward, backward, shapes, rng):
+    inputs = [a + 0.1 * np.sign(a) for a in map(rng.standard_normal, shapes)]   # off ReLU's kink
     out, cache = forward(*inputs)
-    cotangent = rng.standard_normal(out.shape)
+    cotangent = rng.standard_normal(out.shape)  # L = Σ out ∘ cotangent, so d_out = cotangent
     grads = backward(cotangent, cache)
     grads = grads if isinstance(grads, tuple) else (grads,)
     loss = lambda: np.sum(forward(*inputs)[0] * cotangent)      # noqa: E731
@@ -622,24 +589,21 @@ def check_model(rng):
             for name, a in arrays.items()}
 def gradient_check(seed=0, limit=1e-7):         # prints one row per check; True if all pass
     rng = np.random.default_rng(seed)
-    r = lambda *shape: rng.standard_normal(shape)               # noqa: E731
-    away = lambda a: a + 0.1 * np.sign(a)                       # noqa: E731 (from ReLU's kink)
     drop = {"rate": 0.3, "masks": {}, "rng": rng}   # one mask, drawn on the first call
-    rows = {"linear": check_layer(linear_forward, linear_backward, r(4, 5), r(5, 3), r(3), rng=rng),
-            "ELU": check_layer(elu_forward, elu_backward, away(r(4, 5)), rng=rng),
-            "ReLU": check_layer(relu_forward, relu_backward, away(r(4, 5)), rng=rng),
-            "softmax": check_layer(softmax_forward, softmax_backward, r(4, 5), rng=rng),
-            "dropout": check_layer(lambda x: dropout_forward(x, "d", drop), dropout_backward,
-                                   r(4, 5), rng=rng),
-            "layer norm": check_layer(layer_norm_forward, layer_norm_backward, r(4, 6), rng=rng),
-            "FiLM": check_layer(film_forward, film_backward, r(4, 6), r(4, 6), r(4, 6), rng=rng),
-            "FiLM, one style": check_layer(film_forward, film_backward, r(4, 6), r(1, 6), r(1, 6),
-                                           rng=rng),
-            "gated experts": check_layer(expert_forward, expert_backward, r(4, 5), r(4, 3),
-                                         r(3, 5, 2), r(3, 2), rng=rng),
-            "conv1d": check_layer(conv1d_forward, conv1d_backward, r(2, 7, 3), r(3, 3, 4), r(4),
-                                  rng=rng),
-            "max-pool": check_layer(max_pool_forward, max_pool_backward, r(2, 7, 3), rng=rng)}
+    layers = [("linear", linear_forward, linear_backward, [(4, 5), (5, 3), (3,)]),
+              ("ELU", elu_forward, elu_backward, [(4, 5)]),
+              ("ReLU", relu_forward, relu_backward, [(4, 5)]),
+              ("softmax", softmax_forward, softmax_backward, [(4, 5)]),
+              ("dropout", lambda x: dropout_forward(x, "d", drop), dropout_backward, [(4, 5)]),
+              ("layer norm", layer_norm_forward, layer_norm_backward, [(4, 6)]),
+              ("FiLM", film_forward, film_backward, [(4, 6), (4, 6), (4, 6)]),
+              ("FiLM, one style", film_forward, film_backward, [(4, 6), (1, 6), (1, 6)]),
+              ("gated experts", expert_forward, expert_backward,
+               [(4, 5), (4, 3), (3, 5, 2), (3, 2)]),
+              ("conv1d", conv1d_forward, conv1d_backward, [(2, 7, 3), (3, 3, 4), (4,)]),
+              ("max-pool", max_pool_forward, max_pool_backward, [(2, 7, 3)])]
+    rows = {name: check_layer(forward, backward, shapes, rng)
+            for name, forward, backward, shapes in layers}
     rows.update({f"model: {name}": err for name, err in check_model(rng).items()})
     print(f"gradient check (float64, two-sided differences; passes under {limit:g}):")
     for name, err in rows.items():
@@ -648,6 +612,7 @@ def gradient_check(seed=0, limit=1e-7):         # prints one row per check; True
 
 # ==== 7. Main: BVH files -> labels -> features -> one-style minibatches (Sec. 4.3) -> test MSE ==
 HOP_LIFTED_FOOT = {"LeftHop": 3, "RightHop": 2}   # the slot of the foot a hopping style lifts
+NEEDED = (HIPS, *TOE_TIPS, *PHASE_BONES)
 def load_folder(folder, clip_seconds=2.0):
     """Label and featurise every <Style>_<Gait>.bvh in folder; each file's first 80 % of rows
     train, the rest test (PAPER: held-out files; a per-file split lets a few files do).
@@ -657,9 +622,8 @@ def load_folder(folder, clip_seconds=2.0):
         style = path.stem.split("_")[0]
         names, parents, pos, rot, fps = read_bvh(path)
         at = {name: j for j, name in enumerate(names)}
-        if any(name not in at for name in (HIPS, *TOE_TIPS, *PHASE_BONES)):
-            needed = ", ".join((HIPS,) + TOE_TIPS + PHASE_BONES)
-            sys.exit(f"{path}: not on the 100STYLE skeleton (it needs {needed})")
+        if any(name not in at for name in NEEDED):
+            sys.exit(f"{path}: not on the 100STYLE skeleton (it needs {', '.join(NEEDED)})")
         contacts = foot_contacts(pos[:, [at[name] for name in TOE_TIPS]], fps)
         sources = ["pca", "pca", "contact", "contact"]
         if style in HOP_LIFTED_FOOT:            # a foot that never lands has no contact cycle
@@ -711,9 +675,12 @@ def main():
         sys.exit(f"no .bvh files in {args.data}")
     if not gradient_check(args.seed):
         sys.exit("the gradient check failed")
-    for part, count in count_params(PAPER).items():   # Ψ: no choice of the described layers
-        print(f"[model] PAPER {part}: {count:,} parameters; "   # gives Table 2's count
-              f"Table 2: {TABLE_2[part]:,}")                   # (minifilm/model/film_generator.py)
+    # Ψ: no reading of the layers Sec. 4.3 describes gives Table 2's count (see the package's
+    counts = dict.fromkeys(TABLE_2, 0)          # minifilm/model/film_generator.py)
+    for name, (shape, _, _) in param_shapes(PAPER).items():
+        counts["Ψ (S.M.N.)" if name.startswith("psi") else "Φ + Ω (A.S.N.)"] += int(np.prod(shape))
+    for part, count in counts.items():
+        print(f"[model] PAPER {part}: {count:,} parameters; Table 2: {TABLE_2[part]:,}")
     with tempfile.TemporaryDirectory() as tmp:  # the synthetic files live only as long as this
         if args.data is None:
             cmd = [sys.executable, str(Path(__file__).with_name("make_synthetic.py")), tmp,
@@ -726,8 +693,7 @@ def main():
             print("[data]", made.stdout.strip().splitlines()[-1])
         data, parents = load_folder(args.data or tmp)
     styles = sorted(data)
-    print(f"[labels] {len(styles)} styles labelled and featurised "
-          f"({time.perf_counter() - start:.0f} s so far)")
+    print(f"[labels] {len(styles)} styles labelled ({time.perf_counter() - start:.0f} s so far)")
 
     # as the package: every column by the training rows' mean and std, clips by x's joint columns
     stats = []
