@@ -20,7 +20,7 @@ import math
 import time
 import traceback
 from dataclasses import dataclass
-from typing import List, Optional, Tuple
+from typing import Callable, List, Optional, Tuple
 
 import numpy as np
 
@@ -95,6 +95,9 @@ class Character:
         self.pending = collections.deque(maxlen=1024)   # appended by the network thread only
         self.frame_no, self.ack = 0, None
         self.failures = 0
+        # called with the Controller's state after every network step, batched or not (the server's
+        # record history keeps each one: a recording must hold every step, not every frame sent)
+        self.on_step: Optional[Callable] = None
         self.step_ms = 0.0           # the Controller's own time for the last frame
         self.commanded = 0.0             # m/s, what the held keys ask for
         self.reachable = 0.0             # m/s, that scaled to what the style can do (the character is steered at it)
@@ -205,6 +208,8 @@ class Character:
             notices.append(f"{problem}: the character was reset where it stood")
         self.frame_no += 1
         self._roots.append(self.ctrl.state.root[0].copy())
+        if self.on_step is not None:
+            self.on_step(self.ctrl.state)
         return notices
 
     def _feed_run(self, weights) -> None:

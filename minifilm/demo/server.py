@@ -260,8 +260,6 @@ class DemoServer:
         history, joined = FrameHistory(self.source.layout.n_joints, self.source.fps), []
 
         def deliver(text: str, is_frame: bool) -> None:      # called by the frame loop's thread
-            if is_frame and joined:
-                history.capture(joined[0].ctrl.state)         # for the page's record button (record.py)
             try:
                 loop.call_soon_threadsafe(outbox.put, text, is_frame)
             except RuntimeError:      # the event loop has closed: the server is stopping
@@ -277,6 +275,7 @@ class DemoServer:
                 pass
             return
         joined.append(character)
+        character.on_step = history.capture      # every step, for the page's record button (record.py)
         outbox.put(self.hello(character), False)
         # frames over this page's budget never get here (budget.py); it is told once a second
         ws.on_over_budget = lambda text: outbox.put(error(text), False)

@@ -107,6 +107,22 @@ def test_a_batch_of_steps_is_the_same_motion_as_single_steps_and_sends_the_last_
     assert frame_batched["positions"] == frame_one["positions"] and frame_batched["root"] == frame_one["root"]
 
 
+def test_a_recording_keeps_every_step_of_a_batch_not_only_the_frame_sent(tiny_source):
+    from minifilm.demo.record import FrameHistory
+    one, batched = character(tiny_source), character(tiny_source)
+    kept = {}
+    for name, ch in (("one", one), ("batched", batched)):
+        kept[name] = FrameHistory(tiny_source.layout.n_joints, tiny_source.fps)
+        ch.on_step = kept[name].capture
+        ch.submit(InputMessage((0.0, 1.0), 0.0, 0.0, seq=1))
+    for _ in range(12):
+        one.step()
+    batched.step(steps=5)
+    batched.step(steps=7)
+    assert kept["one"].count == kept["batched"].count == 12
+    np.testing.assert_array_equal(kept["one"].last(1.0)[0], kept["batched"].last(1.0)[0])
+
+
 def test_the_speed_read_out_is_in_metres_per_second_of_the_time_the_stage_gives(tiny_source):
     ch = character(tiny_source)
     ch.submit(InputMessage((0.0, 1.0), 0.0, 0.0, seq=1))
