@@ -31,7 +31,7 @@ from minifilm.runtime.released import load_released  # noqa: E402
 from minifilm.runtime.walk_checks import count_strikes, lowest_toe  # noqa: E402
 from minifilm.phases.label import label  # noqa: E402
 from minifilm.motion.bvh_write import write_bvh  # noqa: E402
-from minifilm.runtime.controller import root_joint_indices  # noqa: E402
+from minifilm.runtime.start_state import root_joint_indices  # noqa: E402
 from minifilm.synthetic.generator import rest_motion  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]

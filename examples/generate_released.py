@@ -15,7 +15,8 @@ from minifilm.motion.bvh_write import write_bvh
 from minifilm.motion.skeletons import STYLE100
 from minifilm.runtime.calibration import calibrate_speed
 from minifilm.runtime.control import figure_eight
-from minifilm.runtime.controller import Controller, root_joint_indices
+from minifilm.runtime.controller import Controller
+from minifilm.runtime.start_state import root_joint_indices
 from minifilm.runtime.released import load_released
 from minifilm.files import check_writable
 from minifilm.synthetic.generator import rest_motion

@@ -40,7 +40,8 @@ from minifilm.model.config import ModelConfig  # noqa: E402
 from minifilm.model.style_model import StyleModel  # noqa: E402
 from minifilm.pipeline.train_small import Settings, make_synthetic  # noqa: E402
 from minifilm.runtime.control import figure_eight  # noqa: E402
-from minifilm.runtime.controller import Controller, start_from_dataset  # noqa: E402
+from minifilm.runtime.controller import Controller  # noqa: E402
+from minifilm.runtime.start_state import start_from_dataset  # noqa: E402
 from minifilm.runtime.network import RuntimeNetwork  # noqa: E402
 from minifilm.train.finetune import finetune  # noqa: E402
 from minifilm.train.trainer import TrainConfig, Trainer  # noqa: E402

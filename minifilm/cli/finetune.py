@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from minifilm.cli.args import in_range, input_path, positive
+from minifilm.cli.args import in_range, input_path, output_folder, positive
 from minifilm.errors import InputError
 from minifilm.pipeline.new_style import teach_style
 from minifilm.pipeline.self_fed import SelfFed
@@ -35,7 +35,7 @@ def add_arguments(ap) -> None:
     src = ap.add_mutually_exclusive_group(required=True)
     src.add_argument("--run", type=Path, help="a run folder written by minifilm train")
     src.add_argument("--params", type=input_path, help="the released network's parameter folder (only read)")
-    ap.add_argument("--out", type=Path, help="with --params: the style pack folder to write or extend")
+    ap.add_argument("--out", type=output_folder, help="with --params: the style pack folder to write or extend")
     ap.add_argument("--name", required=True, help="the new style's name")
     ap.add_argument("--replace", action="store_true", help="replace a style of the same name")
     ap.add_argument("--steps", type=in_range(1, 100_000, int), default=400, help="fine-tuning steps (default 400)")

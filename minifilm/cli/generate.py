@@ -38,7 +38,8 @@ from minifilm.motion.skeletons import STYLE100
 from minifilm.pipeline.run_folder import RunFolder
 from minifilm.runtime.calibration import calibrate_speed
 from minifilm.runtime.control import SCRIPTS, distance_to_path, make_script
-from minifilm.runtime.controller import Controller, root_joint_indices
+from minifilm.runtime.controller import Controller
+from minifilm.runtime.start_state import root_joint_indices
 from minifilm.runtime.released import load_released
 from minifilm.runtime.style_library import StyleLibrary
 from minifilm.runtime.style_pack import load_pack, with_pack

@@ -37,7 +37,7 @@ from minifilm.viewer import Track, write_gif
 from minifilm.motion.bvh_write import format_bvh
 from minifilm.motion.retarget import axes_to_rotation, retarget
 from minifilm.motion.skeletons import STYLE100
-from minifilm.runtime.controller import root_joint_indices
+from minifilm.runtime.start_state import root_joint_indices
 from minifilm.viewer.deps import check_output_tools
 
 

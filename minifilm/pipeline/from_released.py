@@ -42,7 +42,8 @@ from minifilm.phases.label import label
 from minifilm.pipeline.gait_scripts import GAIT_SHARES, gait_script, gait_seconds
 from minifilm.runtime.calibration import PerCharacterCalibration, SpeedCalibration
 from minifilm.runtime.control import CommandScript
-from minifilm.runtime.controller import Controller, root_joint_indices
+from minifilm.runtime.controller import Controller
+from minifilm.runtime.start_state import root_joint_indices
 from minifilm.runtime.rollout import Rollout
 from minifilm.runtime.released import load_released
 from minifilm.synthetic.generator import rest_motion

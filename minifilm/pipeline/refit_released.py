@@ -21,7 +21,8 @@ import numpy as np
 from minifilm.features.layout import FeatureLayout
 from minifilm.motion.skeletons import STYLE100
 from minifilm.runtime.control import make_script
-from minifilm.runtime.controller import Controller, root_joint_indices
+from minifilm.runtime.controller import Controller
+from minifilm.runtime.start_state import root_joint_indices
 from minifilm.pipeline.teach_released import FPS, FrozenRows, clip_rows, normalised, teach
 from minifilm.synthetic.generator import rest_motion
 from minifilm.train.film_fit import FitSettings

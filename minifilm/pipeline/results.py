@@ -23,7 +23,8 @@ from minifilm.files import file_names
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.pipeline.run_folder import RunFolder
 from minifilm.runtime.control import make_script
-from minifilm.runtime.controller import Controller, NonFiniteOutputError, root_joint_indices
+from minifilm.runtime.controller import Controller, NonFiniteOutputError
+from minifilm.runtime.start_state import root_joint_indices
 from minifilm.runtime.network import RuntimeNetwork
 from minifilm.runtime.style_library import StyleLibrary
 from minifilm.train.trainer import Trainer

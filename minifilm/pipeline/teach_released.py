@@ -30,7 +30,8 @@ from minifilm.phases.label import label
 from minifilm.rigs.retarget_clip import read_source, retarget_motion
 from minifilm.rigs.rig import load_rig
 from minifilm.runtime.control import CommandScript
-from minifilm.runtime.controller import Controller, root_joint_indices
+from minifilm.runtime.controller import Controller
+from minifilm.runtime.start_state import root_joint_indices
 from minifilm.runtime.released import load_released
 from minifilm.runtime.style_pack import load_pack_or_empty
 from minifilm.runtime.walk_checks import count_strikes, walk_report

@@ -49,7 +49,7 @@ from minifilm.pipeline.run_folder import RunFolder, is_run_entry
 from minifilm.pipeline.run_rig import load_target
 from minifilm.pipeline.results import (generate_per_style, save_loss_curve, show_styles,  # noqa: F401
                                        style_library, style_recognition, test_table)
-from minifilm.runtime.controller import start_from_dataset
+from minifilm.runtime.start_state import start_from_dataset
 from minifilm.synthetic import generator as synthetic
 from minifilm.train.parallel import data_parallel
 from minifilm.train.trainer import TrainConfig, Trainer

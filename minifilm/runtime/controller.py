@@ -19,7 +19,7 @@ calibration (:func:`~minifilm.runtime.calibration.calibrate_speed`, instead of t
 root moves by the full predicted delta. The demo's smoothing of joint positions with the predicted
 velocities (``lerp(p_prev + v dt, p, 0.5)``) and of the future trajectory with the previous one
 (weight 0.15) are kept as options. A run starts from the data's mean pose (the input means) with
-a still past trajectory and the mean phases, or (``start_x``, :func:`start_from_dataset`) from a
+a still past trajectory and the mean phases, or (``start_x``, :func:`~minifilm.runtime.start_state.start_from_dataset`) from a
 frame of the style's own data: pose, trajectory and phases in mid-stride; a small trained
 network may never leave the mean pose. The demo's arm IK becomes an optional fit of the whole
 body onto the source skeleton every frame (``skeleton=``, :class:`~minifilm.motion.skeleton_fit.SkeletonFit`):
@@ -51,41 +51,8 @@ from minifilm.runtime.held_body import leg_chains
 from minifilm.runtime.network import RuntimeNetwork
 from minifilm.runtime.rollout import Rollout
 from minifilm.runtime.standing import StandStill
+from minifilm.runtime.start_state import root_joint_indices
 from minifilm.runtime.state import CharacterState
-
-
-def root_joint_indices(layout: FeatureLayout, skeleton: Motion) -> np.ndarray:
-    """Index into ``skeleton`` joints of each exported joint of ``layout``, matched by name;
-    ValueError naming every missing joint when the skeleton is not the layout's."""
-    missing = [n for n in layout.joint_names if n not in skeleton.names]
-    if missing:
-        raise ValueError(f"{skeleton.source}: the skeleton lacks {len(missing)} of the network's "
-                         f"{layout.n_joints} joints ({missing}); its joints are {skeleton.names}")
-    return np.array([skeleton.index(n) for n in layout.joint_names], dtype=np.int64)
-
-
-def start_from_dataset(dataset, style: str, gait: str = "FW", split: str = "train"):
-    """A start state for :meth:`Controller.run` taken from a style's own data: the raw input frame
-    x (x_dim,) and phases p (8,) of the middle row of its unmirrored ``gait`` file (any of its
-    files when it has none), as ``run(..., phases=p, start_x=x)``.
-
-    The data's mean pose and mean phases (the default start) belong to no style and to no phase
-    of a gait cycle; a small network may not get from there into its style's cycle (it stands
-    still). ``dataset`` is a :class:`minifilm.dataset.build.Dataset` (raw, unnormalised rows).
-    """
-    sp = dataset.split(split)
-    if style not in dataset.styles:
-        raise KeyError(f"start_from_dataset: style {style!r} is not in the data set ({dataset.styles})")
-    s = dataset.styles.index(style)
-    files = [i for i, f in enumerate(dataset.files)
-             if f.get("style") == style and f.get("gait") == gait and not f.get("mirrored")]
-    rows = np.flatnonzero((sp.style == s) & np.isin(sp.file, files))
-    if rows.size == 0:
-        rows = np.flatnonzero(sp.style == s)
-    if rows.size == 0:
-        raise ValueError(f"start_from_dataset: style {style!r} has no rows in the {split!r} split")
-    r = rows[len(rows) // 2]
-    return np.asarray(sp.x[r], np.float64), np.asarray(sp.p[r], np.float64)
 
 
 class NonFiniteOutputError(InputError):
@@ -265,14 +232,11 @@ class Controller:
         return x
 
     def _run_trajectory(self, tp: np.ndarray, td: np.ndarray):
-        """The trajectory input (B, 12, 2) positions relative to the root and directions, blended
-        by ``run_feed`` (B,) into a perfect straight run at ``run_feed_speed`` m/s along the target
-        velocity: the past samples behind the root, the future ahead, all facing the target.
-
-        Told only its own past, the released network never runs: its past says it is walking, and
-        it goes on walking (Neutral tops out at 1.8 m/s however far ahead the future is put).
-        Shown a run, its own root step runs at the speed it learnt for the style (2.06 m/s for
-        Neutral; benchmarks/run_speed.py). The state's history and future are not changed."""
+        """The trajectory input (B, 12, 2) (positions relative to the root, directions) blended by
+        ``run_feed`` (B,) into a perfect straight run at ``run_feed_speed`` m/s along the target
+        velocity. Told only its own past (walking), the released network walks on (Neutral at most
+        1.8 m/s); shown a run, it runs at the speed it learnt for the style (Neutral 2.06 m/s,
+        benchmarks/run_speed.py). The state's history and future are not changed."""
         facing, velocity = self._target
         w = self.run_feed[:, None, None]
         speed = np.linalg.norm(velocity, axis=-1, keepdims=True)

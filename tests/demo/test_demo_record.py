@@ -12,7 +12,7 @@ from minifilm.demo.character import Character, DemoSettings
 from minifilm.demo.protocol import ProtocolError, parse_message
 from minifilm.demo.record import MAX_RECORD_SECONDS, FrameHistory, RecordMessage, answer_record, bvh_scale
 from minifilm.motion.bvh import read_bvh
-from minifilm.runtime.controller import root_joint_indices
+from minifilm.runtime.start_state import root_joint_indices
 
 
 def state(k: int, root=None) -> SimpleNamespace:

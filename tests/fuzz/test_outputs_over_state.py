@@ -89,7 +89,8 @@ def state(tiny_run, tmp_path_factory):
     base = {"generate": ["generate", "--run", run, "--seconds", "0.5"], "view": ["view", clip],
             "phases": ["phases", clip], "demo": ["demo", "--run", run, "--record-seconds", "1"],
             "table2": ["table2", "--no-timing"], "train": ["train", "--quick"], "dataset": ["dataset", run / "data"],
-            "compare": ["compare"], "retarget": ["retarget", clip, "--to", "cmu"]}
+            "compare": ["compare"], "retarget": ["retarget", clip, "--to", "cmu"],
+            "finetune": ["finetune", "--run", run, "--name", "New", clip]}
     return run, data, base
 
 

@@ -17,7 +17,8 @@ from minifilm.model.style_model import StyleModel
 from minifilm.synthetic import generator as synthetic
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.skeletons import builtin_skeleton
-from minifilm.runtime.controller import Controller, start_from_dataset
+from minifilm.runtime.controller import Controller
+from minifilm.runtime.start_state import start_from_dataset
 from minifilm.runtime.network import RuntimeNetwork
 from minifilm.runtime.style_library import StyleLibrary
 from minifilm.train.trainer import TrainConfig, Trainer

@@ -283,7 +283,7 @@ def test_per_character_calibration():
 
 
 def test_a_skeleton_without_the_layouts_joints_is_named():
-    from minifilm.runtime.controller import root_joint_indices
+    from minifilm.runtime.start_state import root_joint_indices
 
     net, script, stats, a, u = glide_setup()
     skel = glide_skeleton(stats)

@@ -15,7 +15,8 @@ from minifilm.motion.foot_ik import FootLocker
 from minifilm.motion.measures import foot_sliding
 from minifilm.features.layout import FeatureLayout
 from minifilm.motion.skeletons import STYLE100
-from minifilm.runtime.controller import Controller, root_joint_indices
+from minifilm.runtime.controller import Controller
+from minifilm.runtime.start_state import root_joint_indices
 from minifilm.runtime.network import RuntimeNetwork
 from minifilm.runtime.style_library import StyleLibrary
 from repo_paths import need_data
