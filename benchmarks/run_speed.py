@@ -2,7 +2,7 @@
 
     python benchmarks/run_speed.py                         # all 100 styles (a few minutes)
     python benchmarks/run_speed.py --styles Neutral Angry  # some styles
-    python benchmarks/run_speed.py --markdown reports/released_run_speed.md
+    python benchmarks/run_speed.py --markdown reports/2026-12-04_released_run_speed.md
 
 1. **The data's speeds, from the normalisation statistics.** The network's input and output
    statistics (Xmean/Xstd, Ymean/Ystd) are those of its training rows, all styles and gaits

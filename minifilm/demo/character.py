@@ -39,7 +39,7 @@ SPEED_WINDOW = 0.25       # seconds over which the shown actual speed is measure
 #: calibration), so what is asked can be reached: Shift drives the style at its top. (The released
 #: network's Neutral runs at most 1.8 m/s in the loop, about 87 % of the 2.06 m/s it reaches when
 #: shown a perfect run trajectory, and 2.5 m/s is 3.4 standard deviations out in its training
-#: rows: benchmarks/run_speed.py, reports/released_run_speed.md.)
+#: rows: benchmarks/run_speed.py, reports/2026-12-04_released_run_speed.md.)
 REACHABLE = 1.0
 #: seconds over which Shift's run feed (``Controller.run_feed``) is blended in and out
 RUN_BLEND = 0.3
@@ -228,7 +228,7 @@ class Character:
             name = " + ".join(n for n, w in sorted(weights.items(), key=lambda nw: -nw[1]) if w > 0.01)
             top = "" if self.max_speed is None else f"; walking it goes at most {self.max_speed:.2f} m/s"
             self.speed_note = (f"Shift: {name} runs at this network's own running pace for it (the actual "
-                               f"speed; reports/released_run_speed.md){top}")
+                               f"speed; reports/2026-12-04_released_run_speed.md){top}")
 
     def _reachable(self, velocity: np.ndarray, facing: np.ndarray, weights) -> np.ndarray:
         """The held velocity, scaled down to ``REACHABLE`` of the fastest the mix was measured to go
@@ -246,7 +246,7 @@ class Character:
         self.reachable = REACHABLE * top
         name = " + ".join(n for n, w in sorted(weights.items(), key=lambda nw: -nw[1]) if w > 0.01)
         self.speed_note = (f"{name} goes at most {top:.2f} m/s this way: that is as fast as this network "
-                           f"runs it (measured, see reports/released_run_speed.md), so the {speed:.2f} m/s "
+                           f"runs it (measured, see reports/2026-12-04_released_run_speed.md), so the {speed:.2f} m/s "
                            f"asked for is driven at {self.reachable:.2f}")
         return velocity * (self.reachable / speed)
 

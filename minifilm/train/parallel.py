@@ -232,9 +232,14 @@ class DataParallel:
         return [p.pid for p in self.procs]
 
     # ---- a step ----------------------------------------------------------------------------------
-    def _send(self, messages) -> None:
-        for conn, message in zip(self.conns, messages):
-            conn.send_bytes(np.asarray(message, dtype=np.float64).tobytes())
+    def _send(self, messages, where: str, updating: bool = False) -> None:
+        """One message to each worker; a worker that has gone (its pipe broken) is WorkerDied,
+        named as :meth:`_collect` names it, not an OSError of the pipe."""
+        for w, (conn, message) in enumerate(zip(self.conns, messages)):
+            try:
+                conn.send_bytes(np.asarray(message, dtype=np.float64).tobytes())
+            except OSError:             # BrokenPipeError, ConnectionResetError: the worker is gone
+                self._died(w, where, updating)
 
     def gradients(self, b) -> tuple:
         """The gradients of minibatch ``b`` (a trainer.Minibatch) in the model's ``.grad`` buffers,
@@ -262,11 +267,11 @@ class DataParallel:
         if shared:
             np.take(clip_index, order, out=self.batch["clip_index"][:B])
         parts = shares(B, self.batch["clip_index"][:B] if shared else None, M, self.workers)
-        self._send([(parallel_worker.GRADIENTS, *part, B, int(shared)) for part in parts])
+        self._send([(parallel_worker.GRADIENTS, *part, B, int(shared)) for part in parts], b.where)
         self.step_index += 1
         t_sent = time.perf_counter()
         losses = self._collect(b.where)
-        self._send([(parallel_worker.SUM, a, z) for a, z in self.spans])
+        self._send([(parallel_worker.SUM, a, z) for a, z in self.spans], b.where)
         self._collect(b.where)
         self.seconds["parent"] += t_sent - t_start
         self.seconds["waiting"] += time.perf_counter() - t_sent
@@ -282,8 +287,10 @@ class DataParallel:
         t0 = time.perf_counter()
         scalars = [x for i, step_size, eps_hat in optimizer.advance()
                    for x in (*self.set_spans[i], step_size, eps_hat)]
-        self._send([(parallel_worker.ADAM, a, z, optimizer.beta1, optimizer.beta2, *scalars) for a, z in self.spans])
-        self._collect(f"the Adam step {self.trainer.step + 1}", updating=True)
+        where = f"the Adam step {self.trainer.step + 1}"
+        self._send([(parallel_worker.ADAM, a, z, optimizer.beta1, optimizer.beta2, *scalars) for a, z in self.spans],
+                   where, updating=True)
+        self._collect(where, updating=True)
         self.seconds["waiting"] += time.perf_counter() - t0
 
     def _collect(self, where: str, updating: bool = False) -> np.ndarray:
