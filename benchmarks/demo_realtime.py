@@ -15,7 +15,8 @@ scripted page (a Python WebSocket client that reads every frame, as the browser 
    seconds of wall time (the server's clock, ``t`` of the frames, so a client that reads late does
    not matter), its ratio to the commanded speed and to the speed of the case without busy loops,
    network steps per wall second (frame numbers over ``t``), the frames' ``behind`` / ``dropped``
-   / ``stepsPerSecond``. The target holds when the speed is within 15 % of the commanded one, or
+   / ``stepsPerSecond``, the tasks runnable at its end (``runnable``, /proc/loadavg: the load
+   average lags a 10 s case). The target holds when the speed is within 15 % of the commanded one, or
    when the frames said the loop was behind (``behind`` > 0 or ``dropped`` > 0), which the page shows.
 2. Calibration against the first minute. A new server, a page at once holding W, and a switch to a
    style not yet calibrated every --window / 6 seconds (4 switches: each queues a measurement in
@@ -24,6 +25,8 @@ scripted page (a Python WebSocket client that reads every frame, as the browser 
    over the first --window seconds and over a window of the same length from
    2 x --window seconds on. Not worse: steps per second at least 98 % of the later window's and
    the 95th percentile of the frame interval at most one frame period (1/60 s) above it.
+   ``--only calibration --no-calibrate`` is the control: the same page with calibration off, to
+   tell the worker's cost from that of the other work on the machine.
 
 Prints the CPU (/proc/cpuinfo), the cores and the 1-minute load average at the start and end
 (other work shares the cores: the figures depend on it).
@@ -62,6 +65,16 @@ def cpu_name() -> str:
 
 def load() -> float:
     return os.getloadavg()[0]
+
+
+def runnable() -> int:
+    """Tasks running or ready to run at this moment (/proc/loadavg; the 1-minute load average lags a
+    10-second case by most of a minute). -1 where it cannot be read."""
+    try:
+        with open("/proc/loadavg") as f:
+            return int(f.read().split()[3].split("/")[0])
+    except (OSError, IndexError, ValueError):
+        return -1
 
 
 class BusyLoops:
@@ -140,6 +153,7 @@ def real_time(args, out) -> list:
                     collect(page, args.settle / 2)                # the scheduler shares the cores out
                     load_before = load()
                     case = walk_case(collect(page, args.walk), busy)
+                    case["runnable"] = runnable()             # with the busy loops still running
                 case.update(load_before=load_before, load_after=load())
                 cases.append(case)
             page.send(STOP)
@@ -169,7 +183,7 @@ def window(rows: list, start: float, seconds: float, fps: float) -> dict:
 
 
 def calibration_minute(args, out) -> list:
-    server = DemoProcess(*source_args(args))
+    server = DemoProcess(*source_args(args), *(["--no-calibrate"] if args.no_calibrate else []))
     assert server.url.startswith("http://127.0.0.1:")
     try:
         with DemoClient(server.url) as page:
@@ -210,6 +224,8 @@ def main() -> None:
     ap.add_argument("--walk", type=float, help="seconds of W held per case (default 10; --quick 5)")
     ap.add_argument("--window", type=float, help="seconds per window of part 2 (default 60; --quick 20)")
     ap.add_argument("--only", choices=("realtime", "calibration"), help="one part only")
+    ap.add_argument("--no-calibrate", action="store_true",
+                    help="part 2 as a control: the same page and switches with the demo's calibration off")
     args = ap.parse_args()
     args.walk = args.walk or (5.0 if args.quick else 10.0)
     args.window = args.window or (20.0 if args.quick else 60.0)
@@ -228,14 +244,15 @@ def main() -> None:
         out(f"## real time: W held {args.walk:g} s per case beside 0/1/2 busy loops (target: speed within "
             f"{100 * TOLERANCE:.0f} % of commanded, or frames behind shown)")
         table(cases, ["busy", "wall", "metres", "speed", "commanded", "ratio", "vs_idle", "steps_per_s", "frames",
-                      "behind_frames", "behind_max", "dropped_max", "sps_median", "sps_min", "load_before",
-                      "load_after", "shown", "holds"], out)
+                      "behind_frames", "behind_max", "dropped_max", "sps_median", "sps_min", "runnable",
+                      "load_before", "load_after", "shown", "holds"], out)
     if args.only != "realtime":
         windows = calibration_minute(args, out)
         first, later = windows
         worse = (first["steps_per_s"] < 0.98 * later["steps_per_s"]
                  or first["gap_p95"] > later["gap_p95"] + first["period_ms"])
-        out(f"## calibration: first {args.window:g} s vs a later {args.window:g} s (fresh cache; "
+        out(f"## calibration{' OFF (control)' if args.no_calibrate else ''}: first {args.window:g} s vs a "
+            f"later {args.window:g} s (fresh cache; "
             f"'measuring': share of frames while a calibration ran)")
         table(windows, ["window", "steps_per_s", "sps_median", "sps_min", "frames_per_s", "gap_median", "gap_p95",
                         "gap_max", "behind_frames", "dropped_max", "measuring"], out)
