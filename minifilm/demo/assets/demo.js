@@ -322,7 +322,7 @@ function readouts() {
 }
 
 // Does the simulation keep up with the clock (the server batches steps when it falls behind,
-// stage.py)? Network steps per wall second, and the steps it is behind or dropped.
+// frame_loop.py)? Network steps per wall second, and the steps it is behind or dropped.
 function realTime(f) {
   if (f.stepsPerSecond === undefined) return;
   const late = (f.dropped || 0) > 0;
