@@ -172,15 +172,20 @@ class Stage:
         with self._lock:
             members = list(self._members.values())
         t = round(now - self.start_time, 6)
-        timing = {"steps": steps, "behind": self.frames.behind(now),
-                  "dropped": self.frames.recently_dropped(now), "stepsPerSecond": self.frames.rate(now)}
+        timing = {"steps": steps, "dropped": self.frames.recently_dropped(now),
+                  "stepsPerSecond": self.frames.rate(now)}
         for character, deliver in members:
             try:
                 t0 = self.clock()
                 frame, notices = character.step(steps=steps, now=now)
-                frame["frameMs"] = round(1e3 * (self.clock() - t0), 4)
+                done = self.clock()
+                frame["frameMs"] = round(1e3 * (done - t0), 4)
                 frame["t"] = t
                 frame.update(timing)
+                # behind: the steps due by the time this frame is sent that are still not run. The
+                # batch's own steps are not behind (counting them said "1 behind" on every frame of
+                # a machine that keeps up); the schedule has not been moved past them yet (ran()).
+                frame["behind"] = max(0, self.frames.behind(done) - steps)
                 self.frame_ms.append(frame["frameMs"])
                 for text in notices:
                     deliver(notice(text), False)

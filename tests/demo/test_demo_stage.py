@@ -135,3 +135,39 @@ def test_a_batch_steps_every_character_that_many_times_and_sends_one_frame_with_
     frames = [m for m, is_frame in got if is_frame]
     assert [f["n"] for f in frames] == [4] and frames[0]["steps"] == 4
     assert {"behind", "dropped", "stepsPerSecond"} <= set(frames[0]) and stage.steps == 4 and stage.ticks == 1
+
+
+class SlowCharacter(FakeCharacter):
+    """A character whose step takes ``seconds`` of the stage's fake clock."""
+
+    def __init__(self, ident, clock, seconds):
+        super().__init__(ident)
+        self.clock, self.seconds = clock, seconds
+
+    def step(self, steps=1, now=None):
+        self.clock[0] += self.seconds
+        return super().step(steps, now)
+
+
+def run_one_pass(step_seconds):
+    """One pass of the loop as ``Stage._run`` makes it, on a fake clock; the frame it sends."""
+    clock = [5.0]
+    stage = Stage(lambda ident: SlowCharacter(ident, clock, step_seconds), fps=60, clock=lambda: clock[0])
+    got, deliver = inbox()
+    stage.join(deliver)
+    stage.frames.restart(clock[0])
+    now = clock[0]
+    n = stage.frames.due(now)
+    stage.tick(now, steps=n)
+    stage.frames.ran(n, now)
+    return [m for m, is_frame in got if is_frame][0]
+
+
+def test_a_frame_on_time_says_nothing_is_behind():
+    # the step of the batch being sent is not "behind": a machine that keeps up shows 0, not 1
+    assert run_one_pass(0.001)["behind"] == 0
+
+
+def test_a_frame_that_took_longer_than_the_period_says_how_many_steps_fell_due_meanwhile():
+    # the step took 2.5 periods: at sending, steps 1 and 2 are due and not run
+    assert run_one_pass(2.5 / 60)["behind"] == 2
