@@ -95,12 +95,21 @@ def report_errors(main: Callable[[], Optional[int]]) -> None:
         print("error: out of memory (the input asks for more than this machine has)", file=sys.stderr)
         sys.exit(1)
     except KeyboardInterrupt:
+        _quiet_teardown()
         print("interrupted", file=sys.stderr)
         sys.exit(130)
     except Terminated:
+        _quiet_teardown()
         print("terminated", file=sys.stderr)
         sys.exit(143)
     sys.exit(code if isinstance(code, int) else 0)
+
+
+def _quiet_teardown() -> None:
+    """After a stop, objects the interrupt left half-made (a ZipFile whose constructor was cut
+    short, say) may fail in their ``__del__``; Python would print each as "Exception ignored" with a
+    traceback under the one line that says what happened. Those are the stop's echo, not news."""
+    sys.unraisablehook = lambda unraisable: None
 
 
 def usage() -> str:

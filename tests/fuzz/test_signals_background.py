@@ -158,3 +158,20 @@ def test_ctrl_c_inside_a_command_with_sigint_ignored_is_exit_130(capsys):
         assert stop.value.code == 130 and "interrupted" in capsys.readouterr().err
     finally:
         signal.signal(signal.SIGINT, saved)
+
+
+def test_a_stop_prints_one_line_even_when_it_left_an_object_half_made():
+    """Ctrl-C while an object is being made (np.load's ZipFile, say) can leave one whose __del__
+    fails; its "Exception ignored ... Traceback" must not follow the stop's one line."""
+    code = ("import sys\n"
+            "from minifilm.cli import report_errors\n"
+            "class HalfMade:\n"
+            "    def __del__(self):\n"
+            "        raise AttributeError('no attribute _writing')\n"
+            "def main():\n"
+            "    held = [HalfMade()]\n"
+            "    raise KeyboardInterrupt\n"
+            "report_errors(main)\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 130, proc.stderr
+    assert proc.stderr.strip() == "interrupted", proc.stderr
