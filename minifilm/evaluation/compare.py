@@ -341,7 +341,10 @@ def run(args):
             f"{sb['focus_silhouette']:.3f} -> {sa['focus_silhouette']:.3f} (all styles {sb['silhouette']:.3f} -> "
             f"{sa['silhouette']:.3f})")
     total = time.perf_counter() - t_start
+    # the sizes the variants were built with (the main job's model with args.model's changes)
+    cfg = model_config(ctx, args.model)
+    sizes = {k: getattr(cfg, k) for k in ("hidden", "n_experts", "conv_filters", "film_dense", "dropout")}
     path = write_report(Path(args.out), name, ctx, results, ft, dict(epochs=epochs, steps_per_epoch=spe,
-                        total_seconds=total, interpolate=(pa, pb)))
+                        total_seconds=total, interpolate=(pa, pb), sizes=sizes))
     log(f"[report] {path} ({total:.0f} s in all)")
     return {"name": name, "results": results, "finetune": ft, "report": path, "ctx": ctx}

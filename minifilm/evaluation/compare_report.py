@@ -132,8 +132,9 @@ def write_report(out: Path, name: str, ctx, results, ft, meta) -> Path:
       f"training: **{ctx.holdout}**; seen: {', '.join(ctx.seen)}. Normalisation statistics from the seen styles only.")
     w(f"- Budget, identical for every variant: **{meta['epochs']} epoch(s) x {meta['steps_per_epoch']} style-balanced "
       f"minibatches of {a.batch_size} = {meta['epochs'] * meta['steps_per_epoch']} Adam steps** (lr {a.lr:g}, "
-      f"dropout {a.model['dropout']}), asked for: {a.budget_steps}. Small models: hidden {a.model['hidden']}, "
-      f"{a.model['n_experts']} experts, Ψ conv {a.model['conv_filters']} filters / dense {a.model['film_dense']}, "
+      f"dropout {meta['sizes']['dropout']}), asked for: {a.budget_steps}. Small models: hidden "
+      f"{meta['sizes']['hidden']}, {meta['sizes']['n_experts']} experts, Ψ conv {meta['sizes']['conv_filters']} "
+      f"filters / dense {meta['sizes']['film_dense']}, "
       f"clips {a.clip_seconds:g} s. These are tiny budgets next to the paper's 90 epochs: read the numbers as a "
       f"comparison at equal (small) cost, not as converged results.")
     w("- Test errors are on held-out test frames of the seen styles, over the 324 motion outputs (trajectory and "

@@ -130,3 +130,17 @@ def test_a_style_subset_outside_the_data_is_refused(spec, words):
     from minifilm.evaluation.compare_tools import select_styles
     with pytest.raises(ValueError, match=words):
         select_styles([f"S{i:03d}" for i in range(100)], spec)
+
+
+def test_a_compare_run_of_the_default_model_writes_its_report(tmp_path):
+    """Without --tiny the variants are the main job's model, whose sizes are the config's own (the
+    options hold only what they change): the report names the sizes the variants were built with."""
+    from minifilm.cli.compare import parse_args
+    from minifilm.evaluation.compare import run
+    args = parse_args(["--variants", "LPN FiLM", "--budget-steps", "1", "--finetune-steps", "1",
+                       "--seconds", "8", "--styles", "Neutral,LeftHop,Crouched", "--gaits", "FW",
+                       "--holdout", "Crouched", "--rollout-seconds", "2", "--extra-seeds", "",
+                       "--work", str(tmp_path / "work"), "--out", str(tmp_path / "reports")])
+    run(args)
+    report = next((tmp_path / "reports").glob("*.md")).read_text(encoding="utf-8")
+    assert "Small models: hidden 128, 4 experts, Ψ conv 32 filters / dense 128" in report
