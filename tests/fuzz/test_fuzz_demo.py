@@ -14,25 +14,12 @@ import pytest
 websockets = pytest.importorskip("websockets", reason="the demo needs the websockets package")
 
 from minifilm.demo.budget import MESSAGES_PER_SECOND  # noqa: E402
-from minifilm.demo.character import DemoSettings  # noqa: E402
 from minifilm.demo.client import DemoClient, RawWebSocket  # noqa: E402
-from minifilm.demo.server import DemoServer  # noqa: E402
-from minifilm.demo.source import DemoSource  # noqa: E402
 
 #: close codes a hostile connection may end with: normal, going away, protocol error, bad data,
 #: policy (over the budget), too big
 CLOSE_CODES = {1000, 1001, 1002, 1007, 1008, 1009}
 OPCODES = [0x0, 0x1, 0x2, 0x8, 0x9, 0xA, 0x3, 0x7, 0xB, 0xF]
-
-
-@pytest.fixture(scope="module")
-def server(tiny_run):
-    source = DemoSource.run_folder(tiny_run)
-    s = DemoServer(source, DemoSettings(style=source.default_style()), host="127.0.0.1", port=0,
-                   max_characters=3, background_calibration=False)
-    s.start()
-    yield s
-    s.stop()
 
 
 def random_frames(rng: random.Random) -> bytes:

@@ -23,23 +23,10 @@ websockets = pytest.importorskip("websockets", reason="the demo needs the websoc
 
 from minifilm.demo import http_front  # noqa: E402
 from minifilm.demo.budget import CONNECTION_COST, MESSAGES_PER_SECOND, REQUEST_COST, AddressBudgets  # noqa: E402
-from minifilm.demo.character import DemoSettings  # noqa: E402
 from minifilm.demo.client import DemoClient  # noqa: E402
-from minifilm.demo.server import DemoServer  # noqa: E402
-from minifilm.demo.source import DemoSource  # noqa: E402
 
 UPGRADE = ("Upgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
            "Sec-WebSocket-Version: 13\r\n")
-
-
-@pytest.fixture(scope="module")
-def server(tiny_run):
-    source = DemoSource.run_folder(tiny_run)
-    s = DemoServer(source, DemoSettings(style=source.default_style()), host="127.0.0.1", port=0,
-                   max_characters=3, background_calibration=False)
-    s.start()
-    yield s
-    s.stop()
 
 
 @pytest.fixture(autouse=True)

@@ -50,13 +50,6 @@ def tree(folder):
     return out
 
 
-@pytest.fixture
-def run(tiny_run, tmp_path):
-    folder = tmp_path / "run"
-    shutil.copytree(tiny_run, folder, ignore=shutil.ignore_patterns("cache", "generated", "*.png"))
-    return folder
-
-
 # ---- 1. names from data --------------------------------------------------------------------------
 @pytest.mark.parametrize("style", ["../../../X", "/abs/path/X", "\x1b[2Jerror: all fine", "a\\b", "x" * 80])
 def test_a_manifest_style_that_is_not_a_name_is_refused(run, tmp_path, capsys, style):

@@ -35,13 +35,6 @@ def other_run(tmp_path_factory):
     return out
 
 
-@pytest.fixture
-def run(tiny_run, tmp_path):
-    folder = tmp_path / "run"
-    shutil.copytree(tiny_run, folder, ignore=shutil.ignore_patterns("cache", "generated", "*.png"))
-    return folder
-
-
 def members(path):
     with zipfile.ZipFile(path) as z:
         return [i.filename for i in z.infolist()]
