@@ -21,6 +21,7 @@ from pathlib import Path
 
 import pytest
 
+from python_names import defined_names
 from repo_paths import REPO_ROOT
 
 ROOTS = ("minifilm", "tests", "docs", "benchmarks", "studies", "reports", "examples", "scripts")
@@ -53,31 +54,6 @@ def repo_files():
     return [f for f in files if f.is_file() and "vendor" not in f.parts]
 
 
-@lru_cache(maxsize=None)
-def defined_names(path: Path) -> frozenset:
-    """Functions, classes, Class.method / Class.attribute, module-level names and imported names."""
-    tree = ast.parse(path.read_text(encoding="utf-8"))
-    names = set()
-    for node in tree.body:
-        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
-            names.add(node.name)
-            if isinstance(node, ast.ClassDef):
-                for sub in node.body:
-                    if isinstance(sub, (ast.FunctionDef, ast.AsyncFunctionDef)):
-                        names.add(f"{node.name}.{sub.name}")
-                    elif isinstance(sub, (ast.AnnAssign, ast.Assign)):
-                        for t in (sub.targets if isinstance(sub, ast.Assign) else [sub.target]):
-                            if isinstance(t, ast.Name):
-                                names.add(f"{node.name}.{t.id}")
-        elif isinstance(node, (ast.Assign, ast.AnnAssign)):
-            for t in (node.targets if isinstance(node, ast.Assign) else [node.target]):
-                if isinstance(t, ast.Name):
-                    names.add(t.id)
-        elif isinstance(node, (ast.Import, ast.ImportFrom)):
-            names.update((a.asname or a.name).split(".")[0] for a in node.names)
-    return frozenset(names)
-
-
 def resolve_path(ref: str, citing: Path):
     """The file a path reference means; None if there is none; "skip" for what is not ours to
     check (another project's file, an output path such as runs/train_small/model.npz)."""
@@ -103,7 +79,7 @@ def resolve_dotted(ref: str):
         module = base.with_suffix(".py") if base.with_suffix(".py").is_file() else base / "__init__.py"
         if module.is_file():
             rest = ".".join(parts[i:])
-            if not rest or rest in defined_names(module):
+            if not rest or rest in defined_names(module, imported=True):
                 return None
             return f"{module.relative_to(REPO_ROOT)} defines no {rest}"
     return f"no module {ref}"
@@ -134,7 +110,7 @@ def problems_in(path: Path) -> list:
         target = resolve_path(ref, path)
         if target is None:
             out.append(f"{where(m)}: {ref} does not exist")
-        elif target != "skip" and name and target.suffix == ".py" and name not in defined_names(target):
+        elif target != "skip" and name and target.suffix == ".py" and name not in defined_names(target, imported=True):
             out.append(f"{where(m)}: {ref} defines no {name}")
     if path.suffix == ".py":
         for m in DOTTED.finditer(text):
@@ -144,7 +120,7 @@ def problems_in(path: Path) -> list:
             msg = resolve_dotted(m.group(1).rstrip("."))
             if msg:
                 out.append(f"{where(m)}: {m.group(1)}: {msg}")
-        own = defined_names(path) | {n.name for n in ast.walk(ast.parse(text)) if isinstance(n, ast.FunctionDef)}
+        own = defined_names(path, imported=True) | {n.name for n in ast.walk(ast.parse(text)) if isinstance(n, ast.FunctionDef)}
         for m in ROLE.finditer(text):
             ref = m.group(1)
             if ref.startswith("minifilm."):

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import pytest
 
+from python_names import defined_names
 from repo_paths import IN_CI, REPO_ROOT, SHARED_DATA, missing_data
 
 DOCS = [REPO_ROOT / "README.md"] + sorted((REPO_ROOT / "docs").glob("*.md"))
@@ -249,29 +250,6 @@ def test_the_command_checker_can_fail():
 # ---------------------------------------------------------------------------- 4. code references
 REF = re.compile(r"`((?:minifilm|examples|benchmarks|studies|reports|scripts|tests|docs)/[\w/.-]+\.(?:py|md|png|csv))"
                  r"(?:::([\w.]+))?`")
-
-
-@lru_cache(maxsize=None)
-def defined_names(path: Path) -> frozenset:
-    """Top-level functions, classes and assignments, and Class.method names, of a Python file."""
-    tree = ast.parse(path.read_text(encoding="utf-8"))
-    names = set()
-    for node in tree.body:
-        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
-            names.add(node.name)
-            if isinstance(node, ast.ClassDef):
-                for sub in node.body:
-                    if isinstance(sub, (ast.FunctionDef, ast.AsyncFunctionDef)):
-                        names.add(f"{node.name}.{sub.name}")
-                    elif isinstance(sub, (ast.AnnAssign, ast.Assign)):
-                        for t in (sub.targets if isinstance(sub, ast.Assign) else [sub.target]):
-                            if isinstance(t, ast.Name):
-                                names.add(f"{node.name}.{t.id}")
-        elif isinstance(node, (ast.Assign, ast.AnnAssign)):
-            for t in (node.targets if isinstance(node, ast.Assign) else [node.target]):
-                if isinstance(t, ast.Name):
-                    names.add(t.id)
-    return frozenset(names)
 
 
 def test_code_references_exist():
