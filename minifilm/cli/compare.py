@@ -25,6 +25,12 @@ def add_arguments(p) -> None:
     p.add_argument("--data", default="synthetic", help="'synthetic' (default) or a folder of BVH files")
     p.add_argument("--budget-steps", type=in_range(1, 10**7, int), default=2500,
                    help="training steps per variant, rounded up to whole epochs (default 2500)")
+    p.add_argument("--until-flat", action="store_true",
+                   help="after the budget, keep training each variant and seed in whole epochs while its "
+                   "validation loss still falls (the last 20 %% of its steps improved it by 3 %% or more), up to "
+                   "--max-steps; the report gives each run's steps and curve")
+    p.add_argument("--max-steps", type=in_range(1, 10**8, int),
+                   help="with --until-flat: most steps per run, rounded up to whole epochs (default 4 x the budget)")
     p.add_argument("--finetune-steps", type=in_range(0, 10**7, int), default=300, help="Ψ fine-tuning steps (default 300)")
     p.add_argument("--out", type=output_folder, default=Path("reports"), help="folder of the markdown report and PNGs")
     p.add_argument("--work", type=output_folder, default=Path("runs/compare"),

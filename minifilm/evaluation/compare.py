@@ -38,6 +38,7 @@ from minifilm.errors import InputError
 from minifilm.evaluation.compare_report import write_report
 from minifilm.evaluation.compare_tools import (film_codes, film_separation, fit_stats, select_styles, motion_errors,
                                                style_subset)
+from minifilm.evaluation.convergence import train_with_curve, validation_subset
 from minifilm.evaluation.metrics import interpolation_smoothness, rollout_quality
 from minifilm.evaluation.style_classifier import classify_rollout, train_style_classifier
 from minifilm.model.config import ModelConfig
@@ -99,6 +100,10 @@ class Context:
         self.seen = [s for s in ds.styles if s != holdout]
         self.norm = fit_stats(ds, self.seen)
         self.data = {sp: style_subset(ds, sp, self.seen, self.norm) for sp in ("train", "test")}
+        # the fixed validation frames every variant's curve is judged on (minifilm/evaluation/convergence.py)
+        val_styles = [s for s in self.seen if np.any(ds.val.style == ds.styles.index(s))]
+        self.data["val"] = validation_subset(style_subset(ds, "val", val_styles or self.seen, self.norm)
+                                             if val_styles else self.data["test"])
         self.new_train = style_subset(ds, "train", [holdout], self.norm) if holdout else None
         self.all_train = style_subset(ds, "train", self.seen + ([holdout] if holdout else []), self.norm)
         self.skeleton = skeleton_of(ds)
@@ -129,26 +134,32 @@ def steps_per_epoch(style, batch_size):
     return int(counts.min() // size * len(counts))
 
 
-def train_variant(name, ctx, epochs, seed=None):
+def train_variant(name, ctx, epochs, seed=None, eval_every=None):
     """Train one variant (model initialisation and batch order from `seed`, default --seed) and
-    measure its test errors."""
+    measure its test errors; the validation loss is recorded every `eval_every` steps (default: a
+    tenth of the budget) and, with --until-flat, training goes on in whole epochs until it is flat."""
     a, L = ctx.args, ctx.layout
     seed = a.seed if seed is None else seed
     model = build_variant(name, model_config(ctx, a.model), np.random.default_rng(seed), n_styles=len(ctx.seen))
     vtrain, info = variant_data(name, ctx.data["train"], L, ctx.norm, ctx.end_effectors)
     vtest, _ = variant_data(name, ctx.data["test"], L, ctx.norm, ctx.end_effectors, reference=info)
+    vval, _ = variant_data(name, ctx.data["val"], L, ctx.norm, ctx.end_effectors, reference=info)
     trainer = Trainer(model, ctx.norm, TrainConfig(epochs=epochs, batch_size=a.batch_size, lr=a.lr, seed=seed,
                                                    progress=False),
                       positions_idx=L.joint_columns("z", "position"), parents=np.asarray(L.parents),
                       style_names=ctx.seen)
     t0 = time.perf_counter()
-    trainer.fit(vtrain)
+    spe = steps_per_epoch(vtrain.style, a.batch_size)
+    every = eval_every or max(1, round(epochs * spe / 10))
+    max_epochs = max(epochs, math.ceil(a.max_steps / spe)) if getattr(a, "max_steps", None) else 4 * epochs
+    curve = train_with_curve(trainer, vtrain, vval, epochs, every, until_flat=getattr(a, "until_flat", False),
+                             max_epochs=max_epochs)
     seconds = time.perf_counter() - t0
     errors = motion_errors(model, vtest, L, ctx.norm, L.z_phases.start, seed=a.seed,
                            style_kw=getattr(model, "takes_style_ids", False))
     n_params = sum(ps.size for ps in model.parameter_sets())
     return {"trainer": trainer, "info": info, "seconds": seconds, "steps": trainer.step, "errors": errors,
-            "params": n_params, "final_train_loss": trainer.history[-1]["train"]["loss"]}
+            "params": n_params, "final_train_loss": trainer.history[-1]["train"]["loss"], "curve": curve}
 
 
 def style_conditions(model, ctx):
@@ -257,6 +268,13 @@ def finetune_separation(result, ctx):
             "before_new": before_new, "after_new": after_new, "seen_after": seen_after}
 
 
+def flat_line(curve) -> str:
+    """One log line on a validation curve (minifilm/evaluation/convergence.py)."""
+    verdict = {True: "flat", False: "still falling", None: "not judged"}[curve["flat"]]
+    return (f"validation loss {curve['loss'][0]:.4f} -> {curve['loss'][-1]:.4f} in {curve['steps'][-1]} steps; "
+            f"last 20 % improved it {100 * curve['improvement']:.1f} %: {verdict}")
+
+
 # ---------------------------------------------------------------------------- the run
 def check_styles(styles, holdout: str, interpolate) -> tuple:
     """InputError unless the held-out style and the two interpolated ones are among ``styles`` (the
@@ -326,11 +344,14 @@ def run(args):
             + ("" if not i else ", interpolation diverged" if i.get("diverged") else
                f", interpolation score {i['score'][0]:.2f} -> {i['score'][-1]:.2f}, monotonicity "
                f"{i['monotonicity']:.2f}") + f" ({time.perf_counter() - t0:.0f} s)")
-        r["seed_errors"] = [r["errors"]]
+        r["seed_errors"], r["curves"] = [r["errors"]], {args.seed: r["curve"]}
+        log(f"        {flat_line(r['curve'])}")
         for seed in args.extra_seeds:          # test errors only: how much of a difference is noise
-            e = train_variant(v, ctx, epochs, seed=seed)["errors"]
+            extra = train_variant(v, ctx, epochs, seed=seed)
+            e = extra["errors"]
             r["seed_errors"].append(e)
-            log(f"        seed {seed}: test MSE {e['mse']:.4f}  BLL {e['bll']:.4f}")
+            r["curves"][seed] = extra["curve"]
+            log(f"        seed {seed}: test MSE {e['mse']:.4f}  BLL {e['bll']:.4f}; {flat_line(extra['curve'])}")
         results[v] = r
     ft = None
     if "LPN FiLM" in results and ctx.new_train is not None:

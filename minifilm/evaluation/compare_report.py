@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from minifilm.evaluation import compare_convergence
 from minifilm.files import atomic_write_text
 from minifilm.viewer.deps import pyplot, save_figure
 
@@ -49,6 +50,9 @@ def _plots(out: Path, name: str, ctx, results, ft) -> dict:
     fig.tight_layout()
     files["errors"] = f"compare_{name}_errors.png"
     save_figure(fig, out / files["errors"], dpi=80)
+    curves = f"compare_{name}_validation.png"
+    if compare_convergence.draw_curves(plt, out / curves, results):
+        files["curves"] = curves
     # Figure 8: style score along the blend weight
     interp = [v for v in names if "interp" in results[v] and not results[v]["interp"].get("diverged")]
     if interp:
@@ -149,6 +153,7 @@ def write_report(out: Path, name: str, ctx, results, ft, meta) -> Path:
       f"{ci['window']}-frame windows of the normalised clip features; trained on {ci['n_train']} windows of the "
       f"training rows (all {len(ds.styles)} styles); **ceiling = accuracy on {ci['n_heldout']} windows of held-out "
       f"real rows: {ci['heldout_acc']:.3f}** (training accuracy {ci['train_acc']:.3f}).\n")
+    L.extend(compare_convergence.section(results, files.get("curves")))
     w("## Figure 10: test error\n")
     n_seeds = seed_summary(next(iter(results.values())))["n"]
     seeds = ", ".join(str(x) for x in [a.seed] + list(getattr(a, "extra_seeds", [])))
