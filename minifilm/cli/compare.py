@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from minifilm.cli.args import in_range, output_folder, positive
+from minifilm.cli.args import in_range, input_path, output_folder, positive
 from minifilm.errors import InputError
 from minifilm.evaluation.compare import MODEL, SYNTH_HOLDOUT, TINY_MODEL
 from minifilm.evaluation.compare import run as run_compare
@@ -37,7 +37,8 @@ def add_arguments(p) -> None:
                    help="folder for generated data and caches")
     p.add_argument("--variants", help="comma-separated subset of the seven variants (default: all)")
     p.add_argument("--holdout", help=f"style held out for fine-tuning (synthetic default {SYNTH_HOLDOUT})")
-    p.add_argument("--interpolate", help="two seen styles A,B for the interpolation test (default: first two)")
+    p.add_argument("--interpolate", help="two seen styles A,B for the interpolation test, or several pairs 'A,B;C,D' "
+                   "(default: BentForward,LeanBack when both are seen, else the first two)")
     p.add_argument("--fps", type=in_range(1.0, 1000.0), default=30.0, help="resample the data to this rate (default 30)")
     p.add_argument("--clip-seconds", type=positive(float, 60.0), default=2.0)
     p.add_argument("--seconds", type=positive(float, 3600.0), default=10.0, help="synthetic seconds per style and gait")
@@ -52,6 +53,9 @@ def add_arguments(p) -> None:
     p.add_argument("--seed", type=in_range(0, 2**32 - 1, int), default=0, help="data, split, classifier and first model seed")
     p.add_argument("--extra-seeds", default="1",
                    help="comma-separated further model seeds for the test errors (default '1'; '' for none)")
+    p.add_argument("--released", type=input_path, metavar="DIR",
+                   help="the authors' released network's folder: its rollouts along the same paths become one more "
+                   "row of the rollout table (default: the one a --from-released data set was made by, if present)")
     p.add_argument("--tiny", action="store_true", help="a tiny model (tests and smoke runs)")
 
 
@@ -64,10 +68,12 @@ def finish(a):
     if any(not 0 <= x < 2**32 for x in a.extra_seeds):
         raise InputError(f"--extra-seeds {a.extra_seeds}: seeds are whole numbers from 0 to 2**32 - 1")
     if a.interpolate is not None:
-        pair = [x.strip() for x in a.interpolate.split(",")]
-        if len(pair) != 2 or not all(pair) or pair[0] == pair[1]:
-            raise InputError(f"--interpolate {a.interpolate!r}: give two different styles, 'A,B'")
-        a.interpolate = ",".join(pair)
+        pairs = [[x.strip() for x in part.split(",")] for part in a.interpolate.split(";")]
+        for pair in pairs:
+            if len(pair) != 2 or not all(pair) or pair[0] == pair[1]:
+                raise InputError(f"--interpolate {a.interpolate!r}: give two different styles, 'A,B' "
+                                 "(or several pairs, 'A,B;C,D')")
+        a.interpolate = ";".join(",".join(p) for p in pairs)
     a.styles = a.styles.split(",") if a.styles else None
     a.gaits = a.gaits.split(",") if a.gaits else None
     a.model = TINY_MODEL if a.tiny else MODEL

@@ -7,26 +7,15 @@ from pathlib import Path
 import numpy as np
 
 from minifilm.evaluation import compare_convergence
+from minifilm.evaluation.compare_claims import claim_sections
+from minifilm.evaluation.compare_report_tools import fmt, seed_summary
 from minifilm.files import atomic_write_text
 from minifilm.viewer.deps import pyplot, save_figure
 
 PHASE_STYLES = ("Swimming", "PendulumHands", "LeftHop")
 
 
-def _fmt(v, digits=4):
-    return "n/a" if v is None or (isinstance(v, float) and not np.isfinite(v)) else f"{v:.{digits}f}"
-
-
-def seed_summary(r) -> dict:
-    """Mean and sample std over the seeds of a variant's test errors (r['seed_errors'], or just
-    r['errors']): {'mse', 'mse_sd', 'bll', 'bll_sd', 'n', 'per_style': {style: mean mse}}."""
-    runs = r.get("seed_errors") or [r["errors"]]
-    out = {"n": len(runs)}
-    for key in ("mse", "bll"):
-        v = np.array([e[key] for e in runs])
-        out[key], out[key + "_sd"] = float(v.mean()), float(v.std(ddof=1)) if len(v) > 1 else float("nan")
-    out["per_style"] = {s: float(np.mean([e["per_style"][s]["mse"] for e in runs])) for s in runs[0]["per_style"]}
-    return out
+_fmt = fmt
 
 
 def _plots(out: Path, name: str, ctx, results, ft) -> dict:
@@ -168,12 +157,14 @@ def write_report(out: Path, name: str, ctx, results, ft, meta) -> Path:
           f"{r['final_train_loss']:.4f} | {r['seconds']:.0f} s |")
     if "errors" in files:
         w(f"\n![test errors]({files['errors']})\n")
-    w("Test MSE per seen style (mean over the seeds):\n")
-    w("| variant | " + " | ".join(ctx.seen) + " |")
-    w("|---|" + "---:|" * len(ctx.seen))
-    for v, r in results.items():
-        e = seed_summary(r)
-        w(f"| {v} | " + " | ".join(f"{e['per_style'][s]:.4f}" for s in ctx.seen) + " |")
+    w("Test MSE per seen style (mean over the seeds; the lowest in bold):\n")
+    summ = {v: seed_summary(r) for v, r in results.items()}
+    w("| style | " + " | ".join(results) + " |")
+    w("|---|" + "---:|" * len(results))
+    for s in ctx.seen:
+        best = min(results, key=lambda v: summ[v]["per_style"][s])
+        w(f"| {s} | " + " | ".join((f"**{summ[v]['per_style'][s]:.4f}**" if v == best else
+                                   f"{summ[v]['per_style'][s]:.4f}") for v in results) + " |")
     w("\n## Generated motion: style recognition, foot sliding, bone lengths\n")
     w(f"Classifier ceiling on real held-out rows: **{ci['heldout_acc']:.3f}** (chance {1 / len(ds.styles):.3f}).\n")
     w("Foot sliding twice: while the network's own contact label is on (m/s), and by the field's "
@@ -190,6 +181,18 @@ def write_report(out: Path, name: str, ctx, results, ft, meta) -> Path:
         w(f"| {v} | {q['accuracy']:.3f} | {_fmt(q['foot_sliding'], 3)} | {_fmt(q.get('foot_sliding_cm_s'), 1)} | "
           f"{_fmt(q.get('path_error'), 2)} | {_fmt(q.get('direction_error'), 1)} | {_fmt(q['bone_cv_mean'])} | "
           f"{_fmt(q['bone_cv_max'])} | {_fmt(q['speed'], 2)} |")
+    rel = meta.get("released")
+    if rel and "rollout" in rel:
+        q = rel["rollout"]
+        w(f"| released network ({len(rel['styles'])} styles) | " + ("diverged | | | | | | | |" if q["diverged"] else
+          f"{q['accuracy']:.3f} | {_fmt(q['foot_sliding'], 3)} | {_fmt(q.get('foot_sliding_cm_s'), 1)} | "
+          f"{_fmt(q.get('path_error'), 2)} | {_fmt(q.get('direction_error'), 1)} | {_fmt(q['bone_cv_mean'])} | "
+          f"{_fmt(q['bone_cv_max'])} | {_fmt(q['speed'], 2)} |"))
+        w(f"\nThe released network ({rel['source']}, named by {rel['named_by']}) is driven along the same "
+          "figure-eight for the same seconds, without calibration or foot locking like the variants, at its own "
+          "60 fps, thinned to the data's rate before it is measured.")
+    elif rel:
+        w(f"\nThe released network's row is missing: {rel['skipped']}.")
     w("\nStyle accuracy per seen style (fraction of rollout windows classified as the commanded style):\n")
     w("| variant | " + " | ".join(ctx.seen) + " |")
     w("|---|" + "---:|" * len(ctx.seen))
@@ -243,6 +246,8 @@ def write_report(out: Path, name: str, ctx, results, ft, meta) -> Path:
     w("\n## The paper's claims, here\n")
     for c in claims(ctx, results, ft):
         w(f"- {c}")
+    L.append("")
+    L.extend(claim_sections(ctx, results, ft, meta))
     bad = [v for v, r in results.items() if r["rollout"]["diverged"]]
     if bad:
         w(f"- Rollouts of {', '.join(bad)} diverged (a joint more than 10 m from the root, or non-finite): the "
