@@ -336,4 +336,5 @@ def run(args):
                         total_seconds=total, interpolate=pairs[0], pairs=pairs, sizes=sizes,
                         table2=table2, released=released))
     log(f"[report] {path} ({total:.0f} s in all)")
-    return {"name": name, "results": results, "finetune": ft, "report": path, "ctx": ctx}
+    return {"name": name, "results": results, "finetune": ft, "report": path, "ctx": ctx, "released": released,
+            "table2": table2}
