@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from minifilm.evaluation.convergence import TAIL_SHARE, TOLERANCE
+from minifilm.viewer.deps import save_figure
 
 
 def runs(results) -> list:
@@ -30,7 +31,6 @@ def draw_curves(plt, path: Path, results) -> bool:
     ax.set_ylabel("validation loss (MSE + BLL, own outputs)")
     ax.legend(fontsize=6, ncol=2)
     fig.tight_layout()
-    from minifilm.viewer.deps import save_figure
     save_figure(fig, path, dpi=80)
     return True
 

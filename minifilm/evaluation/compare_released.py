@@ -18,9 +18,11 @@ import numpy as np
 
 from minifilm.dataset.manifest import MADE_BY
 from minifilm.errors import InputError
+from minifilm.evaluation.compare_rollouts import measure_rollout, run_films
 from minifilm.features.layout import FeatureLayout
 from minifilm.files import read_json
 from minifilm.motion.skeletons import STYLE100
+from minifilm.runtime.released import load_released
 
 #: the frame rate the released network was trained at
 RELEASED_FPS = 60.0
@@ -73,8 +75,6 @@ def released_rollout(ctx, args):
     step = RELEASED_FPS / ctx.ds.fps
     if abs(step - round(step)) > 1e-9 or round(step) < 1:
         return {"skipped": f"the data's {ctx.ds.fps:g} fps does not divide the network's {RELEASED_FPS:g} fps"}
-    from minifilm.evaluation.compare_rollouts import measure_rollout, run_films
-    from minifilm.runtime.released import load_released
     rel = load_released(folder)
     styles = [s for s in ctx.seen if s in rel.styles]
     if not styles:
