@@ -1,10 +1,12 @@
 """Figure 10 and the style metrics of Sec. 5: train the seven comparison models with one budget on
 one data set and compare them (test errors, style recognition of generated motion, foot sliding,
-bone-length variation, interpolation smoothness, FiLM-code separation after fine-tuning Ψ).
+bone-length variation, interpolation smoothness, FiLM-code separation after fine-tuning Ψ), with
+every run's validation curve and a verdict for each claim of the paper's Sec. 5 (docs/compare_claims.md).
 
     minifilm compare                                   # synthetic data (generated here)
     minifilm compare --data DIR --split-files --holdout NAME
     minifilm compare --tiny --budget-steps 5           # a smoke run in seconds
+    minifilm compare --data DATA --styles 10 --until-flat --max-steps 40000   # DATA made by --from-released
 
 Writes a markdown report with plots (--out, default reports/); see minifilm/evaluation/compare.py.
 """

@@ -18,6 +18,12 @@ One style is held out of training (--holdout). On held-out test frames of the se
     from style A to B, for FiLM (blended FiLM vectors) and one-hot (blended one-hot vectors);
   - FiLM-code separation (Figure 11): silhouette of Ψ(clip) per style before and after
     fine-tuning Ψ alone on the held-out style (LPN FiLM).
+Every training run (variant and seed) records its validation loss on a fixed subset of the
+validation rows and is judged flat or still falling at the end (minifilm/evaluation/convergence.py;
+--until-flat trains on in whole epochs until it is flat). The report then takes the paper's claims
+one by one, each with a verdict by a stated rule (minifilm/evaluation/compare_claims.py,
+docs/compare_claims.md), and, for a data set made by the released network or with --released, gives
+the released network's own rollouts as one more row (minifilm/evaluation/compare_released.py).
 Writes reports/compare_<data>.md and PNG plots next to it. The defaults (2500 steps per variant,
 one extra seed) take about 12 minutes on synthetic data and 8.5 on Bandai-2 on a shared 2-core
 machine with OPENBLAS_NUM_THREADS=1 (multithreaded BLAS thrashes when the cores are busy).
