@@ -61,7 +61,7 @@ def figure10_claim(ctx, results) -> list:
     return L + lines + [f"\n*Verdict:* **{verdict(wins, 2)}** ({wins} of 2 comparisons go the paper's way).\n"]
 
 
-def no_phase_claim(ctx, results) -> list:
+def no_phase_claim(ctx, results, released=None) -> list:
     """Sec. 5.1.1 / Figures 5, 9: the PFNN and MANN get the arms stuck where the LPN does not."""
     styles = [s for s in NO_GLOBAL_PHASE if s in ctx.seen]
     L = ["### Sec. 5.1.1 / Figures 5 and 9: styles without a single global phase\n",
@@ -85,6 +85,11 @@ def no_phase_claim(ctx, results) -> list:
                     for s in styles}
         L.append(f"| {v} | " + " | ".join(fmt(ratio[v][s], 2) + (" (stuck)" if ratio[v][s] < STUCK else "")
                                         for s in styles) + " |")
+    if released and "rollout" in released and not released["rollout"]["diverged"]:
+        hands = released["rollout"].get("hands", {})      # a reference row: not part of the verdict
+        L.append("| released network | " + " | ".join(
+            fmt(hands[s] / ctx.data_hands[s], 2) if s in hands and ctx.data_hands.get(s) else "n/a"
+            for s in styles) + " |")
     L.append("| data amplitude (m) | " + " | ".join(fmt(ctx.data_hands.get(s), 3) for s in styles) + " |")
     wins = total = 0
     for mod in ("FiLM", "one-hot", "Resad"):
@@ -146,7 +151,8 @@ def claim_sections(ctx, results, ft, meta) -> list:
          "Each claim: the paper's statement in short, the figures of this run and a verdict by the stated rule. "
          "Definitions: docs/compare_claims.md. Read every verdict with the convergence section above: a run "
          "still falling at the end is not a converged result.\n"]
-    for part in (figure10_claim(ctx, results), no_phase_claim(ctx, results), capacity_claim(ctx, results),
+    for part in (figure10_claim(ctx, results), no_phase_claim(ctx, results, meta.get("released")),
+                 capacity_claim(ctx, results),
                  interpolation_claim(ctx, results, meta.get("pairs") or [meta["interpolate"]]),
                  table2_claim(results, meta.get("table2")), new_style_claim(ctx, results, ft, meta.get("table2"))):
         L.extend(part)
