@@ -283,9 +283,10 @@ def run(args):
     holdout = args.holdout or (SYNTH_HOLDOUT if synthetic_data and SYNTH_HOLDOUT in styles else styles[-1])
     pairs = check_pairs(styles, holdout, pairs or None)
     Path(args.work).mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
     ds, name = load_data(args)
     log(f"[data] {name}: {len(ds.styles)} styles, {len(ds.train)} training frames at {ds.fps:g} fps; "
-        f"held out: {holdout}")
+        f"held out: {holdout} ({time.perf_counter() - t0:.0f} s)")
     ctx = Context(ds, holdout, args)
     spe = steps_per_epoch(ctx.data["train"].style, args.batch_size)
     epochs = max(1, math.ceil(args.budget_steps / spe))
