@@ -30,8 +30,10 @@ machine with OPENBLAS_NUM_THREADS=1 (multithreaded BLAS thrashes when the cores 
 """
 from __future__ import annotations
 
+import json
 import math
 import time
+import types
 from pathlib import Path
 
 import numpy as np
@@ -45,6 +47,7 @@ from minifilm.evaluation.compare_measures import CLAVICLE_PATTERN, data_hand_amp
 from minifilm.evaluation.compare_claims_more import table2_figures
 from minifilm.evaluation.compare_released import released_rollout
 from minifilm.evaluation.compare_rollouts import interpolation, style_recognition
+from minifilm.evaluation.compare_workers import default_workers, run_figures, serve, train_in_workers
 from minifilm.evaluation.compare_tools import (film_codes, film_separation, fit_stats, select_styles, motion_errors,
                                                style_subset)
 from minifilm.evaluation.convergence import train_with_curve, validation_subset
@@ -102,7 +105,8 @@ def skeleton_of(ds):
 class Context:
     """The data every variant shares: seen / held-out styles, statistics, splits, classifier."""
 
-    def __init__(self, ds, holdout, args):
+    def __init__(self, ds, holdout, args, classifier=True):
+        """classifier=False: without the style classifier (a training worker needs none)."""
         self.ds, self.args, self.layout = ds, args, ds.layout
         self.holdout = holdout
         self.seen = [s for s in ds.styles if s != holdout]
@@ -127,6 +131,8 @@ class Context:
         self.data_hands = {s: data_hand_amplitude(ds.train, self.layout, ds.styles.index(s), self.hand_columns, second)
                            for s in self.seen}
         self.clavicles = joints_named(names, CLAVICLE_PATTERN)
+        if not classifier:
+            return
         t0 = time.perf_counter()
         self.classifier, self.clf_info = train_style_classifier(ds, seed=args.seed)
         log(f"[classifier] {self.clf_info['n_train']} training windows; held-out real accuracy "
@@ -185,6 +191,51 @@ def train_variant(name, ctx, epochs, seed=None, eval_every=None):
     n_params = sum(ps.size for ps in model.parameter_sets())
     return {"trainer": trainer, "info": info, "seconds": seconds, "steps": trainer.step, "errors": errors,
             "params": n_params, "final_train_loss": trainer.history[-1]["train"]["loss"], "curve": curve}
+
+
+def variant_trainer(name, ctx, seed, weights, epoch, step, history):
+    """The Trainer of a run trained elsewhere (compare_workers.py): the variant built as
+    train_variant builds it, with the run's weights, epoch count, step count and history."""
+    a, L = ctx.args, ctx.layout
+    model = build_variant(name, model_config(ctx, a.model), np.random.default_rng(seed), n_styles=len(ctx.seen))
+    for ps, w in zip(model.parameter_sets(), weights):
+        ps.data[...] = w
+    trainer = Trainer(model, ctx.norm, TrainConfig(epochs=epoch, batch_size=a.batch_size, lr=a.lr, seed=seed,
+                                                   progress=False),
+                      positions_idx=L.joint_columns("z", "position"), parents=np.asarray(L.parents),
+                      style_names=ctx.seen)
+    trainer.epoch, trainer.step, trainer.history = epoch, step, history
+    return trainer
+
+
+def training_worker(args_text: str, holdout: str, conn) -> None:
+    """The target of a training worker process (minifilm/evaluation/compare_workers.py): the same
+    context as the parent's (without the classifier), then train_variant for every job."""
+    def setup():
+        args = types.SimpleNamespace(**json.loads(args_text))
+        return Context(load_data(args)[0], holdout, args, classifier=False)
+
+    def job(ctx, m):
+        return run_figures(train_variant(m["variant"], ctx, m["epochs"], seed=m["seed"]), m["weights"])
+    serve(conn, setup, job)
+
+
+def trained_runs(variants, ctx, epochs, holdout):
+    """{(variant, seed): train_variant's result} for every run, trained in --workers processes;
+    None with one worker (the runs are then trained one after another in the main loop)."""
+    a = ctx.args
+    jobs = [(v, s) for v in variants for s in [a.seed] + list(a.extra_seeds)]
+    n = default_workers(len(jobs)) if getattr(a, "workers", None) is None else min(a.workers, len(jobs))
+    if n <= 1:
+        return None
+    log(f"[workers] {len(jobs)} training runs in {n} worker processes")
+    out = {}
+    for (v, seed), (fig, weights) in train_in_workers(jobs, a, holdout, epochs, n, training_worker, log).items():
+        _, info = variant_data(v, ctx.data["train"], ctx.layout, ctx.norm, ctx.end_effectors)
+        trainer = variant_trainer(v, ctx, seed, weights, fig["epoch"], fig["steps"], fig["history"])
+        out[(v, seed)] = {**{k: fig[k] for k in ("seconds", "steps", "errors", "params", "final_train_loss", "curve")},
+                          "trainer": trainer, "info": info}
+    return out
 
 
 def finetune_separation(result, ctx):
@@ -293,8 +344,9 @@ def run(args):
     log(f"[budget] {args.budget_steps} steps asked -> {epochs} epoch(s) of {spe} style-balanced batches of "
         f"{args.batch_size} = {epochs * spe} steps per variant")
     results = {}
+    done = trained_runs(variants, ctx, epochs, holdout)
     for v in variants:
-        r = train_variant(v, ctx, epochs)
+        r = done[(v, args.seed)] if done else train_variant(v, ctx, epochs)
         log(f"[train] {v:<13} {r['params']:>9,} params  {r['steps']} steps in {r['seconds']:.0f} s  "
             f"test MSE {r['errors']['mse']:.4f}  BLL {r['errors']['bll']:.4f}")
         t0 = time.perf_counter()
@@ -312,7 +364,7 @@ def run(args):
         r["seed_errors"], r["curves"] = [r["errors"]], {args.seed: r["curve"]}
         log(f"        {flat_line(r['curve'])}")
         for seed in args.extra_seeds:          # test errors only: how much of a difference is noise
-            extra = train_variant(v, ctx, epochs, seed=seed)
+            extra = done[(v, seed)] if done else train_variant(v, ctx, epochs, seed=seed)
             e = extra["errors"]
             r["seed_errors"].append(e)
             r["curves"][seed] = extra["curve"]

@@ -190,3 +190,49 @@ def test_tiny_compare_run_records_curves_judges_the_claims_and_drives_the_releas
     assert text.count("*Verdict:* **") == 6
     assert (tmp_path / "reports" / "compare_synthetic_validation.png").is_file() or "validation curves](" not in text
     assert "PendulumHands -> Neutral" in text
+
+
+TINY_RUN = ["--tiny", "--variants", "LPN FiLM,PFNN one-hot", "--budget-steps", "5", "--finetune-steps", "1",
+            "--seconds", "8", "--styles", "Neutral,LeftHop,Crouched", "--gaits", "FW", "--holdout", "Crouched",
+            "--rollout-seconds", "2"]
+
+
+def test_worker_processes_give_the_results_of_one_process(tmp_path):
+    """Every run trained in a worker (spawned, one BLAS thread) gives the same figures as in this
+    process: same seeds, same code, the weights handed back exactly. (rtol 1e-6, not 0: this test
+    process may run more BLAS threads than the workers, which changes the order of float sums.)"""
+    import multiprocessing
+    from minifilm.cli.compare import parse_args
+    from minifilm.evaluation.compare import run
+    outs = {}
+    for w in (1, 2):
+        outs[w] = run(parse_args(TINY_RUN + ["--workers", str(w), "--work", str(tmp_path / f"work{w}"),
+                                             "--out", str(tmp_path / f"reports{w}")]))
+    assert multiprocessing.active_children() == []              # no worker left behind
+    for v in ("LPN FiLM", "PFNN one-hot"):
+        one, two = outs[1]["results"][v], outs[2]["results"][v]
+        assert one["steps"] == two["steps"] and one["params"] == two["params"]
+        for e1, e2 in zip(one["seed_errors"], two["seed_errors"]):
+            assert e1["mse"] == pytest.approx(e2["mse"], rel=1e-6) and e1["bll"] == pytest.approx(e2["bll"], rel=1e-6)
+        for seed in (0, 1):
+            np.testing.assert_allclose(one["curves"][seed]["loss"], two["curves"][seed]["loss"], rtol=1e-6)
+            assert one["curves"][seed]["steps"] == two["curves"][seed]["steps"]
+        for p1, p2 in zip(one["trainer"].model.parameter_sets(), two["trainer"].model.parameter_sets()):
+            np.testing.assert_allclose(p1.data, p2.data, rtol=1e-4, atol=1e-5)
+        q1, q2 = one["rollout"], two["rollout"]
+        assert q1["diverged"] == q2["diverged"]
+    f1, f2 = outs[1]["finetune"], outs[2]["finetune"]
+    assert f1["after_new"]["mse"] == pytest.approx(f2["after_new"]["mse"], rel=1e-5)
+
+
+def test_a_failing_worker_stops_the_run_with_its_message_and_leaves_no_process(tmp_path):
+    import multiprocessing
+    from minifilm.cli.compare import parse_args
+    from minifilm.evaluation.compare import training_worker
+    from minifilm.evaluation.compare_workers import train_in_workers
+    args = parse_args(TINY_RUN + ["--work", str(tmp_path / "work"), "--out", str(tmp_path / "reports")])
+    with pytest.raises(RuntimeError, match="unknown variant"):
+        train_in_workers([("LPN FiLM", 0), ("No Such Variant", 0)], args, "Crouched", 1, 2, training_worker,
+                         log=lambda m: None)
+    assert multiprocessing.active_children() == []
+    assert not (tmp_path / "work" / "worker_weights").exists()
