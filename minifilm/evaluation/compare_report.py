@@ -142,7 +142,7 @@ def write_report(out: Path, name: str, ctx, results, ft, meta) -> Path:
     w("## Setup\n")
     w(f"- Data: {name}, {len(ds.styles)} styles at {ds.fps:g} fps ({len(ds.train)} training frames); held out of "
       f"training: **{ctx.holdout}**; seen: {', '.join(ctx.seen)}. Normalisation statistics from the seen styles only.")
-    w(f"- Budget, identical for every variant: **{meta['epochs']} epoch(s) x {meta['steps_per_epoch']} style-balanced "
+    w(f"- Budget, {'before --until-flat' if getattr(a, 'until_flat', False) else 'identical'} for every variant: **{meta['epochs']} epoch(s) x {meta['steps_per_epoch']} style-balanced "
       f"minibatches of {a.batch_size} = {meta['epochs'] * meta['steps_per_epoch']} Adam steps** (lr {a.lr:g}, "
       f"dropout {meta['sizes']['dropout']}), asked for: {a.budget_steps}. Small models: hidden "
       f"{meta['sizes']['hidden']}, {meta['sizes']['n_experts']} experts, Ψ conv {meta['sizes']['conv_filters']} "
