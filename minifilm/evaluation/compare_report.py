@@ -216,11 +216,11 @@ def write_report(out: Path, name: str, ctx, results, ft, meta) -> Path:
     elif rel:
         w(f"\nThe released network's row is missing: {rel['skipped']}.")
     w("\nStyle accuracy per seen style (fraction of rollout windows classified as the commanded style):\n")
-    shown = [v for v, r in results.items() if not r["rollout"]["diverged"]]
-    w("| style | " + " | ".join(shown) + " |")          # a row per style: 100 styles stay readable
-    w("|---|" + "---:|" * len(shown))
+    alive = [v for v, r in results.items() if not r["rollout"]["diverged"]]
+    w("| style | " + " | ".join(alive) + " |")          # a row per style: 100 styles stay readable
+    w("|---|" + "---:|" * len(alive))
     for s in ctx.seen:
-        w(f"| {s} | " + " | ".join(f"{results[v]['rollout']['per_style'][s]:.2f}" for v in shown) + " |")
+        w(f"| {s} | " + " | ".join(f"{results[v]['rollout']['per_style'][s]:.2f}" for v in alive) + " |")
     pa, pb = meta["interpolate"]
     w(f"\n## Figure 8: interpolation {pa} -> {pb}\n")
     w(f"Score = P({pb}) / (P({pa}) + P({pb})) of the classifier, averaged over the windows of a "
