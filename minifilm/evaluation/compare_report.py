@@ -298,4 +298,8 @@ def draw_film_codes(axes, separation, labels, names, holdout):
                      f"{holdout} {sep['focus_silhouette']:.2f}", fontsize=9)
         ax.set_xlabel("PC 1")
         ax.set_ylabel("PC 2")
-    axes[1].legend(fontsize=7)
+    if len(names) <= 20:
+        axes[1].legend(fontsize=7)
+    else:                        # a legend of 100 styles would not fit: name the held-out style only
+        stars = [h for h, n in zip(*axes[1].get_legend_handles_labels()) if n.endswith("(held out)")]
+        axes[1].legend(stars, [f"{holdout} (held out)"] * len(stars), fontsize=7)
