@@ -230,7 +230,9 @@ def test_a_failing_worker_stops_the_run_with_its_message_and_leaves_no_process(t
     from minifilm.cli.compare import parse_args
     from minifilm.evaluation.compare import training_worker
     from minifilm.evaluation.compare_workers import train_in_workers
+    from minifilm.evaluation.compare import load_data
     args = parse_args(TINY_RUN + ["--work", str(tmp_path / "work"), "--out", str(tmp_path / "reports")])
+    load_data(args)            # the data and its cache first, as run() makes them before the workers start
     with pytest.raises(RuntimeError, match="unknown variant"):
         train_in_workers([("LPN FiLM", 0), ("No Such Variant", 0)], args, "Crouched", 1, 2, training_worker,
                          log=lambda m: None)
