@@ -225,6 +225,7 @@ def trained_runs(variants, ctx, epochs, holdout):
     None with one worker (the runs are then trained one after another in the main loop)."""
     a = ctx.args
     jobs = [(v, s) for v in variants for s in [a.seed] + list(a.extra_seeds)]
+    jobs.sort(key=lambda job: "FiLM" not in job[0])    # the longest runs (Ψ on every clip) first: less idle time
     n = default_workers(len(jobs)) if getattr(a, "workers", None) is None else min(a.workers, len(jobs))
     if n <= 1:
         return None
