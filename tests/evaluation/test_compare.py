@@ -144,3 +144,97 @@ def test_a_compare_run_of_the_default_model_writes_its_report(tmp_path):
     run(args)
     report = next((tmp_path / "reports").glob("*.md")).read_text(encoding="utf-8")
     assert "Small models: hidden 128, 4 experts, Ψ conv 32 filters / dense 128" in report
+
+
+def _released_folder(path, styles):
+    """A small network in the released layout (random weights) knowing ``styles``."""
+    from minifilm.dataset.stats import NormStats
+    from minifilm.model.style_model import StyleModel
+    from minifilm.runtime.released import write_released
+    L = LAYOUT
+    cfg = ModelConfig(x_dim=L.x_dim, z_dim=L.z_dim, phase_dim=8, clip_frames=8, clip_channels=L.clip_dim,
+                      n_experts=2, hidden=8, gating_hidden=4, conv_filters=2, conv_kernel=3, film_dense=4)
+    rng = np.random.default_rng(5)
+    model = StyleModel(cfg, rng, dtype=np.float32, with_film_generator=False)
+    stats = NormStats.identity(L.x_dim, L.z_dim)
+    write_released(model, stats, {s: np.ones(cfg.film_dim, np.float32) for s in styles}, path)
+    return path
+
+
+def test_tiny_compare_run_records_curves_judges_the_claims_and_drives_the_released_network(tmp_path):
+    from minifilm.cli.compare import parse_args
+    from minifilm.evaluation.compare import run
+    released = _released_folder(tmp_path / "released", ["LeftHop", "Neutral", "Elsewhere"])
+    args = parse_args(["--tiny", "--variants", "LPN FiLM,LPN one-hot,PFNN FiLM", "--budget-steps", "5",
+                       "--finetune-steps", "1", "--seconds", "8", "--styles", "Neutral,LeftHop,PendulumHands,Crouched",
+                       "--gaits", "FW", "--holdout", "Crouched", "--rollout-seconds", "2",
+                       "--interpolate", "Neutral,LeftHop;PendulumHands,Neutral", "--released", str(released),
+                       "--work", str(tmp_path / "work"), "--out", str(tmp_path / "reports")])
+    out = run(args)
+    for v, r in out["results"].items():
+        assert set(r["curves"]) == {0, 1}                  # both seeds' curves
+        for c in r["curves"].values():
+            assert c["steps"][0] == 0 and c["steps"][-1] == r["steps"] and len(c["steps"]) >= 3
+            assert c["flat"] in (True, False)
+    # both interpolation pairs for the FiLM and one-hot variants
+    assert set(out["results"]["LPN one-hot"]["interps"]) == {("Neutral", "LeftHop"), ("PendulumHands", "Neutral")}
+    # the released network ran in the seen styles it knows (PendulumHands is not among them)
+    rel = out["released"]
+    assert rel["styles"] == ["LeftHop", "Neutral"] and rel["named_by"] == "--released"
+    assert set(out["table2"]) == set(out["results"])
+    text = out["report"].read_text(encoding="utf-8")
+    assert "## Convergence: validation curves" in text and "| released network (2 styles) |" in text
+    for heading in ("### Figure 10", "### Sec. 5.1.1", "### Sec. 5.1.2", "### Figure 8", "### Table 2",
+                    "### Sec. 5.3.2"):
+        assert heading in text
+    assert text.count("*Verdict:* **") == 6
+    assert (tmp_path / "reports" / "compare_synthetic_validation.png").is_file() or "validation curves](" not in text
+    assert "PendulumHands -> Neutral" in text
+
+
+TINY_RUN = ["--tiny", "--variants", "LPN FiLM,PFNN one-hot", "--budget-steps", "5", "--finetune-steps", "1",
+            "--seconds", "8", "--styles", "Neutral,LeftHop,Crouched", "--gaits", "FW", "--holdout", "Crouched",
+            "--rollout-seconds", "2"]
+
+
+def test_worker_processes_give_the_results_of_one_process(tmp_path):
+    """Every run trained in a worker (spawned, one BLAS thread) gives the same figures as in this
+    process: same seeds, same code, the weights handed back exactly. (rtol 1e-6, not 0: this test
+    process may run more BLAS threads than the workers, which changes the order of float sums.)"""
+    import multiprocessing
+    from minifilm.cli.compare import parse_args
+    from minifilm.evaluation.compare import run
+    outs = {}
+    for w in (1, 2):
+        outs[w] = run(parse_args(TINY_RUN + ["--workers", str(w), "--work", str(tmp_path / f"work{w}"),
+                                             "--out", str(tmp_path / f"reports{w}")]))
+    assert multiprocessing.active_children() == []              # no worker left behind
+    for v in ("LPN FiLM", "PFNN one-hot"):
+        one, two = outs[1]["results"][v], outs[2]["results"][v]
+        assert one["steps"] == two["steps"] and one["params"] == two["params"]
+        for e1, e2 in zip(one["seed_errors"], two["seed_errors"]):
+            assert e1["mse"] == pytest.approx(e2["mse"], rel=1e-6) and e1["bll"] == pytest.approx(e2["bll"], rel=1e-6)
+        for seed in (0, 1):
+            np.testing.assert_allclose(one["curves"][seed]["loss"], two["curves"][seed]["loss"], rtol=1e-6)
+            assert one["curves"][seed]["steps"] == two["curves"][seed]["steps"]
+        for p1, p2 in zip(one["trainer"].model.parameter_sets(), two["trainer"].model.parameter_sets()):
+            np.testing.assert_allclose(p1.data, p2.data, rtol=1e-4, atol=1e-5)
+        q1, q2 = one["rollout"], two["rollout"]
+        assert q1["diverged"] == q2["diverged"]
+    f1, f2 = outs[1]["finetune"], outs[2]["finetune"]
+    assert f1["after_new"]["mse"] == pytest.approx(f2["after_new"]["mse"], rel=1e-5)
+
+
+def test_a_failing_worker_stops_the_run_with_its_message_and_leaves_no_process(tmp_path):
+    import multiprocessing
+    from minifilm.cli.compare import parse_args
+    from minifilm.evaluation.compare import training_worker
+    from minifilm.evaluation.compare_workers import train_in_workers
+    from minifilm.evaluation.compare import load_data
+    args = parse_args(TINY_RUN + ["--work", str(tmp_path / "work"), "--out", str(tmp_path / "reports")])
+    load_data(args)            # the data and its cache first, as run() makes them before the workers start
+    with pytest.raises(RuntimeError, match="unknown variant"):
+        train_in_workers([("LPN FiLM", 0), ("No Such Variant", 0)], args, "Crouched", 1, 2, training_worker,
+                         log=lambda m: None)
+    assert multiprocessing.active_children() == []
+    assert not (tmp_path / "work" / "worker_weights").exists()
