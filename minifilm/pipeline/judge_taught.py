@@ -35,6 +35,33 @@ def walk_blocks(network, layout, stats, films: np.ndarray, speed: float, seconds
     return blocks, r
 
 
+def halves(blocks) -> tuple:
+    """Window summaries of the first and of the second half of every block."""
+    first = [summaries(b[:len(b) // 2]) for b in blocks]
+    second = [summaries(b[len(b) // 2:]) for b in blocks]
+    return first, second
+
+
+def judge_refits(rel, layout, fitted: Dict[str, np.ndarray], speed: float = 1.3, seconds: float = 20.0,
+                 seeds: Sequence[int] = (0, 1, 2)) -> dict:
+    """The known-answer case by motion: ``fitted`` maps a released style's name to the vector re-fitted
+    from its motion with its own vector hidden. Every fitted vector and the 100 released walk one
+    straight line at ``speed``; each fitted motion (second half) is judged among the released
+    styles' motion (first halves) with its hidden style as the target. -> {'fitted': {name: judge},
+    'released_self': released styles ranking themselves first on their second half,
+    'released_recognition_min': the median over released styles of their minimum recognition}."""
+    names, targets = list(rel.styles), list(fitted)
+    films = np.concatenate([np.stack([fitted[t] for t in targets]), np.stack([rel.styles[n] for n in names])])
+    blocks, _ = walk_blocks(rel.network, layout, rel.stats, films, speed, seconds)
+    first, second = halves(blocks)
+    k = len(targets)
+    judge = StyleJudge.fit({n: first[k + i] for i, n in enumerate(names)}, seeds=seeds)
+    own = [judge.judge(second[k + i], n) for i, n in enumerate(names)]
+    return dict(fitted={t: judge.judge(second[i], t) for i, t in enumerate(targets)},
+                released_self=int(sum(j["rank"] == 1 for j in own)),
+                released_recognition_min=float(np.median([j["recognition_min"] for j in own])))
+
+
 def clip_summaries(clip, stats, layout) -> np.ndarray:
     """The clip's own windows (the rows the fit saw, joint axes as taught), file by file so no
     window spans two files."""
@@ -58,9 +85,7 @@ def judge_taught(rel, layout, taught, seconds: float = 20.0, seeds: Sequence[int
     names = list(released or rel.styles)
     films = np.concatenate([taught.candidate_films, np.stack([rel.styles[n] for n in names])])
     blocks, _ = walk_blocks(rel.network, layout, rel.stats, films, taught.clip.speed, seconds)
-    half = [len(b) // 2 for b in blocks]
-    first = [summaries(b[:h]) for b, h in zip(blocks, half)]
-    second = [summaries(b[h:]) for b, h in zip(blocks, half)]
+    first, second = halves(blocks)
     k = len(taught.candidate_films)
     refs: Dict[str, np.ndarray] = {n: first[k + i] for i, n in enumerate(names)}
     refs[taught.name] = clip_summaries(taught.clip, rel.stats, layout)
