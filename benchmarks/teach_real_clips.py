@@ -33,8 +33,10 @@ import numpy as np  # noqa: E402
 from minifilm.features.layout import FeatureLayout  # noqa: E402
 from minifilm.motion.measures import bone_length_cv  # noqa: E402
 from minifilm.motion.skeletons import STYLE100  # noqa: E402
-from minifilm.pipeline.judge_taught import judge_taught  # noqa: E402
-from minifilm.pipeline.teach_released import candidate_rollouts, read_clip, teach  # noqa: E402
+from minifilm.pipeline.joint_axes import align_axes  # noqa: E402
+from minifilm.pipeline.judge_taught import clip_summaries, judge_taught  # noqa: E402
+from minifilm.pipeline.rollout_refit import rollout_refit  # noqa: E402
+from minifilm.pipeline.teach_released import candidate_rollouts, clip_rows, read_clip, teach  # noqa: E402
 from minifilm.runtime.released import load_released  # noqa: E402
 from minifilm.runtime.walk_checks import count_strikes, lowest_toe  # noqa: E402
 from minifilm.phases.label import label  # noqa: E402
@@ -69,16 +71,45 @@ def words(j: dict) -> str:
             f"(seeds {rec}); classifiers pick {picked}")
 
 
+def unseen_summaries(rel, layout, style: str, taught_files: int):
+    """Window summaries of the style's next walk file (not taught from), aligned as the clip is."""
+    files = sorted((DATA / "bandai2").glob(f"dataset-2_walk_{style}_*.bvh"))[taught_files:taught_files + 1]
+    if not files:
+        return None
+    motion, _ = read_clip(files[0], log=lambda m: None)
+    rows = clip_rows([motion], files, style)
+    rows.x, rows.z, _ = align_axes(rows.x, rows.z, layout, rel.stats)
+    return clip_summaries(rows, rel.stats, layout)
+
+
+def add_rollout_rounds(rel, layout, taught, rounds: int, row: dict) -> None:
+    """The rollout refit's vectors join the candidates (to be judged beside the fit's)."""
+    t0 = time.perf_counter()
+    res = rollout_refit(rel, layout, taught, rounds=rounds)
+    row["rollout_rounds"] = [{k: v for k, v in r.items() if k != "film"} for r in res]
+    for k, r in enumerate(res):
+        print(f"    rollout round {k + 1}: visited poses {r['pose_distance']:.2f} σ from the clip's nearest; loss on the "
+              f"visited rows {r['loss_before']:.3f} -> {r['loss_after']:.3f}", flush=True)
+        taught.candidates.append({"label": f"rollout round {k + 1}"})
+    taught.candidate_films = np.concatenate([taught.candidate_films, np.stack([r["film"] for r in res])])
+    print(f"    rollout refit: {time.perf_counter() - t0:.0f} s", flush=True)
+
+
 def print_judged(style, taught, judged) -> None:
     print(f"    judged among {judged['n_styles']} styles (released styles ranking themselves first: "
           f"{judged['released_self']}/{judged['n_styles'] - 1}); the clip itself is nearest "
           + ", ".join(f"{n} {d:.0f}" for n, d in judged["clip_nearest"]))
+    s = judged["released_spread"]
+    print(f"    a released style's second half lies {s['own']:.0f} from its first half, {s['nearest_other']:.0f} from "
+          f"the nearest other style (medians)")
+    if judged["unseen"] is not None:
+        print(f"    the style's next file (real, not taught from) as if generated: {words(judged['unseen'])}")
     print("    clip minus kept motion, in σ of all references: "
           + ", ".join(f"{n} {what} {d:+.1f}" for n, what, d in judged["gap"]))
     for i, (c, j) in enumerate(zip(taught.candidates, judged["candidates"])):
         mark = (" <- kept by finetune" if i == judged["chosen_index"] else "") + (
             " <- nearest the clip (first half)" if i == judged["by_frechet"] else "")
-        print(f"    λ={c['prior_weight']:g}: {words(j)}; to the clip on the first half "
+        print(f"    {c.get('label') or 'λ=%g' % c['prior_weight']}: {words(j)}; to the clip on the first half "
               f"{j['clip_distance_first_half']:.0f}{mark}", flush=True)
 
 
@@ -90,6 +121,9 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=20.0)
     ap.add_argument("--judge-seconds", type=float, default=20.0, help="rollout judged by classifier and Fréchet "
                                                                        "rank (0: skip)")
+    ap.add_argument("--rollout-rounds", type=int, default=0,
+                    help="also refit the kept vector at the states it visits, this many rounds "
+                         "(minifilm/pipeline/rollout_refit.py); each round's vector is judged too")
     ap.add_argument("--seeds", type=int, default=3, help="classifier seeds (the minimum recognition counts)")
     ap.add_argument("--json", type=Path)
     ap.add_argument("--out", type=Path, help="folder for <style>_clip.bvh (retargeted), <style>_taught.bvh and "
@@ -139,8 +173,11 @@ def main() -> None:
             print(f"    {key:13s} clip {clip[key]:7.3f}   result {result[key]:7.3f}")
         print(f"    check: {taught.check.words()}; pictures: {', '.join(str(p) for p in pictures) or 'none'}",
               flush=True)
+        if args.rollout_rounds > 0:
+            add_rollout_rounds(rel, layout, taught, args.rollout_rounds, row)
         if args.judge_seconds > 0:
-            row["judged"] = judged = judge_taught(rel, layout, taught, args.judge_seconds, seeds=range(args.seeds))
+            row["judged"] = judged = judge_taught(rel, layout, taught, args.judge_seconds, seeds=range(args.seeds),
+                                                  unseen=unseen_summaries(rel, layout, style, args.files))
             print_judged(style, taught, judged)
     print(f"load {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
     if args.json:

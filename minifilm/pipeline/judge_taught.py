@@ -76,12 +76,15 @@ def clip_summaries(clip, stats, layout) -> np.ndarray:
 
 
 def judge_taught(rel, layout, taught, seconds: float = 20.0, seeds: Sequence[int] = (0, 1, 2),
-                 released: Sequence[str] = None) -> dict:
+                 released: Sequence[str] = None, unseen=None) -> dict:
     """Judge every candidate vector of ``taught`` (a :class:`TaughtStyle`) among the released styles
     and the clip. -> {'chosen': judge of the vector teach kept, 'candidates': [judge per candidate,
     with 'clip_distance_first_half'], 'by_frechet': index of the candidate nearest the clip on the
     first half, 'clip_nearest': [(released style, distance)] nearest the clip itself, 'released_self':
-    how many released styles rank themselves first on their second half}."""
+    how many released styles rank themselves first on their second half, 'released_spread': the
+    median distance of a released style's second half to its own first half and to the nearest
+    other style, 'unseen': the judge of ``unseen`` (window summaries of real motion of the clip's
+    style that it was not taught from: what a perfect generator would score), or None}."""
     names = list(released or rel.styles)
     films = np.concatenate([taught.candidate_films, np.stack([rel.styles[n] for n in names])])
     blocks, _ = walk_blocks(rel.network, layout, rel.stats, films, taught.clip.speed, seconds)
@@ -98,8 +101,12 @@ def judge_taught(rel, layout, taught, seconds: float = 20.0, seeds: Sequence[int
     chosen = next(i for i, c in enumerate(taught.candidates) if c.get("chosen"))
     clip_d = {n: v for n, v in judge.space.distances(refs[taught.name], summarised=True).items() if n != taught.name}
     gap = feature_gap(judge, refs[taught.name], second[chosen], layout)
-    self_first = sum(judge.judge(second[k + i], n)["rank"] == 1 for i, n in enumerate(names))
-    return dict(chosen=cands[chosen], chosen_index=chosen, candidates=cands,
+    own = [judge.judge(second[k + i], n) for i, n in enumerate(names)]
+    self_first = sum(j["rank"] == 1 for j in own)
+    spread = dict(own=float(np.median([j["distance"] for j in own])),
+                  nearest_other=float(np.median([next(d for m, d in j["nearest"] if m != j["target"]) for j in own])))
+    ceiling = None if unseen is None else judge.judge(unseen, taught.name)
+    return dict(released_spread=spread, unseen=ceiling,chosen=cands[chosen], chosen_index=chosen, candidates=cands,
                 by_frechet=int(np.argmin([c["clip_distance_first_half"] for c in cands])),
                 clip_nearest=sorted(clip_d.items(), key=lambda kv: kv[1])[:3], released_self=int(self_first),
                 n_styles=len(refs), gap=gap)
