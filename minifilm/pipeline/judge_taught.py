@@ -77,7 +77,8 @@ def clip_summaries(clip, stats, layout) -> np.ndarray:
 
 def judge_taught(rel, layout, taught, seconds: float = 20.0, seeds: Sequence[int] = (0, 1, 2),
                  released: Sequence[str] = None, unseen=None) -> dict:
-    """Judge every candidate vector of ``taught`` (a :class:`TaughtStyle`) among the released styles
+    """Judge every candidate vector of ``taught``
+    (a :class:`~minifilm.pipeline.teach_released.TaughtStyle`) among the released styles
     and the clip. -> {'chosen': judge of the vector teach kept, 'candidates': [judge per candidate,
     with 'clip_distance_first_half'], 'by_frechet': index of the candidate nearest the clip on the
     first half, 'clip_nearest': [(released style, distance)] nearest the clip itself, 'released_self':

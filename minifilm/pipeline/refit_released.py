@@ -84,7 +84,8 @@ def sensitivity(gram: np.ndarray, error: np.ndarray, other: np.ndarray) -> dict:
 
 def refit(rel, name: str, motion, settings: FitSettings = FitSettings(), prior_weights=(0.3, 1.0, 3.0),
           log: Callable[[str], None] = lambda m: None) -> dict:
-    """Teach ``name`` from ``motion`` with its own vector hidden; -> ranks and figures (module docstring)."""
+    """Teach ``name`` from ``motion`` with its own vector hidden; -> ranks and figures (module
+    docstring), the fitted vector ('film') and the output's sensitivity (:func:`sensitivity`)."""
     names = list(rel.styles)
     V = np.stack([rel.styles[n] for n in names]).astype(np.float64)
     i = names.index(name)
@@ -104,7 +105,8 @@ def refit(rel, name: str, motion, settings: FitSettings = FitSettings(), prior_w
     others[i] = np.inf
     probe = held[np.linspace(0, len(held) - 1, 24).astype(int)]      # 24 rows: J is (24 z, 2048)
     sens = sensitivity(jacobian_gram(rows, V[i], probe), taught.film - V[i], V[int(np.argmin(others))] - V[i])
-    return dict(style=name, film=taught.film, sensitivity=sens, nearest_other=names[int(np.argmin(others))], film_rank=rank_of(film_d, i), output_rank=rank_of(output_d, i),
+    return dict(style=name, film=taught.film, sensitivity=sens, nearest_other=names[int(np.argmin(others))],
+                film_rank=rank_of(film_d, i), output_rank=rank_of(output_d, i),
                 loss_rank=rank_of(losses, i), nearest_film=names[int(np.argmin(film_d))],
                 nearest_output=names[int(np.argmin(output_d))], true_loss=float(losses[i]),
                 fitted_loss=float(rows.loss(taught.film, held)), start_loss=taught.distance.start_loss,
