@@ -15,7 +15,11 @@ and the 100 released styles walk --judge-seconds straight at the clip's speed; t
 styles' references are the first half of their own motion, the new style's is the clip; printed:
 the Fréchet rank, the classifier's recognition for each of --seeds (the minimum counts), which
 styles the classifiers pick and which released styles lie nearest the clip, for the vector
-finetune keeps and for the one nearest the clip by Fréchet distance on the first half.
+finetune keeps and for the one nearest the clip by Fréchet distance on the first half; also the
+style's next walk file (real, not taught from) judged the same way: what a perfect generator would
+score. --rollout-rounds N adds the vectors of N rounds of refitting at the states the network
+visits (minifilm/pipeline/rollout_refit.py) to the candidates. Pictures (benchmarks/teach_pictures.py):
+<style>.gif, the clip beside the result, and <style>.png, a contact sheet, in --out.
 """
 from __future__ import annotations
 
