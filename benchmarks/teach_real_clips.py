@@ -9,13 +9,24 @@ the 100STYLE skeleton and resampled to 60 fps on the way in) are taught to the r
 for --seconds at the clip's speed. Printed for the clip and for the result: steps per second, root
 speed, median hip height, median hand heights, share of frames with the lowest toe within 3 cm of
 the floor, worst bone-length coefficient of variation (the network's own prediction), and the
-teaching time. Not measured here: the style classifier and the Fréchet rank.
+teaching time. Then, unless --judge-seconds 0, whether the new style's motion is recognised as
+itself among all 101 styles (minifilm/pipeline/judge_taught.py): every candidate vector of the fit
+and the 100 released styles walk --judge-seconds straight at the clip's speed; the released
+styles' references are the first half of their own motion, the new style's is the clip; printed:
+the Fréchet rank, the classifier's recognition for each of --seeds (the minimum counts), which
+styles the classifiers pick and which released styles lie nearest the clip, for the vector
+finetune keeps and for the one nearest the clip by Fréchet distance on the first half; also the
+style's next walk file (real, not taught from) judged the same way: what a perfect generator would
+score. --rollout-rounds N adds the vectors of N rounds of refitting at the states the network
+visits (minifilm/pipeline/rollout_refit.py) to the candidates. Pictures (benchmarks/teach_pictures.py):
+<style>.gif, the clip beside the result, and <style>.png, a contact sheet, in --out.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import tempfile
 import time
 from pathlib import Path
 
@@ -26,7 +37,10 @@ import numpy as np  # noqa: E402
 from minifilm.features.layout import FeatureLayout  # noqa: E402
 from minifilm.motion.measures import bone_length_cv  # noqa: E402
 from minifilm.motion.skeletons import STYLE100  # noqa: E402
-from minifilm.pipeline.teach_released import candidate_rollouts, read_clip, teach  # noqa: E402
+from minifilm.pipeline.joint_axes import align_axes  # noqa: E402
+from minifilm.pipeline.judge_taught import clip_summaries, judge_taught  # noqa: E402
+from minifilm.pipeline.rollout_refit import rollout_refit  # noqa: E402
+from minifilm.pipeline.teach_released import candidate_rollouts, clip_rows, read_clip, teach  # noqa: E402
 from minifilm.runtime.released import load_released  # noqa: E402
 from minifilm.runtime.walk_checks import count_strikes, lowest_toe  # noqa: E402
 from minifilm.phases.label import label  # noqa: E402
@@ -35,6 +49,7 @@ from minifilm.runtime.start_state import root_joint_indices  # noqa: E402
 from minifilm.synthetic.generator import rest_motion  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
+from teach_pictures import clip_and_result  # noqa: E402  (beside this script)
 DATA = REPO.parent / "shared" / "data"
 
 
@@ -52,16 +67,74 @@ def figures(positions, contacts, root, fps, names, parents, network_positions=No
                                              parents).max()))
 
 
+def words(j: dict) -> str:
+    rec = ", ".join(f"{r:.2f}" for r in j["recognition"])
+    near = ", ".join(f"{n} {d:.0f}" for n, d in j["nearest"])
+    picked = ", ".join(f"{n} {s:.0%}" for n, s in j["picked"])
+    return (f"rank {j['rank']} (distance {j['distance']:.0f}; nearest {near}); recognised min {j['recognition_min']:.2f} "
+            f"(seeds {rec}); classifiers pick {picked}")
+
+
+def unseen_summaries(rel, layout, style: str, taught_files: int):
+    """Window summaries of the style's next walk file (not taught from), aligned as the clip is."""
+    files = sorted((DATA / "bandai2").glob(f"dataset-2_walk_{style}_*.bvh"))[taught_files:taught_files + 1]
+    if not files:
+        return None
+    motion, _ = read_clip(files[0], log=lambda m: None)
+    rows = clip_rows([motion], files, style)
+    rows.x, rows.z, _ = align_axes(rows.x, rows.z, layout, rel.stats)
+    return clip_summaries(rows, rel.stats, layout)
+
+
+def add_rollout_rounds(rel, layout, taught, rounds: int, row: dict) -> None:
+    """The rollout refit's vectors join the candidates (to be judged beside the fit's)."""
+    t0 = time.perf_counter()
+    res = rollout_refit(rel, layout, taught, rounds=rounds)
+    row["rollout_rounds"] = [{k: v for k, v in r.items() if k != "film"} for r in res]
+    for k, r in enumerate(res):
+        print(f"    rollout round {k + 1}: visited poses {r['pose_distance']:.2f} σ from the clip's nearest; loss on the "
+              f"visited rows {r['loss_before']:.3f} -> {r['loss_after']:.3f}", flush=True)
+        taught.candidates.append({"label": f"rollout round {k + 1}"})
+    taught.candidate_films = np.concatenate([taught.candidate_films, np.stack([r["film"] for r in res])])
+    print(f"    rollout refit: {time.perf_counter() - t0:.0f} s", flush=True)
+
+
+def print_judged(style, taught, judged) -> None:
+    print(f"    judged among {judged['n_styles']} styles (released styles ranking themselves first: "
+          f"{judged['released_self']}/{judged['n_styles'] - 1}); the clip itself is nearest "
+          + ", ".join(f"{n} {d:.0f}" for n, d in judged["clip_nearest"]))
+    s = judged["released_spread"]
+    print(f"    a released style's second half lies {s['own']:.0f} from its first half, {s['nearest_other']:.0f} from "
+          f"the nearest other style (medians)")
+    if judged["unseen"] is not None:
+        print(f"    the style's next file (real, not taught from) as if generated: {words(judged['unseen'])}")
+    print("    clip minus kept motion, in σ of all references: "
+          + ", ".join(f"{n} {what} {d:+.1f}" for n, what, d in judged["gap"]))
+    for i, (c, j) in enumerate(zip(taught.candidates, judged["candidates"])):
+        mark = (" <- kept by finetune" if i == judged["chosen_index"] else "") + (
+            " <- nearest the clip (first half)" if i == judged["by_frechet"] else "")
+        print(f"    {c.get('label') or 'λ=%g' % c['prior_weight']}: {words(j)}; to the clip on the first half "
+              f"{j['clip_distance_first_half']:.0f}{mark}", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--params", type=Path, default=DATA / "released-lpn")
     ap.add_argument("--styles", nargs="*", default=["feminine", "elderly", "exhausted", "active"])
     ap.add_argument("--files", type=int, default=3)
     ap.add_argument("--seconds", type=float, default=20.0)
+    ap.add_argument("--judge-seconds", type=float, default=20.0, help="rollout judged by classifier and Fréchet "
+                                                                       "rank (0: skip)")
+    ap.add_argument("--rollout-rounds", type=int, default=0,
+                    help="also refit the kept vector at the states it visits, this many rounds "
+                         "(minifilm/pipeline/rollout_refit.py); each round's vector is judged too")
+    ap.add_argument("--seeds", type=int, default=3, help="classifier seeds (the minimum recognition counts)")
     ap.add_argument("--json", type=Path)
-    ap.add_argument("--out", type=Path, help="write <style>_clip.bvh (retargeted) and <style>_taught.bvh here, "
-                                             "to see side by side: minifilm view A.bvh B.bvh --gif both.gif")
+    ap.add_argument("--out", type=Path, help="folder for <style>_clip.bvh (retargeted), <style>_taught.bvh and "
+                                             "the pictures <style>.gif / .png, the clip beside the result "
+                                             "(default: a new temporary folder)")
     args = ap.parse_args()
+    args.out = args.out or Path(tempfile.mkdtemp(prefix="teach-real-clips-"))
     rel = load_released(args.params)
     layout = FeatureLayout.for_skeleton(STYLE100)
     names, parents = list(layout.joint_names), layout.parents
@@ -89,19 +162,27 @@ def main() -> None:
                    own_loss=taught.distance.known_losses[0], loss=taught.loss, nearest=taught.nearest,
                    best_known=taught.best_known, clip=clip, result=result, words=taught.check.words())
         rows.append(row)
-        if args.out:
-            args.out.mkdir(parents=True, exist_ok=True)
-            skeleton = rest_motion()
-            write_bvh(motions[0], args.out / f"{style}_clip.bvh", scale=STYLE100.bvh_scale)
-            write_bvh(r.to_motion(skeleton, root_joint_indices(layout, skeleton)), args.out / f"{style}_taught.bvh",
-                      scale=STYLE100.bvh_scale)
+        args.out.mkdir(parents=True, exist_ok=True)
+        skeleton = rest_motion()
+        clip_bvh, taught_bvh = args.out / f"{style}_clip.bvh", args.out / f"{style}_taught.bvh"
+        write_bvh(motions[0], clip_bvh, scale=STYLE100.bvh_scale)
+        write_bvh(r.to_motion(skeleton, root_joint_indices(layout, skeleton)).slice(k0, r.positions.shape[1]),
+                  taught_bvh, scale=STYLE100.bvh_scale)
+        pictures = clip_and_result(clip_bvh, taught_bvh, args.out, style, (f"{style} clip", f"{style} taught"))
         print(f"{style}: {len(files)} files, {taught.clip.seconds:.1f} s, taught in {seconds:.1f} s; beyond 5 σ "
               f"{taught.distance.share_as_read:.1%} as retargeted -> {taught.distance.share_beyond:.1%} aligned; loss "
               f"{taught.distance.start_loss:.3f} ({taught.best_known}) -> {taught.loss:.3f} (own {row['own_loss']:.3f})",
               flush=True)
         for key in clip:
             print(f"    {key:13s} clip {clip[key]:7.3f}   result {result[key]:7.3f}")
-        print(f"    check: {taught.check.words()}", flush=True)
+        print(f"    check: {taught.check.words()}; pictures: {', '.join(str(p) for p in pictures) or 'none'}",
+              flush=True)
+        if args.rollout_rounds > 0:
+            add_rollout_rounds(rel, layout, taught, args.rollout_rounds, row)
+        if args.judge_seconds > 0:
+            row["judged"] = judged = judge_taught(rel, layout, taught, args.judge_seconds, seeds=range(args.seeds),
+                                                  unseen=unseen_summaries(rel, layout, style, args.files))
+            print_judged(style, taught, judged)
     print(f"load {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1))

@@ -200,7 +200,22 @@ def walk_problems(args, src, r, script, names, parents, k0) -> list:
     cv = bone_length_cv(r.network_positions[0, k0:], parents).max()
     if cv > 0.1:
         problems.append(f"the predicted bones stretch by {cv:.0%} (coefficient of variation of the worst bone)")
-    return problems
+    far = start_far_outside(src, args.style or src.library.names[0])
+    return problems + ([far] if far else [])
+
+
+def start_far_outside(src, style: str):
+    """For a run's style, words when its start frame (the first frame of the motion it was trained
+    or taught from, starts.npz) lies far outside the run's data: more than 1 % of its normalised
+    input numbers beyond 5 σ, as ``finetune`` warns about the whole clip; else None."""
+    x0 = src.starts.get(style, (None, None))[0]
+    if x0 is None:
+        return None
+    share = float(np.mean(np.abs(src.network.stats.normalize_x(np.asarray(x0, np.float64))) > 5.0))
+    if share <= 0.01:
+        return None
+    return (f"the style {style!r} was taught from motion far outside the run's data ({share:.0%} of the input "
+            "numbers of its first frame beyond 5 σ of the run's data): it will not move like its clip")
 
 
 def run(args) -> int:

@@ -11,6 +11,11 @@ style is taught from that motion with the prior made of the *other* styles only
                    last fifth of the clip (rows the fit never saw)
     loss rank      the hidden vector's rank by loss on the clip among all (a check of the labels:
                    with minifilm's labels the true vector should explain its own motion best)
+
+Why the film rank can fail while the output rank holds (:func:`sensitivity`): of the 2,048
+directions of a FiLM vector few change the network's output much, so two vectors far apart can
+predict nearly the same motion; the rows pin the visible directions and leave the others to the
+prior.
 """
 from __future__ import annotations
 
@@ -45,9 +50,42 @@ def rank_of(values: np.ndarray, i: int) -> int:
     return int(np.sum(values < values[i]) + 1)
 
 
+def jacobian_gram(rows, film: np.ndarray, idx, eps: float = 1e-2) -> np.ndarray:
+    """JᵀJ / n (D, D) of the rows' predicted outputs z (n numbers in all) with respect to the FiLM
+    vector (D,), by forward differences (one prediction per direction on the rows ``idx``)."""
+    film = np.asarray(film, np.float64)
+    base = rows.predict(film, idx).ravel().astype(np.float64)
+    J = np.empty((base.size, film.size), np.float64)
+    for d in range(film.size):
+        f = film.copy()
+        f[d] += eps
+        J[:, d] = (rows.predict(f, idx).ravel() - base) / eps
+    return J.T @ J / base.size
+
+
+def sensitivity(gram: np.ndarray, error: np.ndarray, other: np.ndarray) -> dict:
+    """How much of the fit's error the output can see. gram: JᵀJ/n (D, D) at the true vector;
+    error: fitted minus true vector (D,); other: nearest other style minus true vector (D,).
+    -> {directions holding 90 / 99 % of the output's sensitivity (the trace of the gram), the share
+    of the error's length in those 99 % directions, and the output change per unit length along
+    the error and along the direction to the other style (RMS of z per unit of FiLM distance)}."""
+    w, V = np.linalg.eigh(gram)
+    w, V = np.clip(w[::-1], 0, None), V[:, ::-1]
+    cum = np.cumsum(w) / w.sum()
+    k90, k99 = int(np.searchsorted(cum, 0.90) + 1), int(np.searchsorted(cum, 0.99) + 1)
+
+    def gain(u):
+        return float(np.sqrt(u @ gram @ u / (u @ u)))
+
+    in_k99 = float(np.sum((V[:, :k99].T @ error) ** 2) / (error @ error))
+    return dict(dims=int(len(w)), k90=k90, k99=k99, error_share_in_k99=in_k99, gain_error=gain(error),
+                gain_other=gain(other), gain_top=float(np.sqrt(w[0])), gain_median=float(np.sqrt(np.median(w))))
+
+
 def refit(rel, name: str, motion, settings: FitSettings = FitSettings(), prior_weights=(0.3, 1.0, 3.0),
           log: Callable[[str], None] = lambda m: None) -> dict:
-    """Teach ``name`` from ``motion`` with its own vector hidden; -> ranks and figures (module docstring)."""
+    """Teach ``name`` from ``motion`` with its own vector hidden; -> ranks and figures (module
+    docstring), the fitted vector ('film') and the output's sensitivity (:func:`sensitivity`)."""
     names = list(rel.styles)
     V = np.stack([rel.styles[n] for n in names]).astype(np.float64)
     i = names.index(name)
@@ -63,7 +101,12 @@ def refit(rel, name: str, motion, settings: FitSettings = FitSettings(), prior_w
     output_d = np.array([np.mean((rows.predict(v, held) - fitted) ** 2) for v in V])
     losses = np.array([rows.loss(v, held) for v in V])
     film_d = np.linalg.norm(V - taught.film, axis=1)
-    return dict(style=name, film_rank=rank_of(film_d, i), output_rank=rank_of(output_d, i),
+    others = np.linalg.norm(V - V[i], axis=1)
+    others[i] = np.inf
+    probe = held[np.linspace(0, len(held) - 1, 24).astype(int)]      # 24 rows: J is (24 z, 2048)
+    sens = sensitivity(jacobian_gram(rows, V[i], probe), taught.film - V[i], V[int(np.argmin(others))] - V[i])
+    return dict(style=name, film=taught.film, sensitivity=sens, nearest_other=names[int(np.argmin(others))],
+                film_rank=rank_of(film_d, i), output_rank=rank_of(output_d, i),
                 loss_rank=rank_of(losses, i), nearest_film=names[int(np.argmin(film_d))],
                 nearest_output=names[int(np.argmin(output_d))], true_loss=float(losses[i]),
                 fitted_loss=float(rows.loss(taught.film, held)), start_loss=taught.distance.start_loss,

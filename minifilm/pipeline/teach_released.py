@@ -150,6 +150,7 @@ class TaughtStyle:
     best_known: str               # known style with the lowest loss on the clip
     check: object                 # WalkReport of the chosen vector's rollout
     candidates: List[dict] = field(default_factory=list)
+    candidate_films: Optional[np.ndarray] = None   # (len(candidates), 2048): every fitted vector
 
     def pack_info(self) -> dict:
         return {"taught_from": self.clip.sources,
@@ -246,7 +247,7 @@ def teach(rel, layout: FeatureLayout, name: str, motions: Sequence[Motion], file
     seconds = time.perf_counter() - t0
     d = np.linalg.norm(V - film, axis=1)
     return TaughtStyle(name, film.astype(np.float32), seconds, clip, distance, rows.loss(film), names[int(np.argmin(d))],
-                       best_known, check, candidates)
+                       best_known, check, candidates, np.stack(films).astype(np.float32))
 
 
 def teach_released(params, name: str, files: Sequence, out, replace: bool = False,

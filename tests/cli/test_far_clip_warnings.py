@@ -1,0 +1,45 @@
+"""A clip far outside a run's data (real capture, retargeted, taught to a tiny run trained on
+synthetic motion): ``finetune --run`` and then ``generate`` both say so in words, and a style the
+run was trained on does not get those words."""
+import shutil
+from dataclasses import replace
+
+import pytest
+
+from minifilm import cli
+from minifilm.pipeline.train_small import Settings, run as train_run
+
+
+@pytest.fixture(scope="module")
+def taught(tmp_path_factory, shared_data):
+    out = tmp_path_factory.mktemp("far_clip") / "run"
+    train_run(replace(Settings(out=out).quick(), styles=("Neutral", "LeftHop"), gaits=("FW",), seconds_per_clip=6.0,
+                      epochs=1, generate_seconds=0.5))
+    clip = shared_data / "bandai2" / "dataset-2_walk_elderly_001.bvh"
+    return out, clip
+
+
+def invoke(argv, capsys):
+    with pytest.raises(SystemExit) as done:
+        cli.main([str(a) for a in argv])
+    out = capsys.readouterr()
+    return done.value.code, out.out + out.err
+
+
+def test_finetune_and_generate_say_the_clip_is_far_outside(taught, tmp_path, capsys):
+    base, clip = taught
+    folder = tmp_path / "run"
+    shutil.copytree(base, folder)
+    code, out = invoke(["finetune", "--run", folder, "--name", "Elderly", "--steps", "20", clip], capsys)
+    assert code == 0, out
+    assert "retargeted" in out
+    assert "WARNING: the clip lies far outside the motion the run was trained on" in out
+    code, out = invoke(["generate", "--run", folder, "--style", "Elderly", "--seconds", "2", "--out",
+                        tmp_path / "e.bvh"], capsys)
+    assert code == 0, out
+    warning = [line for line in out.splitlines() if "WARNING" in line]
+    assert warning and "was taught from motion far outside the run's data" in warning[0]
+    code, out = invoke(["generate", "--run", folder, "--style", "Neutral", "--seconds", "2", "--out",
+                        tmp_path / "n.bvh"], capsys)
+    assert code == 0, out
+    assert "far outside" not in out
