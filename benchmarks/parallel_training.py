@@ -42,6 +42,7 @@ os.environ.update({"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM
 import argparse  # noqa: E402
 import cProfile  # noqa: E402
 import math  # noqa: E402
+import multiprocessing  # noqa: E402
 import pstats  # noqa: E402
 import resource  # noqa: E402
 import statistics  # noqa: E402
@@ -49,6 +50,7 @@ import subprocess  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
+from multiprocessing import shared_memory  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -61,6 +63,7 @@ from minifilm.dataset.stats import NormStats  # noqa: E402
 from minifilm.model.config import ModelConfig  # noqa: E402
 from minifilm.model.style_model import StyleModel  # noqa: E402
 from minifilm.train.parallel import DataParallel  # noqa: E402
+from minifilm.train.parallel_worker import wait_until  # noqa: E402
 from minifilm.train.trainer import TrainConfig, Trainer  # noqa: E402
 
 STYLES, FRAMES_PER_STYLE = 8, 2400        # about train_small's training split (8 styles x 5 gaits x 8 s)
@@ -161,7 +164,7 @@ class Runner:
         self.trainer, self.data, self.workers = new_trainer(config()), data, workers
         self.pool = DataParallel(self.trainer, workers) if workers > 1 else None
         self.batches = self._batches()
-        self.times, self.wall, self.cpu, self.adam = [], 0.0, 0.0, 0.0
+        self.times, self.wall, self.cpu = [], 0.0, 0.0
 
     def _batches(self):
         while True:
@@ -169,19 +172,12 @@ class Runner:
 
     def run(self, steps: int) -> None:
         t = self.trainer
-        pids = self.pool.pids if self.pool else []
+        pids = self.pool.pids[1:] if self.pool else []
         c0, w0 = time.process_time() + proc_cpu(pids), time.perf_counter()
         for _ in range(steps):
             s0 = time.perf_counter()
-            b = next(self.batches)
-            mse, bll = t.gradients(b, self.pool)
-            t.check_finite(b, mse, bll)
-            a0 = time.perf_counter()
-            t.update(self.pool)
-            t.step += 1
-            s1 = time.perf_counter()
-            self.adam += s1 - a0
-            self.times.append(s1 - s0)
+            t.train_step(next(self.batches), self.pool)      # with a pool: DataParallel.train_step
+            self.times.append(time.perf_counter() - s0)
         self.wall += time.perf_counter() - w0
         self.cpu += time.process_time() + proc_cpu(pids) - c0
 
@@ -196,9 +192,9 @@ def step_table(steps: int, blocks: int) -> None:
     try:
         for r in runners.values():
             r.run(10)                                      # warm-up: page faults, caches
-            r.times, r.wall, r.cpu, r.adam = [], 0.0, 0.0, 0.0
+            r.times, r.wall, r.cpu = [], 0.0, 0.0
             if r.pool:
-                r.pool.seconds = {"parent": 0.0, "waiting": 0.0}
+                r.pool.seconds = dict.fromkeys(r.pool.seconds, 0.0)
         per_block = {w: [] for w in runners}
         for _ in range(blocks):
             for w, r in runners.items():
@@ -222,14 +218,14 @@ def step_table(steps: int, blocks: int) -> None:
     print(f"# one step: {flops / 1e9:.3f} GFLOP; one core's float32 peak {peak:.1f} GFLOP/s = {how}")
     print(f"# largest weight difference, 1 vs 2 workers, after {len(r2.times) + 10} steps: {drift:.1e} (relative)")
     print()
-    print("| workers | step ms | speed-up | CPU / wall | GFLOP/s | % of one core's peak | Adam ms | parent's own ms |")
+    print("| workers | step ms | speed-up | CPU / wall | GFLOP/s | % of one core's peak | parent's own ms | "
+          "waiting ms |")
     print("|---|---|---|---|---|---|---|---|")
     for w, r in runners.items():
         ms = statistics.median(per_block[w])
-        parent = (r.pool.seconds["parent"] / len(r.times) * 1e3) if r.pool else float("nan")
+        own = [f"{r.pool.seconds[k] / len(r.times) * 1e3:.2f}" for k in ("parent", "waiting")] if r.pool else "--"
         print(f"| {w} | {ms * 1e3:.2f} | {one / ms:.2f}x | {r.cpu / r.wall:.2f} | {flops / ms / 1e9:.1f} | "
-              f"{100 * flops / ms / 1e9 / peak:.0f} % | {r.adam / len(r.times) * 1e3:.2f} | "
-              f"{'-' if w == 1 else f'{parent:.2f}'} |")
+              f"{100 * flops / ms / 1e9 / peak:.0f} % | {own[0]} | {own[1]} |")
     # Amdahl: the parent's own work (masks, writing the minibatch) stays serial; the gradients,
     # their sum and Adam divide by W; the rest of the 2-worker step (messages, waiting for the
     # slower share) is taken as a fixed cost per step
@@ -269,6 +265,100 @@ def job_table() -> None:
     print(f"# {load()} after the jobs")
 
 
+def spin_wait(ready) -> None:
+    """The first version's wait, for the comparison only: tries, then the core given up between
+    tries (os.sched_yield) for 2 ms, then naps of 0.2 ms."""
+    for _ in range(200):
+        if ready():
+            return
+    start = time.perf_counter()
+    while not ready():
+        os.sched_yield() if time.perf_counter() - start < 0.002 else time.sleep(0.0002)
+
+
+def _pong(kind: str, n: int, link) -> None:
+    """The other end of :func:`sync_table`'s ping-pong, in a worker process: answer n pings."""
+    if kind == "pipe":
+        for _ in range(n):
+            link.send_bytes(link.recv_bytes())
+        return
+    if kind == "semaphores":
+        ping, pong = link
+        for _ in range(n):
+            ping.acquire()
+            pong.release()
+        return
+    name, (ping, pong) = link
+    shm = shared_memory.SharedMemory(name=name)
+    flags = np.ndarray((2, 8), dtype=np.int64, buffer=shm.buf)[:, 0]
+    for i in range(1, n + 1):
+        if kind == "counters, spinning":
+            spin_wait(lambda: flags[0] >= i)
+        else:
+            wait_until(lambda: flags[0] >= i, lambda: None, ping)
+        flags[1] = i
+        pong.release()
+    del flags
+    shm.close()
+
+
+KINDS = ("pipe", "semaphores", "counters, spinning", "counters + semaphores (training's)")
+
+
+def sync_table(n: int = 2000, repeats: int = 5) -> dict:
+    """Round-trip time of one message to a worker process and its answer: through a pipe (the
+    earlier version's messages), a pair of multiprocessing.Semaphores, counters in shared memory
+    waited on by spinning (spin_wait), and counters waited on by parallel_worker.wait_until (a
+    few tries, then the semaphore: what training uses). Min and median of ``repeats`` runs of
+    ``n`` round trips, the kinds interleaved."""
+    ctx = multiprocessing.get_context("spawn")
+    times = {kind: [] for kind in KINDS}
+    shm = shared_memory.SharedMemory(create=True, size=128)
+    flags = np.ndarray((2, 8), dtype=np.int64, buffer=shm.buf)[:, 0]
+    try:
+        for _ in range(repeats):
+            for kind in times:
+                sems = (ctx.Semaphore(0), ctx.Semaphore(0))
+                flags[:] = 0
+                link = ctx.Pipe() if kind == "pipe" else sems if kind == "semaphores" else (shm.name, sems)
+                proc = ctx.Process(target=_pong, args=(kind, n + 1, link[1] if kind == "pipe" else link), daemon=True)
+                proc.start()
+                for i in range(n + 1):                  # the first round trip: the worker is up
+                    if i == 1:
+                        t0 = time.perf_counter()
+                    if kind == "pipe":
+                        link[0].send_bytes(b"x")
+                        link[0].recv_bytes()
+                    elif kind == "semaphores":
+                        sems[0].release()
+                        sems[1].acquire()
+                    else:
+                        flags[0] = i + 1
+                        sems[0].release()
+                        if kind == "counters, spinning":
+                            spin_wait(lambda: flags[1] >= i + 1)
+                        else:
+                            wait_until(lambda: flags[1] >= i + 1, lambda: None, sems[1])
+                times[kind].append((time.perf_counter() - t0) / n)
+                proc.join()
+    finally:
+        del flags
+        shm.close()
+        shm.unlink()
+    return {k: (min(v), statistics.median(v)) for k, v in times.items()}
+
+
+def print_sync(n: int = 2000) -> dict:
+    before = load()
+    result = sync_table(n)
+    print(f"\n# a round trip to a worker process and back ({n} in a row, min / median of 5); {before} before, "
+          f"{load()} after")
+    print("| how | min µs | median µs |\n|---|---|---|")
+    for kind, (low, mid) in result.items():
+        print(f"| {kind} | {low * 1e6:.1f} | {mid * 1e6:.1f} |")
+    return result
+
+
 def profile(steps: int) -> None:
     data = random_data(config())
     r = Runner(1, data)
@@ -286,11 +376,16 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="fewer steps (about a minute)")
     ap.add_argument("--job", action="store_true", help="also time the whole main job with 1 and 2 workers")
     ap.add_argument("--profile", action="store_true", help="cProfile of the one-process step only")
+    ap.add_argument("--sync", action="store_true", help="only the round trip to a worker: pipe, semaphores, "
+                    "shared counters")
     ap.add_argument("--steps", type=int, help="timed steps per row (default 600, --quick 120)")
     a = ap.parse_args()
     steps = a.steps or (120 if a.quick else 600)
     if a.profile:
         profile(steps)
+        return
+    if a.sync:
+        print_sync()
         return
     step_table(steps, blocks=6)
     if a.job:

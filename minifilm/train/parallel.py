@@ -205,7 +205,9 @@ class DataParallel:
                          "parents": None if trainer.parents is None else np.asarray(trainer.parents).tolist(),
                          "z_mean": np.asarray(stats.z_mean, dtype=np.float64).tolist(),
                          "z_std": np.asarray(stats.z_std, dtype=np.float64).tolist()}}
-        self.part = pw.Part(spec, 0, model, (data, m, v, slots), self.batch)
+        # worker w's semaphore: released by the others whenever their counters (or the command) move
+        self.wake = [multiprocessing.get_context("spawn").Semaphore(0) for _ in range(W)]
+        self.part = pw.Part(spec, 0, model, (data, m, v, slots), self.batch, self.wake)
         self._start(json.dumps(spec))
 
     def _start(self, text: str) -> None:
@@ -221,7 +223,7 @@ class DataParallel:
         try:
             for w in range(1, self.workers):
                 mine, theirs = ctx.Pipe()
-                proc = ctx.Process(target=pw.main, args=(text, w, theirs), daemon=True,
+                proc = ctx.Process(target=pw.main, args=(text, w, theirs, self.wake), daemon=True,
                                    name=f"minifilm-train-worker-{w}")
                 proc.start()
                 theirs.close()
@@ -330,6 +332,7 @@ class DataParallel:
         control[pw.OPS] = ops
         self.k += 1
         control[pw.SEQ] = self.k                # the command: the workers start now
+        part.set_done(3 * self.k)
         t1 = time.perf_counter()
 
         def check():                            # a worker that died or failed: WorkerDied
@@ -343,7 +346,7 @@ class DataParallel:
 
         part.step(self.k, check)
         t2 = time.perf_counter()
-        pw.wait_until(part.all_done(3 * self.k + 3), check)
+        part.wait_all(3 * self.k + 3, check)
         self.seconds["parent"] += t1 - t0
         self.seconds["share"] += t2 - t1
         self.seconds["waiting"] += time.perf_counter() - t2
@@ -371,6 +374,8 @@ class DataParallel:
         batch = getattr(self, "batch", None)
         if batch is not None:
             batch["control"][pw.STOP] = 1
+            for sem in getattr(self, "wake", [])[1:]:
+                sem.release()
         for conn in self.conns:
             conn.close()
         for proc in self.procs:

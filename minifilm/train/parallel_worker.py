@@ -22,10 +22,10 @@ Step k, in every worker w, on its rows lo_w:hi_w and its part a_w:b_w of the par
                   and a NaN leaves every weight untouched -- ChunkedAdam's update on a_w:b_w
                   done[w] = 3k + 3; the parent waits for every done >= 3k + 3 before step k + 1
 
-No pipe message is exchanged per step: each side waits on the other's counter in shared memory
-(:func:`wait_until`: a short spin, then yielding the core, then short naps), which costs a few
-microseconds where a pipe round trip cost ~0.6 ms (benchmarks/parallel_training.py --sync). A
-wait checks every CHECK_EVERY seconds that the other side still runs, so it never outlives it.
+No message is exchanged per step: each side waits for the other's counter in shared memory
+(:func:`wait_until`: a few quick tries, then blocking on its semaphore, which a worker releases
+for the others whenever its counter moves). A wait checks every CHECK_EVERY seconds without a
+wake-up that the other side still runs, so it never outlives it.
 
 A worker process gets one JSON text (the model's configuration, the segments' names and layout,
 the parts, the loss settings, the dropout sites) and its number; it replies b"ok" on its pipe
@@ -42,7 +42,6 @@ import json
 import os
 import signal
 import sys
-import time
 
 #: reply on the pipe: b"ok" once built, or b"er" + the error's text (utf-8)
 OK, ERROR = b"ok", b"er"
@@ -52,34 +51,30 @@ GRADIENTS, SUM, ADAM = 1, 2, 4
 SEQ, STOP, OPS, BATCH, SHARED, N_ADAM, PARTS = range(7)
 #: done[w] of a worker whose step raised an error (its text is on its pipe)
 FAILED = -1
-#: waiting: tries before yielding the core, seconds of yielding before napping, one nap, seconds
-#: between checks that the other side is still there
-SPIN, YIELD_FOR, NAP, CHECK_EVERY = 200, 0.002, 0.0002, 0.01
-_yield = getattr(os, "sched_yield", lambda: time.sleep(0))
+#: waiting: quick tries before blocking, and seconds between checks that the other side is still there
+SPIN, CHECK_EVERY = 20, 0.02
 
 
 class Stopped(Exception):
     """The parent closed the pool or is gone: the worker process ends."""
 
 
-def wait_until(ready, check) -> None:
-    """Return once ready() is true: SPIN quick tries (the other side is usually microseconds
-    away), then the core given up between tries (os.sched_yield) for YIELD_FOR s, then naps of NAP
-    s, so a long wait (the parent validating an epoch) costs almost no CPU. check() runs every
-    CHECK_EVERY s and raises when the other side has gone: a wait never spins forever."""
+def wait_until(ready, check, wake) -> None:
+    """Return once ready() is true. A few quick tries first (on an idle machine the other side is
+    microseconds away); then block on the semaphore ``wake``, which whoever may have made ready()
+    true releases after doing so: blocking leaves the core to others (on a busy machine a
+    spinning wait took the core its partner needed, see benchmarks/parallel_training.py --sync)
+    and the kernel wakes the process at once. Wake-ups left from earlier waits are drained first,
+    then ready() is asked again, so no wake-up is missed. check() runs whenever CHECK_EVERY s
+    pass without one and raises when the other side has gone: a wait never blocks forever."""
     for _ in range(SPIN):
         if ready():
             return
-    start = last = time.perf_counter()
+    while wake.acquire(False):
+        pass
     while not ready():
-        now = time.perf_counter()
-        if now - last >= CHECK_EVERY:
+        if not wake.acquire(timeout=CHECK_EVERY):
             check()
-            last = now
-        if now - start < YIELD_FOR:
-            _yield()
-        else:
-            time.sleep(NAP)
 
 
 def attach(name: str):
@@ -109,12 +104,12 @@ class Part:
     """Worker w's part of every step (see the module's docstring), on ``model`` whose weights are
     the shared ``data`` and whose gradients are slot w."""
 
-    def __init__(self, spec: dict, w: int, model, flat: tuple, step: dict):
+    def __init__(self, spec: dict, w: int, model, flat: tuple, step: dict, wake: list):
         import numpy as np   # (here: loaded once the worker ignores SIGINT, see the module's docstring)
         from minifilm.nn.fast_optim import CHUNK, adam_span
         from minifilm.train.objective import all_finite, objective
         self.np, self.adam_span, self.all_finite, self.objective = np, adam_span, all_finite, objective
-        self.w, self.model, self.workers = w, model, spec["workers"]
+        self.w, self.model, self.workers, self.wake = w, model, spec["workers"], wake
         self.span = spec["spans"][w]
         self.data, self.m, self.v, self.slots = flat
         self.batch = step
@@ -128,10 +123,17 @@ class Part:
                         "parents": None if loss["parents"] is None else np.asarray(loss["parents"]),
                         "z_mean": np.asarray(loss["z_mean"]), "z_std": np.asarray(loss["z_std"])}
 
-    def all_done(self, target: int):
-        """A ready() for :func:`wait_until`: every worker's done >= target."""
+    def set_done(self, value: int) -> None:
+        """done[w] = value, then wake every other worker (one may be waiting for it)."""
+        self.done[self.w] = value
+        for other, sem in enumerate(self.wake):
+            if other != self.w:
+                sem.release()
+
+    def wait_all(self, target: int, check) -> None:
+        """Wait until every worker's done >= target (see :func:`wait_until`)."""
         done = self.done
-        return lambda: bool((done >= target).all())
+        wait_until(lambda: bool((done >= target).all()), check, self.wake[self.w])
 
     def finite_step(self) -> bool:
         """Every part of the summed gradient and both losses of the minibatch are finite (the same
@@ -145,22 +147,22 @@ class Part:
         if ops & GRADIENTS:
             self.losses[w] = self.gradients(*(int(x) for x in c[PARTS + 4 * w:PARTS + 4 * w + 4]),
                                             int(c[BATCH]), bool(c[SHARED]))
-        self.done[w] = 3 * k + 1
+        self.set_done(3 * k + 1)
         a, z = self.span
         if ops & SUM:
-            wait_until(self.all_done(3 * k + 1), check)
+            self.wait_all(3 * k + 1, check)
             total = self.slots[0, a:z]
             for other in self.slots[1:]:
                 total += other[a:z]
             self.finite[w] = self.all_finite(total)
-        self.done[w] = 3 * k + 2
+        self.set_done(3 * k + 2)
         if ops & ADAM:
             whole = ops & GRADIENTS and ops & SUM
             if whole:
-                wait_until(self.all_done(3 * k + 2), check)
+                self.wait_all(3 * k + 2, check)
             if not whole or self.finite_step():
                 self.update(a, z, int(c[N_ADAM]))
-        self.done[w] = 3 * k + 3
+        self.set_done(3 * k + 3)
 
     def gradients(self, lo, hi, clo, chi, batch, shared):
         """Forward and backward on rows lo:hi (clips clo:chi) of the step's minibatch with the
@@ -191,7 +193,7 @@ class Part:
                                beta1, beta2, step_size, eps_hat)
 
 
-def main(spec_text: str, w: int, conn) -> None:
+def main(spec_text: str, w: int, conn, wake: list) -> None:
     """A worker process (the target of multiprocessing.Process): build the model on the shared
     buffers, then run :meth:`Part.step` for every command until the parent stops or goes."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -207,7 +209,7 @@ def main(spec_text: str, w: int, conn) -> None:
         flat = flat_views(segments[0], spec["total"], spec["workers"], model.dtype)
         for ps, (off, size) in zip(model.parameter_sets(), spec["sets"]):
             ps.bind(flat[0][off:off + size], flat[3][w, off:off + size])
-        part = Part(spec, w, model, flat, views(segments[1], spec["layout"]))
+        part = Part(spec, w, model, flat, views(segments[1], spec["layout"]), wake)
     except Exception as e:    # noqa: BLE001 -- told to the parent, which raises it as one message
         conn.send_bytes(ERROR + f"{type(e).__name__}: {e}".encode())
         return
@@ -222,13 +224,13 @@ def main(spec_text: str, w: int, conn) -> None:
     try:
         while True:
             k += 1
-            wait_until(lambda: control[SEQ] >= k or control[STOP], check)
+            wait_until(lambda: control[SEQ] >= k or control[STOP], check, wake[w])
             check()
             part.step(k, check)
     except Stopped:
         return
     except Exception as e:  # noqa: BLE001
-        part.done[w] = FAILED
+        part.set_done(FAILED)
         try:
             conn.send_bytes(ERROR + f"{type(e).__name__}: {e}".encode())
         except OSError:

@@ -4,6 +4,7 @@ order do not depend on the number of workers, and the workers and their shared m
 afterwards, also when a worker dies mid-run."""
 import os
 import signal
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -123,7 +124,7 @@ def test_a_wait_ends_when_its_check_finds_the_other_side_gone():
         if len(calls) == 3:
             raise WorkerDied("gone")
     with pytest.raises(WorkerDied, match="gone"):
-        wait_until(lambda: False, check)                   # never ready: only the check ends it
+        wait_until(lambda: False, check, threading.Semaphore(0))    # never ready: only the check ends it
     assert len(calls) == 3
 
 
