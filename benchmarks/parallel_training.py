@@ -5,16 +5,20 @@ GFLOP/s for 1 and 2 worker processes, more workers extrapolated, and (--job) the
     python benchmarks/parallel_training.py --quick      # fewer steps (about a minute)
     python benchmarks/parallel_training.py --job        # also time `python examples/train_small.py`
                                                         #   with --workers 1 and 2 (several minutes each)
+    python benchmarks/parallel_training.py --job --repeats 3    # each job 3 times, interleaved
+    python benchmarks/parallel_training.py --sync       # the round trip to a worker: pipe, semaphores, counters
     python benchmarks/parallel_training.py --profile    # cProfile of the one-process step, top functions
 
 The model and minibatches are those of examples/train_small.py (ModelConfig.small on x 348, z 342,
 clips 120 x 300; batch 32, 4 clips per minibatch, dropout 0.2, Adam), on random normalised data
 of the same shapes (a step's cost does not depend on the values). Each row runs the same seeded
 steps; rows are interleaved in blocks (1 worker, 2 workers, 1, 2, ...) so both see the same
-background load, and the table reports medians over blocks. Every process uses one BLAS thread.
+background load; a row's step time is the least of its blocks' medians (the block the other
+load disturbed least; the summary also gives the median of the blocks). Every process uses one
+BLAS thread; with W workers this process is worker 0 and W - 1 worker processes run beside it.
 
 Columns:
-  step ms        median wall time of a whole training step (gradients, check, Adam)
+  step ms        wall time of a whole training step (gradients, sum, NaN check, Adam), see above
   speed-up       step time of 1 worker / this row's
   CPU / wall     (CPU time of the parent + its workers) / wall time, over the timed steps (Linux:
                  the workers' CPU time from /proc/<pid>/stat)
@@ -26,12 +30,14 @@ Columns:
                  /proc/cpuinfo's flags, 8 with avx2, 4 otherwise) x 2 (fma) x 2 FMA units per
                  core (assumed: most current x86 cores; Zen 4 has one 512-bit unit's worth) x the
                  clock (/proc/cpuinfo's "cpu MHz", the current one)
-  Adam ms        wall time of the optimiser step (with workers: each updates its part)
-  parent's own   the parent's own work in a step: the dropout masks, the minibatch into shared memory
+  parent's own   this process's serial work in a step: the dropout masks, the minibatch into shared memory
+  waiting ms     this process waiting, after its own share, for the other workers to finish theirs
 Rows for more workers are extrapolated (marked ~): the parent's own work stays serial, the rest
 of the one-process step (gradients, their sum, Adam) divides by W, and what the 2-worker step
-costs beyond those two (messages, waiting for the slower share) stays as measured -- Amdahl's
-law, an estimate for a machine with that many free cores.
+costs beyond those two (synchronisation, waiting for the slower share) stays as measured --
+Amdahl's law, an estimate for a machine with that many free cores. The last table (the summary)
+puts the step, the job (--job), CPU / wall, the job's test MSE and style recognition and the load
+side by side.
 """
 from __future__ import annotations
 
@@ -186,7 +192,10 @@ class Runner:
             self.pool.close()
 
 
-def step_table(steps: int, blocks: int) -> None:
+def step_table(steps: int, blocks: int) -> dict:
+    """Print the step table; returns {workers: (min over blocks of the block medians, the median
+    of them, CPU / wall)} and the load before and after."""
+    before = load()
     data = random_data(config())
     runners = {w: Runner(w, data) for w in (1, 2)}
     try:
@@ -209,12 +218,14 @@ def step_table(steps: int, blocks: int) -> None:
             r.close()
     flops = step_flops(config())
     peak, how = core_peak()
-    one = statistics.median(per_block[1])
+    one = min(per_block[1])
     n_steps = steps // blocks * blocks
     r2 = runners[2]
-    print(f"# {cpu_name()}; {os.cpu_count()} logical CPUs, {len(os.sched_getaffinity(0))} usable; {load()}")
+    print(f"# {cpu_name()}; {os.cpu_count()} logical CPUs, {len(os.sched_getaffinity(0))} usable; {before} before, "
+          f"{load()} after")
     print(f"# train_small's model ({sum(p.size for p in runners[1].trainer.model.parameter_sets()):,} parameters), "
-          f"batch 32, 4 clips per minibatch; {n_steps} timed steps per row in {blocks} interleaved blocks")
+          f"batch 32, 4 clips per minibatch; {n_steps} timed steps per row in {blocks} interleaved blocks; "
+          "step ms: the least of the blocks' medians (the block least disturbed by other load)")
     print(f"# one step: {flops / 1e9:.3f} GFLOP; one core's float32 peak {peak:.1f} GFLOP/s = {how}")
     print(f"# largest weight difference, 1 vs 2 workers, after {len(r2.times) + 10} steps: {drift:.1e} (relative)")
     print()
@@ -222,7 +233,7 @@ def step_table(steps: int, blocks: int) -> None:
           "waiting ms |")
     print("|---|---|---|---|---|---|---|---|")
     for w, r in runners.items():
-        ms = statistics.median(per_block[w])
+        ms = min(per_block[w])
         own = [f"{r.pool.seconds[k] / len(r.times) * 1e3:.2f}" for k in ("parent", "waiting")] if r.pool else "--"
         print(f"| {w} | {ms * 1e3:.2f} | {one / ms:.2f}x | {r.cpu / r.wall:.2f} | {flops / ms / 1e9:.1f} | "
               f"{100 * flops / ms / 1e9 / peak:.0f} % | {own[0]} | {own[1]} |")
@@ -230,7 +241,7 @@ def step_table(steps: int, blocks: int) -> None:
     # their sum and Adam divide by W; the rest of the 2-worker step (messages, waiting for the
     # slower share) is taken as a fixed cost per step
     own = r2.pool.seconds["parent"] / len(r2.times)
-    two = statistics.median(per_block[2])
+    two = min(per_block[2])
     work = one                                                   # gradients + Adam, one process
     messages = max(two - own - work / 2, 0.0)
     for w in (4, 8, 16):
@@ -240,29 +251,61 @@ def step_table(steps: int, blocks: int) -> None:
           f"{work * 1e3:.2f} ms / W + messages and waiting {messages * 1e3:.2f} ms per step)")
     steps_per_epoch = STYLES * (FRAMES_PER_STYLE // 32)
     print(f"training of the main job, estimated: 30 epochs x {steps_per_epoch} steps = "
-          + ", ".join(f"{w} worker(s) {30 * steps_per_epoch * statistics.median(per_block[w]):.0f} s" for w in runners)
+          + ", ".join(f"{w} worker(s) {30 * steps_per_epoch * min(per_block[w]):.0f} s" for w in runners)
           + " (validation and the other steps of the job not included)")
+    return {w: (min(per_block[w]), statistics.median(per_block[w]), r.cpu / r.wall) for w, r in runners.items()}, \
+        (before, load())
 
 
-def job_table() -> None:
-    print("\n| workers | `python examples/train_small.py` wall s | CPU s | CPU / wall |")
-    print("|---|---|---|---|")
-    for w in (1, 2):
-        with tempfile.TemporaryDirectory() as tmp:
-            before = resource.getrusage(resource.RUSAGE_CHILDREN)
-            t0 = time.perf_counter()
-            r = subprocess.run([sys.executable, str(ROOT / "examples" / "train_small.py"), "--workers", str(w),
-                                "--out", str(Path(tmp) / "run")], capture_output=True, text=True,
-                               env={**os.environ, "PYTHONPATH": str(ROOT)})
-            wall = time.perf_counter() - t0
-            after = resource.getrusage(resource.RUSAGE_CHILDREN)
-        if r.returncode != 0:
-            print(f"| {w} | failed: {r.stderr.strip().splitlines()[-1:]} | | |")
-            continue
-        cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-        test = [line.strip() for line in r.stdout.splitlines() if line.strip().startswith("mean")]
-        print(f"| {w} | {wall:.0f} | {cpu:.0f} | {cpu / wall:.2f} |  {'; '.join(test)}")
-    print(f"# {load()} after the jobs")
+def job_table(repeats: int = 1) -> dict:
+    """Run `python examples/train_small.py --workers W` for W = 1, 2 (``repeats`` times, interleaved);
+    print each run; returns {W: [(wall s, CPU s, test MSE, recognition, load before, after)]}."""
+    print("\n| workers | `python examples/train_small.py` wall s | CPU s | CPU / wall | test MSE | recognition | "
+          "load before / after (1 min) |")
+    print("|---|---|---|---|---|---|---|")
+    runs = {1: [], 2: []}
+    for _ in range(repeats):
+        for w in runs:
+            before = os.getloadavg()[0]
+            with tempfile.TemporaryDirectory() as tmp:
+                used = resource.getrusage(resource.RUSAGE_CHILDREN)
+                t0 = time.perf_counter()
+                r = subprocess.run([sys.executable, str(ROOT / "examples" / "train_small.py"), "--workers", str(w),
+                                    "--out", str(Path(tmp) / "run")], capture_output=True, text=True,
+                                   env={**os.environ, "PYTHONPATH": str(ROOT)})
+                wall = time.perf_counter() - t0
+                after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            if r.returncode != 0:
+                print(f"| {w} | failed: {r.stderr.strip().splitlines()[-1:]} | | | | | |")
+                continue
+            cpu = (after.ru_utime - used.ru_utime) + (after.ru_stime - used.ru_stime)
+            mean = [line.split() for line in r.stdout.splitlines() if line.strip().startswith("mean")]
+            mse = next((float(m[1]) for m in mean if len(m) == 3), float("nan"))            # "mean 0.0483 1.0574"
+            recognition = next((float(m[-1]) for m in mean if "recognition" in m), float("nan"))
+            runs[w].append((wall, cpu, mse, recognition, before, os.getloadavg()[0]))
+            print(f"| {w} | {wall:.0f} | {cpu:.0f} | {cpu / wall:.2f} | {mse:.4f} | {recognition:.2f} | "
+                  f"{before:.1f} / {os.getloadavg()[0]:.1f} |", flush=True)
+    return runs
+
+
+def summary(steps: dict, step_load, jobs: dict | None) -> None:
+    """The figures of the run in one table, for a coordinator to compare machines."""
+    print(f"\n## Summary: {cpu_name()}, {len(os.sched_getaffinity(0))} usable cores; steps: {step_load[0]} before, "
+          f"{step_load[1]} after")
+    print("| measure | 1 worker | 2 workers | 1 / 2 |\n|---|---|---|---|")
+    (a, am, ac), (b, bm, bc) = steps[1], steps[2]
+    print(f"| training step ms (least block median) | {a * 1e3:.2f} | {b * 1e3:.2f} | {a / b:.2f}x |")
+    print(f"| training step ms (median of blocks) | {am * 1e3:.2f} | {bm * 1e3:.2f} | {am / bm:.2f}x |")
+    print(f"| CPU / wall of the steps | {ac:.2f} | {bc:.2f} | |")
+    if jobs and jobs[1] and jobs[2]:
+        best = {w: min(runs) for w, runs in jobs.items()}
+        print(f"| train_small.py wall s (least of {len(jobs[1])}) | {best[1][0]:.0f} | {best[2][0]:.0f} | "
+              f"{best[1][0] / best[2][0]:.2f}x |")
+        print(f"| its CPU / wall | {best[1][1] / best[1][0]:.2f} | {best[2][1] / best[2][0]:.2f} | |")
+        print(f"| its test MSE | {best[1][2]:.4f} | {best[2][2]:.4f} | |")
+        print(f"| its style recognition | {best[1][3]:.2f} | {best[2][3]:.2f} | |")
+        print(f"| load (1 min) before / after it | {best[1][4]:.1f} / {best[1][5]:.1f} | "
+              f"{best[2][4]:.1f} / {best[2][5]:.1f} | |")
 
 
 def spin_wait(ready) -> None:
@@ -378,6 +421,7 @@ def main() -> None:
     ap.add_argument("--profile", action="store_true", help="cProfile of the one-process step only")
     ap.add_argument("--sync", action="store_true", help="only the round trip to a worker: pipe, semaphores, "
                     "shared counters")
+    ap.add_argument("--repeats", type=int, default=1, help="with --job: runs of each job (the least time counts)")
     ap.add_argument("--steps", type=int, help="timed steps per row (default 600, --quick 120)")
     a = ap.parse_args()
     steps = a.steps or (120 if a.quick else 600)
@@ -387,9 +431,9 @@ def main() -> None:
     if a.sync:
         print_sync()
         return
-    step_table(steps, blocks=6)
-    if a.job:
-        job_table()
+    steps_, step_load = step_table(steps, blocks=6)
+    jobs = job_table(a.repeats) if a.job else None
+    summary(steps_, step_load, jobs)
 
 
 if __name__ == "__main__":

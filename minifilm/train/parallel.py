@@ -15,11 +15,9 @@ share; W - 1 worker processes compute the others.
     wait for every worker's step k  <------
 
 The phases wait on each other through counters in shared memory (parallel_worker.py says how),
-not pipe messages: the pipe round trips of an earlier version (three per step, ~1.9 ms) cost
-more than a small model's share of a step. The sum and the Adam update are element by element,
-so splitting them by parameter changes no number: it is ONE Adam step of the parameters, the
-ChunkedAdam step of one process, number for number. A NaN or inf stops training before any
-weight changes, with the one-process message (Trainer.check_finite).
+not pipe messages. The sum and the Adam update are element by element, so splitting them by
+parameter changes no number: it is the ChunkedAdam step of one process, number for number. A NaN
+or inf stops training before any weight changes, with the one-process message (check_finite).
 
 Why it equals one process: the losses are means over the minibatch's rows, so the gradient of
 the whole minibatch is the sum over workers of (n_w / B) x the gradient of their share's mean;
@@ -126,9 +124,8 @@ class DataParallel:
         self.trainer, self.model, self.workers = trainer, trainer.model, workers
         self.procs, self.conns, self.segments = [], [], []
         self.k = 0                                              # commands given so far
-        #: seconds of this process's own work (the minibatch and its masks into shared memory), of its
-        #: share (worker 0's phases, with their waits), and of waiting for the others at the end
-        #: (benchmarks/parallel_training.py)
+        #: seconds of this process's own work (the minibatch and masks into shared memory), of its share
+        #: (worker 0's phases) and of waiting for the others at the end (benchmarks/parallel_training.py)
         self.seconds = {"parent": 0.0, "share": 0.0, "waiting": 0.0}
         try:
             self._open()
@@ -215,9 +212,8 @@ class DataParallel:
         ctx = multiprocessing.get_context("spawn")
         saved = {k: os.environ.get(k) for k in ONE_BLAS_THREAD}
         os.environ.update(ONE_BLAS_THREAD)          # read by the workers' numpy when it loads
-        # A worker started with SIGINT ignored keeps it ignored from its first instruction (Python
-        # then installs no KeyboardInterrupt handler), so a Ctrl-C while it is still importing
-        # prints nothing from it; the parent's own handler is back as soon as the workers exist.
+        # A worker started with SIGINT ignored keeps it ignored from its first instruction, so a Ctrl-C
+        # while it imports prints nothing from it; this process's handler is back once they exist.
         main_thread = threading.current_thread() is threading.main_thread()
         previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main_thread else None
         try:
@@ -276,12 +272,11 @@ class DataParallel:
         return mse, bll
 
     def gradients(self, b) -> tuple:
-        """The gradients of minibatch ``b`` in the model's ``.grad`` buffers; returns (mse, bll)."""
+        """The gradients of minibatch ``b`` in the model's ``.grad``; returns (mse, bll)."""
         return self._command(pw.GRADIENTS | pw.SUM, b, b.where)
 
     def update(self, optimizer) -> None:
-        """The optimiser's step on the gradients in ``.grad``: a ChunkedAdam bound to this pool is
-        stepped by the workers, each on its part; any other optimiser steps in this process."""
+        """The optimiser's step on ``.grad``: the workers step a ChunkedAdam bound to this pool."""
         if optimizer is not self.optimizer:
             optimizer.step()
         else:
