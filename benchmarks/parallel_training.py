@@ -143,6 +143,17 @@ def cpu_name() -> str:
     return platform.processor() or "unknown CPU"
 
 
+def autogroup() -> str:
+    """Whether Linux's autogroup scheduling is on: then all processes of one session (this script
+    and its workers) share ONE group's part of the CPUs against other sessions, so on a shared
+    machine a second worker process may only split that part."""
+    try:
+        on = Path("/proc/sys/kernel/sched_autogroup_enabled").read_text().strip() == "1"
+    except OSError:
+        return "autogroup scheduling unknown"
+    return "autogroup scheduling on (this session's processes share one group's CPU)" if on else "no autogroup"
+
+
 def load() -> str:
     try:
         return "load average " + " / ".join(f"{x:.2f}" for x in os.getloadavg()) + " (1 / 5 / 15 min)"
@@ -290,8 +301,8 @@ def job_table(repeats: int = 1) -> dict:
 
 def summary(steps: dict, step_load, jobs: dict | None) -> None:
     """The figures of the run in one table, for a coordinator to compare machines."""
-    print(f"\n## Summary: {cpu_name()}, {len(os.sched_getaffinity(0))} usable cores; steps: {step_load[0]} before, "
-          f"{step_load[1]} after")
+    print(f"\n## Summary: {cpu_name()}, {len(os.sched_getaffinity(0))} usable cores, {autogroup()}; steps: "
+          f"{step_load[0]} before, {step_load[1]} after")
     print("| measure | 1 worker | 2 workers | 1 / 2 |\n|---|---|---|---|")
     (a, am, ac), (b, bm, bc) = steps[1], steps[2]
     print(f"| training step ms (least block median) | {a * 1e3:.2f} | {b * 1e3:.2f} | {a / b:.2f}x |")
