@@ -144,14 +144,14 @@ def cpu_name() -> str:
 
 
 def autogroup() -> str:
-    """Whether Linux's autogroup scheduling is on: then all processes of one session (this script
-    and its workers) share ONE group's part of the CPUs against other sessions, so on a shared
-    machine a second worker process may only split that part."""
+    """Whether Linux's autogroup scheduling is on: then all processes of one login session (this
+    script and its workers) share ONE group's part of the CPUs against the other login sessions,
+    so on a shared machine a second worker process may only split that part."""
     try:
         on = Path("/proc/sys/kernel/sched_autogroup_enabled").read_text().strip() == "1"
     except OSError:
         return "autogroup scheduling unknown"
-    return "autogroup scheduling on (this session's processes share one group's CPU)" if on else "no autogroup"
+    return "autogroup scheduling on (the processes of one login session share one group's CPU)" if on else "no autogroup"
 
 
 def load() -> str:
