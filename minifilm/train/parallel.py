@@ -78,8 +78,8 @@ def usable_cores() -> int:
 
 def supports(model) -> bool:
     """Data-parallel steps need the paper's StyleModel with its FiLM generator Ψ (the comparison
-    variants of minifilm.baselines train in one process)."""
-    return type(model) is StyleModel and model.film is not None
+    variants of minifilm.baselines train in one process) and an x86 processor (parallel_worker.X86)."""
+    return type(model) is StyleModel and model.film is not None and pw.X86
 
 
 def shares(batch: int, clip_index, n_clips: int, workers: int):
@@ -120,7 +120,7 @@ class DataParallel:
         if workers < 2:
             raise ValueError(f"DataParallel: needs at least 2 workers, got {workers}")
         if not supports(trainer.model):
-            raise ValueError("DataParallel: only the StyleModel with its FiLM generator trains in parallel")
+            raise ValueError("DataParallel: only the StyleModel with its FiLM generator, on x86, trains in parallel")
         self.trainer, self.model, self.workers = trainer, trainer.model, workers
         self.procs, self.conns, self.segments = [], [], []
         self.k = 0                                              # commands given so far

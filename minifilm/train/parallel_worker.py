@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import json
 import os
+import platform
 import signal
 import sys
 
@@ -51,6 +52,11 @@ GRADIENTS, SUM, ADAM = 1, 2, 4
 SEQ, STOP, OPS, BATCH, SHARED, N_ADAM, PARTS = range(7)
 #: done[w] of a worker whose step raised an error (its text is on its pipe)
 FAILED = -1
+#: The counters are plain stores read by another process: x86 processors make a process's stores
+#: visible to others in the order it made them (a counter is never seen before the data written
+#: before it); ARM and POWER do not promise that without fences, which Python cannot emit, so
+#: elsewhere training runs in one process (parallel.supports)
+X86 = platform.machine().lower() in ("x86_64", "amd64", "i386", "i686", "x86")
 #: waiting: quick tries before blocking, and seconds between checks that the other side is still there
 SPIN, CHECK_EVERY = 20, 0.02
 
