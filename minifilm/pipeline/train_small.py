@@ -185,7 +185,8 @@ def workers(trainer: Trainer, s: Settings):
             if pool is None:
                 log("    training in this process (1 worker)")
             else:
-                log(f"    {pool.workers} worker processes (ids {', '.join(map(str, pool.pids))}), one BLAS thread each")
+                log(f"    {pool.workers} worker processes (ids {', '.join(map(str, pool.pids))}): worker 0 is this "
+                    "process, one BLAS thread each")
             yield pool
     return started()
 

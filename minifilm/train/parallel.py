@@ -1,31 +1,29 @@
-"""Data-parallel training: each minibatch's forward and backward pass split across worker
-processes, one BLAS thread each, so that training uses every core.
+"""Data-parallel training: each minibatch's forward and backward pass split across W workers, one
+BLAS thread each, so that training uses every core. This process is worker 0 and computes its own
+share; W - 1 worker processes compute the others.
 
-    parent                                     worker w (parallel_worker.py), w = 0 .. W-1
-    draw the minibatch and its dropout masks   (the same draws, in the same order, as one
-    (the trainer's generator, as in one          process makes: results do not depend on W)
-    process); write it to shared memory  --->  1. forward + backward on rows lo_w:hi_w, the
-                                                  gradient of (n_w / B) x its mean loss into
-                                                  its own slot of the shared gradient buffer
-                                         --->  2. the sum of the W slots over its part
-                                                  a_w:b_w of the parameter vector, into the one
-                                                  gradient buffer the trainer reads
-    check the losses and the gradient,
-    count the Adam step (ChunkedAdam.advance)
-                                         --->  3. that Adam step on parameters a_w:b_w
-                                                  (weights and moments in shared memory)
+    this process (worker 0)                     every worker w (parallel_worker.Part)
+    draw the minibatch and its dropout masks    (the same draws, in the same order, as one process
+    with the trainer's generator; write them      makes: results do not depend on W)
+    to shared memory, count Adam's step,
+    write its scalars; command k  ------->  1. forward + backward on rows lo_w:hi_w, the gradient
+                                               of (n_w / B) x its mean loss into its slot w
+                                            2. the sum of the W slots over its part a_w:b_w of
+                                               the parameter vector, into slot 0; is it finite?
+                                            3. if every part and loss is finite: Adam's step on
+                                               a_w:b_w (weights and moments in shared memory)
+    wait for every worker's step k  <------
 
-The sum and the Adam update are element by element, so splitting them by parameter changes no
-number: it is ONE Adam step of the parameters, the same as ChunkedAdam.step in one process, only
-computed by W processes at once (in one process they took ~30 % of a step, which would cap the
-speed-up of 2 workers near 1.5x). A NaN or inf stops training after phase 2, before any weight
-changes (Trainer.check_finite).
+The phases wait on each other through counters in shared memory (parallel_worker.py says how),
+not pipe messages. The sum and the Adam update are element by element, so splitting them by
+parameter changes no number: it is the ChunkedAdam step of one process, number for number. A NaN
+or inf stops training before any weight changes, with the one-process message (check_finite).
 
 Why it equals one process: the losses are means over the minibatch's rows, so the gradient of
 the whole minibatch is the sum over workers of (n_w / B) x the gradient of their share's mean;
-the dropout keep-masks are drawn by the parent for the whole minibatch exactly as the one-process
-forward pass draws them (site by site: Ψ, then Ω, then Φ) and each worker gets its rows of
-them. Only the order of float32 sums changes (tests/train/test_parallel.py: 1e-6 relative).
+the dropout keep-masks are drawn for the whole minibatch exactly as the one-process forward pass
+draws them (site by site: Ψ, then Ω, then Φ) and each worker uses its rows of them. Only the order
+of float32 sums changes (tests/train/test_parallel.py: 1e-6 relative).
 
 With clips shared by the minibatch (TrainConfig.clips_per_batch), the samples are ordered by
 their clip and split at clip boundaries, so each worker runs Ψ on its own clips only; with fewer
@@ -34,14 +32,13 @@ the sum of its samples'). Shares may then be unequal; the weights n_w / B keep t
 
 Processes: started with 'spawn' (a fresh interpreter: nothing of the parent's threads, locks or
 BLAS state is inherited, so it is safe whatever the parent runs; and it is the start method every
-platform has), with
-OPENBLAS/OMP/MKL_NUM_THREADS=1 in their environment. They ignore SIGINT; the parent stops them
-when it leaves (finished, Ctrl-C, SIGTERM, an error, a worker that died), and a worker stops by
-itself when the parent's end of its pipe closes. The shared-memory segments are named
-``minifilm_<parent pid>_<n>`` and unlinked by the parent on the way out. A worker that dies (killed,
-out of memory) stops training with :class:`WorkerDied`, one message; when that happens before
-phase 3 the weights are untouched by the step (during phase 3 they are partly updated, and the
-run stops all the same; the checkpoints already written are whole).
+platform has), with OPENBLAS/OMP/MKL_NUM_THREADS=1 in their environment. They ignore SIGINT; this
+process stops them when it leaves (finished, Ctrl-C, SIGTERM, an error, a worker that died), and a
+worker stops by itself when this process is gone. The shared-memory segments are named
+``minifilm_<parent pid>_<n>`` and unlinked on the way out. A worker that dies (killed, out of
+memory) stops training with :class:`WorkerDied`, one message, within CHECK_EVERY seconds; when that
+happens before phase 3 the weights are untouched by the step (during phase 3 they are partly
+updated, and the run stops all the same; the checkpoints already written are whole).
 """
 from __future__ import annotations
 
@@ -60,7 +57,7 @@ import numpy as np
 
 from minifilm.model.style_model import StyleModel
 from minifilm.nn.fast_optim import ChunkedAdam
-from minifilm.train import parallel_worker
+from minifilm.train import parallel_worker as pw
 
 ONE_BLAS_THREAD = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 _names = itertools.count()
@@ -81,8 +78,8 @@ def usable_cores() -> int:
 
 def supports(model) -> bool:
     """Data-parallel steps need the paper's StyleModel with its FiLM generator Ψ (the comparison
-    variants of minifilm.baselines train in one process)."""
-    return type(model) is StyleModel and model.film is not None
+    variants of minifilm.baselines train in one process) and an x86 processor (parallel_worker.X86)."""
+    return type(model) is StyleModel and model.film is not None and pw.X86
 
 
 def shares(batch: int, clip_index, n_clips: int, workers: int):
@@ -109,25 +106,27 @@ def shares(batch: int, clip_index, n_clips: int, workers: int):
 
 
 class DataParallel:
-    """W worker processes computing the gradients of a :class:`~minifilm.train.trainer.Trainer`'s
-    minibatches. Use as a context manager (:func:`data_parallel`); :meth:`gradients` replaces the
-    in-process zero_grad / forward / losses / backward of a step.
+    """W workers -- this process and W - 1 worker processes -- computing a
+    :class:`~minifilm.train.trainer.Trainer`'s steps. Use as a context manager
+    (:func:`data_parallel`). :meth:`train_step` is Trainer.train_step split across them;
+    :meth:`gradients` and :meth:`update` are its two halves (for tests and benchmarks).
 
-    While it is open, the trainer's parameters live in shared memory (the workers read them); on
-    :meth:`close` they move back into private arrays with their values.
+    While it is open, the trainer's parameters and Adam's moments live in shared memory (the
+    workers read them; the model's ``.grad`` is slot 0, which holds the summed gradient after a
+    step); on :meth:`close` they move back into private arrays with their values.
     """
 
     def __init__(self, trainer, workers: int):
         if workers < 2:
             raise ValueError(f"DataParallel: needs at least 2 workers, got {workers}")
         if not supports(trainer.model):
-            raise ValueError("DataParallel: only the StyleModel with its FiLM generator trains in parallel")
+            raise ValueError("DataParallel: only the StyleModel with its FiLM generator, on x86, trains in parallel")
         self.trainer, self.model, self.workers = trainer, trainer.model, workers
         self.procs, self.conns, self.segments = [], [], []
-        self.step_index = 0
-        #: seconds of the parent's own work in gradients() (masks, the minibatch into shared memory)
-        #: and of waiting for the workers (all three phases); for benchmarks/parallel_training.py
-        self.seconds = {"parent": 0.0, "waiting": 0.0}
+        self.k = 0                                              # commands given so far
+        #: seconds of this process's own work (the minibatch and masks into shared memory), of its share
+        #: (worker 0's phases) and of waiting for the others at the end (benchmarks/parallel_training.py)
+        self.seconds = {"parent": 0.0, "share": 0.0, "waiting": 0.0}
         try:
             self._open()
         except BaseException:
@@ -158,17 +157,16 @@ class DataParallel:
         sets = model.parameter_sets()
         offsets = np.concatenate([[0], np.cumsum([ps.size for ps in sets])]).tolist()
         total = offsets[-1]
-        # one segment: weights, the summed gradient, Adam's m and v, then the W gradient slots
-        flat = self._segment((4 + W) * total * dtype.itemsize)
-        data, grad, m, v = np.ndarray((4, total), dtype=dtype, buffer=flat.buf)
-        self.slots = np.ndarray((W, total), dtype=dtype, buffer=flat.buf, offset=4 * total * dtype.itemsize)
-        self.slots.fill(0)
-        for ps, off in zip(sets, offsets):     # the parent's weights and gradients move into shared memory
-            ps.bind(data[off:off + ps.size], grad[off:off + ps.size])
+        # one segment: weights, Adam's m and v, then the W gradient slots (slot 0: this process's)
+        flat = self._segment((3 + W) * total * dtype.itemsize)
+        data, m, v, slots = pw.flat_views(flat, total, W, dtype)
+        slots.fill(0)
+        for ps, off in zip(sets, offsets):     # this process's weights and gradients move into shared memory
+            ps.bind(data[off:off + ps.size], slots[0, off:off + ps.size])
         self.set_spans = [(off, off + ps.size) for ps, off in zip(sets, offsets)]
         # each worker sums and updates one part of the parameter vector (64-byte aligned parts)
         cuts = [min(total, -(-(w * total // W) // 16) * 16) for w in range(W)] + [total]
-        self.spans = list(zip(cuts[:-1], cuts[1:]))
+        spans = list(zip(cuts[:-1], cuts[1:]))
         opt = trainer.optimizer
         self.optimizer = opt if isinstance(opt, ChunkedAdam) and opt.sets == sets else None
         if self.optimizer is not None:          # Adam's moments too (copied back by close())
@@ -177,41 +175,51 @@ class DataParallel:
                 v[off:off + sets[i].size] = opt.v[i]
                 opt.m[i], opt.v[i] = m[off:off + sets[i].size], v[off:off + sets[i].size]
 
-        self.clip_sites, self.sample_sites, row_shape = self._dropout_sites()
+        clip_sites, sample_sites, row_shape = self._dropout_sites()
         fields = {"x": ((B, c.x_dim), dtype), "p": ((B, c.phase_dim), dtype), "z": ((B, c.z_dim), dtype),
-                  "clips": ((B, c.clip_frames, c.clip_channels), dtype), "clip_index": ((B,), np.int64)}
-        fields.update({"mask." + s: ((B, *row_shape[s]), np.bool_) for s in self.clip_sites + self.sample_sites})
+                  "clips": ((B, c.clip_frames, c.clip_channels), dtype), "clip_index": ((B,), np.int64),
+                  "control": ((pw.PARTS + 4 * W,), np.int64), "done": ((W, 8), np.int64),
+                  "losses": ((W, 2), np.float64), "finite": ((W,), np.int64),
+                  "adam": ((2 + 4 * len(sets),), np.float64)}
+        fields.update({"mask." + s: ((B, *row_shape[s]), np.bool_) for s in clip_sites + sample_sites})
         layout, nbytes = {}, 0
         for name, (shape, dt) in fields.items():
             nbytes = -(-nbytes // 64) * 64                     # each field 64-byte aligned
             layout[name] = [nbytes, list(shape), np.dtype(dt).str]
             nbytes += math.prod(shape) * np.dtype(dt).itemsize
         step = self._segment(nbytes)
-        self.batch = parallel_worker.views(step, layout)
+        self.batch = pw.views(step, layout)
+        self.batch["control"].fill(0)
+        self.batch["done"].fill(0)
 
         stats = trainer.stats
         spec = {"model_config": c.to_dict(), "dtype": dtype.str, "total": total,
                 "sets": [[off, ps.size] for ps, off in zip(sets, offsets)],
-                "flat": flat.name, "step": step.name, "layout": layout, "workers": W, "spans": self.spans,
-                "clip_sites": self.clip_sites, "sample_sites": self.sample_sites,
+                "flat": flat.name, "step": step.name, "layout": layout, "workers": W, "spans": spans,
+                "clip_sites": clip_sites, "sample_sites": sample_sites,
                 "loss": {"bll_weight": trainer.config.bll_weight,
                          "positions_idx": None if trainer.positions_idx is None else np.asarray(trainer.positions_idx).tolist(),
                          "parents": None if trainer.parents is None else np.asarray(trainer.parents).tolist(),
                          "z_mean": np.asarray(stats.z_mean, dtype=np.float64).tolist(),
                          "z_std": np.asarray(stats.z_std, dtype=np.float64).tolist()}}
-        text = json.dumps(spec)
+        # worker w's semaphore: released by the others whenever their counters (or the command) move
+        self.wake = [multiprocessing.get_context("spawn").Semaphore(0) for _ in range(W)]
+        self.part = pw.Part(spec, 0, model, (data, m, v, slots), self.batch, self.wake)
+        self._start(json.dumps(spec))
+
+    def _start(self, text: str) -> None:
+        """Start workers 1 .. W-1 and wait until each has built its model."""
         ctx = multiprocessing.get_context("spawn")
         saved = {k: os.environ.get(k) for k in ONE_BLAS_THREAD}
         os.environ.update(ONE_BLAS_THREAD)          # read by the workers' numpy when it loads
-        # A worker started with SIGINT ignored keeps it ignored from its first instruction (Python
-        # then installs no KeyboardInterrupt handler), so a Ctrl-C while it is still importing
-        # prints nothing from it; the parent's own handler is back as soon as the workers exist.
+        # A worker started with SIGINT ignored keeps it ignored from its first instruction, so a Ctrl-C
+        # while it imports prints nothing from it; this process's handler is back once they exist.
         main_thread = threading.current_thread() is threading.main_thread()
         previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main_thread else None
         try:
-            for w in range(W):
+            for w in range(1, self.workers):
                 mine, theirs = ctx.Pipe()
-                proc = ctx.Process(target=parallel_worker.main, args=(text, w, theirs), daemon=True,
+                proc = ctx.Process(target=pw.main, args=(text, w, theirs, self.wake), daemon=True,
                                    name=f"minifilm-train-worker-{w}")
                 proc.start()
                 theirs.close()
@@ -225,27 +233,58 @@ class DataParallel:
                     os.environ.pop(k, None)
                 else:
                     os.environ[k] = v
-        self._collect("starting")
+        waiting = dict(enumerate(self.conns, start=1))
+        while waiting:
+            ready = connection.wait(list(waiting.values()) + [self.procs[w - 1].sentinel for w in waiting])
+            for w, conn in list(waiting.items()):
+                if conn in ready:
+                    try:
+                        message = conn.recv_bytes()
+                    except (EOFError, OSError):
+                        self._died(w, "starting", False)
+                    if message[:2] != pw.OK:
+                        raise WorkerDied(f"training stopped: worker {w} failed at starting: "
+                                         f"{message[2:].decode(errors='replace')}")
+                    del waiting[w]
+                elif self.procs[w - 1].sentinel in ready:
+                    self._died(w, "starting", False)
 
     @property
     def pids(self) -> list:
-        return [p.pid for p in self.procs]
+        """The process ids of workers 0 .. W-1 (worker 0 is this process)."""
+        return [os.getpid()] + [p.pid for p in self.procs]
 
     # ---- a step ----------------------------------------------------------------------------------
-    def _send(self, messages, where: str, updating: bool = False) -> None:
-        """One message to each worker; a worker that has gone (its pipe broken) is WorkerDied,
-        named as :meth:`_collect` names it, not an OSError of the pipe."""
-        for w, (conn, message) in enumerate(zip(self.conns, messages)):
-            try:
-                conn.send_bytes(np.asarray(message, dtype=np.float64).tobytes())
-            except OSError:             # BrokenPipeError, ConnectionResetError: the worker is gone
-                self._died(w, where, updating)
+    def train_step(self, b) -> tuple:
+        """Trainer.train_step of minibatch ``b`` (a trainer.Minibatch) split across the workers:
+        its gradients, the NaN check, Adam's step; returns (mse, bll). A NaN or inf raises the
+        trainer's TrainingDiverged with no weight changed."""
+        t = self.trainer
+        if self.optimizer is None:                  # another optimiser: it steps in this process
+            mse, bll = self.gradients(b)
+            t.check_finite(b, mse, bll)
+            t.optimizer.lr = t.learning_rate(t.epoch + b.index / b.count)
+            t.optimizer.step()
+        else:
+            t.optimizer.lr = t.learning_rate(t.epoch + b.index / b.count)
+            mse, bll = self._command(pw.GRADIENTS | pw.SUM | pw.ADAM, b, b.where)
+        t.step += 1
+        return mse, bll
 
     def gradients(self, b) -> tuple:
-        """The gradients of minibatch ``b`` (a trainer.Minibatch) in the model's ``.grad`` buffers,
-        computed by the workers; returns (mse, bll) of the whole minibatch. Draws the dropout masks
-        from the trainer's generator as one process's forward pass would."""
-        t_start = time.perf_counter()
+        """The gradients of minibatch ``b`` in the model's ``.grad``; returns (mse, bll)."""
+        return self._command(pw.GRADIENTS | pw.SUM, b, b.where)
+
+    def update(self, optimizer) -> None:
+        """The optimiser's step on ``.grad``: the workers step a ChunkedAdam bound to this pool."""
+        if optimizer is not self.optimizer:
+            optimizer.step()
+        else:
+            self._command(pw.ADAM, None, f"the Adam step {self.trainer.step + 1}")
+
+    def _write_minibatch(self, b) -> None:
+        """Minibatch ``b`` and its dropout masks into shared memory, the rows ordered by clip; the
+        masks drawn as one process's forward pass draws them; each worker's rows."""
         rng, p_drop, B = self.trainer.rng, self.model.config.dropout, len(b.x)
         clip_index = b.kw.get("clip_index")
         shared = clip_index is not None
@@ -255,10 +294,10 @@ class DataParallel:
                              f"{len(self.batch['x'])} it was set up for")
         order = np.argsort(clip_index, kind="stable") if shared else np.arange(B)
         if p_drop > 0:          # draw order and shapes as Dropout.forward's, Ψ's sites first
-            for site in self.clip_sites:
+            for site in self.part.clip_sites:
                 view = self.batch["mask." + site][:M]
                 np.greater_equal(rng.random(view.shape), p_drop, out=view)
-            for site in self.sample_sites:
+            for site in self.part.sample_sites:
                 view = self.batch["mask." + site][:B]
                 view[...] = (rng.random(view.shape) >= p_drop)[order]
         for name in ("x", "p", "z"):
@@ -267,55 +306,53 @@ class DataParallel:
         if shared:
             np.take(clip_index, order, out=self.batch["clip_index"][:B])
         parts = shares(B, self.batch["clip_index"][:B] if shared else None, M, self.workers)
-        self._send([(parallel_worker.GRADIENTS, *part, B, int(shared)) for part in parts], b.where)
-        self.step_index += 1
-        t_sent = time.perf_counter()
-        losses = self._collect(b.where)
-        self._send([(parallel_worker.SUM, a, z) for a, z in self.spans], b.where)
-        self._collect(b.where)
-        self.seconds["parent"] += t_sent - t_start
-        self.seconds["waiting"] += time.perf_counter() - t_sent
-        return float(losses[:, 0].sum()), float(losses[:, 1].sum())
+        control = self.batch["control"]
+        control[pw.BATCH], control[pw.SHARED] = B, int(shared)
+        control[pw.PARTS:] = np.asarray(parts, dtype=np.int64).ravel()
 
-    def update(self, optimizer) -> None:
-        """The optimiser's step on the gradients of :meth:`gradients`: a ChunkedAdam bound to
-        this pool is stepped by the workers, each on its part of the parameters; any other
-        optimiser steps in this process (it reads the same shared buffers)."""
-        if optimizer is not self.optimizer:
-            optimizer.step()
-            return
+    def _command(self, ops: int, b, where: str) -> tuple:
+        """Run one command (bits of parallel_worker's GRADIENTS, SUM, ADAM) in every worker, this
+        process being worker 0; returns the minibatch's (mse, bll) (0, 0 without GRADIENTS)."""
         t0 = time.perf_counter()
-        scalars = [x for i, step_size, eps_hat in optimizer.advance()
-                   for x in (*self.set_spans[i], step_size, eps_hat)]
-        where = f"the Adam step {self.trainer.step + 1}"
-        self._send([(parallel_worker.ADAM, a, z, optimizer.beta1, optimizer.beta2, *scalars) for a, z in self.spans],
-                   where, updating=True)
-        self._collect(where, updating=True)
-        self.seconds["waiting"] += time.perf_counter() - t0
+        opt, control, part = self.optimizer, self.batch["control"], self.part
+        if ops & pw.GRADIENTS:
+            self._write_minibatch(b)
+        steps = list(opt.steps) if opt is not None else None
+        if ops & pw.ADAM:               # count the step; its scalars for every worker
+            scalars = [(*self.set_spans[i], step_size, eps_hat) for i, step_size, eps_hat in opt.advance()]
+            adam = self.batch["adam"]
+            adam[:2] = opt.beta1, opt.beta2
+            adam[2:2 + 4 * len(scalars)] = np.asarray(scalars, dtype=np.float64).ravel()
+            control[pw.N_ADAM] = len(scalars)
+        control[pw.OPS] = ops
+        self.k += 1
+        control[pw.SEQ] = self.k                # the command: the workers start now
+        part.set_done(3 * self.k)
+        t1 = time.perf_counter()
 
-    def _collect(self, where: str, updating: bool = False) -> np.ndarray:
-        """(W, 2) float64 replies of every worker; WorkerDied when one ends or reports an error."""
-        replies = [None] * self.workers
-        waiting = dict(enumerate(self.conns))
-        while waiting:
-            ready = connection.wait(list(waiting.values()) + [self.procs[w].sentinel for w in waiting])
-            for w, conn in list(waiting.items()):
-                if conn in ready:
-                    try:
-                        message = conn.recv_bytes()
-                    except (EOFError, OSError):
-                        self._died(w, where, updating)
-                    if message[:2] != parallel_worker.OK:
-                        raise WorkerDied(f"training stopped: worker {w} failed at {where}: "
-                                         f"{message[2:].decode(errors='replace')}")
-                    replies[w] = np.frombuffer(message[2:], dtype=np.float64)
-                    del waiting[w]
-                elif self.procs[w].sentinel in ready:
-                    self._died(w, where, updating)
-        return np.stack(replies)
+        def check():                            # a worker that died or failed: WorkerDied
+            for w, proc in enumerate(self.procs, start=1):
+                if part.done[w] == pw.FAILED:
+                    text = self.conns[w - 1].recv_bytes()[2:].decode(errors="replace") \
+                        if self.conns[w - 1].poll(1.0) else "no message"
+                    raise WorkerDied(f"training stopped: worker {w} failed at {where}: {text}")
+                if proc.exitcode is not None:
+                    self._died(w, where, updating=bool(ops & pw.ADAM) and part.done[0] >= 3 * self.k + 2)
+
+        part.step(self.k, check)
+        t2 = time.perf_counter()
+        part.wait_all(3 * self.k + 3, check)
+        self.seconds["parent"] += t1 - t0
+        self.seconds["share"] += t2 - t1
+        self.seconds["waiting"] += time.perf_counter() - t2
+        mse, bll = (float(x) for x in part.losses.sum(axis=0))
+        if ops & pw.ADAM and ops & pw.GRADIENTS and not part.finite_step():
+            opt.steps[:] = steps                # not counted: no weight changed
+            self.trainer.check_finite(b, mse, bll)          # raises TrainingDiverged, naming what
+        return mse, bll
 
     def _died(self, w: int, where: str, updating: bool):
-        proc = self.procs[w]
+        proc = self.procs[w - 1]
         proc.join(timeout=1.0)
         code = proc.exitcode
         how = (f"was killed by {signal.Signals(-code).name}" if code is not None and code < 0
@@ -326,8 +363,14 @@ class DataParallel:
 
     # ---- the end ---------------------------------------------------------------------------------
     def close(self) -> None:
-        """Stop the workers (they end when their pipe closes; any still running after 5 s are
-        terminated), move the parameters back into private arrays, unlink the shared memory."""
+        """Stop the workers (they end when told so or when this process is gone; any still running
+        after 5 s are terminated), move the parameters back into private arrays, unlink the shared
+        memory."""
+        batch = getattr(self, "batch", None)
+        if batch is not None:
+            batch["control"][pw.STOP] = 1
+            for sem in getattr(self, "wake", [])[1:]:
+                sem.release()
         for conn in self.conns:
             conn.close()
         for proc in self.procs:
@@ -347,12 +390,10 @@ class DataParallel:
             if opt is not None:
                 opt.m = [a.copy() for a in opt.m]
                 opt.v = [a.copy() for a in opt.v]
-            self.batch = self.slots = None
+            self.batch = self.part = None
         for shm in self.segments:
-            try:
+            with contextlib.suppress(BufferError):  # a view still alive: unlinking frees it all the same
                 shm.close()
-            except BufferError:     # a view still alive somewhere: unlinking frees it all the same
-                pass
             shm.unlink()
         self.segments = []
 

@@ -194,12 +194,14 @@ class Trainer:
 
     def train_step(self, b: "Minibatch", pool=None):
         """One minibatch: forward, the losses, every gradient by hand, Adam. Returns (mse, bll).
-        pool: a minifilm.train.parallel.DataParallel that splits the gradients and Adam's step
-        across worker processes (the same numbers to round-off), or None: all in this process."""
-        mse, bll = self.gradients(b, pool)
+        pool: a minifilm.train.parallel.DataParallel, whose train_step is this step split across
+        processes (the same numbers to round-off), or None: all in this process, as here."""
+        if pool is not None:
+            return pool.train_step(b)
+        mse, bll = self.gradients(b)
         self.check_finite(b, mse, bll)                      # a NaN or inf stops before the update
         self.optimizer.lr = self.learning_rate(self.epoch + b.index / b.count)
-        self.update(pool)
+        self.optimizer.step()                               # minifilm/nn/fast_optim.py
         self.step += 1
         return mse, bll
 

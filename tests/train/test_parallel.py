@@ -4,6 +4,7 @@ order do not depend on the number of workers, and the workers and their shared m
 afterwards, also when a worker dies mid-run."""
 import os
 import signal
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +15,8 @@ from minifilm.dataset.stats import NormStats
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
 from minifilm.train.parallel import DataParallel, WorkerDied, shares
-from minifilm.train.trainer import TrainConfig, Trainer
+from minifilm.train.parallel_worker import wait_until
+from minifilm.train.trainer import TrainConfig, Trainer, TrainingDiverged
 
 CFG = ModelConfig.tiny(dropout=0.3)
 
@@ -87,6 +89,45 @@ def test_an_epoch_with_two_workers_equals_one_process():
     assert leftovers(os.getpid()) == []
 
 
+@pytest.mark.parametrize("clips_per_batch", [None, 4])
+def test_three_workers_take_the_steps_of_one_process(clips_per_batch):
+    one, three, d = trainer(clips_per_batch), trainer(clips_per_batch), data()
+    with DataParallel(three, 3) as pool:
+        assert len(pool.procs) == 2                        # two worker processes beside this one
+        for b1, b3 in zip(one.minibatches(d), three.minibatches(d)):
+            assert one.train_step(b1) == pytest.approx(three.train_step(b3, pool), rel=1e-5)
+    assert one.step == three.step > 3 and one.optimizer.steps == three.optimizer.steps
+    assert np.allclose(weights(three), weights(one), rtol=0, atol=1e-5 * np.abs(weights(one)).max())
+    assert one.rng.bit_generator.state == three.rng.bit_generator.state
+    assert leftovers(os.getpid()) == []
+
+
+def test_a_nan_stops_the_parallel_step_before_any_weight_changes():
+    t, d = trainer(), data()
+    with DataParallel(t, 2) as pool:
+        batches = t.minibatches(d)
+        t.train_step(next(batches), pool)
+        before, steps = weights(t).copy(), list(t.optimizer.steps)
+        b = next(batches)
+        b.x[-1, 0] = np.nan                                # in the last rows: worker 1's share
+        with pytest.raises(TrainingDiverged, match="is not finite"):
+            t.train_step(b, pool)
+        assert np.array_equal(weights(t), before) and t.optimizer.steps == steps
+    assert leftovers(os.getpid()) == []
+
+
+def test_a_wait_ends_when_its_check_finds_the_other_side_gone():
+    calls = []
+
+    def check():
+        calls.append(1)
+        if len(calls) == 3:
+            raise WorkerDied("gone")
+    with pytest.raises(WorkerDied, match="gone"):
+        wait_until(lambda: False, check, threading.Semaphore(0))    # never ready: only the check ends it
+    assert len(calls) == 3
+
+
 def test_unequal_shares_are_weighted_by_their_rows():
     # 3 clips over 2 workers: 1 and 2 clips, so shares of unequal size (with batch 16: 6 / 10 rows)
     idx = np.sort(np.arange(16) % 3)
@@ -100,11 +141,12 @@ def test_a_worker_killed_mid_run_stops_training_with_one_message_and_leaves_noth
     t, d = trainer(), data(n=600)
     with pytest.raises(WorkerDied, match=r"worker 1 \(process \d+\) was killed by SIGKILL"):
         with DataParallel(t, 2) as pool:
-            pids = pool.pids
+            assert pool.pids[0] == os.getpid() and len(pool.pids) == 2   # this process is worker 0
+            pids = pool.pids[1:]
             before = weights(t).copy()
             batches = t.minibatches(d)
             t.gradients(next(batches), pool)
-            os.kill(pids[1], signal.SIGKILL)
+            os.kill(pids[0], signal.SIGKILL)
             t.gradients(next(batches), pool)
     assert np.array_equal(weights(t), before)          # no update from the broken step
     assert not any(alive(pid) for pid in pids)
