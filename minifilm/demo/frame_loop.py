@@ -23,8 +23,10 @@ batch 1 by its own :class:`~minifilm.demo.character.Character`.
 
 Idle work (``idle_work``: the speed calibrations, ``calibrations.py``) runs on this thread in the
 time left before the next frame is due, one bounded slice at a time (:meth:`Stage._spare`): a slice
-runs only when it is expected (the longest of the last slices, plus ``SPARE_MARGIN``) to end before
-the deadline, so a frame waits at most for one slice that took longer than the ones before it.
+runs only when it is expected (the median of the last slices, plus ``SPARE_MARGIN``) to end before
+the deadline, so a frame waits at most for one slice that took longer than expected. (The median,
+not the longest: a slice the scheduler paused once would otherwise stop all slices while a page is
+connected; they are all alike, one network step of the same batch.)
 With nobody connected the slices run back to back.
 
 Nothing a character does can stop the loop: a failing frame resets that character (see
@@ -33,6 +35,7 @@ Nothing a character does can stop the loop: a failing frame resets that characte
 from __future__ import annotations
 
 import collections
+import statistics
 import threading
 import time
 import traceback
@@ -244,15 +247,15 @@ class Stage:
 
     def _spare(self) -> bool:
         """One slice of ``idle_work`` if there is one and the next frame leaves room for it; True
-        if one ran. Room: the slice is expected (the longest of the last ``SLICE_MEMORY``) to end
+        if one ran. Room: the slice is expected (the median of the last ``SLICE_MEMORY``) to end
         ``SPARE_MARGIN`` before the next frame is due, so no frame waits longer than one slice that
-        took longer than the ones before it. With nobody connected there is no deadline."""
+        took longer than expected. With nobody connected there is no deadline."""
         work = self.idle_work
         if work is None or not work.pending():
             return False
         connected = bool(self.count)
         if connected:
-            expected = max(self.slice_seconds) if self.slice_seconds else FIRST_SLICE_GUESS
+            expected = statistics.median(self.slice_seconds) if self.slice_seconds else FIRST_SLICE_GUESS
             if self.frames.next_due is not None and \
                     self.frames.next_due - self.clock() < SPARE_BREATH + expected + SPARE_MARGIN:
                 return False

@@ -1,6 +1,6 @@
 """Idle work in the frame loop (minifilm/demo/frame_loop.py, ``Stage.idle_work``: the speed
 calibrations): slices run only in the time a frame leaves before the next is due, so no frame waits
-for more than one slice that took longer than the ones before it. Driven by a fake clock: the
+for more than one slice that took longer than expected. Driven by a fake clock: the
 loop's own ``_run`` with a ``sleep`` that moves the clock (nothing here depends on the machine)."""
 from minifilm.demo.frame_loop import SPARE_BREATH, SPARE_MARGIN, Stage
 
@@ -82,9 +82,10 @@ def test_a_slice_longer_than_expected_delays_one_frame_by_at_most_its_own_length
     late = [x for x in character.late if x > 1e-9]
     assert len(late) == 1 and 0 < late[0] <= 0.012                  # the one frame after the long slice
     assert stage.late_slices == 1
-    # from then on a 12 ms slice is expected (32 slices long): one slice per frame, none late
-    frames_of_next = [int(start / PERIOD + 1e-9) for start, _ in work.ran[42:42 + 20]]
-    assert len(set(frames_of_next)) == 20
+    # one slow slice (the scheduler paused it) does not stop the others: two a frame again after it
+    frame_of = [int(start / PERIOD + 1e-9) for start, _ in work.ran]
+    after = frame_of[42:]
+    assert len(after) >= 2 * (frame_of[-1] - frame_of[42])
 
 
 def test_slices_that_never_fit_run_once_then_wait_while_a_page_is_connected():
