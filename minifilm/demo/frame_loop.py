@@ -26,7 +26,10 @@ time left before the next frame is due, one bounded slice at a time (:meth:`Stag
 runs only when it is expected (the median of the last slices, plus ``SPARE_MARGIN``) to end before
 the deadline, so a frame waits at most for one slice that took longer than expected. (The median,
 not the longest: a slice the scheduler paused once would otherwise stop all slices while a page is
-connected; they are all alike, one network step of the same batch.)
+connected; they are all alike, one network step of the same batch.) On a machine so busy that no
+slice fits any more (the scheduler stretches each one's wall time), the times measured are
+forgotten after ``PROBE_AFTER`` seconds without a slice and one is tried again: the work goes on,
+slowly, and delays a frame by at most one slice that often.
 With nobody connected the slices run back to back.
 
 Nothing a character does can stop the loop: a failing frame resets that character (see
@@ -60,6 +63,8 @@ FIRST_SLICE_GUESS = 0.008
 SPARE_BREATH = 0.0005
 #: slices whose times make the estimate of the next one
 SLICE_MEMORY = 32
+#: seconds without a slice (none fitted) after which the slices' times are forgotten and one is tried
+PROBE_AFTER = 0.5
 
 class FrameClock:
     """When the network steps are due: step k at ``start + k * period`` (seconds of ``clock``).
@@ -147,6 +152,7 @@ class Stage:
         self.idle_work = None
         self.slices = self.late_slices = 0
         self.slice_seconds = collections.deque(maxlen=SLICE_MEMORY)
+        self._last_slice = None             # when the last slice ended (the probe's clock)
         self.period = 1.0 / self.fps
         self._members: Dict[int, Tuple[object, Deliver]] = {}
         self._lock = threading.Lock()
@@ -255,6 +261,10 @@ class Stage:
             return False
         connected = bool(self.count)
         if connected:
+            now = self.clock()
+            if self._last_slice is None or now - self._last_slice > PROBE_AFTER:
+                self.slice_seconds.clear()          # none fitted for a while: measure again
+                self._last_slice = now
             expected = statistics.median(self.slice_seconds) if self.slice_seconds else FIRST_SLICE_GUESS
             if self.frames.next_due is not None and \
                     self.frames.next_due - self.clock() < SPARE_BREATH + expected + SPARE_MARGIN:
@@ -262,7 +272,7 @@ class Stage:
             self.sleep(SPARE_BREATH)
         t0 = self.clock()
         work.run_slice()
-        end = self.clock()
+        end = self._last_slice = self.clock()
         self.slice_seconds.append(end - t0)
         self.slices += 1
         if connected and self.frames.next_due is not None and end > self.frames.next_due:
