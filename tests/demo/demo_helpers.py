@@ -164,18 +164,32 @@ class DemoPage:
         self.wait(f"minifilmDemo.frame.n >= {start + int(steps)}", timeout=timeout)
         return self.frame()
 
-    def hold(self, keys, steps: int):
+    def applied(self, timeout: float = 60.0) -> dict:
+        """The first frame made after every message the page has sent was applied (its ``ack``):
+        on a loaded machine a key press reaches the character a second or more after it is made."""
+        self.wait("minifilmDemo.frame.ack !== null ? minifilmDemo.frame.ack >= minifilmDemo.sent"
+                  " : minifilmDemo.sent === 0", timeout=timeout)
+        return self.frame()
+
+    def hold(self, keys, steps: int, until: str = None):
         """(frame before, frame after) holding ``keys`` (one name or a list) for ``steps`` network
-        steps of the character; the keys are released after, in reverse order."""
+        steps of the character counted from when the press reached it (and, with ``until``, until
+        that JavaScript condition holds too); the keys are released after, in reverse order, and
+        the release waited for."""
         keys = [keys] if isinstance(keys, str) else list(keys)
         before = self.frame()
         for key in keys:
             self.page.keyboard.down(key)
         try:
+            self.applied()
             after = self.steps_on(steps)
+            if until:
+                self.wait(until, timeout=60.0 + steps / 6.0)
+                after = self.frame()
         finally:
             for key in reversed(keys):
                 self.page.keyboard.up(key)
+        self.applied()
         return before, after
 
     def mark(self) -> int:
