@@ -54,8 +54,9 @@ Deliver = Callable[[str, bool], None]
 #: load 7, where every pass fell further behind.)
 MAX_BATCH = 30
 #: seconds a slice of idle work is expected to leave before the next frame is due (a pause of the
-#: scheduler, the frame's own jitter)
-SPARE_MARGIN = 0.002
+#: scheduler, the frame's own jitter; with 2 ms, a shared 2-core machine at load 4 had 24 frame
+#: intervals over 33 ms in the first minute of calibrations, 1 in a later one)
+SPARE_MARGIN = 0.004
 #: seconds a slice of idle work is assumed to take before any has been timed
 FIRST_SLICE_GUESS = 0.008
 #: seconds the loop sleeps before a slice while pages are connected, so the event loop's thread

@@ -63,8 +63,8 @@ def staged(seconds: float, step_cost: float, slices, connected=True, stop_when_d
 
 
 def test_slices_fill_the_time_between_frames_and_no_frame_is_late():
-    # a 2 ms frame leaves 14.7 ms: two 5 ms slices fit (each with its breath and margin), a third not
-    stage, character, work = staged(1.99, 0.002, [0.005] * 10_000)
+    # a 1 ms frame leaves 15.7 ms: two 5 ms slices fit (each with its breath and margin), a third not
+    stage, character, work = staged(1.99, 0.001, [0.005] * 10_000)
     frames = len(character.late)
     assert frames == 120 and stage.steps == 120                   # every frame of 2 s, one step each
     assert max(character.late) < 1e-9                               # none ran after it fell due
@@ -76,9 +76,9 @@ def test_slices_fill_the_time_between_frames_and_no_frame_is_late():
 
 
 def test_a_slice_longer_than_expected_delays_one_frame_by_at_most_its_own_length():
-    # the 42nd slice, the second of its frame (starting 8 ms after the frame), takes 12 ms, not 5
+    # the 42nd slice, the second of its frame (starting 7 ms after the frame), takes 12 ms, not 5
     slices = [0.005] * 41 + [0.012] + [0.005] * 10_000
-    stage, character, work = staged(1.99, 0.002, slices)
+    stage, character, work = staged(1.99, 0.001, slices)
     late = [x for x in character.late if x > 1e-9]
     assert len(late) == 1 and 0 < late[0] <= 0.012                  # the one frame after the long slice
     assert stage.late_slices == 1
