@@ -9,10 +9,11 @@ missing ones, the start style first, any other style the first time a page asks 
 measured one batch step at a time (:func:`~minifilm.runtime.calibration.calibrate_speed_stepwise`)
 by the frame loop, in the time left before the next frame is due (:meth:`run_slice`, called by
 ``frame_loop.py`` only when the slice is expected to end before the deadline). A measurement
-cannot hold a frame up by more than one slice that took longer than the ones before it: in a
+cannot hold a frame up by more than one slice that took longer than expected: in a
 worker process at low priority (the earlier design) it shared the cores with the frame loop, and
 on a busy 2-core machine the frame interval's 95th percentile doubled while one ran
-(``benchmarks/demo_realtime.py --only calibration``). Each one measured is printed in the
+(``benchmarks/demo_realtime.py --only calibration``). The price: on a busy machine few slices fit
+and a measurement takes minutes instead of seconds (4-8 s on an idle one). Each one measured is printed in the
 terminal, added to the cache, and counted in :meth:`Calibrations.progress` (sent to the pages in
 every frame). Until a style's calibration is there, another style's stands in for it (the first
 one there), and before any is there the speed is commanded as asked (the network then walks
