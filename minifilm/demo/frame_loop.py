@@ -54,9 +54,11 @@ Deliver = Callable[[str, bool], None]
 #: load 7, where every pass fell further behind.)
 MAX_BATCH = 30
 #: seconds a slice of idle work is expected to leave before the next frame is due (a pause of the
-#: scheduler, the frame's own jitter; with 2 ms, a shared 2-core machine at load 4 had 24 frame
-#: intervals over 33 ms in the first minute of calibrations, 1 in a later one)
-SPARE_MARGIN = 0.004
+#: scheduler, the frame's own jitter). A trade: with 4 ms a shared 2-core machine at load 4 kept
+#: the first minute of calibrations as smooth as a later one, but at load 5 with a page connected
+#: the start style was not measured in 12 minutes; with 2 ms it was, in about 2.5 minutes at load
+#: 3-13, and the first minute had 24 frame intervals over 33 ms (a later one 1)
+SPARE_MARGIN = 0.002
 #: seconds a slice of idle work is assumed to take before any has been timed
 FIRST_SLICE_GUESS = 0.008
 #: seconds the loop sleeps before a slice while pages are connected, so the event loop's thread
