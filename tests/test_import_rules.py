@@ -151,7 +151,7 @@ def module_name(path: Path) -> str:
 
 def module_graph() -> dict:
     """{module: the minifilm modules it imports}, every import (inside functions too: an import
-    put off until it runs is still a dependency). ``from minifilm.demo import calibration_worker``
+    put off until it runs is still a dependency). ``from minifilm.demo import record``
     is an edge to that module, ``from minifilm.files import atomic_write_text`` to the package."""
     names = {module_name(p): p for p in MODULES}
     graph = {}

@@ -15,8 +15,8 @@ Files, from the page inwards: ``assets/`` (the page: demo.html, demo.js, demo.cs
 validation of the page's), ``frame_loop.py`` (the frame loop on its own thread), ``character.py``
 (one page's character: Controller, guard against non-finite output), ``steering.py`` (keys and
 sticks to a target facing and velocity), ``style_mix.py`` (smooth style changes and blends),
-``calibrations.py`` and ``calibration_worker.py`` (speed calibration per style, in a worker
-process), ``source.py`` (released network or run folder), ``record.py`` (a scripted session
+``calibrations.py`` (speed calibration per style, measured in the frame loop's idle
+time), ``source.py`` (released network or run folder), ``record.py`` (a scripted session
 recorded server-side, for a GIF), ``client.py`` (a page without a browser: tests, benchmarks),
 ``process.py`` (the command in a process of its own, for the same).
 Importing this package loads none of them.

@@ -1,13 +1,19 @@
-"""Speed calibration per style for the live demo, measured off the frame loop.
+"""Speed calibration per style for the live demo, measured in the frame loop's idle time.
 
 The released network needs one (:func:`minifilm.runtime.calibration.calibrate_speed`: commanding
-1.3 m/s makes it walk at about 0.5 m/s), and measuring one takes about 2.3 s of CPU (27 characters
-for 8 s), 20 s and more on a busy machine. So nothing is measured before the server starts (it
-serves its page within a second or two): calibrations come from the cache of earlier runs
-(``calibration_cache.py``, keyed by a hash of the network's files), and the missing ones, the
-start style first, any other style the first time a page asks for it, are measured in a worker
-*process* at low priority: in a thread of the server it would hold Python's GIL for seconds and
-make the frame loop wait for it (``calibration_worker.py``). Each one measured is printed in the
+1.3 m/s makes it walk at about 0.5 m/s), and measuring one takes about 2.4 s of CPU (27
+characters for 8 s of frames: 481 steps of one batch, about 5 ms each). So nothing is measured
+before the server starts (it serves its page within a second or two): calibrations come from the
+cache of earlier runs (``calibration_cache.py``, keyed by a hash of the network's files), and the
+missing ones, the start style first, any other style the first time a page asks for it, are
+measured one batch step at a time (:func:`~minifilm.runtime.calibration.calibrate_speed_stepwise`)
+by the frame loop, in the time left before the next frame is due (:meth:`run_slice`, called by
+``frame_loop.py`` only when the slice is expected to end before the deadline). A measurement
+cannot hold a frame up by more than one slice that took longer than expected: in a
+worker process at low priority (the earlier design) it shared the cores with the frame loop, and
+on a busy 2-core machine the frame interval's 95th percentile doubled while one ran
+(``benchmarks/demo_realtime.py --only calibration``). The price: on a busy machine few slices fit
+and a measurement takes minutes instead of seconds (4-8 s on an idle one). Each one measured is printed in the
 terminal, added to the cache, and counted in :meth:`Calibrations.progress` (sent to the pages in
 every frame). Until a style's calibration is there, another style's stands in for it (the first
 one there), and before any is there the speed is commanded as asked (the network then walks
@@ -17,32 +23,51 @@ A mix of styles is commanded with the mix of their commands, ``sum_s w_s command
 same linear mixing the FiLM vectors get. Only the styles of a mix with at least
 ``MEASURED_WEIGHT`` of it are measured for it (heaviest first): a style with a few per cent of a
 blend moves its command by a few per cent, and a blend of all 100 styles would otherwise queue
-100 measurements (about ten minutes here). The terminal is told how many styles are queued and
+100 measurements (ten minutes and more). The terminal is told how many styles are queued and
 about how long they take at the pace measured so far.
 """
 from __future__ import annotations
 
-import concurrent.futures
+import collections
 import math
-import multiprocessing
 import sys
 import threading
 import time
-from typing import Dict, Mapping, Optional, Sequence
+from typing import Dict, Generator, Mapping, Optional, Sequence
 
 import numpy as np
 
-from minifilm.demo import calibration_worker
-from minifilm.demo.calibration_worker import measure   # in the worker process and, with no worker, here
 from minifilm.demo.calibration_cache import CalibrationCache, max_speed
-from minifilm.runtime.calibration import SpeedCalibration
+from minifilm.runtime.calibration import SpeedCalibration, calibrate_speed, calibrate_speed_stepwise
+from minifilm.runtime.controller import Controller
 
 #: a style with less of a mix than this is not measured for it (a stand-in's calibration serves)
 MEASURED_WEIGHT = 0.1
-#: seconds one style's measurement is assumed to take before any has been timed (2-3 s of CPU,
-#: more at the lowest priority on a busy machine)
-FIRST_PACE = 20.0
+#: seconds one style's measurement is assumed to take before any has been timed (2.4 s of CPU in
+#: slices of the frames' idle time: one or two 5 ms slices per 16.7 ms frame)
+FIRST_PACE = 10.0
 
+
+def _start_of(source, name: str):
+    """A new Controller for ``source`` and the style's start frame (x, p) (None, None: the mean)."""
+    ctrl = Controller(source.network, source.layout, fps=source.fps, **source.options)
+    x, p = source.starts.get(name, (None, None))
+    return ctrl, x, p
+
+
+def measure(source, name: str) -> SpeedCalibration:
+    """The SpeedCalibration of style ``name`` of a :class:`~minifilm.demo.source.DemoSource`, all at
+    once (the plain version: tests, ``--record``)."""
+    ctrl, x, p = _start_of(source, name)
+    return calibrate_speed(ctrl, source.library[name], phases=p, start_x=x)
+
+
+def measure_steps(source, name: str) -> Generator[None, None, SpeedCalibration]:
+    """:func:`measure` one slice per ``next()``: the Controller made and reset, then one batch step
+    each; returns the same SpeedCalibration (tested equal)."""
+    ctrl, x, p = _start_of(source, name)
+    yield
+    return (yield from calibrate_speed_stepwise(ctrl, source.library[name], phases=p, start_x=x))
 
 
 
@@ -58,21 +83,27 @@ class Calibrations:
 
     Args:
         source: a DemoSource; when ``source.calibrate`` is False, velocities pass unchanged.
-        first: styles measured here and now (the start style).
-        background: measure other styles in a worker process when asked for; False: use the
-            first style's calibration for every other style.
+        first: the styles measured first (the start style).
+        background: measure ``first`` and the styles asked for later in slices, by whoever calls
+            :meth:`run_slice` (the frame loop; ``on_request`` is called when there is work);
+            False: measure ``first`` here and now and use the first style's calibration for
+            every other style.
+        clock: seconds, monotonic (the pace in the terminal's estimates).
     """
 
     def __init__(self, source, first: Sequence[str] = (), background: bool = True,
-                 cache: Optional[CalibrationCache] = None, log=None):
+                 cache: Optional[CalibrationCache] = None, log=None, clock=time.monotonic):
         self.source = source
         self.enabled = bool(source.calibrate)
         self._cal: Dict[str, SpeedCalibration] = {}
         self._memo: Dict[tuple, float] = {}      # (speed, direction, mix) -> command / speed
         self._asked = set()
-        self._lock = threading.RLock()      # a done callback may run inside _submit
-        self._pool: Optional[concurrent.futures.ProcessPoolExecutor] = None
-        self._background = background and source.params is not None
+        self._lock = threading.RLock()
+        self._queue = collections.deque()   # styles asked for, not measured yet, in order
+        self._job = None                    # (name, its measure_steps generator) in hand
+        self.on_request = None              # called (no arguments) when there is work to slice
+        self._clock = clock
+        self._background = background
         self.fallback: Optional[SpeedCalibration] = None
         self._closed = False
         self._log = log if log is not None else (lambda text: print(text, file=sys.stderr, flush=True))
@@ -153,66 +184,77 @@ class Calibrations:
             return name in self._cal
 
     def request(self, names) -> None:
-        """Start measuring every style of ``names`` not measured or asked for yet. Returns at once:
-        the frame loop calls it, and starting the worker process takes tens of milliseconds (it
-        held a frame up by 64 ms when done here), so that happens on a thread of its own."""
+        """Queue every style of ``names`` not measured or asked for yet; returns at once (the
+        frame loop calls it: the measuring is done by :meth:`run_slice`)."""
         if not (self.enabled and self._background):
             return
         with self._lock:
+            if self._closed:
+                return
             todo = [n for n in dict.fromkeys(names) if n not in self._cal and n not in self._asked]
             self._asked.update(todo)
             self.requested += len(todo)
-        if todo:
-            threading.Thread(target=self._submit, args=(todo,), name="minifilm-demo-calibrate", daemon=True).start()
-
-    def _submit(self, todo) -> None:
-        with self._lock:
-            if self._closed:
-                return
-            if self._pool is None:
-                # spawn, not fork: the server has threads running, which a fork would copy mid-step
-                self._pool = concurrent.futures.ProcessPoolExecutor(
-                    max_workers=1, mp_context=multiprocessing.get_context("spawn"),
-                    initializer=calibration_worker.start, initargs=(str(self.source.params),
-                                                                         str(self.source.pack or "")))
-            for name in todo:
-                future = self._pool.submit(calibration_worker.measure_style, name)
-                future.add_done_callback(lambda f, n=name: self._done(n, f))
-            if self.measuring is None and todo:
-                self.measuring = todo[0]
-                self._started[todo[0]] = time.monotonic()
-        with self._lock:
+            self._queue.extend(todo)
             queued = self.requested - self.measured
             pace = sum(self._paces) / len(self._paces) if self._paces else FIRST_PACE
+            wake = self.on_request
+        if not todo:
+            return
+        if wake is not None:
+            wake()
         shown = ", ".join(todo[:5]) + (f" and {len(todo) - 5} more" if len(todo) > 5 else "")
         self._log(f"minifilm demo: measuring the speed calibration of {shown} in the background "
                   f"({queued} style(s) queued, about {estimate(queued * pace)}"
                   f"{' at the pace so far' if self._paces else ''}; the page works meanwhile)")
 
-    def _done(self, name: str, future) -> None:
+    def pending(self) -> bool:
+        """Whether a measurement is in hand or queued (the frame loop then has slices to run)."""
+        with self._lock:
+            return not self._closed and (self._job is not None or bool(self._queue))
+
+    def run_slice(self) -> None:
+        """One slice of the measurement in hand (about 5 ms: one network step of its batch), or the
+        start of the next queued style's (its Controller made and reset). Called by one thread,
+        the frame loop's, when the next frame leaves room for it."""
+        with self._lock:
+            if self._closed:
+                return
+            if self._job is None:
+                while self._queue and self._queue[0] in self._cal:   # the cache had it after all
+                    self._queue.popleft()
+                    self.requested -= 1
+                if not self._queue:
+                    return
+                name = self._queue.popleft()
+                self._job = (name, measure_steps(self.source, name))
+                self.measuring = name
+                self._started[name] = self._clock()
+            name, steps = self._job
         try:
-            cal = future.result()
+            next(steps)
+        except StopIteration as finished:
+            self._job = None
+            self._done(name, finished.value)
         except Exception as e:  # noqa: BLE001 - a failed measurement keeps the stand-in, says why
+            self._job = None
             with self._lock:
                 self.measured += 1
                 self.measuring = None
-            if not (self._closed or isinstance(e, concurrent.futures.CancelledError)):  # not when stopping
-                self._log(f"minifilm demo: speed calibration of {name!r} failed ({e}); "
-                          "another style's is used for it")
-            return
+            self._log(f"minifilm demo: speed calibration of {name!r} failed ({e}); another style's is used for it")
+
+    def _done(self, name: str, cal: SpeedCalibration) -> None:
         with self._lock:
+            if self._closed:
+                return
             self._cal[name] = cal
             if self.fallback is None:
                 self.fallback = cal
             self._memo.clear()
             self.measured += 1
-            waited = time.monotonic() - self._started.pop(name, time.monotonic())
+            waited = self._clock() - self._started.pop(name, self._clock())
             if waited > 0:
                 self._paces = (self._paces + [waited])[-5:]
-            queued = [n for n in self._asked if n not in self._cal]
-            self.measuring = queued[0] if queued else None
-            if self.measuring is not None:
-                self._started.setdefault(self.measuring, time.monotonic())
+            self.measuring = None
             done, total = self.measured, self.requested
         self._store(name, cal)
         self._log(f"minifilm demo: speed calibration of {name} measured ({done} of {total}"
@@ -245,21 +287,9 @@ class Calibrations:
         return v * ratio
 
     def close(self) -> None:
-        """Stop measuring: queued styles are dropped and the worker is ended at once. (Only
-        cancelling would let the interpreter's exit wait for the measurement in hand, and for the
-        one queued behind it: at low priority on a busy machine, a minute after SIGTERM.)"""
+        """Stop measuring: the measurement in hand and the queued styles are dropped (nothing is
+        left running: the slices are the frame loop's, and it stops with the server)."""
         with self._lock:
-            pool, self._pool, self._closed = self._pool, None, True
-        if pool is None:
-            return
-        terminate = getattr(pool, "terminate_workers", None)  # Python 3.14+: cancels and ends them
-        if terminate is not None:
-            terminate()
-            return
-        # Before 3.14 there is no public way to end a pool's worker: keep its processes (shutdown
-        # forgets them) and end them directly.
-        processes = list((getattr(pool, "_processes", None) or {}).values())
-        pool.shutdown(wait=False, cancel_futures=True)
-        for process in processes:
-            if process.is_alive():
-                process.terminate()
+            self._closed = True
+            self._job = None
+            self._queue.clear()

@@ -21,12 +21,24 @@ frames to ``deliver`` callbacks that must return at once (the server's posts the
 loop). Each character is stepped at
 batch 1 by its own :class:`~minifilm.demo.character.Character`.
 
+Idle work (``idle_work``: the speed calibrations, ``calibrations.py``) runs on this thread in the
+time left before the next frame is due, one bounded slice at a time (:meth:`Stage._spare`): a slice
+runs only when it is expected (the median of the last slices, plus ``SPARE_MARGIN``) to end before
+the deadline, so a frame waits at most for one slice that took longer than expected. (The median,
+not the longest: a slice the scheduler paused once would otherwise stop all slices while a page is
+connected; they are all alike, one network step of the same batch.) On a machine so busy that no
+slice fits any more (the scheduler stretches each one's wall time), the times measured are
+forgotten after ``PROBE_AFTER`` seconds without a slice and one is tried again: the work goes on,
+slowly, and delays a frame by at most one slice that often.
+With nobody connected the slices run back to back.
+
 Nothing a character does can stop the loop: a failing frame resets that character (see
 ``character.py``) and any other error is reported and the loop carries on.
 """
 from __future__ import annotations
 
 import collections
+import statistics
 import threading
 import time
 import traceback
@@ -41,6 +53,21 @@ Deliver = Callable[[str, bool], None]
 #: 70-85 ms stalls of a shared 2-core machine, benchmarks/demo_soak.py; 15 lost whole seconds at
 #: load 7, where every pass fell further behind.)
 MAX_BATCH = 30
+#: seconds a slice of idle work is expected to leave before the next frame is due (a pause of the
+#: scheduler, the frame's own jitter). A trade: with 4 ms a shared 2-core machine at load 4 kept
+#: the first minute of calibrations as smooth as a later one, but at load 5 with a page connected
+#: the start style was not measured in 12 minutes; with 2 ms it was, in about 2.5 minutes at load
+#: 3-13, and the first minute had 24 frame intervals over 33 ms (a later one 1)
+SPARE_MARGIN = 0.002
+#: seconds a slice of idle work is assumed to take before any has been timed
+FIRST_SLICE_GUESS = 0.008
+#: seconds the loop sleeps before a slice while pages are connected, so the event loop's thread
+#: can take Python's GIL and send the frame just made (the slice would hold it for up to 5 ms)
+SPARE_BREATH = 0.0005
+#: slices whose times make the estimate of the next one
+SLICE_MEMORY = 32
+#: seconds without a slice (none fitted) after which the slices' times are forgotten and one is tried
+PROBE_AFTER = 0.5
 
 class FrameClock:
     """When the network steps are due: step k at ``start + k * period`` (seconds of ``clock``).
@@ -112,14 +139,23 @@ class Stage:
     Statistics (for tests and debugging): ``ticks`` passes of the loop (one frame sent per
     character each), ``steps`` network steps run, ``behind`` passes that ran more than one step
     (a batch, catching up), ``restarts`` passes that had to drop steps and ``skipped`` the steps so
-    dropped, ``frame_ms`` the last passes' times (ms), ``errors`` unexpected errors the loop survived.
+    dropped, ``frame_ms`` the last passes' times (ms), ``errors`` unexpected errors the loop survived,
+    ``slices`` slices of idle work run and ``late_slices`` those that ended after a frame fell due.
+
+    ``idle_work``: None, or an object with ``pending()`` (bool) and ``run_slice()`` (a few ms of work).
+    ``sleep``: seconds -> None (``time.sleep``; tests give a fake clock's).
     """
 
     def __init__(self, make_character: Callable[[int], object], fps: float, max_characters: int = 4,
-                 clock: Callable[[], float] = time.perf_counter):
+                 clock: Callable[[], float] = time.perf_counter, sleep: Callable[[float], None] = time.sleep):
         if max_characters < 1:
             raise ValueError(f"Stage: max_characters must be >= 1, got {max_characters}")
         self.make_character, self.fps, self.max_characters, self.clock = make_character, float(fps), max_characters, clock
+        self.sleep = sleep
+        self.idle_work = None
+        self.slices = self.late_slices = 0
+        self.slice_seconds = collections.deque(maxlen=SLICE_MEMORY)
+        self._last_slice = None             # when the last slice ended (the probe's clock)
         self.period = 1.0 / self.fps
         self._members: Dict[int, Tuple[object, Deliver]] = {}
         self._lock = threading.Lock()
@@ -214,20 +250,56 @@ class Stage:
             self._thread.join(timeout)
             self._thread = None
 
+    def wake(self) -> None:
+        """Idle work has arrived (any thread): a loop asleep with nobody connected starts on it."""
+        self._wake.set()
+
+    def _spare(self) -> bool:
+        """One slice of ``idle_work`` if there is one and the next frame leaves room for it; True
+        if one ran. Room: the slice is expected (the median of the last ``SLICE_MEMORY``) to end
+        ``SPARE_MARGIN`` before the next frame is due, so no frame waits longer than one slice that
+        took longer than expected. With nobody connected there is no deadline."""
+        work = self.idle_work
+        if work is None or not work.pending():
+            return False
+        connected = bool(self.count)
+        if connected:
+            now = self.clock()
+            if self._last_slice is None or now - self._last_slice > PROBE_AFTER:
+                self.slice_seconds.clear()          # none fitted for a while: measure again
+                self._last_slice = now
+            expected = statistics.median(self.slice_seconds) if self.slice_seconds else FIRST_SLICE_GUESS
+            if self.frames.next_due is not None and \
+                    self.frames.next_due - self.clock() < SPARE_BREATH + expected + SPARE_MARGIN:
+                return False
+            self.sleep(SPARE_BREATH)
+        t0 = self.clock()
+        work.run_slice()
+        end = self._last_slice = self.clock()
+        self.slice_seconds.append(end - t0)
+        self.slices += 1
+        if connected and self.frames.next_due is not None and end > self.frames.next_due:
+            self.late_slices += 1
+        return True
+
     def _run(self) -> None:
         clock = self.frames
         while not self._stop.is_set():
             try:
                 if not self.count:
+                    clock.next_due = None           # the schedule starts again with the next page
+                    if self._spare():
+                        self.sleep(0.001)           # the event loop serves the page meanwhile
+                        continue
                     self._wake.wait(0.5)
                     self._wake.clear()
-                    clock.next_due = None           # the schedule starts again with the next page
                     continue
                 now = self.clock()
                 dropped = clock.dropped
                 n = clock.due(now)
                 if n == 0:
-                    time.sleep(max(clock.next_due - now, 0.0))
+                    if not self._spare():
+                        self.sleep(max(clock.next_due - now, 0.0))
                     continue
                 if clock.dropped > dropped:
                     self.restarts += 1
@@ -238,4 +310,4 @@ class Stage:
                 clock.ran(n, now)
             except Exception:  # noqa: BLE001 - see the module docstring: the loop never dies
                 self._report()
-                time.sleep(self.period)
+                self.sleep(self.period)

@@ -164,6 +164,8 @@ class DemoServer:
                                          cache=calibration_cache)
         self.stage = Stage(lambda ident: Character(ident, source, self.calibrations, settings), source.fps,
                            max_characters)
+        # the calibrations are measured in the frame loop's idle time, a slice at a time (calibrations.py)
+        self.stage.idle_work, self.calibrations.on_request = self.calibrations, self.stage.wake
         self.site = Site(f"minifilm demo: {source.name}")
         self.styles = frozenset(source.library.names)
         self.film_digests = {n: film_digest(source.library[n]) for n in source.library.names}
@@ -332,7 +334,7 @@ class DemoServer:
     async def serve(self, on_ready: Optional[Callable[[str], None]] = None, stop_on_signals: bool = False) -> None:
         """Serve until :meth:`stop` (or cancellation); ``on_ready(url)`` once listening.
         ``stop_on_signals`` (main thread only): Ctrl-C and SIGTERM stop it the same way, so the
-        pages are told and the calibration worker ends with it."""
+        pages are told."""
         serve = self.modules[0]
         self._loop, self._stopping = asyncio.get_running_loop(), asyncio.Event()
         if stop_on_signals:

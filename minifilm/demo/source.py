@@ -39,7 +39,7 @@ class DemoSource:
     feed_back_fit: with the skeleton fit on, feed the fitted pose back to the network.
     calibrate: map the user's m/s through a per-style speed calibration.
     starts: style -> (x (x_dim,), p (8,)) raw start frame; styles without one start from the mean pose.
-    params: the released folder (for a calibration worker that loads the network itself).
+    params: the released folder (the calibration cache is keyed by its files).
     pack: a style pack folder whose styles join the released network's (its worker loads it too).
     run_feed_speed: m/s of the perfect run fed as the trajectory input while Shift is held
         (``Controller.run_feed``): the released network runs only when shown a run; None: Shift

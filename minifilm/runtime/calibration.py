@@ -9,7 +9,7 @@ inverted (:class:`SpeedCalibration`).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional, Sequence
+from typing import Generator, Optional, Sequence
 
 import numpy as np
 
@@ -99,6 +99,25 @@ class PerCharacterCalibration:
                          for b, c in enumerate(self.calibrations)])
 
 
+def _calibration_plan(fps: float, commands, directions, seconds: float, settle: float):
+    """(frames, first measured frame, one CommandScript per (direction, command), direction-major)."""
+    n = int(round(seconds * fps))
+    k0 = int(round(settle * fps))
+    if k0 >= n - 1:
+        raise ValueError(f"calibrate_speed: settle ({settle} s) must be shorter than seconds ({seconds} s)")
+    scripts = [CommandScript([(0.0, float(v), 0.0, float(d)), (seconds, float(v), 0.0, float(d))])
+               for d in directions for v in commands]
+    return n, k0, scripts
+
+
+def _measured(roots: np.ndarray, k0: int, fps: float, commands, directions) -> SpeedCalibration:
+    """The calibration of root paths (B, n, 2): the mean speed along each path after frame k0."""
+    n = roots.shape[1]
+    dist = np.sum(np.linalg.norm(np.diff(roots[:, k0:], axis=1), axis=-1), axis=1)
+    achieved = (dist / ((n - 1 - k0) / fps)).reshape(len(directions), len(commands))
+    return SpeedCalibration(np.asarray(commands, dtype=np.float64), achieved, tuple(directions))
+
+
 def calibrate_speed(controller, film: np.ndarray,
                     commands: Sequence[float] = CALIBRATION_COMMANDS,
                     directions: Sequence[float] = CALIBRATION_DIRECTIONS,
@@ -112,14 +131,40 @@ def calibrate_speed(controller, film: np.ndarray,
     Made for the released network. A small network trained on little data may move at its data's
     speeds only (a walk and a run, nothing between), so the calibration asks for commands far
     outside its data; in ``benchmarks/trained_rollout.py`` that made the train_small model's
-    bones stretch (CV up to 69 %) and its path error grow, so check before using it there."""
-    n = int(round(seconds * controller.fps))
-    k0 = int(round(settle * controller.fps))
-    if k0 >= n - 1:
-        raise ValueError(f"calibrate_speed: settle ({settle} s) must be shorter than seconds ({seconds} s)")
-    scripts = [CommandScript([(0.0, float(v), 0.0, float(d)), (seconds, float(v), 0.0, float(d))])
-               for d in directions for v in commands]
+    bones stretch (CV up to 69 %) and its path error grow, so check before using it there.
+
+    :func:`calibrate_speed_stepwise` measures the same one network step at a time."""
+    n, k0, scripts = _calibration_plan(controller.fps, commands, directions, seconds, settle)
     r = controller.run(scripts, n, film, phases=phases, start_x=start_x)
-    dist = np.sum(np.linalg.norm(np.diff(r.root_positions[:, k0:], axis=1), axis=-1), axis=1)
-    achieved = (dist / ((n - 1 - k0) / controller.fps)).reshape(len(directions), len(commands))
-    return SpeedCalibration(np.asarray(commands, dtype=np.float64), achieved, tuple(directions))
+    return _measured(r.root_positions, k0, controller.fps, commands, directions)
+
+
+def calibrate_speed_stepwise(controller, film: np.ndarray,
+                             commands: Sequence[float] = CALIBRATION_COMMANDS,
+                             directions: Sequence[float] = CALIBRATION_DIRECTIONS,
+                             seconds: float = 8.0, settle: float = 4.0, phases: Optional[np.ndarray] = None,
+                             start_x: Optional[np.ndarray] = None) -> Generator[None, None, SpeedCalibration]:
+    """:func:`calibrate_speed` as a generator that yields once after the start and once after each
+    network step of the batch, and returns the same :class:`SpeedCalibration` (its ``value`` in
+    ``StopIteration``; tested equal). A frame loop runs it in slices of its idle time (the live
+    demo, ``minifilm/demo/calibrations.py``): each ``next()`` costs one batch step, a few ms.
+
+    The same commands reach ``controller.step`` in the same order as ``Controller.run`` gives them
+    (scripts, then the step), so the roots, and the speeds measured on them, are the same."""
+    n, k0, scripts = _calibration_plan(controller.fps, commands, directions, seconds, settle)
+    for s in scripts:
+        s.reset()
+    starts = [s.start() for s in scripts]
+    controller.reset(np.array([p for p, _ in starts]), np.array([f for _, f in starts]), phases, start_x)
+    B = len(scripts)
+    roots = np.empty((B, n, 2))
+    tf, tv = np.empty((B, 2)), np.empty((B, 2))
+    yield
+    for k in range(n):
+        t = k / controller.fps
+        state = controller.state
+        for b, s in enumerate(scripts):
+            tf[b], tv[b] = s.command(t, state.root[b], state.facing[b])
+        roots[:, k] = controller.step(tf, tv, film)["root"]
+        yield
+    return _measured(roots, k0, controller.fps, commands, directions)

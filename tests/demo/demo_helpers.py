@@ -95,3 +95,112 @@ def browser():
     yield chromium
     chromium.close()
     manager.stop()
+
+
+class DemoPage:
+    """A demo page open in headless Chromium (``browser``, the fixture above) at ``url``, with what it
+    logged (``messages``), requested (``requests``) and opened (``sockets``).
+
+    Args:
+        width, height: the window (the panel's layout depends on it).
+        init_script: JavaScript run before the page's own (e.g. a fake gamepad).
+        route: a handler for ``page.route_web_socket`` (a test between the page and the server).
+        keep_frames: keep every frame the page receives, parsed, in ``frames`` (off the page's
+            WebSocket, so a frame the page skips while drawing is kept too).
+        ready: seconds to wait for the page to be ready and to have drawn ten frames.
+
+    Every wait is for a condition with a bounded time-out, never for a length of time: on a busy
+    machine the page is only slower. A character's own time is its step count (``frame.n``, 60 a
+    second of motion): :meth:`hold` holds keys for that many steps, however long they take.
+    """
+
+    def __init__(self, browser, url: str, width: int = 960, height: int = 600, init_script: str = None,
+                 route=None, keep_frames: bool = False, ready: float = 60.0):
+        import json
+        self.url, self.messages, self.requests, self.sockets, self.frames = url, [], [], [], []
+        self.page = browser.new_page(viewport={"width": width, "height": height})
+        if init_script:
+            self.page.add_init_script(init_script)
+        self.page.on("console", lambda m: self.messages.append((m.type, m.text)))
+        self.page.on("pageerror", lambda e: self.messages.append(("pageerror", str(e))))
+        self.page.on("request", lambda r: self.requests.append(r.url))
+        self.page.on("websocket", lambda w: self.sockets.append(w.url))
+        if keep_frames:
+            def received(payload):
+                if isinstance(payload, str) and payload.startswith('{"type":"frame"'):
+                    self.frames.append(json.loads(payload))
+            self.page.on("websocket", lambda w: w.on("framereceived", received))
+        if route:
+            self.page.route_web_socket("**/ws", route)
+        self.page.goto(url)
+        self.wait("window.minifilmDemo && minifilmDemo.ready && minifilmDemo.frames > 10", timeout=ready)
+
+    def js(self, expression, arg=None):
+        return self.page.evaluate(expression, arg)
+
+    def wait(self, condition, timeout: float = 30.0, poll: float = 0.05):
+        """Poll ``condition`` (a JavaScript expression, or a Python callable) until it is true;
+        returns its value. (Not page.wait_for_function: it evaluates strings with eval, which the
+        page's Content-Security-Policy forbids, as it should.)"""
+        import time
+        end = time.monotonic() + timeout
+        while True:
+            value = condition() if callable(condition) else self.js(condition)
+            if value:
+                return value
+            if time.monotonic() > end:
+                raise TimeoutError(f"not true within {timeout} s: {condition}")
+            self.page.wait_for_timeout(int(poll * 1000))
+
+    def frame(self) -> dict:
+        """The newest frame the page has (``minifilmDemo.frame``)."""
+        return self.js("minifilmDemo.frame")
+
+    def steps_on(self, steps: int, timeout: float = None) -> dict:
+        """The first frame ``steps`` network steps after the newest one now (the character's own
+        time: ``steps / 60`` s of motion, however long a busy machine takes to make them)."""
+        start = self.frame()["n"]
+        timeout = timeout if timeout is not None else 60.0 + steps / 6.0     # a tenth of real time, and more
+        self.wait(f"minifilmDemo.frame.n >= {start + int(steps)}", timeout=timeout)
+        return self.frame()
+
+    def applied(self, timeout: float = 60.0) -> dict:
+        """The first frame made after every message the page has sent was applied (its ``ack``):
+        on a loaded machine a key press reaches the character a second or more after it is made."""
+        self.wait("minifilmDemo.frame.ack !== null ? minifilmDemo.frame.ack >= minifilmDemo.sent"
+                  " : minifilmDemo.sent === 0", timeout=timeout)
+        return self.frame()
+
+    def hold(self, keys, steps: int, until: str = None):
+        """(frame before, frame after) holding ``keys`` (one name or a list) for ``steps`` network
+        steps of the character counted from when the press reached it (and, with ``until``, until
+        that JavaScript condition holds too); the keys are released after, in reverse order, and
+        the release waited for."""
+        keys = [keys] if isinstance(keys, str) else list(keys)
+        before = self.frame()
+        for key in keys:
+            self.page.keyboard.down(key)
+        try:
+            self.applied()
+            after = self.steps_on(steps)
+            if until:
+                self.wait(until, timeout=60.0 + steps / 6.0)
+                after = self.frame()
+        finally:
+            for key in reversed(keys):
+                self.page.keyboard.up(key)
+        self.applied()
+        return before, after
+
+    def mark(self) -> int:
+        """A point in ``frames`` (its length now) for :meth:`since`."""
+        return len(self.frames)
+
+    def since(self, mark: int) -> list:
+        return self.frames[mark:]
+
+    def errors(self):
+        return [m for m in self.messages if m[0] in ("error", "pageerror")]
+
+    def close(self):
+        self.page.close()

@@ -3,12 +3,14 @@ of its own on 127.0.0.1, as a user runs it (in the test's process, the test's mu
 and the browser driver's work on the GIL slowed the frame loop several times over).
 
 Checked: it loads with no console error and makes no request off 127.0.0.1; holding W for 2 s
-walks the character's root at least 1 m along its facing; holding D moves it to its right;
+of the character's time (120 network steps) walks its root at least 1 m along its facing; holding D moves it to its right;
 choosing another style changes the motion; the blend triangle at a corner is exactly that
 style (the frames carry a fingerprint of the FiLM vector that made them); toggles and a gamepad
 reach the server; closing the tab frees the character for another page. The motion checks need
 the authors' released network (a miniature model trained in a second does not follow commands);
-without it the page is served from a miniature run folder and they skip.
+without it the page is served from a miniature run folder and they skip. Every wait is for a
+condition (the frames the page shows), never for a length of wall time: keys are held for a number
+of the character's steps (``DemoPage.hold``), so a loaded machine is only slower.
 """
 import importlib.util
 import io
@@ -16,7 +18,7 @@ import time
 
 import numpy as np
 import pytest
-from demo_helpers import RELEASED, browser, make_tiny_run  # noqa: F401  (browser: a fixture)
+from demo_helpers import RELEASED, DemoPage, browser, make_tiny_run  # noqa: F401  (browser: a fixture)
 from repo_paths import need_data
 
 from minifilm.demo.client import DemoClient
@@ -45,62 +47,16 @@ def server(tmp_path_factory):
     s.stop()
 
 
-class Page:
-    """A demo page open in the browser, with everything it logged and requested."""
-
-    def __init__(self, browser, server, init_script=None):
-        self.server, self.messages, self.requests, self.sockets = server, [], [], []
-        self.page = browser.new_page(viewport={"width": 960, "height": 600})
-        if init_script:
-            self.page.add_init_script(init_script)
-        self.page.on("console", lambda m: self.messages.append((m.type, m.text)))
-        self.page.on("pageerror", lambda e: self.messages.append(("pageerror", str(e))))
-        self.page.on("request", lambda r: self.requests.append(r.url))
-        self.page.on("websocket", lambda w: self.sockets.append(w.url))
-        self.page.goto(server.url)
-        self.wait("window.minifilmDemo && minifilmDemo.ready && minifilmDemo.frames > 10", timeout=30)
-
-    def js(self, expression, arg=None):
-        return self.page.evaluate(expression, arg)
-
-    def wait(self, expression: str, timeout: float = 10.0):
-        """Poll ``expression`` until it is true. (Not page.wait_for_function: it evaluates strings
-        with eval, which the page's Content-Security-Policy forbids, as it should.)"""
-        for _ in range(int(timeout / 0.05)):
-            value = self.js(expression)
-            if value:
-                return value
-            self.page.wait_for_timeout(50)
-        raise TimeoutError(f"not true within {timeout} s: {expression}")
-
-    def frame(self) -> dict:
-        return self.js("minifilmDemo.frame")
-
-    def hold(self, key: str, seconds: float):
-        """(frame before, frame after) holding ``key`` for ``seconds``; the key is released after."""
-        before = self.frame()
-        self.page.keyboard.down(key)
-        self.page.wait_for_timeout(int(seconds * 1000))
-        after = self.frame()
-        self.page.keyboard.up(key)
-        return before, after
-
-    def errors(self):
-        return [m for m in self.messages if m[0] in ("error", "pageerror")]
-
-    def close(self):
-        self.page.close()
-
-
 @pytest.fixture
 def page(browser, server):
-    p = Page(browser, server)
+    p = DemoPage(browser, server.url)
     yield p
     p.close()
 
 
-def settle(page, seconds=0.6):
-    page.page.wait_for_timeout(int(seconds * 1000))
+def settle(page, steps=36):
+    """Let the character go on for ``steps`` network steps (its own time: 36 are 0.6 s of motion)."""
+    page.steps_on(steps)
 
 
 def unfold(page, section):
@@ -132,7 +88,7 @@ def test_page_loads_without_errors_and_requests_nothing_off_this_machine(page, s
 
 def test_holding_w_for_two_seconds_walks_a_metre_along_the_facing(page, released):
     settle(page)
-    before, after = page.hold("KeyW", 2.0)
+    before, after = page.hold("KeyW", 120)
     step = np.subtract(after["root"], before["root"])
     assert step @ np.array(before["facing"]) >= 1.0, (before, after)
     assert page.frame()["ack"] is not None and page.errors() == []
@@ -140,7 +96,7 @@ def test_holding_w_for_two_seconds_walks_a_metre_along_the_facing(page, released
 
 def test_holding_d_moves_the_character_to_its_right(page, released):
     settle(page)
-    before, after = page.hold("KeyD", 2.0)
+    before, after = page.hold("KeyD", 120)
     step = np.subtract(after["root"], before["root"])
     facing = np.array(before["facing"])
     assert step @ right_of(facing) > 0.3 and step @ right_of(facing) > abs(step @ facing), (before, after)
@@ -151,20 +107,20 @@ def test_choosing_another_style_changes_the_motion(page, released):
     wrists = [joints.index("LeftWrist"), joints.index("RightWrist")]
     head = joints.index("Head")
 
-    def hands_below_head(seconds=1.0):
+    def hands_below_head(steps=60):
+        """The mean over ten frames spread over ``steps`` network steps (a second of motion)."""
         values = []
-        for _ in range(int(seconds * 10)):
-            p = np.array(page.frame()["positions"]).reshape(-1, 3)
+        for _ in range(10):
+            p = np.array(page.steps_on(steps // 10)["positions"]).reshape(-1, 3)
             values.append(p[head, 1] - p[wrists, 1].mean())
-            page.page.wait_for_timeout(100)
         return float(np.mean(values))
 
     page.page.keyboard.down("KeyW")
-    settle(page, 1.0)
+    settle(page, 60)
     neutral = hands_below_head()
     page.page.select_option("#style", "ArmsAboveHead")
     page.wait("minifilmDemo.frame.weights.ArmsAboveHead === 1")
-    settle(page, 1.0)
+    settle(page, 60)
     raised = hands_below_head()
     page.page.keyboard.up("KeyW")
     assert neutral > 0.5 and raised < neutral - 0.4, (neutral, raised)   # the hands go up above the head
@@ -211,7 +167,7 @@ navigator.getGamepads = () => [{ connected: true, axes: [0, -1, 0, 0],
 
 
 def test_a_gamepads_left_stick_moves_the_character(browser, server):
-    p = Page(browser, server, init_script=GAMEPAD)                    # a pad held forward, from the start
+    p = DemoPage(browser, server.url, init_script=GAMEPAD)                   # a pad held forward, from the start
     try:
         p.wait("minifilmDemo.frame.commanded > 0")
         f = p.frame()
@@ -230,13 +186,12 @@ navigator.getGamepads = () => [{ connected: true, axes: [0, -1, 1, 0],
 def test_a_gamepads_right_stick_turns_and_its_trigger_runs(browser, server):
     # right stick fully right: the heading turns (clockwise seen from above, as E); right trigger
     # fully pressed: the commanded speed is the run speed
-    p = Page(browser, server, init_script=PAD_TURNING_AND_RUNNING)
+    p = DemoPage(browser, server.url, init_script=PAD_TURNING_AND_RUNNING)
     try:
         run_speed = p.js("minifilmDemo.hello.speeds.run")
         p.wait(f"minifilmDemo.frame.commanded > {0.99 * run_speed}")
         first = np.array(p.frame()["heading"])
-        time.sleep(1.0)
-        later = np.array(p.frame()["heading"])
+        later = np.array(p.steps_on(60)["heading"])               # a second of the character's time
         theta = lambda h: np.arctan2(h[0], h[1])                   # heading (sin θ, cos θ); right lowers θ
         turned = np.degrees(np.angle(np.exp(1j * (theta(later) - theta(first)))))
         assert turned < -20.0, (first, later)                     # to the right, as E turns
@@ -247,7 +202,7 @@ def test_a_gamepads_right_stick_turns_and_its_trigger_runs(browser, server):
 
 
 def test_closing_the_tab_frees_its_character(browser, server):
-    tab = Page(browser, server)
+    tab = DemoPage(browser, server.url)
     others = [DemoClient(server.url) for _ in range(3)]           # with the tab: all 4 characters taken
     try:
         with DemoClient(server.url) as fifth:
@@ -275,18 +230,18 @@ def readouts(page) -> dict:
 
 def test_read_outs_show_a_dash_until_they_have_data(page):
     # no key pressed yet: the page has sent nothing, so there is no input -> motion time to show
-    settle(page, 1.5)
+    settle(page, 90)
     assert page.js("minifilmDemo.sent") == 0 and page.js("minifilmDemo.latencyMs") is None
     values = readouts(page)
     assert values["latency"] == DASH, values
     assert values["fps"].endswith(" / s") and values["commanded"].endswith(" m/s"), values
-    page.hold("KeyW", 0.5)
+    page.hold("KeyW", 30)
     page.wait(f"document.getElementById('latency').textContent !== '{DASH}'")
     assert readouts(page)["latency"].endswith(" ms") and page.js("minifilmDemo.latencyMs") > 0
 
 
 def test_the_trail_stays_drawn_after_ten_seconds_of_walking(page, released):
-    page.hold("KeyW", 10.0)
+    page.hold("KeyW", 600, until="minifilmDemo.trail().count >= 200")   # under load fewer frames reach the page
     trail = page.js("minifilmDemo.trail()")
     points = np.array(trail["points"]).reshape(-1, 3)
     assert trail["count"] == len(points) >= 200                       # drawn: the whole kept path
@@ -297,10 +252,11 @@ def test_the_trail_stays_drawn_after_ten_seconds_of_walking(page, released):
 
 
 def test_back_to_the_start_leaves_no_stray_segment(page, released):
-    page.hold("KeyW", 3.0)
+    page.hold("KeyW", 180)
     page.page.click("#reset")
     page.wait("minifilmDemo.frame.ack !== null && Math.hypot(...minifilmDemo.frame.root) < 0.3")
-    settle(page, 0.5)
+    settle(page, 30)
+    page.wait("minifilmDemo.trail().count > 5")                       # a point per frame the page gets
     points = np.array(page.js("minifilmDemo.trail()")["points"]).reshape(-1, 3)[:, [0, 2]]
     steps = np.hypot(*np.diff(points, axis=0).T)
     assert len(points) > 5 and np.hypot(*points[0]) < 0.3, points[:3]   # the path starts again at the start
@@ -380,7 +336,7 @@ def test_the_camera_switch_moves_the_camera(page):
     page.page.keyboard.press("KeyP")                                     # pause: the picture stops
     assert page.js("minifilmDemo.paused") is True
     shown = page.js("minifilmDemo.shownJoints()")
-    settle(page, 0.5)
+    settle(page, 30)
     assert page.js("minifilmDemo.shownJoints()") == shown
     page.page.keyboard.press("KeyP")
     assert page.js("minifilmDemo.paused") is False and page.errors() == []

@@ -1,8 +1,9 @@
 """Speed calibration in the demo (minifilm/demo/calibrations.py): the released network is commanded
 through its style's calibration (a mix through the mix of the commands), other styles are measured
-in a worker process when first asked for, and sources that need none pass velocities unchanged."""
+in slices (the frame loop's idle time) when first asked for, to the same speeds as measured all at
+once, and sources that need none pass velocities unchanged."""
 import time
-from pathlib import Path
+from dataclasses import replace
 
 import numpy as np
 
@@ -38,18 +39,53 @@ def test_commands_go_through_the_styles_calibration(released_source, monkeypatch
     assert not cal.command(np.zeros(2), facing, {"Neutral": 1.0}).any()
 
 
-def test_other_styles_are_measured_in_a_worker_process(released_source):
+def test_other_styles_are_measured_in_slices_when_first_asked_for(released_source):
     cal = Calibrations(released_source, first=[], background=True)
-    try:
-        cal.request(["Zombie", "Zombie"])
-        end = time.monotonic() + 600     # at nice 10 behind a dozen other jobs on two cores: minutes
-        while not cal.has("Zombie") and time.monotonic() < end:
-            time.sleep(0.1)
-        assert cal.has("Zombie")
-        command = cal.command(np.array([0.0, 1.0]), np.array([0.0, 1.0]), {"Zombie": 1.0})
-        assert command[0] == 0.0 and command[1] > 1.5               # the network walks slower than asked
-    finally:
-        cal.close()
+    woken = []
+    cal.on_request = lambda: woken.append(1)
+    cal.request(["Zombie", "Zombie"])
+    assert woken == [1] and cal.pending() and cal.requested == 1 and not cal.has("Zombie")
+    slices = 0
+    while cal.pending():
+        cal.run_slice()
+        slices += 1
+        assert slices <= 500
+    # the Controller made, then reset, then 480 network steps (8 s at 60 fps), then the result
+    assert slices == 483 and cal.has("Zombie") and cal.progress()["state"] == "done"
+    command = cal.command(np.array([0.0, 1.0]), np.array([0.0, 1.0]), {"Zombie": 1.0})
+    assert command[0] == 0.0 and command[1] > 1.5               # the network walks slower than asked
+    cal.request(["Zombie"])                                     # measured: nothing more to do
+    assert not cal.pending() and woken == [1]
+
+
+def test_a_calibration_measured_in_slices_is_the_one_measured_at_once(tiny_source):
+    # a trained run's source is never calibrated by the demo; told to, its small network measures fast
+    source = replace(tiny_source, calibrate=True)
+    name = source.library.names[-1]                                # a style with its own start frame
+    assert name in source.starts
+    at_once = calibrations.measure(source, name)
+    cal = Calibrations(source, first=[], background=True)
+    cal.request([name])
+    while cal.pending():
+        cal.run_slice()
+    sliced = cal._cal[name]
+    np.testing.assert_array_equal(sliced.commanded, at_once.commanded)
+    np.testing.assert_array_equal(sliced.achieved, at_once.achieved)
+    np.testing.assert_array_equal(sliced.directions, at_once.directions)
+    assert at_once.achieved.max() > 0                              # it measured motion
+
+
+def test_closing_drops_the_measurement_in_hand_and_the_queue(released_source):
+    cal = Calibrations(released_source, first=[], background=True)
+    cal.request(["Zombie", "Old"])
+    for _ in range(5):
+        cal.run_slice()
+    assert cal.progress()["measuring"] == "Zombie"
+    cal.close()
+    assert not cal.pending()
+    cal.run_slice()                                             # a last call from the frame loop: nothing
+    cal.request(["Angry"])
+    assert not cal.pending() and not cal.has("Zombie")
 
 
 def test_sources_without_calibration_pass_velocities_unchanged(tiny_source):
@@ -57,15 +93,14 @@ def test_sources_without_calibration_pass_velocities_unchanged(tiny_source):
     assert not cal.enabled
     v = np.array([0.3, 1.1])
     np.testing.assert_array_equal(cal.command(v, np.array([0.0, 1.0]), {"Neutral": 1.0}), v)
-    cal.request(["LeftHop"])                                      # nothing to measure, no worker
-    assert cal._pool is None
+    cal.request(["LeftHop"])                                      # nothing to measure
+    assert not cal.pending()
 
 
 def test_sigterm_ends_the_server_at_once_with_calibrations_queued(released_source):
-    # One page asks for a mix of all 100 styles: 100 measurements queue for the worker (minutes of
-    # CPU at low priority). SIGTERM must still end the server, its worker with it, in seconds.
+    # One page asks for a mix of all 100 styles and then for ten single styles: measurements
+    # queue for the frame loop's idle time. SIGTERM must still end the server in seconds.
     import signal
-    import subprocess
 
     from demo_helpers import RELEASED
     from minifilm.demo.client import DemoClient
@@ -77,20 +112,16 @@ def test_sigterm_ends_the_server_at_once_with_calibrations_queued(released_sourc
             page.next_frame()
             names = page.hello["styles"]
             page.send({"type": "style", "weights": {n: 1 / len(names) for n in names}, "seconds": 1})
-            end = time.monotonic() + 30
-            workers = []
-            while not workers and time.monotonic() < end:   # until the worker process is measuring
-                time.sleep(0.2)
-                children = subprocess.run(["ps", "-ww", "-o", "pid=,args=", "--ppid", str(demo.proc.pid)],
-                                          capture_output=True, text=True).stdout.splitlines()
-                workers = [int(c.split()[0]) for c in children if "spawn_main" in c]
-            assert workers, "no calibration worker was started"
+            for n in names[:10]:
+                page.send({"type": "style", "weights": {n: 1.0}, "seconds": 1})
+            end = time.monotonic() + 120
+            while page.next_frame()["calibration"].get("state") != "measuring" and time.monotonic() < end:
+                pass
+            assert page.next_frame()["calibration"]["state"] == "measuring"
         demo.proc.send_signal(signal.SIGTERM)
         t0 = time.monotonic()
         demo.proc.wait(20)
         assert time.monotonic() - t0 < 10
-        time.sleep(0.5)
-        assert not any(Path(f"/proc/{pid}").exists() for pid in workers), "the worker outlived the server"
     finally:
         demo.stop()
 
@@ -103,16 +134,11 @@ def test_only_the_styles_that_matter_in_a_mix_are_measured_heaviest_first():
 
 
 def test_the_terminal_is_told_how_many_styles_are_queued_and_about_how_long(released_source):
-    import concurrent.futures
-
-    class NoWorker:                     # the pool's interface, without a process
-        def submit(self, fn, name):
-            return concurrent.futures.Future()
     logs = []
-    cal = Calibrations(released_source, background=False, log=logs.append)
-    cal._pool, cal._paces = NoWorker(), [6.0]
-    cal.requested = 100
-    cal._submit([f"S{i}" for i in range(100)])
+    cal = Calibrations(released_source, first=[], background=True, log=logs.append)
+    cal._paces = [6.0]
+    cal.request([f"S{i}" for i in range(100)])
     assert "100 style(s) queued, about 10 min at the pace so far" in logs[-1] and "and 95 more" in logs[-1]
     assert "minute or less" not in logs[-1]
     assert calibrations.estimate(12.0) == "10 s" and calibrations.estimate(600.0) == "10 min"
+    cal.close()

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 import pytest
-from demo_helpers import RELEASED, browser, make_tiny_run  # noqa: F401  (browser: a fixture)
+from demo_helpers import RELEASED, DemoPage, browser, make_tiny_run  # noqa: F401  (browser: a fixture)
 
 from minifilm.demo.process import DemoProcess
 
@@ -32,39 +32,9 @@ def server(tmp_path_factory):
     s.stop()
 
 
-class Page:
-    def __init__(self, browser, server, width=960, height=600, route=None):
-        self.messages = []
-        self.page = browser.new_page(viewport={"width": width, "height": height})
-        self.page.on("console", lambda m: self.messages.append((m.type, m.text)))
-        self.page.on("pageerror", lambda e: self.messages.append(("pageerror", str(e))))
-        if route:
-            self.page.route_web_socket("**/ws", route)
-        self.page.goto(server.url)
-        self.wait("window.minifilmDemo && minifilmDemo.ready && minifilmDemo.frames > 10", timeout=60)
-
-    def js(self, expression, arg=None):
-        return self.page.evaluate(expression, arg)
-
-    def wait(self, expression: str, timeout: float = 30.0):
-        """Poll ``expression`` until true (not wait_for_function: the page's CSP forbids eval)."""
-        for _ in range(int(timeout / 0.05)):
-            value = self.js(expression)
-            if value:
-                return value
-            self.page.wait_for_timeout(50)
-        raise TimeoutError(f"not true within {timeout} s: {expression}")
-
-    def errors(self):
-        return [m for m in self.messages if m[0] in ("error", "pageerror")]
-
-    def close(self):
-        self.page.close()
-
-
 @pytest.fixture
 def page(browser, server):
-    p = Page(browser, server)
+    p = DemoPage(browser, server.url)
     yield p
     p.close()
 
@@ -171,7 +141,7 @@ def boxes(page, selector=PANEL_CONTROLS):
 
 @pytest.mark.parametrize("width,height", [(800, 600), (1024, 768), (1280, 900)])
 def test_the_whole_panel_is_in_the_window(browser, server, width, height):
-    p = Page(browser, server, width, height)
+    p = DemoPage(browser, server.url, width, height)
     try:
         panel = p.js("(() => { const e = document.getElementById('panel'); return [e.scrollHeight, e.clientHeight,"
                      " e.scrollWidth, e.clientWidth]; })()")
@@ -227,7 +197,7 @@ def with_speed_note(ws):
 
 
 def test_a_speed_note_moves_none_of_the_read_outs(browser, server):
-    p = Page(browser, server, 800, 600, route=with_speed_note)
+    p = DemoPage(browser, server.url, 800, 600, route=with_speed_note)
     try:
         p.wait("document.getElementById('commanded').textContent.endsWith('m/s')")
         before = boxes(p)
@@ -247,12 +217,12 @@ def test_a_speed_note_moves_none_of_the_read_outs(browser, server):
 
 
 def test_the_character_has_the_same_colour_on_every_connection(browser, server):
-    first = Page(browser, server)
+    first = DemoPage(browser, server.url)
     try:
         ident, colour = first.js("minifilmDemo.hello.id"), first.js("minifilmDemo.shownColour()")
     finally:
         first.close()
-    second = Page(browser, server)
+    second = DemoPage(browser, server.url)
     try:
         assert second.js("minifilmDemo.hello.id") != ident                 # another character...
         assert second.js("minifilmDemo.shownColour()") == colour            # ...the same colour

@@ -207,6 +207,30 @@ def test_calibrate_speed_measures_each_command_and_direction_after_settling():
         calibrate_speed(ctl, film, seconds=2.0, settle=2.0)
 
 
+def test_calibration_step_by_step_is_the_calibration_at_once():
+    """calibrate_speed_stepwise (a generator: one network step per next(), for the demo's frame
+    loop) measures exactly what calibrate_speed measures, on a random network that moves."""
+    from minifilm.runtime.calibration import calibrate_speed, calibrate_speed_stepwise
+    rng = np.random.default_rng(3)
+    cfg = ModelConfig.tiny(x_dim=LAYOUT.x_dim, z_dim=LAYOUT.z_dim)
+    model = StyleModel(cfg, rng, dtype=np.float64)
+    net = RuntimeNetwork.from_model(model, random_stats(LAYOUT, rng), dtype=np.float64)
+    film, kw = rng.normal(size=cfg.film_dim), dict(commands=(0.5, 2.0), directions=(0.0, 90.0), seconds=1.0, settle=0.5)
+    at_once = calibrate_speed(Controller(net, LAYOUT), film, **kw)
+    steps = calibrate_speed_stepwise(Controller(net, LAYOUT), film, **kw)
+    yields = 0
+    try:
+        while True:
+            next(steps)
+            yields += 1
+    except StopIteration as done:
+        stepwise = done.value
+    assert yields == 1 + 60                                       # the reset, then each of the 60 frames
+    np.testing.assert_array_equal(stepwise.achieved, at_once.achieved)
+    np.testing.assert_array_equal(stepwise.commanded, at_once.commanded)
+    assert at_once.achieved.max() > 0
+
+
 def test_per_frame_films_reach_the_network_in_order():
     net, script, stats, a, u = glide_setup()
     seen = []
