@@ -44,7 +44,11 @@ def released_folder(args):
         return None, None
     if not isinstance(info, dict) or info.get("made_by") != MADE_BY or not info.get("params"):
         return None, None
-    return Path(str(info["params"])), "the data set's dataset.json"
+    folder = Path(str(info["params"]))
+    # older data sets hold the path as given, relative to where `dataset` ran: try beside the data too
+    if not folder.is_absolute() and not folder.is_dir() and (marker.parent / folder).is_dir():
+        folder = marker.parent / folder
+    return folder, "the data set's dataset.json"
 
 
 def thin(rollout, step: int):

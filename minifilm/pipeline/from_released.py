@@ -225,7 +225,7 @@ def make_released_dataset(params: Path, out: Path, settings: ReleasedDataSetting
                 log(f"{gait}: {len(names)} styles x {(n - w) / fps:.1f} s in {time.perf_counter() - t0:.1f} s")
                 t0 = time.perf_counter()
         write_manifest([MotionFile(tmp / f.path.name, f.style, f.gait) for f in files], tmp / "manifest.csv")
-        info = dict(made_by=MADE_BY, params=str(params),
+        info = dict(made_by=MADE_BY, params=str(Path(params).resolve()),  # absolute: read from any folder
                     settings={k: (list(v) if isinstance(v, (tuple, list)) else v) for k, v in asdict(s).items()},
                     styles=names, gaits=list(s.gaits), fps=fps, files=described)
         if s.check_labels:

@@ -208,3 +208,19 @@ def test_the_released_network_is_found_through_the_data_sets_description(tmp_pat
     (data / "dataset.json").write_text(json.dumps({"made_by": "someone else", "params": "x"}))
     assert released_folder(args) == (None, None)
     assert released_folder(types.SimpleNamespace(released=None, data="synthetic")) == (None, None)
+
+
+def test_an_older_data_sets_relative_network_path_is_read_beside_the_data(tmp_path, monkeypatch):
+    """Data sets made before the path was written absolutely hold it relative to where `dataset` ran."""
+    import json
+    from minifilm.dataset.manifest import MADE_BY
+    from minifilm.evaluation.compare_released import released_folder
+    data = tmp_path / "work" / "data"
+    (tmp_path / "work" / "net").mkdir(parents=True)
+    data.mkdir()
+    (data / "dataset.json").write_text(json.dumps({"made_by": MADE_BY, "params": "../net"}))
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)                    # not where the data set was made
+    folder, _ = released_folder(types.SimpleNamespace(released=None, data=str(data)))
+    assert folder.resolve() == (tmp_path / "work" / "net").resolve()

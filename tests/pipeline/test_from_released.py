@@ -3,6 +3,7 @@
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -140,6 +141,8 @@ def test_writes_100style_files_and_a_manifest(made):
         {(s, g) for s in STYLES for g in GAIT_SHARES}
     info = json.loads((out / "dataset.json").read_text())
     assert info["styles"] == list(STYLES) and len(info["files"]) == 16
+    # the network's folder is named absolutely, so `compare` finds it from any working folder
+    assert Path(info["params"]).is_absolute() and Path(info["params"]).resolve() == Path(made[0]).resolve()
     assert "FW:" in proc.stderr + proc.stdout and "Neutral" in proc.stdout
 
 
