@@ -47,7 +47,7 @@ SPLIT = "auto"              # your data: "files", "segments" or "auto" (Settings
 MIRROR = False              # your data: also train on every file's left/right mirror
 FPS = None                  # your data: resample every file to this rate
 RIG = None                  # your data: retarget every file onto this rig first
-WORKERS = 1                 # processes that share each minibatch (None: every core this may use)
+WORKERS = None              # processes sharing each minibatch (None: every core, one per clip at most)
 
 # One BLAS thread, set before numpy loads: the matrices are small, and on a shared machine a second
 # thread made steps slower (benchmarks/README.md), as for `minifilm train`.

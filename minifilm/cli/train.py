@@ -50,10 +50,11 @@ def add_arguments(parser) -> None:
     parser.add_argument("--clips-per-batch", type=in_range(1, 4096, int), default=d.clips_per_batch,
                         help="style clips per minibatch, shared by its samples (default "
                              f"{d.clips_per_batch}; 32 = one clip per sample, as the paper)")
-    parser.add_argument("--workers", type=in_range(1, 1024, int), default=1,
-                        help="processes computing each minibatch's gradients, one BLAS thread each (default 1: "
-                             "the main job's small steps are faster in one process, benchmarks/README.md; "
-                             "the results are the same for any number)")
+    parser.add_argument("--workers", type=in_range(1, 1024, int), default=None,
+                        help="processes computing each minibatch's gradients, one BLAS thread each (default: "
+                             "every core this process may use, at most one per style clip of a minibatch; "
+                             "give 1 on a busy machine, where a second process only splits one core's share "
+                             "(benchmarks/README.md); the results are the same to float32 round-off)")
 
 
 def settings(args) -> Settings:

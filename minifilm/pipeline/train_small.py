@@ -93,9 +93,9 @@ class Settings:
     fps: Optional[float] = None          # your own data: resample every file to this rate (None: as recorded)
     rig: Optional[str] = None            # your own data: retarget every file onto this rig first (docs/retargeting.md)
     # processes computing each minibatch's gradients, one BLAS thread each (minifilm/train/parallel.py);
-    # None: every core this process may use. The results do not depend on it (to float32 round-off).
-    # 1: the small model's 6.5 ms steps are slower split across processes (benchmarks/README.md)
-    workers: Optional[int] = 1
+    # None: every core this process may use, at most one per style clip of a minibatch
+    # (parallel.default_workers). The results do not depend on it (to float32 round-off).
+    workers: Optional[int] = None
 
     def quick(self) -> "Settings":
         """A much smaller run of every step (seconds instead of minutes)."""

@@ -405,11 +405,18 @@ class DataParallel:
         return False
 
 
+def default_workers(trainer) -> int:
+    """Every usable core, but no more workers than the style clips a minibatch shares: a worker
+    without a clip of its own would run Psi on a clip another worker runs too."""
+    clips = trainer.config.clips_per_batch or trainer.config.batch_size
+    return max(1, min(usable_cores(), clips))
+
+
 @contextlib.contextmanager
 def data_parallel(trainer, workers: int | None = None):
-    """A :class:`DataParallel` for ``trainer`` with ``workers`` processes (None: every usable core),
+    """A :class:`DataParallel` for ``trainer`` with ``workers`` processes (None: default_workers),
     or None -- train in this process -- for 1 worker or a model that cannot be split."""
-    n = usable_cores() if workers is None else int(workers)
+    n = default_workers(trainer) if workers is None else int(workers)
     if n < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
     if n == 1 or not supports(trainer.model):
