@@ -183,11 +183,12 @@ def test_all_finite_agrees_with_the_number_by_number_test():
 
 def test_the_default_is_every_usable_core_but_no_more_workers_than_shared_clips(monkeypatch):
     import minifilm.train.parallel as parallel
-    monkeypatch.setattr(parallel, "usable_cores", lambda: 16)
+    import minifilm.train.parallel_shares as split
+    monkeypatch.setattr(split, "usable_cores", lambda: 16)
     assert parallel.default_workers(trainer(clips_per_batch=4)) == 4        # one clip each at most
     assert parallel.default_workers(trainer(clips_per_batch=None)) == 16    # a clip per sample: 16 rows
-    monkeypatch.setattr(parallel, "usable_cores", lambda: 2)
+    monkeypatch.setattr(split, "usable_cores", lambda: 2)
     assert parallel.default_workers(trainer(clips_per_batch=4)) == 2
-    monkeypatch.setattr(parallel, "usable_cores", lambda: 1)
+    monkeypatch.setattr(split, "usable_cores", lambda: 1)
     with parallel.data_parallel(trainer(clips_per_batch=4)) as pool:
         assert pool is None                                                 # one core: this process
