@@ -10,7 +10,6 @@ data set's rate before it is measured, so the style classifier sees the rate it 
 """
 from __future__ import annotations
 
-import os
 from dataclasses import fields, replace
 from pathlib import Path
 
@@ -51,6 +50,12 @@ def released_folder(args):
     return folder, "the data set's dataset.json"
 
 
+def report_name(folder: Path) -> str:
+    """How a report names the network's folder: its own name, never a path (a path relative to
+    where the command ran still spells out that machine's folders)."""
+    return Path(folder).resolve().name or str(folder)
+
+
 def thin(rollout, step: int):
     """Every ``step``-th frame of a Rollout (all its per-frame arrays), fps divided by ``step``."""
     if step == 1:
@@ -66,7 +71,7 @@ def released_rollout(ctx, args):
     folder, named_by = released_folder(args)
     if folder is None:
         return None
-    shown = os.path.relpath(folder) if folder.is_absolute() else str(folder)    # no machine's path in the report
+    shown = report_name(folder)
     if not folder.is_dir():
         if named_by == "--released":
             raise InputError(f"--released {folder}: no such folder")

@@ -1,5 +1,6 @@
 """The comparison's convergence curves, claim measures and verdicts, on inputs with known answers."""
 import types
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -208,6 +209,16 @@ def test_the_released_network_is_found_through_the_data_sets_description(tmp_pat
     (data / "dataset.json").write_text(json.dumps({"made_by": "someone else", "params": "x"}))
     assert released_folder(args) == (None, None)
     assert released_folder(types.SimpleNamespace(released=None, data="synthetic")) == (None, None)
+
+
+def test_a_report_names_the_network_by_its_folders_name_alone(tmp_path, monkeypatch):
+    from minifilm.evaluation.compare_released import report_name
+    net = tmp_path / "deep" / "inside" / "released-lpn"
+    net.mkdir(parents=True)
+    monkeypatch.chdir(tmp_path / "deep")
+    assert report_name(net) == "released-lpn"
+    assert report_name(Path("inside/released-lpn")) == "released-lpn"
+    assert report_name(Path("inside/released-lpn/")) == "released-lpn"
 
 
 def test_an_older_data_sets_relative_network_path_is_read_beside_the_data(tmp_path, monkeypatch):
