@@ -30,6 +30,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import shutil
 import time
 from dataclasses import replace
@@ -124,6 +125,12 @@ def gait_windows(controller: Controller, films: np.ndarray, names, gaits, second
         for b, block in enumerate(blocks):
             out[(names[first + b], gait)] = window_summary(cut_windows(block, window, stride))
     return out
+
+
+def cpu_seconds() -> float:
+    """CPU time of this process and of its finished children (training's worker processes)."""
+    own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
 
 
 def trained_gaits(run: RunFolder):
@@ -297,6 +304,8 @@ def main():
     ap.add_argument("--hidden", type=int, help="hidden units of Φ (default: the small model's 128)")
     ap.add_argument("--input-noise", type=float, default=0.0, help="training: Gaussian noise on the normalised "
                     "inputs (TrainConfig.input_noise; 0 = the paper)")
+    ap.add_argument("--fps", type=float, help="resample every file to this rate (data of several frame rates, "
+                    "e.g. real capture beside the released network's: studies/real_capture_base.py)")
     ap.add_argument("--clip-seconds", type=float, default=30.0)
     ap.add_argument("--steps", type=int, default=400, help="fine-tuning steps")
     ap.add_argument("--generate-seconds", type=float, default=10.0)
@@ -331,12 +340,12 @@ def main():
     s = replace(Settings(), epochs=a.epochs, generate_seconds=a.generate_seconds, seed=0)
     if a.quick:
         s = replace(s.quick(), epochs=a.epochs, generate_seconds=a.generate_seconds)
-    s = replace(s, out=run_dir, input_noise=a.input_noise, model=dict(s.model, **({"hidden": a.hidden} if a.hidden else {})))
+    s = replace(s, out=run_dir, input_noise=a.input_noise, fps=a.fps, model=dict(s.model, **({"hidden": a.hidden} if a.hidden else {})))
     if not a.reuse_run:
-        t0, c0 = time.perf_counter(), time.process_time()
+        t0, c0 = time.perf_counter(), cpu_seconds()
         result = train_run(s, a.trained / "manifest.csv")
         report["train_seconds"] = time.perf_counter() - t0
-        report["train_cpu_seconds"] = time.process_time() - c0
+        report["train_cpu_seconds"] = cpu_seconds() - c0
         report["test_mse"] = {k: v for k, v in result.items() if k != "recognition"}
         report["train_recognition"] = result["recognition"]
         print(f"[study] training: {report['train_seconds']:.0f} s, {report['train_cpu_seconds']:.0f} CPU s "
@@ -390,7 +399,7 @@ def main():
             clip, secs = clip_files(held_files, h, a.clip_seconds)
             t0 = time.perf_counter()
             taught = teach_style(folder, h, [f.path for f in clip], steps=a.steps, log=lambda m: None,
-                                 self_fed=VARIANTS[v], replace=True)
+                                 self_fed=VARIANTS[v])            # a new style: --replace would be an error
             took = time.perf_counter() - t0
             report["finetune"][f"{v}/{h}"] = dict(
                 seconds=took, clip_seconds=secs, files=[Path(f.path).name for f in clip], loss_before=taught.loss_before,
@@ -416,7 +425,7 @@ def main():
     reference = [f for f in trained_files + held_files if not a.reference_gaits or f.gait in a.reference_gaits]
     every = write_manifest(reference, a.work / ("all.csv" if not a.reference_gaits else
                                                 "reference-" + "-".join(a.reference_gaits) + ".csv"))
-    ds = build_dataset(every, cache_dir=a.work / "cache", progress=False, clip_seconds=s.clip_seconds,
+    ds = build_dataset(every, cache_dir=a.work / "cache", progress=False, clip_seconds=s.clip_seconds, fps=a.fps,
                        clip_stride_seconds=s.clip_seconds / 2, seed=s.seed, split_unit="files")
     t0 = time.perf_counter()
     names = trained + [f"{v}/{h}" for v in a.variants for h in held]
