@@ -10,7 +10,7 @@ styles held out to be taught from 30 s with Ψ alone.
 This script writes the two data folders' manifests (and the retargeted files they name):
 
 * ``trained/manifest.csv``: every file of the released network's data set, and the real styles
-  trained on: Bandai-Namco-2 normal, Bandai-Namco-1 normal, proud, old and tired, each capped at
+  trained on: Bandai-Namco-2 normal, Bandai-Namco-1 normal, proud and old, each capped at
   ``--seconds`` spread over its kinds of motion (walk, run, turns, ...);
 * ``held/manifest.csv``: the held-out real styles, Bandai-Namco-2 active, elderly, exhausted and
   feminine (up to ``--held-seconds`` each): dense_study teaches each from its first 30 s of walking
@@ -50,6 +50,7 @@ KINDS = {"walk": ("FW", 0.5), "run": ("FR", 0.3), "walk-turn-left": ("TR1", 0.1)
 TRAINED = {"bandai2": ("normal",), "bvh/bandai1": ("normal", "proud", "old", "tired")}
 HELD = {"bandai2": ("active", "elderly", "exhausted", "feminine")}
 SHORTEST = 3.0      # seconds: a file shorter than a 2 s style clip beside the 2 s trajectory window is skipped
+SHORTEST_STYLE = 8.0  # seconds of a style in all (Bandai-Namco-1's tired run, 4.4 s, is left out)
 NAME = re.compile(r"^dataset-(\d)_([a-z-]+)_([a-z]+)_(\d+)\.bvh$")
 
 
@@ -71,7 +72,8 @@ def chosen_files(folder: Path, styles, seconds: float) -> dict:
                 continue
             out[style].append((p, gait))
             total += bvh_duration(p)
-    return out
+    # a style needs a 2 s clip inside its training share (80 % of each file) beside the 2 s window
+    return {k: v for k, v in out.items() if sum(bvh_duration(p) for p, _ in v) >= SHORTEST_STYLE}
 
 
 def write_folder(groups: dict, folder: Path, extra=()) -> int:
