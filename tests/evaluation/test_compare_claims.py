@@ -235,3 +235,19 @@ def test_an_older_data_sets_relative_network_path_is_read_beside_the_data(tmp_pa
     monkeypatch.chdir(elsewhere)                    # not where the data set was made
     folder, _ = released_folder(types.SimpleNamespace(released=None, data=str(data)))
     assert folder.resolve() == (tmp_path / "work" / "net").resolve()
+
+
+def test_the_reports_command_line_names_every_option_that_changes_the_numbers():
+    from minifilm.cli.compare import parse_args
+    from minifilm.evaluation.compare_report import command_options
+    a = parse_args(["--lr", "5e-4", "--batch-size", "16", "--seed", "3", "--variants", "PFNN FiLM,LPN FiLM",
+                    "--holdout", "Zombie", "--until-flat"])
+    line = command_options(a)
+    for part in ("--lr 0.0005", "--batch-size 16", "--seed 3", "--variants 'PFNN FiLM,LPN FiLM'",
+                 "--holdout Zombie", "--until-flat"):
+        assert part in line, (part, line)
+    import shlex
+    again = parse_args(shlex.split(line))                                 # as typed, it parses back
+    assert (again.lr, again.batch_size, again.seed, again.variants) == (a.lr, a.batch_size, a.seed, a.variants)
+    defaults = command_options(parse_args([]))
+    assert "--lr" not in defaults and "--batch-size" not in defaults and "--seed" not in defaults
