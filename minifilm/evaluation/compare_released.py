@@ -17,6 +17,7 @@ import numpy as np
 
 from minifilm.dataset.manifest import MADE_BY
 from minifilm.errors import InputError
+from minifilm.evaluation.compare_report_tools import report_name
 from minifilm.evaluation.compare_rollouts import measure_rollout, run_films
 from minifilm.features.layout import FeatureLayout
 from minifilm.files import read_json
@@ -48,12 +49,6 @@ def released_folder(args):
     if not folder.is_absolute() and not folder.is_dir() and (marker.parent / folder).is_dir():
         folder = marker.parent / folder
     return folder, "the data set's dataset.json"
-
-
-def report_name(folder: Path) -> str:
-    """How a report names the network's folder: its own name, never a path (a path relative to
-    where the command ran still spells out that machine's folders)."""
-    return Path(folder).resolve().name or str(folder)
 
 
 def thin(rollout, step: int):

@@ -1,7 +1,15 @@
 """Small helpers shared by the comparison's report modules (compare_report.py, compare_claims*.py)."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
+
+
+def report_name(folder) -> str:
+    """How a report names a folder (the data, the released network): its own name, never a path (a
+    path relative to where the command ran still spells out that machine's folders)."""
+    return Path(folder).resolve().name or str(folder)
 
 
 def fmt(v, digits=4):

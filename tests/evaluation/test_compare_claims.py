@@ -212,13 +212,15 @@ def test_the_released_network_is_found_through_the_data_sets_description(tmp_pat
 
 
 def test_a_report_names_the_network_by_its_folders_name_alone(tmp_path, monkeypatch):
-    from minifilm.evaluation.compare_released import report_name
+    from minifilm.evaluation.compare_report_tools import report_name
     net = tmp_path / "deep" / "inside" / "released-lpn"
     net.mkdir(parents=True)
     monkeypatch.chdir(tmp_path / "deep")
     assert report_name(net) == "released-lpn"
     assert report_name(Path("inside/released-lpn")) == "released-lpn"
     assert report_name(Path("inside/released-lpn/")) == "released-lpn"
+    assert report_name("synthetic") == "synthetic"          # --data's default, not a folder
+    assert report_name(str(tmp_path / "deep")) == "deep"    # --data as a string
 
 
 def test_an_older_data_sets_relative_network_path_is_read_beside_the_data(tmp_path, monkeypatch):
