@@ -30,7 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from minifilm.train.parallel import ONE_BLAS_THREAD, WorkerDied, usable_cores
+from minifilm.train.parallel import ONE_BLAS_THREAD, WorkerDied
+from minifilm.train.parallel_shares import usable_cores
 
 
 def default_workers(jobs: int) -> int:

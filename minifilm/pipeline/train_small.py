@@ -94,7 +94,7 @@ class Settings:
     rig: Optional[str] = None            # your own data: retarget every file onto this rig first (docs/retargeting.md)
     # processes computing each minibatch's gradients, one BLAS thread each (minifilm/train/parallel.py);
     # None: every core this process may use, at most one per style clip of a minibatch
-    # (parallel.default_workers). The results do not depend on it (to float32 round-off).
+    # (parallel_shares.default_workers). The results do not depend on it (to float32 round-off).
     workers: Optional[int] = None
 
     def quick(self) -> "Settings":

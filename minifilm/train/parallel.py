@@ -58,7 +58,7 @@ import numpy as np
 from minifilm.model.style_model import StyleModel
 from minifilm.nn.fast_optim import ChunkedAdam
 from minifilm.train import parallel_worker as pw
-from minifilm.train.parallel_shares import default_workers, shares, usable_cores  # noqa: F401  (re-exported)
+from minifilm.train.parallel_shares import default_workers, shares
 
 ONE_BLAS_THREAD = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 _names = itertools.count()

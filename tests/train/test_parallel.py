@@ -14,7 +14,8 @@ from minifilm.dataset.arrays import TrainData
 from minifilm.dataset.stats import NormStats
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
-from minifilm.train.parallel import DataParallel, WorkerDied, shares
+from minifilm.train.parallel import DataParallel, WorkerDied
+from minifilm.train.parallel_shares import shares
 from minifilm.train.parallel_worker import wait_until
 from minifilm.train.trainer import TrainConfig, Trainer, TrainingDiverged
 
@@ -185,10 +186,10 @@ def test_the_default_is_every_usable_core_but_no_more_workers_than_shared_clips(
     import minifilm.train.parallel as parallel
     import minifilm.train.parallel_shares as split
     monkeypatch.setattr(split, "usable_cores", lambda: 16)
-    assert parallel.default_workers(trainer(clips_per_batch=4)) == 4        # one clip each at most
-    assert parallel.default_workers(trainer(clips_per_batch=None)) == 16    # a clip per sample: 16 rows
+    assert split.default_workers(trainer(clips_per_batch=4)) == 4        # one clip each at most
+    assert split.default_workers(trainer(clips_per_batch=None)) == 16    # a clip per sample: 16 rows
     monkeypatch.setattr(split, "usable_cores", lambda: 2)
-    assert parallel.default_workers(trainer(clips_per_batch=4)) == 2
+    assert split.default_workers(trainer(clips_per_batch=4)) == 2
     monkeypatch.setattr(split, "usable_cores", lambda: 1)
     with parallel.data_parallel(trainer(clips_per_batch=4)) as pool:
         assert pool is None                                                 # one core: this process
