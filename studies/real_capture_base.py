@@ -55,7 +55,7 @@ NAME = re.compile(r"^dataset-(\d)_([a-z-]+)_([a-z]+)_(\d+)\.bvh$")
 
 
 def chosen_files(folder: Path, styles, seconds: float) -> dict:
-    """{style name: [(path, gait)]}: the files of ``styles`` in ``folder``, capped per kind."""
+    """{style name: [(path, gait, seconds)]}: the files of ``styles`` in ``folder``, capped per kind."""
     by_kind = defaultdict(list)
     for path in sorted(folder.glob("*.bvh")):
         m = NAME.match(path.name)
@@ -68,12 +68,13 @@ def chosen_files(folder: Path, styles, seconds: float) -> dict:
         for p in paths:
             if total >= share * seconds:
                 break
-            if bvh_duration(p) < SHORTEST:
+            length = bvh_duration(p)
+            if length < SHORTEST:
                 continue
-            out[style].append((p, gait))
-            total += bvh_duration(p)
+            out[style].append((p, gait, length))
+            total += length
     # a style needs a 2 s clip inside its training share (80 % of each file) beside the 2 s window
-    return {k: v for k, v in out.items() if sum(bvh_duration(p) for p, _ in v) >= SHORTEST_STYLE}
+    return {k: v for k, v in out.items() if sum(f[2] for f in v) >= SHORTEST_STYLE}
 
 
 def write_folder(groups: dict, folder: Path, extra=()) -> int:
@@ -83,7 +84,7 @@ def write_folder(groups: dict, folder: Path, extra=()) -> int:
     rig = builtin_rig("100style")
     files = list(extra)
     for style, chosen in sorted(groups.items()):
-        for path, gait in chosen:
+        for path, gait, _ in chosen:
             out = folder / f"{style}_{path.stem}.bvh"
             if not out.is_file():
                 retarget_file(path, rig, out)
@@ -109,7 +110,7 @@ def main(argv=None) -> int:
     m = write_folder(held, a.work / "held")
     for name, groups in (("trained", trained), ("held", held)):
         for style, chosen in sorted(groups.items()):
-            print(f"{name}: {style}: {len(chosen)} files, {sum(bvh_duration(p) for p, _ in chosen):.0f} s")
+            print(f"{name}: {style}: {len(chosen)} files, {sum(f[2] for f in chosen):.0f} s")
     print(f"{a.work / 'trained'}: {n} files ({len(released)} of the released network's); {a.work / 'held'}: {m} files")
     return 0
 
