@@ -38,7 +38,8 @@ def add_arguments(p) -> None:
     p.add_argument("--work", type=output_folder, default=Path("runs/compare"),
                    help="folder for generated data and caches")
     p.add_argument("--variants", help="comma-separated subset of the seven variants (default: all)")
-    p.add_argument("--holdout", help=f"style held out for fine-tuning (synthetic default {SYNTH_HOLDOUT})")
+    p.add_argument("--holdout", help="style held out of training and taught afterwards by fine-tuning Ψ alone, or "
+                   f"several, comma-separated (default: {SYNTH_HOLDOUT} on synthetic data, else the last style)")
     p.add_argument("--interpolate", help="two seen styles A,B for the interpolation test, or several pairs 'A,B;C,D' "
                    "(default: BentForward,LeanBack when both are seen, else the first two)")
     p.add_argument("--fps", type=in_range(1.0, 1000.0), default=30.0, help="resample the data to this rate (default 30)")

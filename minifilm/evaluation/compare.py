@@ -7,7 +7,7 @@ set and compare them (the paper's Sec. 5.2, Figure 10 and Table 2).
 
 The command's options are defined in minifilm/cli/compare.py; ``run(args)`` reads them.
 
-One style is held out of training (--holdout). On held-out test frames of the seen styles:
+One style or several are held out of training (--holdout). On held-out test frames of the seen styles:
   - test MSE and bone-length loss on the 324 motion outputs every variant predicts (Figure 10),
     overall and per style;
   - style recognition of generated motion: a classifier (minifilm.evaluation.style_classifier) trained on
@@ -16,8 +16,11 @@ One style is held out of training (--holdout). On held-out test frames of the se
   - foot sliding and bone-length variation of those rollouts;
   - interpolation smoothness (Figure 8): the classifier's probability of style B along a blend
     from style A to B, for FiLM (blended FiLM vectors) and one-hot (blended one-hot vectors);
-  - FiLM-code separation (Figure 11): silhouette of Ψ(clip) per style before and after
-    fine-tuning Ψ alone on the held-out style (LPN FiLM).
+  - a new style (Sec. 5.3.2, Figure 11): every FiLM variant's Ψ alone fine-tuned on the held-out
+    styles, their test error and the silhouette of their Ψ(clip) before and after
+    (minifilm/evaluation/compare_finetune.py);
+  - the field's metrics beside these (minifilm/evaluation/field_metrics.py): foot sliding by height,
+    path and direction errors, and a pooled FID-like distance of all rollouts to real windows.
 Every training run (variant and seed) records its validation loss on a fixed subset of the
 validation rows and is judged flat or still falling at the end (minifilm/evaluation/convergence.py;
 --until-flat trains on in whole epochs until it is flat). The report then takes the paper's claims
@@ -43,19 +46,19 @@ from minifilm.baselines.variants import VARIANTS, build_variant
 from minifilm.dataset.build import build_dataset, resolve_files
 from minifilm.errors import InputError
 from minifilm.evaluation.compare_report import write_report
-from minifilm.evaluation.compare_measures import CLAVICLE_PATTERN, data_hand_amplitude, joint_error, joints_named
+from minifilm.evaluation.compare_measures import (CLAVICLE_PATTERN, data_hand_amplitude, fid_reference, joint_error,
+                                                  joints_named)
 from minifilm.evaluation.compare_claims_more import table2_figures
 from minifilm.evaluation.compare_released import released_rollout
 from minifilm.evaluation.compare_rollouts import interpolation, style_recognition
 from minifilm.evaluation.compare_workers import default_workers, run_figures, serve, train_in_workers
-from minifilm.evaluation.compare_tools import (film_codes, film_separation, fit_stats, select_styles, motion_errors,
-                                               style_subset)
+from minifilm.evaluation.compare_finetune import finetune_all
+from minifilm.evaluation.compare_tools import fit_stats, motion_errors, select_styles, steps_per_epoch, style_subset
 from minifilm.evaluation.convergence import train_with_curve, validation_subset
 from minifilm.evaluation.style_classifier import train_style_classifier
 from minifilm.model.config import ModelConfig
 from minifilm.motion.skeletons import BUILTIN_SKELETONS
 from minifilm.synthetic import generator as synthetic
-from minifilm.train.finetune import finetune
 from minifilm.train.trainer import TrainConfig, Trainer
 
 SYNTH_HOLDOUT = "Drunk"
@@ -105,19 +108,20 @@ def skeleton_of(ds):
 class Context:
     """The data every variant shares: seen / held-out styles, statistics, splits, classifier."""
 
-    def __init__(self, ds, holdout, args, classifier=True):
-        """classifier=False: without the style classifier (a training worker needs none)."""
+    def __init__(self, ds, holdouts, args, classifier=True):
+        """holdouts: the styles held out of training (a list, possibly empty). classifier=False:
+        without the style classifier and the FID-like reference (a training worker needs neither)."""
         self.ds, self.args, self.layout = ds, args, ds.layout
-        self.holdout = holdout
-        self.seen = [s for s in ds.styles if s != holdout]
+        self.holdouts = list(holdouts)
+        self.seen = [s for s in ds.styles if s not in self.holdouts]
         self.norm = fit_stats(ds, self.seen)
         self.data = {sp: style_subset(ds, sp, self.seen, self.norm) for sp in ("train", "test")}
         # the fixed validation frames every variant's curve is judged on (minifilm/evaluation/convergence.py)
         val_styles = [s for s in self.seen if np.any(ds.val.style == ds.styles.index(s))]
         self.data["val"] = validation_subset(style_subset(ds, "val", val_styles or self.seen, self.norm)
                                              if val_styles else self.data["test"])
-        self.new_train = style_subset(ds, "train", [holdout], self.norm) if holdout else None
-        self.all_train = style_subset(ds, "train", self.seen + ([holdout] if holdout else []), self.norm)
+        self.new_train = style_subset(ds, "train", self.holdouts, self.norm) if self.holdouts else None
+        self.all_train = style_subset(ds, "train", self.seen + self.holdouts, self.norm)
         self.skeleton = skeleton_of(ds)
         self.end_effectors = end_effector_indices(self.layout, self.skeleton)
         names = list(self.layout.joint_names)
@@ -138,6 +142,9 @@ class Context:
         log(f"[classifier] {self.clf_info['n_train']} training windows; held-out real accuracy "
             f"{self.clf_info['heldout_acc']:.3f} ({self.clf_info['n_heldout']} windows), "
             f"{time.perf_counter() - t0:.0f} s")
+        self.fid = fid_reference(ds, self.seen, self.clf_info["window"], self.clf_info["stride"])
+        log(f"[fid] style space of {len(self.seen)} seen styles' real windows; real held-out rows against real "
+            f"training rows: {self.fid['real_to_real']:.2f} (the floor of the FID-like distance)")
 
 
 def hand_columns(layout, skeleton) -> np.ndarray:
@@ -153,13 +160,6 @@ def model_config(ctx, sizes):
     L = ctx.layout
     return ModelConfig.small(L.x_dim, L.z_dim, ctx.data["train"].clips.shape[1], L.clip_dim,
                              phase_dim=L.phase_dim, **sizes)
-
-
-def steps_per_epoch(style, batch_size):
-    counts = np.bincount(style)
-    counts = counts[counts > 0]
-    size = min(batch_size, counts.min())
-    return int(counts.min() // size * len(counts))
 
 
 def train_variant(name, ctx, epochs, seed=None, eval_every=None):
@@ -208,19 +208,19 @@ def variant_trainer(name, ctx, seed, weights, epoch, step, history):
     return trainer
 
 
-def training_worker(args_text: str, holdout: str, conn) -> None:
+def training_worker(args_text: str, holdouts: str, conn) -> None:
     """The target of a training worker process (minifilm/evaluation/compare_workers.py): the same
     context as the parent's (without the classifier), then train_variant for every job."""
     def setup():
         args = types.SimpleNamespace(**json.loads(args_text))
-        return Context(load_data(args)[0], holdout, args, classifier=False)
+        return Context(load_data(args)[0], [h for h in holdouts.split(",") if h], args, classifier=False)
 
     def job(ctx, m):
         return run_figures(train_variant(m["variant"], ctx, m["epochs"], seed=m["seed"]), m["weights"])
     serve(conn, setup, job)
 
 
-def trained_runs(variants, ctx, epochs, holdout):
+def trained_runs(variants, ctx, epochs):
     """{(variant, seed): train_variant's result} for every run, trained in --workers processes;
     None with one worker (the runs are then trained one after another in the main loop)."""
     a = ctx.args
@@ -231,37 +231,12 @@ def trained_runs(variants, ctx, epochs, holdout):
         return None
     log(f"[workers] {len(jobs)} training runs in {n} worker processes")
     out = {}
-    for (v, seed), (fig, weights) in train_in_workers(jobs, a, holdout, epochs, n, training_worker, log).items():
+    for (v, seed), (fig, weights) in train_in_workers(jobs, a, ",".join(ctx.holdouts), epochs, n, training_worker, log).items():
         _, info = variant_data(v, ctx.data["train"], ctx.layout, ctx.norm, ctx.end_effectors)
         trainer = variant_trainer(v, ctx, seed, weights, fig["epoch"], fig["steps"], fig["history"])
         out[(v, seed)] = {**{k: fig[k] for k in ("seconds", "steps", "errors", "params", "final_train_loss", "curve")},
                           "trainer": trainer, "info": info}
     return out
-
-
-def finetune_separation(result, ctx):
-    """Fine-tune Ψ alone on the held-out style; FiLM-code silhouette before and after."""
-    a = ctx.args
-    trainer = result["trainer"]
-    path = Path(a.work) / "lpn_film_base.npz"
-    trainer.save(path)
-    epochs = max(1, math.ceil(a.finetune_steps / steps_per_epoch(ctx.new_train.style, a.batch_size)))
-    new_test = style_subset(ctx.ds, "test", [ctx.holdout], ctx.norm)
-    n_motion = ctx.layout.z_phases.start
-    before_new = motion_errors(trainer.model, new_test, ctx.layout, ctx.norm, n_motion, seed=a.seed)
-    t0 = time.perf_counter()
-    ft = finetune(path, ctx.new_train, config=TrainConfig(epochs=epochs, batch_size=a.batch_size, lr=a.lr,
-                                                          seed=a.seed + 1, progress=False),
-                  style_names=[ctx.holdout])
-    seconds = time.perf_counter() - t0
-    after_new = motion_errors(ft.model, new_test, ctx.layout, ctx.norm, n_motion, seed=a.seed)
-    labels = ctx.all_train.clip_style
-    focus = len(ctx.seen)
-    sep = {"before": film_separation(film_codes(trainer.model, ctx.all_train.clips), labels, focus),
-           "after": film_separation(film_codes(ft.model, ctx.all_train.clips), labels, focus)}
-    seen_after = motion_errors(ft.model, ctx.data["test"], ctx.layout, ctx.norm, n_motion, seed=a.seed)
-    return {"separation": sep, "labels": labels, "seconds": seconds, "steps": ft.step,
-            "before_new": before_new, "after_new": after_new, "seen_after": seen_after}
 
 
 def flat_line(curve) -> str:
@@ -281,23 +256,26 @@ def interpolation_pairs(text) -> list:
     return [tuple(x.strip() for x in part.split(",")) for part in text.split(";")] if text else []
 
 
-def check_styles(styles, holdout: str, interpolate) -> tuple:
-    """InputError unless the held-out style and the interpolated ones are among ``styles`` (the
-    interpolated ones seen in training); returns the first interpolation pair. ``interpolate``:
-    None (Figure 8's pair when seen, else the first two seen styles), a pair [A, B] or a list of
-    pairs. Before any work."""
-    return check_pairs(styles, holdout, interpolate)[0]
+def holdout_names(text) -> list:
+    """'A' or 'A,B,C' (the --holdout option) -> ['A', 'B', 'C'] (blanks dropped, order kept, once each)."""
+    return list(dict.fromkeys(x.strip() for x in text.split(",") if x.strip())) if text else []
 
 
-def check_pairs(styles, holdout: str, interpolate) -> list:
-    """check_styles for every pair: the list of interpolation pairs."""
-    if holdout not in styles:
-        raise InputError(f"compare: --holdout {holdout!r} is not a style of the data ({', '.join(styles)})")
-    seen = [s for s in styles if s != holdout]
+def check_pairs(styles, holdouts, interpolate) -> list:
+    """InputError unless the held-out styles (a name or a list) and the interpolated ones are among
+    ``styles`` (the interpolated ones seen in training); returns the interpolation pairs.
+    ``interpolate``: None (Figure 8's pair when seen, else the first two seen styles), a pair [A, B]
+    or a list of pairs. Before any work."""
+    holdouts = [holdouts] if isinstance(holdouts, str) else list(holdouts)
+    missing = [h for h in holdouts if h not in styles]
+    if missing:
+        raise InputError(f"compare: --holdout {', '.join(map(repr, missing))} not a style of the data "
+                         f"({', '.join(styles)})")
+    seen = [s for s in styles if s not in holdouts]
     if not interpolate:
         if len(seen) < 2:
-            raise InputError(f"compare: the data has {len(styles)} style(s); at least three are needed "
-                             "(one held out, two to interpolate between)")
+            raise InputError(f"compare: the data has {len(styles)} style(s) and {len(holdouts)} held out; two must "
+                             "be seen in training to interpolate between")
         return [PAPER_PAIR] if all(x in seen for x in PAPER_PAIR) else [(seen[0], seen[1])]
     pairs = [tuple(interpolate)] if isinstance(interpolate[0], str) else [tuple(p) for p in interpolate]
     for pair in pairs:
@@ -325,27 +303,28 @@ def run(args):
     # the style names, from the file names, before anything is generated or built (as the dataset lists them)
     available = synthetic.STYLES if synthetic_data else {f.style for f in resolve_files(args.data)}
     pairs = interpolation_pairs(args.interpolate)
-    keep = [x for x in [args.holdout] + [s for p in pairs for s in p] if x]
+    holdouts = holdout_names(args.holdout)
+    keep = holdouts + [s for p in pairs for s in p]
     try:
         styles = select_styles(available, args.styles, keep)
     except ValueError as e:
         raise InputError(f"compare: {e}") from None
     if args.styles:
         args.styles = styles if args.styles[0].strip().isdigit() else [x.strip() for x in args.styles]
-    holdout = args.holdout or (SYNTH_HOLDOUT if synthetic_data and SYNTH_HOLDOUT in styles else styles[-1])
-    pairs = check_pairs(styles, holdout, pairs or None)
+    holdouts = holdouts or [SYNTH_HOLDOUT if synthetic_data and SYNTH_HOLDOUT in styles else styles[-1]]
+    pairs = check_pairs(styles, holdouts, pairs or None)
     Path(args.work).mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     ds, name = load_data(args)
     log(f"[data] {name}: {len(ds.styles)} styles, {len(ds.train)} training frames at {ds.fps:g} fps; "
-        f"held out: {holdout} ({time.perf_counter() - t0:.0f} s)")
-    ctx = Context(ds, holdout, args)
+        f"held out: {', '.join(holdouts)} ({time.perf_counter() - t0:.0f} s)")
+    ctx = Context(ds, holdouts, args)
     spe = steps_per_epoch(ctx.data["train"].style, args.batch_size)
     epochs = max(1, math.ceil(args.budget_steps / spe))
     log(f"[budget] {args.budget_steps} steps asked -> {epochs} epoch(s) of {spe} style-balanced batches of "
         f"{args.batch_size} = {epochs * spe} steps per variant")
     results = {}
-    done = trained_runs(variants, ctx, epochs, holdout)
+    done = trained_runs(variants, ctx, epochs)
     for v in variants:
         r = done[(v, args.seed)] if done else train_variant(v, ctx, epochs)
         log(f"[train] {v:<13} {r['params']:>9,} params  {r['steps']} steps in {r['seconds']:.0f} s  "
@@ -371,14 +350,8 @@ def run(args):
             r["curves"][seed] = extra["curve"]
             log(f"        seed {seed}: test MSE {e['mse']:.4f}  BLL {e['bll']:.4f}; {flat_line(extra['curve'])}")
         results[v] = r
-    ft = None
-    if "LPN FiLM" in results and ctx.new_train is not None:
-        ft = finetune_separation(results["LPN FiLM"], ctx)
-        sb, sa = ft["separation"]["before"], ft["separation"]["after"]
-        log(f"[finetune] Ψ only on {holdout}: {ft['steps']} steps in {ft['seconds']:.0f} s; held-out test MSE "
-            f"{ft['before_new']['mse']:.4f} -> {ft['after_new']['mse']:.4f}; silhouette {holdout} "
-            f"{sb['focus_silhouette']:.3f} -> {sa['focus_silhouette']:.3f} (all styles {sb['silhouette']:.3f} -> "
-            f"{sa['silhouette']:.3f})")
+    fts = finetune_all(results, ctx, log)
+    ft = fts.get("LPN FiLM")
     released = released_rollout(ctx, args)
     if released and "rollout" in released:
         q = released["rollout"]
@@ -394,7 +367,7 @@ def run(args):
     sizes = {k: getattr(cfg, k) for k in ("hidden", "n_experts", "conv_filters", "film_dense", "dropout")}
     path = write_report(Path(args.out), name, ctx, results, ft, dict(epochs=epochs, steps_per_epoch=spe,
                         total_seconds=total, interpolate=pairs[0], pairs=pairs, sizes=sizes,
-                        table2=table2, released=released))
+                        table2=table2, released=released, finetuned=fts))
     log(f"[report] {path} ({total:.0f} s in all)")
-    return {"name": name, "results": results, "finetune": ft, "report": path, "ctx": ctx, "released": released,
-            "table2": table2}
+    return {"name": name, "results": results, "finetune": ft, "finetuned": fts, "report": path, "ctx": ctx,
+            "released": released, "table2": table2}

@@ -154,6 +154,7 @@ def claim_sections(ctx, results, ft, meta) -> list:
     for part in (figure10_claim(ctx, results), no_phase_claim(ctx, results, meta.get("released")),
                  capacity_claim(ctx, results),
                  interpolation_claim(ctx, results, meta.get("pairs") or [meta["interpolate"]]),
-                 table2_claim(results, meta.get("table2")), new_style_claim(ctx, results, ft, meta.get("table2"))):
+                 table2_claim(results, meta.get("table2")), new_style_claim(ctx, results, meta.get("finetuned") or ({"LPN FiLM": ft} if ft else {}),
+                                 meta.get("table2"))):
         L.extend(part)
     return L

@@ -6,7 +6,9 @@ docs/compare_claims.md). Plain NumPy on feature blocks, rollouts and class proba
 - :func:`joint_error`: a network's one-step error on some joints' positions (Sec. 5.1.2, Figure 7:
   the clavicles of ArmsAboveHead);
 - :func:`taken_for`: which style a style's generated motion is classified as (Sec. 5.1.2);
-- :func:`pose_steps`: how far the pose statistics move per step of a blend (Figure 8).
+- :func:`pose_steps`: how far the pose statistics move per step of a blend (Figure 8);
+- :func:`fid_reference` / :func:`rollout_fid`: the pooled FID-like distance of all generated motion
+  to the real held-out motion (docs/metrics.md), beside its floor, real against real.
 """
 from __future__ import annotations
 
@@ -15,7 +17,9 @@ from typing import Sequence
 
 import numpy as np
 
-from minifilm.evaluation.style_classifier import cut_windows
+from minifilm.evaluation.field_metrics import fid_like
+from minifilm.evaluation.style_classifier import cut_windows, rollout_blocks, split_windows, window_summary
+from minifilm.evaluation.style_measures import StyleSpace
 
 
 def hand_amplitude(block: np.ndarray, columns: np.ndarray, window: int) -> float:
@@ -115,3 +119,33 @@ def pose_steps(blocks: np.ndarray) -> dict:
     return {"steps": steps, "max_over_mean": float(steps.max() / mean) if mean > 0 else float("nan"),
             "end_to_end": float(np.linalg.norm(stats[-1] - stats[0])),
             "first_half_share": float(steps[:half].sum() / steps.sum()) if steps.sum() > 0 else float("nan")}
+
+
+def fid_reference(ds, seen: Sequence[str], window: int, stride: int, dims: int = 32) -> dict:
+    """What generated motion is held against by :func:`rollout_fid`: a StyleSpace fitted on the seen
+    styles' real training windows (``window`` frames every ``stride``, the classifier's), and the
+    summaries of their real held-out windows (validation and test rows). 'real_to_real' is the
+    distance of those held-out windows to the training windows: the floor a generator that moved
+    exactly like the data would reach, up to sampling noise."""
+    ids = {ds.styles.index(s): s for s in seen}
+
+    def summaries(split):
+        X, y = split_windows(split, ds.layout, ds.stats, window, stride)
+        keep = np.isin(y, list(ids))
+        return window_summary(X[keep]), y[keep]
+
+    train, train_style = summaries(ds.train)
+    held = np.concatenate([summaries(ds.split(name))[0] for name in ("val", "test")])
+    per_style = {ids[k]: train[train_style == k] for k in ids if np.sum(train_style == k) >= 2}
+    space = StyleSpace.fit(per_style, dims=dims, summarised=True)
+    floor = fid_like(space, held, train, summarised=True) if len(held) >= 2 else float("nan")
+    return {"space": space, "real": held if len(held) >= 2 else train, "real_to_real": floor}
+
+
+def rollout_fid(reference: dict, ds, rollout, window: int, stride: int) -> float:
+    """The pooled FID-like distance (field_metrics.fid_like) of every window of every character of
+    ``rollout`` to ``reference``'s real held-out windows; NaN with fewer than 2 windows."""
+    blocks = ds.stats.normalize_clip(rollout_blocks(rollout), ds.layout.x_joints)      # (B, F', 12 J)
+    gen = [window_summary(w) for w in (cut_windows(b, window, stride) for b in blocks) if len(w)]
+    gen = np.concatenate(gen) if gen else np.empty((0, 2 * blocks.shape[-1]))
+    return fid_like(reference["space"], gen, reference["real"], summarised=True) if len(gen) >= 2 else float("nan")

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from minifilm.evaluation import compare_convergence
+from minifilm.evaluation import compare_convergence, compare_finetune
 from minifilm.evaluation.compare_claims import claim_sections
 from minifilm.evaluation.compare_report_tools import fmt, report_name, seed_summary
 from minifilm.files import atomic_write_text
@@ -80,9 +80,9 @@ def _plots(out: Path, name: str, ctx, results, ft) -> dict:
         save_figure(fig, out / files["interp"], dpi=80)
     # Figure 11: FiLM codes before / after fine-tuning
     if ft is not None:
-        styles = ctx.seen + [ctx.holdout]
+        styles = ctx.seen + ctx.holdouts
         fig, axes = plt.subplots(1, 2, figsize=(10, 4.5))
-        draw_film_codes(axes, ft["separation"], ft["labels"], styles, ctx.holdout)
+        draw_film_codes(axes, ft["separation"], ft["labels"], styles, ctx.holdouts)
         fig.tight_layout()
         files["film"] = f"compare_{name}_film_codes.png"
         save_figure(fig, out / files["film"], dpi=80)
@@ -126,7 +126,8 @@ def claims(ctx, results, ft) -> list:
         b, a = ft["separation"]["before"]["focus_silhouette"], ft["separation"]["after"]["focus_silhouette"]
         holds = a > b and a > 0
         out.append(f"Fine-tuning Ψ alone makes an unseen style separable: **{'holds' if holds else 'does not hold'}** "
-                   f"(silhouette of {ctx.holdout}'s FiLM codes {b:.3f} -> {a:.3f}; all styles "
+                   f"(LPN FiLM, silhouette of the FiLM codes of {', '.join(ctx.holdouts)} {b:.3f} -> {a:.3f}; "
+                   "all styles "
                    f"{ft['separation']['before']['silhouette']:.3f} -> {ft['separation']['after']['silhouette']:.3f}).")
     return out
 
@@ -144,7 +145,7 @@ def write_report(out: Path, name: str, ctx, results, ft, meta) -> Path:
       + f"` in {meta['total_seconds'] / 60:.1f} min on a shared 2-core machine.\n")
     w("## Setup\n")
     w(f"- Data: {name}, {len(ds.styles)} styles at {ds.fps:g} fps ({len(ds.train)} training frames); held out of "
-      f"training: **{ctx.holdout}**; seen: {', '.join(ctx.seen)}. Normalisation statistics from the seen styles only.")
+      f"training: **{', '.join(ctx.holdouts)}**; seen: {', '.join(ctx.seen)}. Normalisation statistics from the seen styles only.")
     w(f"- Budget, {'before --until-flat' if getattr(a, 'until_flat', False) else 'identical'} for every variant: **{meta['epochs']} epoch(s) x {meta['steps_per_epoch']} style-balanced "
       f"minibatches of {a.batch_size} = {meta['epochs'] * meta['steps_per_epoch']} Adam steps** (lr {a.lr:g}, "
       f"dropout {meta['sizes']['dropout']}), asked for: {a.budget_steps}. Small models: hidden "
@@ -195,24 +196,26 @@ def write_report(out: Path, name: str, ctx, results, ft, meta) -> Path:
     w("Foot sliding twice: while the network's own contact label is on (m/s), and by the field's "
       "height-based definition (cm/s while a toe is within 1 cm of the floor, docs/metrics.md). "
       "Path and direction errors: the root against the commanded velocities integrated.\n")
-    w("| variant | style accuracy | foot sliding (m/s) | foot sliding, height (cm/s) | path error (m) | "
+    fid = getattr(ctx, "fid", None)
+    if fid:
+        w("FID-like: the squared Fréchet distance between all rollout windows of all seen styles and all real "
+          "held-out windows of those styles, in the style space of their real training windows (docs/metrics.md); "
+          f"real held-out windows against real training windows read **{_fmt(fid['real_to_real'], 2)}**, the floor "
+          "a generator moving exactly like the data would reach.\n")
+    w("| variant | style accuracy | FID-like | foot sliding (m/s) | foot sliding, height (cm/s) | path error (m) | "
       "direction error (°) | bone-length cv mean | bone-length cv max | root speed (m/s) |")
-    w("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
-    for v, r in results.items():
-        q = r["rollout"]
-        if q["diverged"]:
-            w(f"| {v} | diverged | | | | | | | |")
-            continue
-        w(f"| {v} | {q['accuracy']:.3f} | {_fmt(q['foot_sliding'], 3)} | {_fmt(q.get('foot_sliding_cm_s'), 1)} | "
-          f"{_fmt(q.get('path_error'), 2)} | {_fmt(q.get('direction_error'), 1)} | {_fmt(q['bone_cv_mean'])} | "
-          f"{_fmt(q['bone_cv_max'])} | {_fmt(q['speed'], 2)} |")
+    w("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     rel = meta.get("released")
+    rows = [(v, r["rollout"]) for v, r in results.items()]
     if rel and "rollout" in rel:
-        q = rel["rollout"]
-        w(f"| released network ({len(rel['styles'])} styles) | " + ("diverged | | | | | | | |" if q["diverged"] else
-          f"{q['accuracy']:.3f} | {_fmt(q['foot_sliding'], 3)} | {_fmt(q.get('foot_sliding_cm_s'), 1)} | "
-          f"{_fmt(q.get('path_error'), 2)} | {_fmt(q.get('direction_error'), 1)} | {_fmt(q['bone_cv_mean'])} | "
-          f"{_fmt(q['bone_cv_max'])} | {_fmt(q['speed'], 2)} |"))
+        rows.append((f"released network ({len(rel['styles'])} styles)", rel["rollout"]))
+    for v, q in rows:
+        w(f"| {v} | diverged | | | | | | | | |" if q["diverged"] else
+          f"| {v} | {q['accuracy']:.3f} | {_fmt(q.get('fid'), 2)} | {_fmt(q['foot_sliding'], 3)} | "
+          f"{_fmt(q.get('foot_sliding_cm_s'), 1)} | {_fmt(q.get('path_error'), 2)} | "
+          f"{_fmt(q.get('direction_error'), 1)} | {_fmt(q['bone_cv_mean'])} | {_fmt(q['bone_cv_max'])} | "
+          f"{_fmt(q['speed'], 2)} |")
+    if rel and "rollout" in rel:
         w(f"\nThe released network ({rel['source']}, named by {rel['named_by']}) is driven along the same "
           "figure-eight for the same seconds, without calibration or foot locking like the variants, at its own "
           "60 fps, thinned to the data's rate before it is measured.")
@@ -246,28 +249,8 @@ def write_report(out: Path, name: str, ctx, results, ft, meta) -> Path:
           f"{i['linear_rmse']:.3f} |")
     if "interp" in files:
         w(f"\n![interpolation]({files['interp']})\n")
-    w("\n## Figure 11: FiLM codes before and after fine-tuning Ψ on the held-out style\n")
-    if ft is None:
-        w("Not run (needs the LPN FiLM variant and a held-out style).\n")
-    else:
-        sb, sa = ft["separation"]["before"], ft["separation"]["after"]
-        w(f"LPN FiLM: Ψ alone fine-tuned on {ctx.holdout}'s training frames ({ft['steps']} steps, "
-          f"{ft['seconds']:.0f} s; Ω and Φ frozen). FiLM codes Ψ(clip) of every training clip of all styles; "
-          "silhouette (Euclidean, full 4H-dimensional codes and in the 2-D PCA plane).\n")
-        w("| | silhouette (all styles) | silhouette 2-D | silhouette of the held-out style's codes | "
-          "held-out test MSE | held-out test BLL |")
-        w("|---|---:|---:|---:|---:|---:|")
-        w(f"| before | {sb['silhouette']:.3f} | {sb['silhouette_2d']:.3f} | {sb['focus_silhouette']:.3f} | "
-          f"{ft['before_new']['mse']:.4f} | {ft['before_new']['bll']:.4f} |")
-        w(f"| after | {sa['silhouette']:.3f} | {sa['silhouette_2d']:.3f} | {sa['focus_silhouette']:.3f} | "
-          f"{ft['after_new']['mse']:.4f} | {ft['after_new']['bll']:.4f} |")
-        seen_before = results["LPN FiLM"]["errors"]["mse"]             # seed of the fine-tuned model
-        w(f"\nSeen styles' test MSE with the fine-tuned Ψ: {ft['seen_after']['mse']:.4f} (before: {seen_before:.4f}); "
-          "Ψ was trained on the new style only, so this shows how much it forgot. Held-out errors are in the seen "
-          "styles' normalised units (the statistics never saw the held-out style), so a style outside their range "
-          "gives large numbers: compare before with after, not with the seen styles.")
-        if "film" in files:
-            w(f"\n![FiLM codes]({files['film']})\n")
+    L.extend(compare_finetune.section(ctx, results, meta.get("finetuned") or ({"LPN FiLM": ft} if ft else {}),
+                                      files.get("film")))
     w("\n## The paper's claims, here\n")
     for c in claims(ctx, results, ft):
         w(f"- {c}")
@@ -283,26 +266,31 @@ def write_report(out: Path, name: str, ctx, results, ft, meta) -> Path:
     return path
 
 
-def draw_film_codes(axes, separation, labels, names, holdout):
+def draw_film_codes(axes, separation, labels, names, holdouts):
     """Figure 11 on two matplotlib axes: the 2-D PCA embedding of FiLM codes before and after
-    fine-tuning Ψ, one colour per style, the held-out style as black stars.
+    fine-tuning Ψ, one colour per style, the held-out styles as stars (black for one).
 
     separation: {'before'|'after': {'embedding' (M, 2), 'silhouette', 'focus_silhouette'}};
-    labels (M,) style index of each code into ``names``."""
+    labels (M,) style index of each code into ``names``; holdouts: the held-out names."""
+    holdouts = [holdouts] if isinstance(holdouts, str) else list(holdouts)
+    held = ", ".join(holdouts) if len(holdouts) <= 2 else f"{len(holdouts)} held out"
     for ax, tag in zip(axes, ("before", "after")):
         sep = separation[tag]
         Y = sep["embedding"]
         for k, name in enumerate(names):
             pts = Y[labels == k]
-            new = name == holdout
+            new = name in holdouts
+            if new:           # stars on top; black for a single held-out style, else a colour each
+                colour = "black" if len(holdouts) == 1 else f"C{holdouts.index(name) % 10}"
             ax.scatter(pts[:, 0], pts[:, 1], s=50 if new else 14, marker="*" if new else "o",
-                       color="black" if new else f"C{k % 10}", label=name + (" (held out)" if new else ""))
+                       color=colour if new else f"C{k % 10}", label=name + (" (held out)" if new else ""),
+                       edgecolors="black" if new else None, zorder=3 if new else 2)
         ax.set_title(f"{tag} fine-tuning Ψ: silhouette {sep['silhouette']:.2f}, "
-                     f"{holdout} {sep['focus_silhouette']:.2f}", fontsize=9)
+                     f"{held} {sep['focus_silhouette']:.2f}", fontsize=9)
         ax.set_xlabel("PC 1")
         ax.set_ylabel("PC 2")
     if len(names) <= 20:
         axes[1].legend(fontsize=7)
-    else:                        # a legend of 100 styles would not fit: name the held-out style only
-        stars = [h for h, n in zip(*axes[1].get_legend_handles_labels()) if n.endswith("(held out)")]
-        axes[1].legend(stars, [f"{holdout} (held out)"] * len(stars), fontsize=7)
+    else:                        # a legend of 100 styles would not fit: name the held-out styles only
+        stars = [(h, n) for h, n in zip(*axes[1].get_legend_handles_labels()) if n.endswith("(held out)")]
+        axes[1].legend([h for h, _ in stars], [n for _, n in stars], fontsize=7)

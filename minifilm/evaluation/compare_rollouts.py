@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from minifilm.baselines.runtime import VariantRuntime
-from minifilm.evaluation.compare_measures import hand_amplitude, pose_steps, taken_for
+from minifilm.evaluation.compare_measures import hand_amplitude, pose_steps, rollout_fid, taken_for
 from minifilm.evaluation.compare_tools import film_codes
 from minifilm.evaluation.metrics import interpolation_smoothness, rollout_quality
 from minifilm.evaluation.style_classifier import classify_rollout, rollout_blocks
@@ -16,7 +16,7 @@ from minifilm.runtime.controller import Controller, NonFiniteOutputError
 
 #: the keys of a rollout summary whose rollouts diverged
 EMPTY = ("accuracy", "foot_sliding", "foot_sliding_cm_s", "path_error", "direction_error", "bone_cv_mean",
-         "bone_cv_max", "speed")
+         "bone_cv_max", "speed", "fid")
 
 
 def style_conditions(model, ctx):
@@ -60,8 +60,10 @@ def style_recognition(model, info, ctx):
 def measure_rollout(rollout, ctx, styles, parents=None, toes=None, hands=None):
     """The rollout summary of characters driven in ``styles`` (one each, in order): classifier
     accuracy (overall and per style), what each style is taken for, the hands' amplitude per style,
-    rollout_quality's numbers and the mean root speed. parents / toes / hands default to the data
-    set's skeleton (another network's rollout gives its own). A diverged rollout gives None for each."""
+    rollout_quality's numbers, the mean root speed and, when the context has its reference
+    (compare.Context.fid), the pooled FID-like distance to the real held-out windows. parents /
+    toes / hands default to the data set's skeleton (another network's rollout gives its own). A
+    diverged rollout gives None for each."""
     parents = ctx.layout.parents if parents is None else parents
     toes = ctx.toes if toes is None else toes
     hands = ctx.hand_columns if hands is None else hands
@@ -77,7 +79,9 @@ def measure_rollout(rollout, ctx, styles, parents=None, toes=None, hands=None):
     blocks = rollout_blocks(rollout)                                                  # (B, F', 12 J) raw
     second = max(2, int(round(rollout.fps)))
     hand = {n: hand_amplitude(blocks[b], hands, second) for b, n in enumerate(styles)}
-    return {"diverged": False, "accuracy": float(hit.mean()), "per_style": per_style, **quality,
+    reference = getattr(ctx, "fid", None)
+    fid = rollout_fid(reference, ctx.ds, rollout, w, s) if reference else None
+    return {"diverged": False, "accuracy": float(hit.mean()), "per_style": per_style, **quality, "fid": fid,
             "taken_for": taken_for(probs, target, list(ctx.ds.styles)), "hands": hand,
             "speed": float(np.mean([m["speed"] for m in rollout.metrics(parents)]))}
 

@@ -81,6 +81,15 @@ def style_subset(ds, split: str, styles: Sequence[str], normalizer, dtype=np.flo
                      clip_style=remap[cs.clip_style[crow]], style_names=list(styles))
 
 
+def steps_per_epoch(style: np.ndarray, batch_size: int) -> int:
+    """Style-balanced minibatches in one epoch of rows labelled ``style`` (N,): every style gives as
+    many batches as the smallest one holds (a batch is at most that style's row count)."""
+    counts = np.bincount(style)
+    counts = counts[counts > 0]
+    size = min(batch_size, counts.min())
+    return int(counts.min() // size * len(counts))
+
+
 # ---------------------------------------------------------------------------- test errors
 def motion_errors(model, data: TrainData, layout, stats, motion_columns: int, batch: int = 512, seed: int = 0,
                   style_kw: bool = False) -> dict:
@@ -118,10 +127,11 @@ def film_codes(model, clips: np.ndarray, batch: int = 32) -> np.ndarray:
     return np.concatenate(out)
 
 
-def film_separation(codes: np.ndarray, labels: np.ndarray, focus: Optional[int] = None) -> dict:
+def film_separation(codes: np.ndarray, labels: np.ndarray, focus=None) -> dict:
     """Silhouette of FiLM codes (N, D) grouped by style labels (N,), in the full space and in the
-    2-D PCA plane; with `focus`, also the mean silhouette of that style's points alone (is the
-    held-out style a cluster of its own?). Returns the numbers and the 2-D embedding."""
+    2-D PCA plane; with `focus` (a label, or several: the held-out styles), also the mean
+    silhouette of those styles' points alone (is a held-out style a cluster of its own?) and, per
+    focus label, its own mean ('focus_each'). Returns the numbers and the 2-D embedding."""
     labels = np.asarray(labels)
     full = silhouette_samples(codes, labels)
     Y, ratio = pca_2d(codes)
@@ -129,6 +139,8 @@ def film_separation(codes: np.ndarray, labels: np.ndarray, focus: Optional[int] 
     out = {"silhouette": float(full.mean()), "silhouette_2d": float(flat.mean()), "embedding": Y,
            "explained": ratio}
     if focus is not None:
-        out["focus_silhouette"] = float(full[labels == focus].mean())
-        out["focus_silhouette_2d"] = float(flat[labels == focus].mean())
+        chosen = np.isin(labels, focus)
+        out["focus_silhouette"] = float(full[chosen].mean())
+        out["focus_silhouette_2d"] = float(flat[chosen].mean())
+        out["focus_each"] = {int(k): float(full[labels == k].mean()) for k in np.atleast_1d(focus)}
     return out

@@ -75,7 +75,7 @@ def test_tiny_compare_run(tmp_path):
                        "--work", str(tmp_path / "work"), "--out", str(tmp_path / "reports")])
     out = run(args)
     ctx = out["ctx"]
-    assert ctx.seen == ["LeftHop", "Neutral"] and ctx.holdout == "Crouched"
+    assert ctx.seen == ["LeftHop", "Neutral"] and ctx.holdouts == ["Crouched"]
     # the held-out style is in no training array
     assert set(ctx.data["train"].style_names) == set(ctx.seen)
     for v in ("LPN FiLM", "LPN one-hot"):
@@ -97,6 +97,67 @@ def test_tiny_compare_run(tmp_path):
     assert "LPN FiLM" in text and "LPN one-hot" in text and "Figure 10" in text
 
 
+def test_several_styles_held_out_are_taught_to_every_film_variant_and_only_psi_moves(tmp_path):
+    """Two held-out styles, the three FiLM variants: each is fine-tuned (Ψ alone: the backbone's
+    weights stay bit for bit), each held-out style gets its own figures, and the rollouts carry the
+    pooled FID-like distance."""
+    from minifilm.baselines.variant_data import variant_data
+    from minifilm.baselines.variants import model_from_checkpoint
+    from minifilm.cli.compare import parse_args
+    from minifilm.evaluation.compare import run
+    from minifilm.evaluation.compare_finetune import FILM_VARIANTS, checkpoint_name
+    from minifilm.train.finetune import finetune
+    from minifilm.train.trainer import TrainConfig, Trainer
+    args = parse_args(["--tiny", "--variants", ",".join(FILM_VARIANTS), "--budget-steps", "1",
+                       "--finetune-steps", "2", "--seconds", "8", "--styles", "Neutral,LeftHop,Crouched,Limp",
+                       "--gaits", "FW", "--holdout", "Limp, Crouched", "--rollout-seconds", "2", "--extra-seeds", "",
+                       "--workers", "1", "--work", str(tmp_path / "work"), "--out", str(tmp_path / "reports")])
+    out = run(args)
+    ctx = out["ctx"]
+    assert ctx.holdouts == ["Limp", "Crouched"] and ctx.seen == ["LeftHop", "Neutral"]
+    assert set(ctx.data["train"].style_names) == set(ctx.seen)
+    assert list(out["finetuned"]) == list(FILM_VARIANTS) and out["finetune"] is out["finetuned"]["LPN FiLM"]
+    for v, ft in out["finetuned"].items():
+        assert set(ft["after_new"]["per_style"]) == {"Limp", "Crouched"}
+        assert ft["after_new"]["mse"] != ft["before_new"]["mse"], v
+        # the held-out styles are the last labels, in the order given
+        assert set(ft["separation"]["after"]["focus_each"]) == {2, 3}
+        labels = np.asarray(ft["labels"])
+        assert set(labels[np.isin(labels, [2, 3])]) == {2, 3}
+        q = out["results"][v]["rollout"]
+        assert q["diverged"] or (q["fid"] >= 0 and np.isfinite(q["fid"]))
+    text = out["report"].read_text()
+    assert "Figure 11: a new style" in text and "FID-like" in text
+    assert all(f"| {v} | after |" in text for v in FILM_VARIANTS)
+    assert "| Limp | MSE " in text and "| Crouched | MSE " in text
+    assert "n/a (run for LPN FiLM)" not in text
+    # Ψ alone moves: fine-tune each variant's saved base again and compare its networks
+    for v in FILM_VARIANTS:
+        path = tmp_path / "work" / checkpoint_name(v)
+        base = Trainer.resume(path, build_model=model_from_checkpoint).model
+        data = variant_data(v, ctx.new_train, ctx.layout, ctx.norm, ctx.end_effectors,
+                            reference=out["results"][v]["info"])[0]
+        tuned = finetune(path, data, config=TrainConfig(epochs=1, batch_size=8, seed=3, progress=False),
+                         build_model=model_from_checkpoint).model
+        for net in ("gating", "motion"):
+            if getattr(base, net) is not None:
+                for name, w in getattr(base, net).params.state_dict().items():
+                    assert np.array_equal(w, getattr(tuned, net).params.state_dict()[name]), (v, net, name)
+        assert any(not np.array_equal(w, tuned.film.params.state_dict()[name])
+                   for name, w in base.film.params.state_dict().items()), v
+
+
+def test_held_out_names_are_read_once_each_in_order_and_checked():
+    from minifilm.errors import InputError
+    from minifilm.evaluation.compare import check_pairs, holdout_names
+    assert holdout_names(" B, A ,,B") == ["B", "A"] and holdout_names(None) == []
+    with pytest.raises(InputError, match="'Z' not a style of the data"):
+        check_pairs(["A", "B", "C", "D"], ["A", "Z"], None)
+    with pytest.raises(InputError, match="two must be seen"):
+        check_pairs(["A", "B", "C"], ["A", "B"], None)
+    assert check_pairs(["A", "B", "C", "D"], ["A", "B"], None) == [("C", "D")]
+
+
 def test_claims_use_seed_means():
     import types
     from minifilm.evaluation.compare_report import claims, seed_summary
@@ -108,7 +169,7 @@ def test_claims_use_seed_means():
            "PFNN FiLM": {"errors": e(0.9), "seed_errors": [e(0.9), e(1.0)]}}         # mean 0.95
     s = seed_summary(res["PFNN one-hot"])
     assert s["mse"] == pytest.approx(1.2) and s["mse_sd"] == pytest.approx(np.std([0.9, 1.5], ddof=1))
-    text = claims(types.SimpleNamespace(seen=["Swimming"], holdout=None), res, None)
+    text = claims(types.SimpleNamespace(seen=["Swimming"], holdouts=[]), res, None)
     assert "lowest test error: **holds**" in text[0]
     assert "LPN lowest on 0 of 1" in text[1]
 
