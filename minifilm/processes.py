@@ -25,10 +25,12 @@ line before numpy is loaded (numpy reads the BLAS thread count once, when it loa
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import multiprocessing
 import os
 import signal
+import sys
 import threading
 from typing import Any, Callable, NamedTuple
 
@@ -73,12 +75,55 @@ def die_with_parent() -> None:
         pass
 
 
+def _as_json(value, default):
+    """``value`` as JSON gives it back, or ``default`` when JSON cannot hold it."""
+    try:
+        return json.loads(json.dumps(value))
+    except (TypeError, ValueError):
+        return default
+
+
 def error_reply(e: BaseException) -> dict:
-    """A worker's error as JSON: 'error' the one line ``Kind: message``; 'kind' the class's full
-    name, 'message' and 'notes' for a parent that raises the same kind of error again."""
+    """A worker's error as JSON: 'error' the one line ``Kind: message``; the class ('module',
+    'kind'), its 'args', its own attributes ('attrs', such as a BVHError's line) and 'notes', for a
+    parent that raises the same error again (:func:`rebuilt_error`)."""
     kind = type(e)
-    return {"error": f"{kind.__name__}: {e}", "kind": f"{kind.__module__}.{kind.__qualname__}",
-            "message": str(e), "notes": [str(n) for n in getattr(e, "__notes__", [])]}
+    attrs = {k: v for k, v in vars(e).items() if k != "__notes__"} if hasattr(e, "__dict__") else {}
+    reply = {"error": f"{kind.__name__}: {e}", "module": kind.__module__, "kind": kind.__qualname__,
+             "args": _as_json(list(e.args), [str(e)]), "attrs": _as_json(attrs, {}),
+             "notes": [str(n) for n in getattr(e, "__notes__", [])]}
+    if isinstance(e, OSError) and e.filename is not None:
+        reply["filename"] = str(e.filename)
+    return reply
+
+
+def rebuilt_error(reply: dict) -> Exception:
+    """The exception a worker sent (:func:`error_reply`) as this process would have raised it: the
+    same class, arguments, attributes and notes, if the class is a builtin or one of minifilm's
+    already loaded here (looked up, never imported: a message cannot make this process load
+    code); else a RuntimeError with the worker's one line."""
+    module, kind = str(reply.get("module")), str(reply.get("kind"))
+    home = sys.modules.get(module) if module == "builtins" or module.startswith("minifilm.") else None
+    cls = getattr(home, kind, None) if home is not None and "." not in kind else None
+    if not (isinstance(cls, type) and issubclass(cls, Exception)):
+        return RuntimeError(reply.get("error", "a worker failed"))
+    args = list(reply.get("args") or [])
+    try:
+        if issubclass(cls, OSError) and "filename" in reply:
+            e = cls(*args[:2], reply["filename"])
+        else:
+            e = cls(*args)
+    except Exception:  # noqa: BLE001 -- a constructor of its own (BVHError's): the arguments as made
+        e = cls.__new__(cls)
+        e.args = tuple(args)
+    try:
+        for k, v in (reply.get("attrs") or {}).items():
+            setattr(e, k, v)
+    except (AttributeError, TypeError):
+        pass
+    for note in reply.get("notes", []):
+        e.add_note(str(note))
+    return e
 
 
 def serve(conn, setup: Callable[[], Any], job: Callable[[Any, dict], Any]) -> None:
@@ -131,7 +176,8 @@ def spawn(n: int, target, args: tuple, name: str):
             mine, theirs = mp.Pipe()
             p = mp.Process(target=target, args=(*args, theirs), daemon=True, name=f"{name}-{w}")
             conns.append(mine)
-            p.start()
+            with _main_module_hidden():
+                p.start()
             theirs.close()
             procs.append(p)
     except BaseException:
@@ -146,6 +192,27 @@ def spawn(n: int, target, args: tuple, name: str):
             else:
                 os.environ[k] = v
     return procs, conns
+
+
+@contextlib.contextmanager
+def _main_module_hidden():
+    """Start a worker without the caller's script. 'spawn' runs the script again in every worker
+    (as ``__mp_main__``, so that a target defined there can be found); a script without an ``if
+    __name__ == "__main__":`` guard would then build its data set again in each worker, or fail
+    when that tries to start workers of its own. The targets here are minifilm's functions, which
+    the workers import by name, so the script is not needed: while a worker starts, the script's
+    module shows neither its file nor its module name (both put back at once)."""
+    main = sys.modules.get("__main__")
+    saved = {k: main.__dict__[k] for k in ("__file__", "__spec__") if main is not None and k in main.__dict__}
+    try:
+        if "__file__" in saved:
+            del main.__file__
+        if "__spec__" in saved:
+            main.__spec__ = None
+        yield
+    finally:
+        for k, v in saved.items():
+            setattr(main, k, v)
 
 
 def stop(procs, conns) -> None:
