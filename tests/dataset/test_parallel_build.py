@@ -149,6 +149,6 @@ def test_the_command_takes_workers_and_says_how_it_shares_the_files(folder):
     assert run.returncode == 0, run.stderr[-800:]
     assert "[dataset] 8 files in 2 worker processes (ids " in run.stderr
     assert "[dataset] 8/8 files" in run.stderr and "built in" in run.stdout
-    refused = subprocess.run([sys.executable, "-m", "minifilm", "dataset", str(folder), "--workers", "0"],
+    refused = subprocess.run([sys.executable, "-m", "minifilm", "dataset", str(folder), "--no-cache", "--workers", "0"],
                              capture_output=True, text=True, timeout=300)
     assert refused.returncode == 2 and "--workers" in refused.stderr and "must be >= 1" in refused.stderr
