@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from minifilm.dataset.build import _featurise
+from minifilm.dataset.file_rows import featurise
 from minifilm.dataset.settings import DatasetSettings
 from minifilm.dataset.splits import split_segments
 from minifilm.features.compute import clip_features_from_arrays, frame_features, frame_features_from_arrays
@@ -86,7 +86,7 @@ def main():
             labels = label(motion, BANDAI, "elderly")
             segs = split_segments(motion.n_frames, np.random.default_rng(0))
             for m, lab in ((motion, labels), (mirror(motion), labels.mirrored())):
-                _featurise(m, BANDAI, lab.contacts, lab.vectors, segs, motion.fps, True, settings, np.float32)
+                featurise(m, BANDAI, lab.contacts, lab.vectors, segs, motion.fps, True, settings, np.float32)
 
         t = median_s(pipeline, repeat)
         rows.append(("dataset pipeline", f"{BANDAI_FILE.name} + mirror", n, t))

@@ -1,6 +1,7 @@
 """The package's shape, kept by reading every module's imports (ast): imports go one way, down the
 data flow, and sit at the top of their file unless a comment says why not.
 
+    errors, files, processes   shared by every layer: input errors, the file system, worker processes
     nn, motion           the bottom: the kit and the motion data know nothing of each other
     phases, features, synthetic, dataset     -> motion (and each other, downwards)
     model                -> nn
@@ -25,29 +26,30 @@ PACKAGE = REPO_ROOT / "minifilm"
 ALLOWED = {
     "errors": set(),
     "files": {"errors"},
+    "processes": set(),
     "nn": set(),
     "motion": {"errors", "files"},
     "phases": {"errors", "motion", "files"},
     "features": {"errors", "motion", "files"},
     "rigs": {"errors", "motion", "phases", "synthetic", "files"},
     "synthetic": {"errors", "motion", "files"},
-    "dataset": {"errors", "motion", "phases", "features", "files"},
+    "dataset": {"errors", "motion", "phases", "features", "files", "processes"},
     "model": {"nn"},
-    "train": {"errors", "model", "nn", "dataset", "files"},
+    "train": {"errors", "model", "nn", "dataset", "files", "processes"},
     "runtime": {"errors", "model", "nn", "features", "motion", "dataset", "files"},
     "viewer": {"errors", "motion", "phases", "features", "runtime", "dataset", "files"},
     "baselines": {"errors", "model", "nn", "dataset", "features", "runtime", "files"},
     "evaluation": {"errors", "baselines", "model", "nn", "dataset", "features", "motion", "phases", "synthetic", "train",
-                   "runtime", "viewer", "files", "rigs"},
+                   "runtime", "viewer", "files", "rigs", "processes"},
     "pipeline": {"errors", "evaluation", "baselines", "model", "nn", "dataset", "features", "motion", "phases", "synthetic",
-                 "train", "runtime", "viewer", "files", "rigs"},
+                 "train", "runtime", "viewer", "files", "rigs", "processes"},
     "demo": {"errors", "cli", "pipeline", "runtime", "viewer", "motion", "features", "dataset", "synthetic", "files"},
     "cli": {"errors", "demo", "pipeline", "evaluation", "baselines", "model", "nn", "dataset", "features", "motion",
-            "phases", "synthetic", "train", "runtime", "viewer", "files", "rigs"},
+            "phases", "synthetic", "train", "runtime", "viewer", "files", "rigs", "processes"},
     "__main__": {"cli"},
 }
-CORE = {"errors", "files", "nn", "motion", "phases", "features", "synthetic", "rigs", "dataset", "model", "train", "runtime",
-        "viewer"}
+CORE = {"errors", "files", "processes", "nn", "motion", "phases", "features", "synthetic", "rigs", "dataset", "model",
+        "train", "runtime", "viewer"}
 COMPARISON = {"baselines", "evaluation"}
 
 

@@ -28,12 +28,12 @@ import threading
 from typing import Callable, Optional
 
 from minifilm.errors import MissingDependencyError, OutputPathError  # (imports nothing: numpy stays unloaded)
+from minifilm.processes import ONE_BLAS_THREAD  # (nor does this)
 
 #: name -> (module, one-line help, environment defaults set before the module is imported)
 #: Training runs on one BLAS thread unless told otherwise: its matrices are small, a second thread
 #: gained 10-25 % on an idle 2-core machine, and on a shared one made steps 3-25x slower
 #: (benchmarks/README.md).
-ONE_BLAS_THREAD = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 COMMANDS = {
     "train": ("minifilm.cli.train", "the main job: synthetic or your data -> trained model -> generated motion",
               ONE_BLAS_THREAD),

@@ -7,6 +7,8 @@
 
 A Bandai Namco folder (``dataset-N_{content}_{style}_{id}.bvh``) is read by its file names. The arrays are cached as .npz under --cache (default ``.cache/datasets``), keyed by the
 files' paths, sizes and modification times, the settings and the code, so a second run is fast.
+The files are labelled in --workers processes at once (default: every core this process may use);
+the data set is the same, bit for bit, for any number of them.
 
 With ``--from-released`` the command makes a data set instead of reading one: the authors' network
 walks, runs, turns, sidesteps, walks backwards, stops and stands in each of its styles, and the
@@ -33,6 +35,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--clip-seconds", type=positive(float, 60.0), default=4.0, help="style clip length (default 4 s)")
     parser.add_argument("--seed", type=in_range(0, 2**32 - 1, int), default=0)
     parser.add_argument("--fps", type=in_range(1.0, 1000.0), default=None, help="resample every file to this rate")
+    parser.add_argument("--workers", type=in_range(1, 1024, int), default=None,
+                        help="processes labelling the files at once, one BLAS thread each (default: the cores "
+                             "this process may use, at most one per file); the data set is the same for any number")
     parser.add_argument("--split-files", action="store_true",
                         help="whole files go to train/val/test (per style) instead of 80/10/10 segments "
                              "of every file; better for many short files such as Bandai")
@@ -87,7 +92,7 @@ def run(args) -> int:
     ds = build_dataset(source, cache_dir=None if args.no_cache else args.cache,
                        mirror_styles=mirror, clip_seconds=args.clip_seconds,
                        clip_stride_seconds=args.clip_seconds / 2, seed=args.seed, fps=args.fps,
-                       split_unit="files" if args.split_files else "segments")
+                       split_unit="files" if args.split_files else "segments", workers=args.workers)
     took = time.perf_counter() - t0
     how = f"loaded from cache {ds.cache_path}" if ds.build_seconds == 0 or took < 0.5 * ds.build_seconds \
         else "built" + ("" if ds.cache_path is None else f", cached in {ds.cache_path}")

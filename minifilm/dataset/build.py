@@ -1,7 +1,9 @@
 """Build a dataset: BVH files -> training rows (x, p, z), style clips y, splits, statistics (Sec. 3.2, 4.3).
 
-    files (manifest.py) -> per file: read, label (contacts, local phases), split into segments
-                        -> per segment (and its mirror): x, p, z rows and style clips (features/)
+    files (manifest.py) -> per file (file_rows.py): read, label (contacts, local phases), split
+                           into segments; per segment (and its mirror): x, p, z rows and style
+                           clips (features/) -- file after file here, or in worker processes
+                           (parallel_build.py) and collected in the same order: the same data set
                         -> normalisation statistics from the training rows (stats.py)
                         -> cached .npz (cache.py, dataset.py)
 
@@ -17,30 +19,30 @@ Style-balanced minibatches (Sec. 4.3) are the trainer's job (``minifilm.train.ba
 """
 from __future__ import annotations
 
+import contextlib
 import os
 import time
 from pathlib import Path
-from typing import Dict, List, Optional, Sequence, Tuple, Union
+from typing import Dict, List, Optional, Sequence, Union
 
 import numpy as np
 
 from minifilm.dataset.cache import cached_key, dataset_cache_key
 from minifilm.dataset.dataset import Dataset, Split
+from minifilm.dataset.file_rows import FileRows, label_file
 from minifilm.dataset.manifest import MotionFile, read_manifest, scan_folder
+from minifilm.dataset.parallel_build import FRAMES_PER_WORKER, LabellingWorkers
 from minifilm.dataset.progress import Progress
 from minifilm.dataset.settings import DatasetSettings
-from minifilm.dataset.splits import SPLITS, apply_gap, file_rng, split_files, split_segments
+from minifilm.dataset.splits import SPLITS, split_files
 from minifilm.dataset.stats import NormStats
 from minifilm.dataset.survey import check_memory, check_one_rig, most_common_rig, survey
-from minifilm.dataset.validate import check_every_style_trains, check_finite
+from minifilm.dataset.validate import check_every_style_trains
 from minifilm.errors import DataError
 from minifilm.files import check_name, note_input, owned_writes
-from minifilm.features.compute import clip_features_from_arrays, frame_features_from_arrays, motion_arrays
 from minifilm.features.layout import FeatureLayout
-from minifilm.motion.bvh import read_bvh
-from minifilm.motion.editing import mirror, resample
 from minifilm.motion.skeletons import builtin_skeleton, detect_skeleton
-from minifilm.phases.label import label
+from minifilm.processes import default_workers
 
 
 def resolve_files(source: Union[str, Path, Sequence[MotionFile]]) -> List[MotionFile]:
@@ -61,34 +63,6 @@ def resolve_files(source: Union[str, Path, Sequence[MotionFile]]) -> List[Motion
     return files
 
 
-def _load_motion(f: MotionFile, skeleton, fps: Optional[float]):
-    """One manifest entry as a Motion: read, cropped to its frame range, resampled to ``fps``."""
-    motion = read_bvh(f.path, scale=skeleton.bvh_scale)
-    if f.start is not None or f.end is not None:
-        a = 0 if f.start is None else f.start
-        b = motion.n_frames if f.end is None else f.end
-        if b > motion.n_frames or a >= b:
-            raise ValueError(f"{f.path}: frame range [{a}, {b}) does not fit its {motion.n_frames} frames")
-        motion = motion.slice(a, b)
-    if fps is not None and abs(motion.fps - fps) > 1e-3 * fps:
-        motion = resample(motion, fps)
-    return motion
-
-
-def _featurise(motion, skeleton, contacts, phases, segments, fps, want_clips, settings, dtype):
-    """Rows and clips of every segment of one (possibly mirrored) motion."""
-    arrays = motion_arrays(motion, skeleton, fps)
-    rows, clips = [], []
-    for a, b, split in segments:
-        f = frame_features_from_arrays(*arrays, phases, contacts, fps, a, b, dtype)
-        rows.append((split, f))
-        if want_clips:
-            y = clip_features_from_arrays(*arrays, fps, settings.clip_seconds,
-                                          settings.clip_stride_seconds, a, b, dtype)
-            clips.append((split, y))
-    return rows, clips
-
-
 def _pick_skeleton(settings: DatasetSettings, surveyed):
     """The skeleton named in the settings, else the built-in one the joints of most files match
     (read off their headers by the survey)."""
@@ -102,7 +76,8 @@ def _pick_skeleton(settings: DatasetSettings, surveyed):
 
 def build_dataset(source: Union[str, Path, Sequence[MotionFile]],
                   settings: Optional[DatasetSettings] = None, cache_dir: Union[str, Path, None] = None,
-                  progress: bool = True, skeleton=None, dtype=np.float32, **overrides) -> Dataset:
+                  progress: bool = True, skeleton=None, dtype=np.float32, workers: Optional[int] = None,
+                  **overrides) -> Dataset:
     """Build (or load from cache) the dataset of a 100STYLE-named folder, a CSV manifest or a list
     of :class:`~minifilm.dataset.manifest.MotionFile`.
 
@@ -113,8 +88,14 @@ def build_dataset(source: Union[str, Path, Sequence[MotionFile]],
         progress: a status line on stderr.
         skeleton: a :class:`~minifilm.motion.skeletons.Skeleton` object for a custom skeleton
             (overrides ``settings.skeleton``; its repr enters the cache key).
+        workers: processes labelling the files at once (parallel_build.py), default the cores
+            this process may use, at most one per file and per FRAMES_PER_WORKER frames; 1 = one
+            file after another in this process. The dataset is the same, bit for bit, for any
+            number (it is not in the cache key).
     """
     settings = settings or DatasetSettings()
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise ValueError(f"build_dataset: workers must be a whole number >= 1 (or None: every core), got {workers!r}")
     if overrides:
         settings = DatasetSettings(**{**settings.to_dict(), **overrides})
     files = [f for f in resolve_files(source) if f.gait not in settings.idle_gaits]
@@ -134,7 +115,11 @@ def build_dataset(source: Union[str, Path, Sequence[MotionFile]],
     check_memory(surveyed, [settings.mirrors(f) for f in files], FeatureLayout.for_skeleton(skeleton),
                  int(round(settings.clip_seconds * fps)), int(round(settings.clip_stride_seconds * fps)),
                  np.dtype(dtype).itemsize)
-    ds = _build(files, settings, skeleton, progress, dtype)
+    if workers is None:     # every core, but a worker only for enough motion to pay for its start
+        frames = sum(surveyed[Path(f.path)].n_frames * (2 if settings.mirrors(f) else 1) for f in files)
+        workers = default_workers(min(len(files), frames // FRAMES_PER_WORKER))
+    workers = min(workers, len(files))
+    ds = _build(files, settings, skeleton, progress, dtype, workers, fps)
     ds.build_seconds = time.perf_counter() - t0
     ds.cache_key = key
     if cache_path is not None:     # overwrites a stale cache of the same dataset
@@ -144,19 +129,39 @@ def build_dataset(source: Union[str, Path, Sequence[MotionFile]],
     return ds
 
 
-def _build(files: List[MotionFile], settings: DatasetSettings, skeleton, progress: bool, dtype) -> Dataset:
+def _build(files: List[MotionFile], settings: DatasetSettings, skeleton, progress: bool, dtype,
+           workers: int = 1, fps: Optional[float] = None) -> Dataset:
+    """The dataset of ``files``, labelled one after another here, or (``workers`` > 1) in worker
+    processes and collected in the same order. ``fps``: the dataset's frame rate (the settings',
+    else the first file's), which the workers need before any file is read."""
     builder = _Builder(files, settings, skeleton, dtype)
     bar = Progress(len(files), "dataset", progress)
-    for i, f in enumerate(files):
-        try:
-            builder.add(f)
-        except DataError:
-            raise                       # names its file already
-        except Exception as e:          # say which file, whatever went wrong inside
-            e.add_note(f"(while building the dataset from {f.path})")
-            raise
-        bar.update(i + 1, Path(f.path).name)
+    if workers <= 1:
+        for i, f in enumerate(files):
+            with _naming(f):
+                builder.add(f)
+            bar.update(i + 1, Path(f.path).name)
+        return builder.finish()
+    jobs = [(f, builder.whole_split(f)) for f in files]
+    with LabellingWorkers(jobs, settings, skeleton, fps, dtype, workers) as labelled:
+        bar.note(f"{len(files)} files in {workers} worker processes (ids {', '.join(map(str, labelled.pids))})")
+        for i, f in enumerate(files):           # the files' order, whichever worker finishes first
+            with _naming(f):
+                builder.collect(f, labelled.next())
+            bar.update(i + 1, Path(f.path).name)
     return builder.finish()
+
+
+@contextlib.contextmanager
+def _naming(f: MotionFile):
+    """Say which file an error came from, whatever went wrong inside (a DataError names it already)."""
+    try:
+        yield
+    except DataError:
+        raise
+    except Exception as e:
+        e.add_note(f"(while building the dataset from {f.path})")
+        raise
 
 
 class _Builder:
@@ -177,44 +182,39 @@ class _Builder:
             splittable = [f for f in files if settings.split_transitions or not f.gait.startswith("TR")]
             self.whole_files = split_files(splittable, settings.seed, settings.split_fractions)
 
-    def segments(self, f: MotionFile, n_frames: int) -> List[Tuple[int, int, str]]:
+    def whole_split(self, f: MotionFile) -> Optional[str]:
+        """The split of a file that goes to one split whole (split_unit 'files'), else None."""
+        if self.whole_files is None or (f.gait.startswith("TR") and not self.settings.split_transitions):
+            return None
+        return self.whole_files[Path(f.path)]
+
+    def wants_clips(self, f: MotionFile) -> bool:
+        """Clips of ``f``: a clip-gait file always gives them; another file only for a style that has
+        none from a clip-gait file yet (clip_fallback) -- which depends on the files before it."""
         st = self.settings
-        if f.gait.startswith("TR") and not st.split_transitions:
-            return [(0, n_frames, "train")]
-        if self.whole_files is not None:
-            return [(0, n_frames, self.whole_files[Path(f.path)])]
-        segs = split_segments(n_frames, file_rng(st.seed, f), st.split_fractions)
-        return apply_gap(segs, int(round(st.gap_seconds * self.fps)))
+        return f.gait in st.clip_gaits or (st.clip_fallback and f.style not in self.has_primary_clips)
 
     def add(self, f: MotionFile) -> None:
-        st, sk = self.settings, self.skeleton
-        motion = _load_motion(f, sk, st.fps)
+        """Label the file here and keep its rows and clips."""
+        self.collect(f, label_file(f, self.settings, self.skeleton, self.fps, self.whole_split(f),
+                                   self.wants_clips(f), self.dtype))
+
+    def collect(self, f: MotionFile, labelled: FileRows) -> None:
+        """Keep the rows and clips of ``f`` (labelled here or by a worker, which may have made clips
+        this file does not give: they are dropped here, as add() never makes them)."""
         if self.fps is None:
-            self.fps = motion.fps
-        elif abs(motion.fps - self.fps) > 1e-3 * self.fps:      # survey() refuses this up front
-            raise DataError(f"{f.path}: {motion.fps:g} fps differs from the other files' {self.fps:g} fps; "
-                            f"set DatasetSettings(fps=...) to resample")
-        labels = label(motion, sk, f.style)
-        segments = self.segments(f, motion.n_frames)
-        primary = f.gait in st.clip_gaits
-        want_clips = primary or (st.clip_fallback and f.style not in self.has_primary_clips)
-        variants = [(False, motion, labels)]
-        if st.mirrors(f):
-            variants.append((True, mirror(motion), labels.mirrored()))
+            self.fps = labelled.fps
+        primary = f.gait in self.settings.clip_gaits
+        keep_clips = self.wants_clips(f)         # decided before this file's clips count
         sid = self.style_id[f.style]
-        for mirrored, m, lab in variants:
+        for v in labelled.variants:
             src = len(self.sources)
             self.sources.append({"path": os.path.abspath(f.path), "style": f.style, "gait": f.gait,
-                                 "mirrored": mirrored, "n_frames": m.n_frames, "start": f.start,
-                                 "end": f.end, "segments": segments})
-            rows, clips = _featurise(m, sk, lab.contacts, lab.vectors, segments, self.fps, want_clips, st,
-                                     self.dtype)
-            for _, ff in rows:
-                for what, a in (("x", ff.x), ("z", ff.z), ("p", ff.p)):
-                    check_finite(a, what, self.layout, f"{f.path}{' (mirrored)' if mirrored else ''}", ff.frames)
-            for split, ff in rows:
+                                 "mirrored": v.mirrored, "n_frames": v.n_frames, "start": f.start,
+                                 "end": f.end, "segments": labelled.segments})
+            for split, ff in v.rows:
                 self.parts[split]["rows"].append((src, sid, ff))
-            for split, y in clips:
+            for split, y in (v.clips if keep_clips else []):
                 if primary:
                     self.parts[split]["clips"].append((src, sid, y))
                     if split == "train" and len(y):

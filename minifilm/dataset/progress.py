@@ -29,3 +29,9 @@ class Progress:
         else:
             sys.stderr.write(msg + "\n")
         sys.stderr.flush()
+
+    def note(self, text: str) -> None:
+        """A line of its own on stderr (before the first update: how the work is shared)."""
+        if self.enabled:
+            sys.stderr.write(f"[{self.label}] {text}\n")
+            sys.stderr.flush()

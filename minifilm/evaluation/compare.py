@@ -51,13 +51,14 @@ from minifilm.evaluation.compare_measures import (CLAVICLE_PATTERN, data_hand_am
 from minifilm.evaluation.compare_claims_more import table2_figures
 from minifilm.evaluation.compare_released import released_rollout
 from minifilm.evaluation.compare_rollouts import interpolation, style_recognition
-from minifilm.evaluation.compare_workers import default_workers, run_figures, serve, train_in_workers
+from minifilm.evaluation.compare_workers import run_figures, train_in_workers
 from minifilm.evaluation.compare_finetune import finetune_all
 from minifilm.evaluation.compare_tools import fit_stats, motion_errors, select_styles, steps_per_epoch, style_subset
 from minifilm.evaluation.convergence import train_with_curve, validation_subset
 from minifilm.evaluation.style_classifier import train_style_classifier
 from minifilm.model.config import ModelConfig
 from minifilm.motion.skeletons import BUILTIN_SKELETONS
+from minifilm.processes import default_workers, serve
 from minifilm.synthetic import generator as synthetic
 from minifilm.train.trainer import TrainConfig, Trainer
 

@@ -57,16 +57,11 @@ import numpy as np
 
 from minifilm.model.style_model import StyleModel
 from minifilm.nn.fast_optim import ChunkedAdam
+from minifilm.processes import ONE_BLAS_THREAD, WorkerDied
 from minifilm.train import parallel_worker as pw
 from minifilm.train.parallel_shares import default_workers, shares
 
-ONE_BLAS_THREAD = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 _names = itertools.count()
-
-
-class WorkerDied(ChildProcessError):
-    """A worker process of data-parallel training ended or failed during a step (an OSError, so the
-    command prints it as one line); the weights were not updated with that step."""
 
 
 def supports(model) -> bool:

@@ -2,17 +2,9 @@
 which rows of a minibatch -- and which of its style clips -- each worker computes."""
 from __future__ import annotations
 
-import os
-
 import numpy as np
 
-
-def usable_cores() -> int:
-    """The cores this process may run on (its CPU affinity; os.cpu_count() where that is unknown)."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except (AttributeError, OSError):
-        return max(1, os.cpu_count() or 1)
+from minifilm.processes import usable_cores
 
 
 def default_workers(trainer) -> int:

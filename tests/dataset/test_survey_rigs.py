@@ -21,7 +21,8 @@ def _files(shared_data, foreign_at):
 @pytest.mark.parametrize("foreign_at", [0, 12, 24])
 def test_one_file_of_another_rig_is_named_before_any_file_is_read(shared_data, monkeypatch, foreign_at):
     loaded = []
-    monkeypatch.setattr(build, "_load_motion", lambda f, *a, **k: loaded.append(f.path))
+    # every file is read, labelled and featurised in _build (here or in its worker processes)
+    monkeypatch.setattr(build, "_build", lambda files, *a, **k: loaded.extend(files))
     with pytest.raises(DataError) as e:
         build_dataset(_files(shared_data, foreign_at), fps=30.0, progress=False)
     text = str(e.value)

@@ -7,7 +7,9 @@ exactly as before, and no temporary is left where a user looks (a killed process
 temporary is removed by the next command writing the folder). Training with worker processes
 (--workers 2), stopped by SIGINT or SIGTERM, or with a worker killed mid-run: one message, no
 worker left running, no shared-memory segment left in /dev/shm, the earlier run kept. Two commands
-writing one folder: the second is refused, naming the first's process."""
+writing one folder: the second is refused, naming the first's process. ``minifilm dataset --workers
+2`` stopped while its workers label (SIGINT, SIGTERM, Ctrl-C to the group, SIGKILL): no worker
+left running, no cache written."""
 import hashlib
 import os
 import re
@@ -171,3 +173,38 @@ def test_a_stopped_training_with_workers_leaves_no_process_no_shared_memory(old_
     hidden = [p.name for p in old_run.parent.iterdir() if p.name.startswith(".") and not p.name.endswith(".lock")]
     assert (visible, hidden) == (["run"], [])
     generates(old_run, tmp_path)
+
+
+@pytest.fixture(scope="module")
+def bvh_folder(tmp_path_factory):
+    """16 synthetic files, 4 s each: a couple of seconds of labelling for two workers."""
+    from minifilm.synthetic.generator import write_dataset
+    folder = tmp_path_factory.mktemp("bvh")
+    write_dataset(folder, styles=["Neutral", "LeftHop", "Limp", "Drunk"], gaits=["FW", "BW", "FR", "SW"], seconds=4.0,
+                  truth=False)
+    return folder
+
+
+DATASET_STOPS = [("parent", signal.SIGINT), ("parent", signal.SIGTERM), ("group", signal.SIGINT),
+                 ("parent", signal.SIGKILL)]
+
+
+@pytest.mark.parametrize("who,sig", DATASET_STOPS, ids=[f"{w}-{s.name}" for w, s in DATASET_STOPS])
+def test_a_stopped_dataset_build_with_workers_leaves_no_process_and_no_cache(bvh_folder, tmp_path, who, sig):
+    cache = tmp_path / "cache"
+    proc = start(["dataset", bvh_folder, "--workers", "2", "--cache", cache], start_new_session=who == "group")
+    pids = worker_ids(wait_for(proc, "[dataset] 16 files in 2 worker processes"))
+    wait_for(proc, "[dataset] 1/16 files")                 # the first file is back, the workers are at others
+    if who == "group":
+        os.killpg(proc.pid, sig)
+    else:
+        proc.send_signal(sig)
+    rest, _ = proc.communicate(timeout=600)
+    assert proc.returncode == {signal.SIGINT: 130, signal.SIGTERM: 143, signal.SIGKILL: -9}[sig], rest[-800:]
+    assert "Traceback" not in rest, rest[-2000:]
+    if sig == signal.SIGKILL:           # the workers are told by the kernel (PR_SET_PDEATHSIG) and end
+        deadline = time.monotonic() + 30
+        while [pid for pid in pids if running(pid)] and time.monotonic() < deadline:
+            time.sleep(0.1)
+    assert not [pid for pid in pids if running(pid)]
+    assert not cache.exists() or list(cache.iterdir()) == []   # no cache, whole or half
