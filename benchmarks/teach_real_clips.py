@@ -38,9 +38,10 @@ from minifilm.features.layout import FeatureLayout  # noqa: E402
 from minifilm.motion.measures import bone_length_cv  # noqa: E402
 from minifilm.motion.skeletons import STYLE100  # noqa: E402
 from minifilm.pipeline.joint_axes import align_axes  # noqa: E402
-from minifilm.pipeline.judge_taught import clip_summaries, judge_taught  # noqa: E402
+from minifilm.pipeline.judge_taught import judge_taught  # noqa: E402
 from minifilm.pipeline.rollout_refit import rollout_refit  # noqa: E402
-from minifilm.pipeline.teach_released import candidate_rollouts, clip_rows, read_clip, teach  # noqa: E402
+from minifilm.pipeline.teach_released import clip_rows, read_clip, teach  # noqa: E402
+from minifilm.pipeline.walks import candidate_rollouts, clip_summaries  # noqa: E402
 from minifilm.runtime.released import load_released  # noqa: E402
 from minifilm.runtime.walk_checks import count_strikes, lowest_toe  # noqa: E402
 from minifilm.phases.label import label  # noqa: E402

@@ -4,7 +4,8 @@
     python benchmarks/teach_released.py --styles Neutral Old --seconds 10
 
 Each style walks a figure-eight for --seconds in its own vector; that motion is taught back with
-the style's vector hidden (the prior is made of the other 99) and the hidden vector's rank among
+the style's vector hidden (the prior is made of the other 99; then, as ``finetune`` does, the fit
+is refined by the motion it makes for --motion-rounds rounds) and the hidden vector's rank among
 the 100 is printed three ways (minifilm/pipeline/refit_released.py): by distance in FiLM space,
 by how close its predictions are to the fitted vector's on held-out rows, and by loss (a check of
 the labels). Also the teaching time and whether the fitted style walks. --json writes the rows.
@@ -32,6 +33,7 @@ import numpy as np  # noqa: E402
 from minifilm.features.layout import FeatureLayout  # noqa: E402
 from minifilm.motion.skeletons import STYLE100  # noqa: E402
 from minifilm.pipeline.judge_taught import judge_refits  # noqa: E402
+from minifilm.pipeline.motion_refit import RefitSettings  # noqa: E402
 from minifilm.pipeline.refit_released import generated_motions, refit  # noqa: E402
 from minifilm.runtime.released import load_released  # noqa: E402
 from minifilm.train.film_fit import FitSettings  # noqa: E402
@@ -47,6 +49,9 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=300)
     ap.add_argument("--prior-weights", type=float, nargs="+", default=[0.3, 1.0, 3.0],
                     help="one fit per weight, the rollouts choose (default: finetune's 0.3 1 3)")
+    ap.add_argument("--motion-rounds", type=int, default=RefitSettings.rounds,
+                    help="rounds of refining each fit by the motion it makes, as finetune does (0: the "
+                         "teacher-forced fit alone, as before; minifilm/pipeline/motion_refit.py)")
     ap.add_argument("--judge-seconds", type=float, default=20.0, help="rollout judged by motion (0: skip)")
     ap.add_argument("--seeds", type=int, default=3, help="classifier seeds (the minimum recognition counts)")
     ap.add_argument("--fitted", type=Path, help="an .npz of the fitted vectors: written, or if it exists read "
@@ -68,7 +73,8 @@ def main() -> None:
     print(f"{'style':16s} {'film rank':>9s} {'output rank':>11s} {'loss rank':>9s}  nearest (film / output)   "
           f"{'teach s':>7s}  steps/s (clip)  walks")
     for name, motion in zip(names, motions):
-        r = refit(rel, name, motion, FitSettings(steps=args.steps), prior_weights=tuple(args.prior_weights))
+        r = refit(rel, name, motion, FitSettings(steps=args.steps), prior_weights=tuple(args.prior_weights),
+                  by_motion=RefitSettings(rounds=args.motion_rounds) if args.motion_rounds > 0 else None)
         rows.append(r)
         print(f"{name:16s} {r['film_rank']:9d} {r['output_rank']:11d} {r['loss_rank']:9d}  "
               f"{r['nearest_film']} / {r['nearest_output']:12s} {r['seconds']:7.1f}  "

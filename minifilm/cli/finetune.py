@@ -23,6 +23,7 @@ from minifilm.cli.args import in_range, input_path, output_folder, positive
 from minifilm.errors import InputError
 from minifilm.pipeline.new_style import teach_style
 from minifilm.pipeline.self_fed import SelfFed
+from minifilm.pipeline.motion_refit import RefitSettings
 from minifilm.pipeline.teach_released import RECOMMENDED_SECONDS, SIGMA, report_lines, teach_released
 from minifilm.train.film_fit import FitSettings
 
@@ -41,6 +42,10 @@ def add_arguments(ap) -> None:
     ap.add_argument("--steps", type=in_range(1, 100_000, int), default=400, help="fine-tuning steps (default 400)")
     ap.add_argument("--lr", type=positive(float, 1.0), default=5e-4, help="learning rate (default 5e-4)")
     ap.add_argument("--seed", type=in_range(0, 2**32 - 1, int), default=0)
+    ap.add_argument("--motion-rounds", type=in_range(0, 200, int), default=RefitSettings.rounds,
+                    help="with --params: rounds of moving the taught vector until the network's own walk in it "
+                         "looks like the clip (pipeline/motion_refit.py; default %(default)s, about 4 s each on "
+                         "two cores; 0: keep the teacher-forced fit)")
     ap.add_argument("--rollout-rounds", type=in_range(0, 100, int), default=ROLLOUT_ROUNDS,
                     help="rounds of training on the model's own rollouts along the clip after the "
                          f"teacher-forced steps (pipeline/self_fed.py; default {ROLLOUT_ROUNDS}: teacher forcing "
@@ -92,7 +97,8 @@ def run_released(args) -> int:
         raise InputError("--params needs --out PACK: the style pack folder the new style is written into "
                          "(the network folder is never written)")
     settings = FitSettings(steps=min(args.steps, 1000), seed=args.seed)
-    r = teach_released(args.params, args.name, args.files, args.out, replace=args.replace, settings=settings)
+    r = teach_released(args.params, args.name, args.files, args.out, replace=args.replace, settings=settings,
+                       motion=RefitSettings(rounds=args.motion_rounds, seed=args.seed))
     for line in report_lines(r):
         print(line)
     print(f"    written to the style pack {args.out}")

@@ -17,22 +17,8 @@ from typing import Dict, List, Sequence
 
 import numpy as np
 
-from minifilm.evaluation.style_judge import StyleJudge, motion_block, rows_block, summaries
-from minifilm.pipeline.teach_released import FPS, candidate_rollouts
-from minifilm.runtime.start_state import root_joint_indices
-from minifilm.synthetic.generator import rest_motion
-
-
-def walk_blocks(network, layout, stats, films: np.ndarray, speed: float, seconds: float):
-    """Every vector walked straight ahead at ``speed`` for ``seconds`` after a first second cut
-    (the start from the mean pose): -> (list of (F, 12 J) normalised clip-feature blocks, rollout)."""
-    r, _ = candidate_rollouts(network, layout, np.asarray(films, np.float32), speed, seconds + 1)
-    skeleton = rest_motion()
-    joints = root_joint_indices(layout, skeleton)
-    n = r.positions.shape[1]
-    blocks = [motion_block(r.to_motion(skeleton, joints, character=b).slice(int(FPS), n), stats, layout)
-              for b in range(len(films))]
-    return blocks, r
+from minifilm.evaluation.style_judge import StyleJudge, summaries
+from minifilm.pipeline.walks import clip_summaries, walk_blocks
 
 
 def halves(blocks) -> tuple:
@@ -60,19 +46,6 @@ def judge_refits(rel, layout, fitted: Dict[str, np.ndarray], speed: float = 1.3,
     return dict(fitted={t: judge.judge(second[i], t) for i, t in enumerate(targets)},
                 released_self=int(sum(j["rank"] == 1 for j in own)),
                 released_recognition_min=float(np.median([j["recognition_min"] for j in own])))
-
-
-def clip_summaries(clip, stats, layout) -> np.ndarray:
-    """The clip's own windows (the rows the fit saw, joint axes as taught), file by file so no
-    window spans two files."""
-    parts, a = [], 0
-    for src in clip.sources:
-        b = a + max(0, int(src["frames"]) - 2)              # frame_features: frames 1 .. F-2
-        block = rows_block(clip.x[a:b], stats, layout)
-        if len(block) >= 45:
-            parts.append(summaries(block))
-        a = b
-    return np.concatenate(parts)
 
 
 def judge_taught(rel, layout, taught, seconds: float = 20.0, seeds: Sequence[int] = (0, 1, 2),

@@ -19,7 +19,7 @@ prior.
 """
 from __future__ import annotations
 
-from typing import Callable
+from typing import Callable, Optional
 
 import numpy as np
 
@@ -28,7 +28,9 @@ from minifilm.motion.skeletons import STYLE100
 from minifilm.runtime.control import make_script
 from minifilm.runtime.controller import Controller
 from minifilm.runtime.start_state import root_joint_indices
-from minifilm.pipeline.teach_released import FPS, FrozenRows, clip_rows, normalised, teach
+from minifilm.pipeline.motion_refit import RefitSettings
+from minifilm.pipeline.teach_released import FrozenRows, clip_rows, normalised, teach
+from minifilm.pipeline.walks import FPS
 from minifilm.synthetic.generator import rest_motion
 from minifilm.train.film_fit import FitSettings
 
@@ -83,16 +85,18 @@ def sensitivity(gram: np.ndarray, error: np.ndarray, other: np.ndarray) -> dict:
 
 
 def refit(rel, name: str, motion, settings: FitSettings = FitSettings(), prior_weights=(0.3, 1.0, 3.0),
-          log: Callable[[str], None] = lambda m: None) -> dict:
+          by_motion: Optional[RefitSettings] = RefitSettings(), log: Callable[[str], None] = lambda m: None) -> dict:
     """Teach ``name`` from ``motion`` with its own vector hidden; -> ranks and figures (module
-    docstring), the fitted vector ('film') and the output's sensitivity (:func:`sensitivity`)."""
+    docstring), the fitted vector ('film') and the output's sensitivity (:func:`sensitivity`).
+    by_motion: the refinement by the motion the vector makes, as ``finetune`` runs it (None: the
+    teacher-forced fit alone)."""
     names = list(rel.styles)
     V = np.stack([rel.styles[n] for n in names]).astype(np.float64)
     i = names.index(name)
     known = {n: rel.styles[n] for n in names if n != name}
     layout = FeatureLayout.for_skeleton(STYLE100)
     taught = teach(rel, layout, f"{name}-refit", [motion], [f"{name} (generated)"], known=known, settings=settings,
-                   prior_weights=prior_weights, require_steps=False, log=log)   # the network's motion walks,
+                   prior_weights=prior_weights, require_steps=False, motion=by_motion, log=log)   # the network's motion walks,
     # whatever minifilm's contact labels find in it (BentKnees: fewer than two steps in 30 s)
     x, p, z = normalised(rel.stats, clip_rows([motion], [name], name, require_steps=False))
     rows = FrozenRows(rel.model, x, p, z)

@@ -19,7 +19,8 @@ from typing import List
 
 import numpy as np
 
-from minifilm.pipeline.teach_released import FPS, normalised
+from minifilm.pipeline.teach_released import normalised
+from minifilm.pipeline.walks import FPS
 from minifilm.runtime.control import CommandScript
 from minifilm.runtime.controller import Controller
 from minifilm.synthetic.generator import rest_motion

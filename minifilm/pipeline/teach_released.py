@@ -4,7 +4,8 @@
     the network's statistics) -> how far they lie from the network's data (warnings) -> a FiLM
     vector fitted through the frozen Ω and Φ under a prior from the network's own styles
     (minifilm/train/film_fit.py) -> the candidate vectors rolled out, the one whose motion is
-    closest to the clip kept -> a style pack (minifilm/runtime/style_pack.py)
+    closest to the clip kept -> that vector moved until the network's own walk in it looks like
+    the clip (minifilm/pipeline/motion_refit.py) -> a style pack (minifilm/runtime/style_pack.py)
 
 The released network is never written: the new style lives in the pack folder, which
 ``minifilm generate / demo --params NET --styles PACK`` read beside the network's own styles.
@@ -29,20 +30,18 @@ from minifilm.motion.skeletons import STYLE100
 from minifilm.phases.label import label
 from minifilm.rigs.retarget_clip import read_source, retarget_motion
 from minifilm.rigs.rig import load_rig
-from minifilm.runtime.control import CommandScript
-from minifilm.runtime.controller import Controller
 from minifilm.runtime.start_state import root_joint_indices
 from minifilm.runtime.released import load_released
 from minifilm.runtime.style_pack import load_pack_or_empty
 from minifilm.runtime.walk_checks import count_strikes, walk_report
 from minifilm.pipeline.joint_axes import align_axes
+from minifilm.pipeline.motion_refit import RefitSettings, refine_by_motion
+from minifilm.pipeline.walks import CHECK_SECONDS, FPS, candidate_rollouts, clip_summaries
 from minifilm.synthetic.generator import rest_motion
 from minifilm.train.film_fit import FitSettings, FrozenRows, StylePrior, fit_film
 
-FPS = 60.0
 RECOMMENDED_SECONDS = 10.0        # shorter clips are taught, with a warning
 SIGMA = 5.0                       # a normalised feature beyond this many σ of the network's data is "far"
-CHECK_SECONDS = 6.0               # rollout of each candidate vector
 PRIOR_WEIGHTS = (0.3, 1.0, 3.0)   # λ of the fit: the candidates the rollouts choose between
 
 
@@ -170,17 +169,6 @@ def normalised(stats, clip: ClipRows):
     return stats.normalize_x(clip.x), stats.normalize_p(clip.p), stats.normalize_z(clip.z)
 
 
-def candidate_rollouts(network, layout: FeatureLayout, films: np.ndarray, speed: float, seconds: float = CHECK_SECONDS):
-    """All candidate vectors walked straight ahead at the clip's speed, one batch; -> (rollout, path)."""
-    skeleton = rest_motion()
-    ctrl = Controller(network, layout, fps=FPS, skeleton=Controller.skeleton_for(layout, skeleton), feed_back_fit=True)
-    v = float(np.clip(speed, 0.3, 4.0))
-    script = CommandScript([(0.0, v, 0.0, 0.0), (seconds, v, 0.0, 0.0)])
-    r = ctrl.run([script] * len(films), int(round(seconds * FPS)), films)
-    path = np.array([[0.0, 0.0], [0.0, v * seconds * 2]])
-    return r, path
-
-
 def own_loss(rel, rollout, character: int, film: np.ndarray, name: str) -> float:
     """The loss of a known style's vector on its own generated motion, labelled as a clip is."""
     skeleton = rest_motion()
@@ -202,10 +190,13 @@ def rollout_score(report, clip: ClipRows) -> float:
 def teach(rel, layout: FeatureLayout, name: str, motions: Sequence[Motion], files: Sequence,
           known: Optional[dict] = None, settings: FitSettings = FitSettings(),
           prior_weights: Sequence[float] = PRIOR_WEIGHTS, choose_by_rollout: bool = True,
-          align: bool = False, require_steps: bool = True, log: Callable[[str], None] = print) -> TaughtStyle:
+          align: bool = False, require_steps: bool = True, motion: Optional[RefitSettings] = RefitSettings(),
+          log: Callable[[str], None] = print) -> TaughtStyle:
     """Fit ``name`` to the clip(s) on the loaded released network ``rel``; ``known``: the styles
     the prior is made of (default all of the network's); ``align``: turn the joint axes to the
-    network's convention (:func:`align_axes`; for retargeted clips). Nothing is written."""
+    network's convention (:func:`align_axes`; for retargeted clips); ``motion``: how the kept vector
+    is then refined by the motion it makes (:func:`refine_by_motion`; None or 0 rounds: not at
+    all). Nothing is written."""
     known = dict(rel.styles if known is None else known)
     names = list(known)
     V = np.stack([known[n] for n in names]).astype(np.float64)
@@ -244,6 +235,21 @@ def teach(rel, layout: FeatureLayout, name: str, motions: Sequence[Motion], file
     film, check = films[chosen], reports[chosen]
     candidates[chosen]["chosen"] = True
     distance.known_losses = [own_loss(rel, r, len(films), ref, best_known)]
+    windows = clip_summaries(clip, rel.stats, layout)
+    if motion is not None and motion.rounds > 0 and len(windows) >= 2:
+        log(f"refining by motion: {motion.rounds} rounds of {motion.population} walks ...")
+        refit = refine_by_motion(rel.network, layout, rel.stats, film, known, windows, clip.speed, motion)
+        r, path = candidate_rollouts(rel.network, layout, refit.film[None], clip.speed)
+        check = walk_report(r, 0, toes, path, clip_steps_per_s=clip.steps_per_s, clip_hips=clip.hips)
+        candidates[chosen]["chosen"] = False
+        candidates.append({"refined_by_motion": True, "from_candidate": chosen, "rounds": motion.rounds,
+                           "motion_distance_start": refit.start_score, "motion_distance": refit.score,
+                           "loss": rows.loss(refit.film), "rollout_score": float(rollout_score(check, clip)),
+                           "steps_per_s": check.steps_per_s, "hips": check.hips,
+                           "toe_on_floor": check.toe_on_floor, "chosen": True})
+        film = refit.film.astype(np.float64)
+        films.append(film)
+        log(f"refined by motion: distance to the clip's windows {refit.start_score:.0f} -> {refit.score:.0f}")
     seconds = time.perf_counter() - t0
     d = np.linalg.norm(V - film, axis=1)
     return TaughtStyle(name, film.astype(np.float32), seconds, clip, distance, rows.loss(film), names[int(np.argmin(d))],
@@ -251,7 +257,8 @@ def teach(rel, layout: FeatureLayout, name: str, motions: Sequence[Motion], file
 
 
 def teach_released(params, name: str, files: Sequence, out, replace: bool = False,
-                   settings: FitSettings = FitSettings(), log: Callable[[str], None] = print) -> TaughtStyle:
+                   settings: FitSettings = FitSettings(), motion: Optional[RefitSettings] = RefitSettings(),
+                   log: Callable[[str], None] = print) -> TaughtStyle:
     """``minifilm finetune --params NET --name NAME --out PACK CLIP...``: read and check everything,
     teach, then write PACK (the old pack's styles kept) in one step. The network folder is only read."""
     check_name(name, "--name")
@@ -272,7 +279,7 @@ def teach_released(params, name: str, files: Sequence, out, replace: bool = Fals
     motions = [m for m, _ in read]
     layout = FeatureLayout.for_skeleton(STYLE100)
     align = any(retargeted for _, retargeted in read)
-    taught = teach(rel, layout, name, motions, files, settings=settings, align=align, log=log)
+    taught = teach(rel, layout, name, motions, files, settings=settings, align=align, motion=motion, log=log)
     pack.with_style(name, taught.film, taught.pack_info(), replace=replace).save(out)
     return taught
 

@@ -85,6 +85,28 @@ def test_a_released_style_is_found_again_from_its_own_motion(shared_data):
     from minifilm.train.film_fit import FitSettings
     rel = load_released(shared_data / "released-lpn")
     motion, = generated_motions(rel, ["Zombie"], 10.0)
-    r = refit(rel, "Zombie", motion, FitSettings(steps=80), prior_weights=(1.0,))
+    r = refit(rel, "Zombie", motion, FitSettings(steps=80), prior_weights=(1.0,), by_motion=None)
     assert r["loss_rank"] == 1
     assert r["output_rank"] == 1, r
+
+
+def test_refining_by_motion_brings_the_walk_nearer_the_clip(shared_data):
+    """motion_refit on a small scale: Zombie's own motion as the clip, the vector of the style the
+    network finds nearest by loss as the start. The distance to the clip's windows never grows
+    (the start is a candidate of every round), falls here, and a rerun gives the same vector."""
+    from minifilm.evaluation.style_judge import motion_block, summaries
+    from minifilm.pipeline.motion_refit import RefitSettings, refine_by_motion
+    from minifilm.pipeline.refit_released import generated_motions
+    from minifilm.runtime.released import load_released
+    rel = load_released(shared_data / "released-lpn")
+    layout = FeatureLayout.for_skeleton(STYLE100)
+    motion, = generated_motions(rel, ["Zombie"], 6.0, script="straight")
+    clip = summaries(motion_block(motion, rel.stats, layout))
+    known = {n: rel.styles[n] for n in list(rel.styles)[:12] if n != "Zombie"}
+    settings = RefitSettings(directions=4, rounds=2, population=4, elite=2, seconds=3.0, dims=8)
+    start = known["Rushed"] if "Rushed" in known else next(iter(known.values()))
+    r = refine_by_motion(rel.network, layout, rel.stats, start, known, clip, 1.3, settings)
+    assert r.film.shape == start.shape and np.all(np.isfinite(r.film))
+    assert r.score < r.start_score and len(r.history) == 2
+    again = refine_by_motion(rel.network, layout, rel.stats, start, known, clip, 1.3, settings)
+    np.testing.assert_array_equal(again.film, r.film)

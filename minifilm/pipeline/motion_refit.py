@@ -1,0 +1,119 @@
+"""Refining a taught FiLM vector by the motion it makes, not by the next frame it predicts.
+
+Teacher-forced, a fitted vector predicts the clip's next frame as well as the true style does, yet
+walked on its own, frame after frame, its motion drifts to a neighbouring style: most of the 2,048
+numbers barely change one prediction and the rows cannot pin them down, but in a rollout they add
+up (reports on teaching the released network). So here the vector is moved to where the *motion*
+it generates looks like the clip:
+
+    objective(film) = d²( windows of the network's own walk in ``film`` , windows of the clip )
+
+d² is the Fréchet distance between the two sets of window summaries (mean and spread of every
+joint's features over 0.75 s, minifilm/evaluation/style_judge.py) in a StyleSpace fitted on the
+clip and the known styles' own walks. A rollout has no gradient here, so the search is
+derivative-free: the cross-entropy method over the k leading principal directions of the known
+styles' vectors (the directions along which styles differ), around the teacher-forced fit:
+
+    film(c) = start + (c * scales) @ directions        c in R^k, scales: the styles' spread
+    each round: draw ``population`` c ~ N(m, σ² I), walk them all in one batch, keep the best
+    ``elite``, m <- their mean, σ <- σ * ``shrink``; the best vector seen is returned
+
+Cost: one batch rollout of population + 1 characters per round (about 3 s for 8 s of walking on
+two cores); the motion is deterministic, so a vector's score does not change between rounds.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Mapping, Optional
+
+import numpy as np
+
+from minifilm.evaluation.style_judge import summaries
+from minifilm.evaluation.style_measures import StyleSpace, frechet_distance, gaussian
+from minifilm.pipeline.walks import walk_blocks
+
+
+@dataclass
+class RefitSettings:
+    """The search: k directions, rounds, candidates per round, the best kept, start spread σ (in
+    units of the styles' own spread along each direction) and how it shrinks per round; seconds of
+    walking per candidate (after the first second), the space's dimensions."""
+    directions: int = 16
+    rounds: int = 12
+    population: int = 16
+    elite: int = 4
+    sigma: float = 0.4
+    shrink: float = 0.85
+    seconds: float = 8.0
+    dims: int = 32
+    seed: int = 0
+
+
+@dataclass
+class Refit:
+    """The refined vector, its objective, the start's objective, and one line per round."""
+    film: np.ndarray
+    score: float
+    start_score: float
+    history: list = field(default_factory=list)
+
+
+def style_directions(known: np.ndarray, k: int):
+    """(k, D) orthonormal principal directions of the known styles' vectors (S, D) and the styles'
+    standard deviation along each (k,)."""
+    V = np.asarray(known, np.float64)
+    _, s, Wt = np.linalg.svd(V - V.mean(axis=0), full_matrices=False)
+    k = max(1, min(k, len(s)))
+    return Wt[:k], s[:k] / np.sqrt(max(len(V) - 1, 1))
+
+
+def walk_summaries(network, layout, stats, films: np.ndarray, speed: float, seconds: float) -> list:
+    """Window summaries (M, 2C) of each vector's straight walk at ``speed`` (first second cut)."""
+    blocks, _ = walk_blocks(network, layout, stats, np.asarray(films, np.float32), speed, seconds)
+    return [summaries(b) for b in blocks]
+
+
+def refine_by_motion(network, layout, stats, start: np.ndarray, known: Mapping[str, np.ndarray],
+                     clip_summaries: np.ndarray, speed: float, settings: RefitSettings = RefitSettings(),
+                     known_summaries: Optional[Mapping[str, np.ndarray]] = None,
+                     log: Callable[[str], None] = lambda m: None) -> Refit:
+    """Move ``start`` (D,) so that the network's walk in it looks like the clip (module docstring).
+
+    known: the styles whose vectors give the search directions (name -> (D,)), and whose walks,
+    with the clip's windows ``clip_summaries`` (M, 2C), give the space the distance is measured in
+    (``known_summaries``: those walks' summaries if already made). speed: m/s of the walks."""
+    s = settings
+    names = list(known)
+    V = np.stack([np.asarray(known[n], np.float64) for n in names])
+    directions, scales = style_directions(V, s.directions)
+    if known_summaries is None:
+        walks = walk_summaries(network, layout, stats, V, speed, s.seconds)
+        known_summaries = dict(zip(names, walks))
+    space = StyleSpace.fit({**known_summaries, "\0clip": clip_summaries}, dims=s.dims, summarised=True)
+    target = space.gaussians["\0clip"]
+
+    def scores(films):
+        return np.array([frechet_distance(*gaussian(space.project(w, summarised=True)), *target)
+                         if len(w) >= 2 else np.inf
+                         for w in walk_summaries(network, layout, stats, films, speed, s.seconds)])
+
+    def film_of(c):
+        return np.asarray(start, np.float64) + (c * scales) @ directions
+
+    rng = np.random.default_rng(s.seed)
+    mean, sigma = np.zeros(len(scales)), s.sigma
+    best_c, best, history = mean.copy(), None, []
+    for r in range(s.rounds):
+        cs = np.concatenate([mean[None], best_c[None], mean + sigma * rng.standard_normal((s.population, len(mean)))])
+        got = scores(np.stack([film_of(c) for c in cs]))
+        if best is None:
+            start_score = best = float(got[0])
+        order = np.argsort(got)
+        if got[order[0]] < best:
+            best, best_c = float(got[order[0]]), cs[order[0]].copy()
+        mean = cs[order[:s.elite]].mean(axis=0)
+        sigma *= s.shrink
+        history.append(f"round {r + 1}: best {best:.1f} (start {start_score:.1f}), this round's best "
+                       f"{got[order[0]]:.1f}, σ {sigma:.3f}")
+        log(history[-1])
+    return Refit(film_of(best_c).astype(np.float32), best, start_score, history)

@@ -1,0 +1,53 @@
+"""The released network walking: straight-ahead rollouts of many FiLM vectors in one batch, and
+the window summaries by which motion is compared (minifilm/evaluation/style_judge.py) -- of those
+walks and of a clip. Shared by teaching (teach_released.py, motion_refit.py) and judging
+(judge_taught.py)."""
+from __future__ import annotations
+
+import numpy as np
+
+from minifilm.evaluation.style_judge import motion_block, rows_block, summaries
+from minifilm.features.layout import FeatureLayout
+from minifilm.runtime.control import CommandScript
+from minifilm.runtime.controller import Controller
+from minifilm.runtime.start_state import root_joint_indices
+from minifilm.synthetic.generator import rest_motion
+
+FPS = 60.0
+CHECK_SECONDS = 6.0               # rollout of each candidate vector
+
+
+def candidate_rollouts(network, layout: FeatureLayout, films: np.ndarray, speed: float, seconds: float = CHECK_SECONDS):
+    """All candidate vectors walked straight ahead at the clip's speed, one batch; -> (rollout, path)."""
+    skeleton = rest_motion()
+    ctrl = Controller(network, layout, fps=FPS, skeleton=Controller.skeleton_for(layout, skeleton), feed_back_fit=True)
+    v = float(np.clip(speed, 0.3, 4.0))
+    script = CommandScript([(0.0, v, 0.0, 0.0), (seconds, v, 0.0, 0.0)])
+    r = ctrl.run([script] * len(films), int(round(seconds * FPS)), films)
+    path = np.array([[0.0, 0.0], [0.0, v * seconds * 2]])
+    return r, path
+
+
+def walk_blocks(network, layout, stats, films: np.ndarray, speed: float, seconds: float):
+    """Every vector walked straight ahead at ``speed`` for ``seconds`` after a first second cut
+    (the start from the mean pose): -> (list of (F, 12 J) normalised clip-feature blocks, rollout)."""
+    r, _ = candidate_rollouts(network, layout, np.asarray(films, np.float32), speed, seconds + 1)
+    skeleton = rest_motion()
+    joints = root_joint_indices(layout, skeleton)
+    n = r.positions.shape[1]
+    blocks = [motion_block(r.to_motion(skeleton, joints, character=b).slice(int(FPS), n), stats, layout)
+              for b in range(len(films))]
+    return blocks, r
+
+
+def clip_summaries(clip, stats, layout) -> np.ndarray:
+    """The clip's own windows (the rows the fit saw, joint axes as taught), file by file so no
+    window spans two files."""
+    parts, a = [], 0
+    for src in clip.sources:
+        b = a + max(0, int(src["frames"]) - 2)              # frame_features: frames 1 .. F-2
+        block = rows_block(clip.x[a:b], stats, layout)
+        if len(block) >= 45:
+            parts.append(summaries(block))
+        a = b
+    return np.concatenate(parts)
