@@ -242,7 +242,7 @@ def teach(rel, layout: FeatureLayout, name: str, motions: Sequence[Motion], file
         r, path = candidate_rollouts(rel.network, layout, refit.film[None], clip.speed)
         check = walk_report(r, 0, toes, path, clip_steps_per_s=clip.steps_per_s, clip_hips=clip.hips)
         candidates[chosen]["chosen"] = False
-        candidates.append({"refined_by_motion": True, "from_candidate": chosen, "rounds": motion.rounds,
+        candidates.append({"label": "refined by motion", "from_candidate": chosen, "rounds": motion.rounds,
                            "motion_distance_start": refit.start_score, "motion_distance": refit.score,
                            "loss": rows.loss(refit.film), "rollout_score": float(rollout_score(check, clip)),
                            "steps_per_s": check.steps_per_s, "hips": check.hips,
@@ -300,6 +300,11 @@ def report_lines(r: TaughtStyle) -> List[str]:
     if r.distance.far():
         lines.append("    WARNING: the clip lies far outside the motion the network was trained on; "
                      "the new style may not walk like it")
+    refined = [x for x in r.candidates if x.get("label") == "refined by motion"]
+    if refined:
+        m = refined[0]
+        lines.append(f"    refined by the motion it makes ({m['rounds']} rounds): distance of its walk's windows to the "
+                     f"clip's {m['motion_distance_start']:.0f} -> {m['motion_distance']:.0f}")
     lines.append(f"    nearest of the network's styles in FiLM space: {r.nearest}")
     lines.append(f"    rolled out {CHECK_SECONDS:g} s: {k.steps_per_s:.2f} steps/s (clip {c.steps_per_s:.2f}), hips "
                  f"{k.hips:.2f} m (clip {c.hips:.2f}), lowest toe on the floor in {k.toe_on_floor:.0%} of frames, "

@@ -75,6 +75,12 @@ def test_the_report_warns_in_words():
     stands = WalkReport(0.1, 0.5, 0.92, 3.0, 1.7, 0.92)
     bad = "\n".join(report_lines(taught(30.0, 0.0, 0.05, 0.04, stands)))
     assert "hardly steps" in bad and "leave the floor" in bad and "leaves the path" in bad
+    assert "refined by the motion" not in fine
+    refined = taught(30.0, 0.0, 0.05, 0.04, walks)
+    refined.candidates = [{"prior_weight": 1.0}, {"label": "refined by motion", "rounds": 12,
+                                                  "motion_distance_start": 496.4, "motion_distance": 85.2}]
+    assert "refined by the motion it makes (12 rounds): distance of its walk's windows to the clip's 496 -> 85" \
+        in "\n".join(report_lines(refined))
 
 
 def test_a_released_style_is_found_again_from_its_own_motion(shared_data):
