@@ -18,13 +18,17 @@ styles' vectors (the directions along which styles differ), around the teacher-f
     each round: draw ``population`` c ~ N(m, σ² I), walk them all in one batch, keep the best
     ``elite``, m <- their mean, σ <- σ * ``shrink``; the best vector seen is returned
 
+A walk may look like the clip by its windows and still add a fault the start's walk has not (the
+feet leaving the floor, say): with ``problems`` (a rollout and a character -> the kinds of what is
+wrong with that walk, runtime/walk_checks.py), such a vector is never chosen.
+
 Cost: one batch rollout of population + 1 characters per round (about 3 s for 8 s of walking on
 two cores); the motion is deterministic, so a vector's score does not change between rounds.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable, Mapping, Optional
+from typing import Callable, Collection, Mapping, Optional
 
 import numpy as np
 
@@ -67,21 +71,26 @@ def style_directions(known: np.ndarray, k: int):
     return Wt[:k], s[:k] / np.sqrt(max(len(V) - 1, 1))
 
 
-def walk_summaries(network, layout, stats, films: np.ndarray, speed: float, seconds: float) -> list:
-    """Window summaries (M, 2C) of each vector's straight walk at ``speed`` (first second cut)."""
-    blocks, _ = walk_blocks(network, layout, stats, np.asarray(films, np.float32), speed, seconds)
-    return [summaries(b) for b in blocks]
+def walk_summaries(network, layout, stats, films: np.ndarray, speed: float, seconds: float, with_rollout=False):
+    """Window summaries (M, 2C) of each vector's straight walk at ``speed`` (first second cut);
+    with_rollout: (those, the rollout)."""
+    blocks, r = walk_blocks(network, layout, stats, np.asarray(films, np.float32), speed, seconds)
+    out = [summaries(b) for b in blocks]
+    return (out, r) if with_rollout else out
 
 
 def refine_by_motion(network, layout, stats, start: np.ndarray, known: Mapping[str, np.ndarray],
                      clip_summaries: np.ndarray, speed: float, settings: RefitSettings = RefitSettings(),
                      known_summaries: Optional[Mapping[str, np.ndarray]] = None,
+                     problems: Optional[Callable[[object, int], Collection[str]]] = None,
                      log: Callable[[str], None] = lambda m: None) -> Refit:
     """Move ``start`` (D,) so that the network's walk in it looks like the clip (module docstring).
 
     known: the styles whose vectors give the search directions (name -> (D,)), and whose walks,
     with the clip's windows ``clip_summaries`` (M, 2C), give the space the distance is measured in
-    (``known_summaries``: those walks' summaries if already made). speed: m/s of the walks."""
+    (``known_summaries``: those walks' summaries if already made). speed: m/s of the walks.
+    problems: (rollout, character) -> kinds of fault of that walk; a vector whose walk has a kind
+    the start's has not scores infinity (module docstring)."""
     s = settings
     names = list(known)
     V = np.stack([np.asarray(known[n], np.float64) for n in names])
@@ -92,10 +101,15 @@ def refine_by_motion(network, layout, stats, start: np.ndarray, known: Mapping[s
     space = StyleSpace.fit({**known_summaries, "\0clip": clip_summaries}, dims=s.dims, summarised=True)
     target = space.gaussians["\0clip"]
 
+    allowed = None                      # the start's faults, once its walk is seen
+
     def scores(films):
+        nonlocal allowed
+        walks, r = walk_summaries(network, layout, stats, films, speed, s.seconds, with_rollout=True)
+        faults = [set(problems(r, b)) if problems else set() for b in range(len(films))]
+        allowed = faults[0] if allowed is None else allowed         # films[0] is the start in round 1
         return np.array([frechet_distance(*gaussian(space.project(w, summarised=True)), *target)
-                         if len(w) >= 2 else np.inf
-                         for w in walk_summaries(network, layout, stats, films, speed, s.seconds)])
+                         if len(w) >= 2 and f <= allowed else np.inf for w, f in zip(walks, faults)])
 
     def film_of(c):
         return np.asarray(start, np.float64) + (c * scales) @ directions
@@ -111,7 +125,8 @@ def refine_by_motion(network, layout, stats, start: np.ndarray, known: Mapping[s
         order = np.argsort(got)
         if got[order[0]] < best:
             best, best_c = float(got[order[0]]), cs[order[0]].copy()
-        mean = cs[order[:s.elite]].mean(axis=0)
+        kept = [i for i in order[:s.elite] if np.isfinite(got[i])]      # a refused walk never sets the centre
+        mean = cs[kept].mean(axis=0) if kept else mean
         sigma *= s.shrink
         history.append(f"round {r + 1}: best {best:.1f} (start {start_score:.1f}), this round's best "
                        f"{got[order[0]]:.1f}, σ {sigma:.3f}")

@@ -36,7 +36,7 @@ from minifilm.runtime.style_pack import load_pack_or_empty
 from minifilm.runtime.walk_checks import count_strikes, walk_report
 from minifilm.pipeline.joint_axes import align_axes
 from minifilm.pipeline.motion_refit import RefitSettings, refine_by_motion
-from minifilm.pipeline.walks import CHECK_SECONDS, FPS, candidate_rollouts, clip_summaries
+from minifilm.pipeline.walks import CHECK_SECONDS, FPS, candidate_rollouts, clip_summaries, straight_path
 from minifilm.synthetic.generator import rest_motion
 from minifilm.train.film_fit import FitSettings, FrozenRows, StylePrior, fit_film
 
@@ -238,7 +238,13 @@ def teach(rel, layout: FeatureLayout, name: str, motions: Sequence[Motion], file
     windows = clip_summaries(clip, rel.stats, layout)
     if motion is not None and motion.rounds > 0 and len(windows) >= 2:
         log(f"refining by motion: {motion.rounds} rounds of {motion.population} walks ...")
-        refit = refine_by_motion(rel.network, layout, rel.stats, film, known, windows, clip.speed, motion)
+        path = straight_path(clip.speed, motion.seconds + 1)
+
+        def faults(rollout, b):           # what finetune would warn about, by kind
+            return walk_report(rollout, b, toes, path, clip_steps_per_s=clip.steps_per_s,
+                               clip_hips=clip.hips).problems_by_kind()
+        refit = refine_by_motion(rel.network, layout, rel.stats, film, known, windows, clip.speed, motion,
+                                 problems=faults)
         r, path = candidate_rollouts(rel.network, layout, refit.film[None], clip.speed)
         check = walk_report(r, 0, toes, path, clip_steps_per_s=clip.steps_per_s, clip_hips=clip.hips)
         candidates[chosen]["chosen"] = False

@@ -24,8 +24,14 @@ def candidate_rollouts(network, layout: FeatureLayout, films: np.ndarray, speed:
     v = float(np.clip(speed, 0.3, 4.0))
     script = CommandScript([(0.0, v, 0.0, 0.0), (seconds, v, 0.0, 0.0)])
     r = ctrl.run([script] * len(films), int(round(seconds * FPS)), films)
-    path = np.array([[0.0, 0.0], [0.0, v * seconds * 2]])
-    return r, path
+    return r, straight_path(speed, seconds)
+
+
+def straight_path(speed: float, seconds: float) -> np.ndarray:
+    """The path (2, 2) a walk of :func:`candidate_rollouts` is commanded along: straight ahead from
+    the origin, twice as long as it walks (so its end is never reached)."""
+    v = float(np.clip(speed, 0.3, 4.0))
+    return np.array([[0.0, 0.0], [0.0, v * seconds * 2]])
 
 
 def walk_blocks(network, layout, stats, films: np.ndarray, speed: float, seconds: float):

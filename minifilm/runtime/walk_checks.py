@@ -13,7 +13,7 @@ from the data's mean pose) and compare, where given, with the clip the style was
 from __future__ import annotations
 
 from dataclasses import dataclass, asdict
-from typing import List, Optional, Sequence
+from typing import Dict, List, Optional, Sequence
 
 import numpy as np
 
@@ -46,21 +46,26 @@ class WalkReport:
     clip_steps_per_s: Optional[float] = None
     clip_hips: Optional[float] = None
 
+    def problems_by_kind(self) -> Dict[str, str]:
+        """What is wrong, in words, by kind ('steps', 'floor', 'hips', 'path'; {} when it walks): two
+        walks compared by kind (does one add a problem the other has not?) whatever their numbers."""
+        out = {}
+        if self.steps_per_s < MIN_STEPS_PER_S:
+            out["steps"] = f"it hardly steps ({self.steps_per_s:.2f} steps/s)"
+        elif self.clip_steps_per_s and not (STEP_RATIO[0] <= self.steps_per_s / self.clip_steps_per_s <= STEP_RATIO[1]):
+            out["steps"] = f"it steps {self.steps_per_s:.2f}/s, the clip {self.clip_steps_per_s:.2f}/s"
+        if self.toe_on_floor < FLOOR_SHARE:
+            out["floor"] = (f"the feet leave the floor (lowest toe within {FLOOR_TOLERANCE * 100:.0f} cm of it in only "
+                            f"{self.toe_on_floor:.0%} of frames)")
+        if self.clip_hips and abs(self.hips / self.clip_hips - 1) > 0.1:
+            out["hips"] = f"hips at {self.hips:.2f} m, the clip's at {self.clip_hips:.2f} m"
+        if self.path_mean > PATH_LIMIT:
+            out["path"] = f"it leaves the path ({self.path_mean:.2f} m from it on average)"
+        return out
+
     def problems(self) -> List[str]:
         """What is wrong, in words ([] when it walks)."""
-        out = []
-        if self.steps_per_s < MIN_STEPS_PER_S:
-            out.append(f"it hardly steps ({self.steps_per_s:.2f} steps/s)")
-        elif self.clip_steps_per_s and not (STEP_RATIO[0] <= self.steps_per_s / self.clip_steps_per_s <= STEP_RATIO[1]):
-            out.append(f"it steps {self.steps_per_s:.2f}/s, the clip {self.clip_steps_per_s:.2f}/s")
-        if self.toe_on_floor < FLOOR_SHARE:
-            out.append(f"the feet leave the floor (lowest toe within {FLOOR_TOLERANCE * 100:.0f} cm of it in only "
-                       f"{self.toe_on_floor:.0%} of frames)")
-        if self.clip_hips and abs(self.hips / self.clip_hips - 1) > 0.1:
-            out.append(f"hips at {self.hips:.2f} m, the clip's at {self.clip_hips:.2f} m")
-        if self.path_mean > PATH_LIMIT:
-            out.append(f"it leaves the path ({self.path_mean:.2f} m from it on average)")
-        return out
+        return list(self.problems_by_kind().values())
 
     def words(self) -> str:
         p = self.problems()
