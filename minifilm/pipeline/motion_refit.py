@@ -22,8 +22,10 @@ A walk may look like the clip by its windows and still add a fault the start's w
 feet leaving the floor, say): with ``problems`` (a rollout and a character -> the kinds of what is
 wrong with that walk, runtime/walk_checks.py), such a vector is never chosen.
 
-Cost: one batch rollout of population + 1 characters per round (about 3 s for 8 s of walking on
-two cores); the motion is deterministic, so a vector's score does not change between rounds.
+Cost: the known styles' walks once, then one batch rollout of population + 2 characters (the
+centre and the best so far beside the new ones) per round, about 4 s each on one core: about a
+minute in all with the defaults. The motion is deterministic, so a vector's score does not change
+between rounds.
 """
 from __future__ import annotations
 
@@ -98,8 +100,9 @@ def refine_by_motion(network, layout, stats, start: np.ndarray, known: Mapping[s
     if known_summaries is None:
         walks = walk_summaries(network, layout, stats, V, speed, s.seconds)
         known_summaries = dict(zip(names, walks))
-    space = StyleSpace.fit({**known_summaries, "\0clip": clip_summaries}, dims=s.dims, summarised=True)
-    target = space.gaussians["\0clip"]
+    clip_key = "\0clip"                 # beside the styles: no style name holds a NUL character
+    space = StyleSpace.fit({**known_summaries, clip_key: clip_summaries}, dims=s.dims, summarised=True)
+    target = space.gaussians[clip_key]
 
     allowed = None                      # the start's faults, once its walk is seen
 
