@@ -166,23 +166,35 @@ def spawn(n: int, target, args: tuple, name: str):
     ignored, so a Ctrl-C while they import prints nothing from them (serve() keeps it ignored);
     this process's handler is back once they exist. If one cannot start, those started are stopped."""
     mp = multiprocessing.get_context("spawn")
-    saved = {k: os.environ.get(k) for k in ONE_BLAS_THREAD}
-    os.environ.update(ONE_BLAS_THREAD)                 # read by the workers' numpy when it loads
-    main_thread = threading.current_thread() is threading.main_thread()
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main_thread else None
     procs, conns = [], []
     try:
-        for w in range(n):
-            mine, theirs = mp.Pipe()
-            p = mp.Process(target=target, args=(*args, theirs), daemon=True, name=f"{name}-{w}")
-            conns.append(mine)
-            with _main_module_hidden():
-                p.start()
-            theirs.close()
-            procs.append(p)
+        with starting_workers():
+            for w in range(n):
+                mine, theirs = mp.Pipe()
+                p = mp.Process(target=target, args=(*args, theirs), daemon=True, name=f"{name}-{w}")
+                conns.append(mine)
+                with _main_module_hidden():
+                    p.start()
+                theirs.close()
+                procs.append(p)
     except BaseException:
         stop(procs, conns)
         raise
+    return procs, conns
+
+
+@contextlib.contextmanager
+def starting_workers():
+    """While worker processes are started: one BLAS thread in the environment (read by the
+    workers' numpy when it loads) and SIGINT ignored (a worker started so keeps it ignored from its
+    first instruction, so a Ctrl-C while it imports prints nothing from it); this process's
+    environment and handler are back afterwards."""
+    saved = {k: os.environ.get(k) for k in ONE_BLAS_THREAD}
+    os.environ.update(ONE_BLAS_THREAD)
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main_thread else None
+    try:
+        yield
     finally:
         if main_thread:     # (None: a handler set outside Python; Python's own takes its place)
             signal.signal(signal.SIGINT, signal.default_int_handler if previous is None else previous)
@@ -191,7 +203,6 @@ def spawn(n: int, target, args: tuple, name: str):
                 os.environ.pop(k, None)
             else:
                 os.environ[k] = v
-    return procs, conns
 
 
 @contextlib.contextmanager

@@ -49,7 +49,6 @@ import math
 import multiprocessing
 import os
 import signal
-import threading
 import time
 from multiprocessing import connection, shared_memory
 
@@ -57,7 +56,7 @@ import numpy as np
 
 from minifilm.model.style_model import StyleModel
 from minifilm.nn.fast_optim import ChunkedAdam
-from minifilm.processes import ONE_BLAS_THREAD, WorkerDied
+from minifilm.processes import WorkerDied, starting_workers
 from minifilm.train import parallel_worker as pw
 from minifilm.train.parallel_shares import default_workers, shares
 
@@ -175,13 +174,7 @@ class DataParallel:
     def _start(self, text: str) -> None:
         """Start workers 1 .. W-1 and wait until each has built its model."""
         ctx = multiprocessing.get_context("spawn")
-        saved = {k: os.environ.get(k) for k in ONE_BLAS_THREAD}
-        os.environ.update(ONE_BLAS_THREAD)          # read by the workers' numpy when it loads
-        # A worker started with SIGINT ignored keeps it ignored from its first instruction, so a Ctrl-C
-        # while it imports prints nothing from it; this process's handler is back once they exist.
-        main_thread = threading.current_thread() is threading.main_thread()
-        previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main_thread else None
-        try:
+        with starting_workers():            # one BLAS thread each, SIGINT ignored while they start
             for w in range(1, self.workers):
                 mine, theirs = ctx.Pipe()
                 proc = ctx.Process(target=pw.main, args=(text, w, theirs, self.wake), daemon=True,
@@ -190,14 +183,6 @@ class DataParallel:
                 theirs.close()
                 self.procs.append(proc)
                 self.conns.append(mine)
-        finally:
-            if main_thread:     # (None: a handler set outside Python; Python's own takes its place)
-                signal.signal(signal.SIGINT, signal.default_int_handler if previous is None else previous)
-            for k, v in saved.items():
-                if v is None:
-                    os.environ.pop(k, None)
-                else:
-                    os.environ[k] = v
         waiting = dict(enumerate(self.conns, start=1))
         while waiting:
             ready = connection.wait(list(waiting.values()) + [self.procs[w - 1].sentinel for w in waiting])
