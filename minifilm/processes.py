@@ -43,6 +43,19 @@ class WorkerDied(ChildProcessError):
     one line)."""
 
 
+def how_it_ended(proc) -> str:
+    """How a worker process whose pipe closed has ended, in words ('was killed by SIGKILL', 'exited
+    with code 1'), after waiting up to a second for it to finish dying."""
+    proc.join(timeout=1.0)
+    code = proc.exitcode
+    if code is None or code >= 0:
+        return f"exited with code {code}"
+    try:
+        return f"was killed by {signal.Signals(-code).name}"
+    except ValueError:
+        return f"was killed by signal {-code}"
+
+
 class WithBytes(NamedTuple):
     """What a job returns to send arrays too: ``figures`` as the JSON reply, then ``data`` (bytes,
     an .npz archive) as the next message on the pipe."""

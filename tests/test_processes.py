@@ -55,3 +55,16 @@ def test_the_callers_script_is_hidden_while_a_worker_starts_and_put_back():
         prepared = mp_spawn.get_preparation_data("test")         # what a spawned worker is told to run
         assert "init_main_from_path" not in prepared and "init_main_from_name" not in prepared
     assert {k: main.__dict__[k] for k in ("__file__", "__spec__") if k in main.__dict__} == before
+
+
+def test_how_a_worker_ended_is_said_in_words():
+    from types import SimpleNamespace
+    from minifilm.processes import how_it_ended
+
+    def ended(code):
+        return SimpleNamespace(join=lambda timeout=None: None, exitcode=code)
+    assert how_it_ended(ended(-9)) == "was killed by SIGKILL"
+    assert how_it_ended(ended(-15)) == "was killed by SIGTERM"
+    assert how_it_ended(ended(3)) == "exited with code 3"
+    assert how_it_ended(ended(None)) == "exited with code None"
+    assert how_it_ended(ended(-200)) == "was killed by signal 200"

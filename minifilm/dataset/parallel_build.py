@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import io
 import json
-import signal
 from dataclasses import asdict
 from multiprocessing import connection
 from pathlib import Path
@@ -45,7 +44,7 @@ from minifilm.dataset.manifest import MotionFile
 from minifilm.dataset.settings import DatasetSettings
 from minifilm.features.compute import FrameFeatures
 from minifilm.motion.skeletons import Skeleton
-from minifilm.processes import WithBytes, WorkerDied, rebuilt_error, serve, spawn, stop
+from minifilm.processes import WithBytes, WorkerDied, how_it_ended, rebuilt_error, serve, spawn, stop
 
 #: files a worker may label ahead of the oldest file not yet back (per worker)
 WINDOW = 4
@@ -199,14 +198,4 @@ class LabellingWorkers:
     def _died(self, w: int, doing: str) -> WorkerDied:
         """The error for worker w, whose pipe is closed: how it ended, and what it was doing."""
         proc = self.procs[w]
-        proc.join(timeout=1.0)
-        code = proc.exitcode
-        how = f"was killed by {_signal_name(-code)}" if code is not None and code < 0 else f"ended (exit code {code})"
-        return WorkerDied(f"dataset: worker {w} (process {proc.pid}) {how} while {doing}")
-
-
-def _signal_name(number: int) -> str:
-    try:
-        return signal.Signals(number).name
-    except ValueError:
-        return f"signal {number}"
+        return WorkerDied(f"dataset: worker {w} (process {proc.pid}) {how_it_ended(proc)} while {doing}")

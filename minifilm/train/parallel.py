@@ -48,7 +48,6 @@ import json
 import math
 import multiprocessing
 import os
-import signal
 import time
 from multiprocessing import connection, shared_memory
 
@@ -56,7 +55,7 @@ import numpy as np
 
 from minifilm.model.style_model import StyleModel
 from minifilm.nn.fast_optim import ChunkedAdam
-from minifilm.processes import WorkerDied, starting_workers
+from minifilm.processes import WorkerDied, how_it_ended, starting_workers
 from minifilm.train import parallel_worker as pw
 from minifilm.train.parallel_shares import default_workers, shares
 
@@ -303,11 +302,7 @@ class DataParallel:
 
     def _died(self, w: int, where: str, updating: bool):
         proc = self.procs[w - 1]
-        proc.join(timeout=1.0)
-        code = proc.exitcode
-        how = (f"was killed by {signal.Signals(-code).name}" if code is not None and code < 0
-               else f"exited with code {code}")
-        raise WorkerDied(f"training stopped: worker {w} (process {proc.pid}) {how} at {where}; "
+        raise WorkerDied(f"training stopped: worker {w} (process {proc.pid}) {how_it_ended(proc)} at {where}; "
                          + ("the step's update is incomplete (the checkpoints written so far are whole)" if updating
                             else "the weights were not updated with that step"))
 
