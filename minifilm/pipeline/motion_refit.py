@@ -73,12 +73,11 @@ def style_directions(known: np.ndarray, k: int):
     return Wt[:k], s[:k] / np.sqrt(max(len(V) - 1, 1))
 
 
-def walk_summaries(network, layout, stats, films: np.ndarray, speed: float, seconds: float, with_rollout=False):
-    """Window summaries (M, 2C) of each vector's straight walk at ``speed`` (first second cut);
-    with_rollout: (those, the rollout)."""
+def walk_summaries(network, layout, stats, films: np.ndarray, speed: float, seconds: float):
+    """Window summaries (M, 2C) of each vector's straight walk at ``speed`` (first second cut), and
+    the walks' rollout."""
     blocks, r = walk_blocks(network, layout, stats, np.asarray(films, np.float32), speed, seconds)
-    out = [summaries(b) for b in blocks]
-    return (out, r) if with_rollout else out
+    return [summaries(b) for b in blocks], r
 
 
 def refine_by_motion(network, layout, stats, start: np.ndarray, known: Mapping[str, np.ndarray],
@@ -98,7 +97,7 @@ def refine_by_motion(network, layout, stats, start: np.ndarray, known: Mapping[s
     V = np.stack([np.asarray(known[n], np.float64) for n in names])
     directions, scales = style_directions(V, s.directions)
     if known_summaries is None:
-        walks = walk_summaries(network, layout, stats, V, speed, s.seconds)
+        walks, _ = walk_summaries(network, layout, stats, V, speed, s.seconds)
         known_summaries = dict(zip(names, walks))
     clip_key = "\0clip"                 # beside the styles: no style name holds a NUL character
     space = StyleSpace.fit({**known_summaries, clip_key: clip_summaries}, dims=s.dims, summarised=True)
@@ -108,7 +107,7 @@ def refine_by_motion(network, layout, stats, start: np.ndarray, known: Mapping[s
 
     def scores(films):
         nonlocal allowed
-        walks, r = walk_summaries(network, layout, stats, films, speed, s.seconds, with_rollout=True)
+        walks, r = walk_summaries(network, layout, stats, films, speed, s.seconds)
         faults = [set(problems(r, b)) if problems else set() for b in range(len(films))]
         allowed = faults[0] if allowed is None else allowed         # films[0] is the start in round 1
         return np.array([frechet_distance(*gaussian(space.project(w, summarised=True)), *target)
