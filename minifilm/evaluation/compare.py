@@ -305,6 +305,8 @@ def run(args):
     available = synthetic.STYLES if synthetic_data else {f.style for f in resolve_files(args.data)}
     pairs = interpolation_pairs(args.interpolate)
     holdouts = holdout_names(args.holdout)
+    if args.holdout is not None and not holdouts:
+        raise InputError(f"--holdout {args.holdout!r}: names no style (give one, or several separated by commas)")
     keep = holdouts + [s for p in pairs for s in p]
     try:
         styles = select_styles(available, args.styles, keep)

@@ -242,9 +242,15 @@ def test_family_4_a_killed_training_leaves_no_run(tmp_path, monkeypatch):
     (["generate", "--params", "{P}", "--out", "{T}"], "is a folder"),
     (["compare", "--data", "{T}/missing"], "--data {T}/missing: no such folder"),
     (["table2", "--styles", "-3"], "--styles: -3 must be >= 1"),
+    (["compare", "--holdout", " , ", "--work", "{T}/w", "--out", "{T}/r"], "--holdout ' , ': names no style"),
+    (["finetune", "--params", "{P}", "--name", "X", "--out", "{T}/pack", "--motion-rounds", "-1", "{B}"],
+     "--motion-rounds: -1 must be >= 0"),
+    (["finetune", "--params", "{P}", "--name", "X", "--out", "{T}/pack", "--motion-rounds", "1e9", "{B}"],
+     "--motion-rounds"),
 ])
 def test_family_5_arguments_are_checked_first(shared_data, tmp_path, capsys, argv, message):
-    fill = lambda a: a.replace("{P}", str(shared_data / "released-lpn")).replace("{T}", str(tmp_path))
+    fill = lambda a: (a.replace("{P}", str(shared_data / "released-lpn")).replace("{T}", str(tmp_path))
+                      .replace("{B}", str(shared_data / BANDAI.format(1))))
     with pytest.raises(SystemExit) as e:
         cli.main([fill(a) for a in argv])
     err = capsys.readouterr().err.strip().splitlines()
