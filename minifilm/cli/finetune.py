@@ -24,7 +24,7 @@ from minifilm.errors import InputError
 from minifilm.pipeline.new_style import teach_style
 from minifilm.pipeline.self_fed import SelfFed
 from minifilm.pipeline.motion_refit import RefitSettings
-from minifilm.pipeline.teach_released import RECOMMENDED_SECONDS, SIGMA, report_lines, teach_released
+from minifilm.pipeline.teach_released import RECOMMENDED_SECONDS, SIGMA, WALK_WORKERS, report_lines, teach_released
 from minifilm.train.film_fit import FitSettings
 
 HELP = "teach a trained run a new style from a short clip (Ψ only)"
@@ -44,8 +44,11 @@ def add_arguments(ap) -> None:
     ap.add_argument("--seed", type=in_range(0, 2**32 - 1, int), default=0)
     ap.add_argument("--motion-rounds", type=in_range(0, 200, int), default=RefitSettings.rounds,
                     help="with --params: rounds of moving the taught vector until the network's own walk in it "
-                         "looks like the clip (pipeline/motion_refit.py; default %(default)s, about 4 s each on "
+                         "looks like the clip (pipeline/motion_refit.py; default %(default)s, about 3 s each on "
                          "two cores; 0: keep the teacher-forced fit)")
+    ap.add_argument("--workers", type=in_range(1, 64, int), default=None,
+                    help="with --params: processes that share the walks of --motion-rounds, this one included "
+                         f"(default: every usable core, at most {WALK_WORKERS + 1})")
     ap.add_argument("--rollout-rounds", type=in_range(0, 100, int), default=ROLLOUT_ROUNDS,
                     help="rounds of training on the model's own rollouts along the clip after the "
                          f"teacher-forced steps (pipeline/self_fed.py; default {ROLLOUT_ROUNDS}: teacher forcing "
@@ -57,6 +60,8 @@ def run(args) -> int:
         return run_released(args)
     if args.out is not None:
         raise InputError("--out is for --params (a style pack); a run folder keeps its styles itself")
+    if args.workers is not None:
+        raise InputError("--workers is for --params (the walks of --motion-rounds); fine-tuning Ψ runs in one process")
     r = teach_style(args.run, args.name, args.files, steps=args.steps, lr=args.lr, seed=args.seed,
                     replace=args.replace,
                     self_fed=SelfFed(rounds=args.rollout_rounds) if args.rollout_rounds else None)
@@ -98,7 +103,8 @@ def run_released(args) -> int:
                          "(the network folder is never written)")
     settings = FitSettings(steps=min(args.steps, 1000), seed=args.seed)
     r = teach_released(args.params, args.name, args.files, args.out, replace=args.replace, settings=settings,
-                       motion=RefitSettings(rounds=args.motion_rounds, seed=args.seed))
+                       motion=RefitSettings(rounds=args.motion_rounds, seed=args.seed),
+                       workers=None if args.workers is None else args.workers - 1)
     for line in report_lines(r):
         print(line)
     print(f"    written to the style pack {args.out}")

@@ -24,7 +24,7 @@ wrong with that walk, runtime/walk_checks.py), such a vector is never chosen.
 
 Cost: the known styles' walks once, then one batch rollout of population + 2 characters (the
 centre and the best so far beside the new ones) per round, about 4 s each on one core: about a
-minute in all with the defaults. The motion is deterministic, so a vector's score does not change
+minute in all with the defaults, shared between processes by a WalkPool (walkers.py). The motion is deterministic, so a vector's score does not change
 between rounds.
 """
 from __future__ import annotations
@@ -34,9 +34,8 @@ from typing import Callable, Collection, Mapping, Optional
 
 import numpy as np
 
-from minifilm.evaluation.style_judge import summaries
 from minifilm.evaluation.style_measures import StyleSpace, frechet_distance, gaussian
-from minifilm.pipeline.walks import walk_blocks
+from minifilm.pipeline.walkers import WalkPool
 
 
 @dataclass
@@ -73,32 +72,26 @@ def style_directions(known: np.ndarray, k: int):
     return Wt[:k], s[:k] / np.sqrt(max(len(V) - 1, 1))
 
 
-def walk_summaries(network, layout, stats, films: np.ndarray, speed: float, seconds: float):
-    """Window summaries (M, 2C) of each vector's straight walk at ``speed`` (first second cut), and
-    the walks' rollout."""
-    blocks, r = walk_blocks(network, layout, stats, np.asarray(films, np.float32), speed, seconds)
-    return [summaries(b) for b in blocks], r
-
-
 def refine_by_motion(network, layout, stats, start: np.ndarray, known: Mapping[str, np.ndarray],
                      clip_summaries: np.ndarray, speed: float, settings: RefitSettings = RefitSettings(),
                      known_summaries: Optional[Mapping[str, np.ndarray]] = None,
                      problems: Optional[Callable[[object, int], Collection[str]]] = None,
-                     log: Callable[[str], None] = lambda m: None) -> Refit:
+                     pool: Optional[WalkPool] = None, log: Callable[[str], None] = lambda m: None) -> Refit:
     """Move ``start`` (D,) so that the network's walk in it looks like the clip (module docstring).
 
     known: the styles whose vectors give the search directions (name -> (D,)), and whose walks,
     with the clip's windows ``clip_summaries`` (M, 2C), give the space the distance is measured in
     (``known_summaries``: those walks' summaries if already made). speed: m/s of the walks.
     problems: (rollout, character) -> kinds of fault of that walk; a vector whose walk has a kind
-    the start's has not scores infinity (module docstring)."""
+    the start's has not scores infinity (module docstring). pool: the processes that share the
+    walks (walkers.py; with workers, ``problems`` must be a FaultCheck); default: this one alone."""
     s = settings
     names = list(known)
     V = np.stack([np.asarray(known[n], np.float64) for n in names])
     directions, scales = style_directions(V, s.directions)
+    pool = pool if pool is not None else WalkPool(network, layout, stats, workers=0)
     if known_summaries is None:
-        walks, _ = walk_summaries(network, layout, stats, V, speed, s.seconds)
-        known_summaries = dict(zip(names, walks))
+        known_summaries = dict(zip(names, pool.walk(V, speed, s.seconds)[0]))
     clip_key = "\0clip"                 # beside the styles: no style name holds a NUL character
     space = StyleSpace.fit({**known_summaries, clip_key: clip_summaries}, dims=s.dims, summarised=True)
     target = space.gaussians[clip_key]
@@ -107,8 +100,7 @@ def refine_by_motion(network, layout, stats, start: np.ndarray, known: Mapping[s
 
     def scores(films):
         nonlocal allowed
-        walks, r = walk_summaries(network, layout, stats, films, speed, s.seconds)
-        faults = [set(problems(r, b)) if problems else set() for b in range(len(films))]
+        walks, faults = pool.walk(films, speed, s.seconds, problems)
         allowed = faults[0] if allowed is None else allowed         # films[0] is the start in round 1
         return np.array([frechet_distance(*gaussian(space.project(w, summarised=True)), *target)
                          if len(w) >= 2 and f <= allowed else np.inf for w, f in zip(walks, faults)])

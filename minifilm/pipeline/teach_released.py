@@ -36,13 +36,18 @@ from minifilm.runtime.style_pack import load_pack_or_empty
 from minifilm.runtime.walk_checks import count_strikes, walk_report
 from minifilm.pipeline.joint_axes import align_axes
 from minifilm.pipeline.motion_refit import RefitSettings, refine_by_motion
-from minifilm.pipeline.walks import CHECK_SECONDS, FPS, candidate_rollouts, clip_summaries, straight_path
+from minifilm.pipeline.walkers import WalkPool
+from minifilm.pipeline.walks import CHECK_SECONDS, FPS, FaultCheck, candidate_rollouts, clip_summaries, straight_path
+from minifilm.processes import default_workers
 from minifilm.synthetic.generator import rest_motion
 from minifilm.train.film_fit import FitSettings, FrozenRows, StylePrior, fit_film
 
 RECOMMENDED_SECONDS = 10.0        # shorter clips are taught, with a warning
 SIGMA = 5.0                       # a normalised feature beyond this many σ of the network's data is "far"
 PRIOR_WEIGHTS = (0.3, 1.0, 3.0)   # λ of the fit: the candidates the rollouts choose between
+#: worker processes at most beside this one for the refinement's walks: a round's 18 walks in
+#: shares of 4-5; smaller shares save little (a step costs about as much Python for 1 walk as for 9)
+WALK_WORKERS = 3
 
 
 class ClipError(InputError):
@@ -191,16 +196,31 @@ def teach(rel, layout: FeatureLayout, name: str, motions: Sequence[Motion], file
           known: Optional[dict] = None, settings: FitSettings = FitSettings(),
           prior_weights: Sequence[float] = PRIOR_WEIGHTS, choose_by_rollout: bool = True,
           align: bool = False, require_steps: bool = True, motion: Optional[RefitSettings] = RefitSettings(),
-          log: Callable[[str], None] = print) -> TaughtStyle:
+          workers: Optional[int] = None, log: Callable[[str], None] = print) -> TaughtStyle:
     """Fit ``name`` to the clip(s) on the loaded released network ``rel``; ``known``: the styles
     the prior is made of (default all of the network's); ``align``: turn the joint axes to the
     network's convention (:func:`align_axes`; for retargeted clips); ``motion``: how the kept vector
     is then refined by the motion it makes (:func:`refine_by_motion`; None or 0 rounds: not at
-    all). Nothing is written."""
+    all); ``workers``: processes beside this one that share the refinement's walks (default: one
+    per further usable core, at most WALK_WORKERS). Nothing is written."""
+    clip = clip_rows(motions, files, name, require_steps)
+    refining = motion is not None and motion.rounds > 0
+    if not refining:
+        workers = 0
+    elif workers is None:
+        workers = default_workers(WALK_WORKERS + 1) - 1
+    with WalkPool(rel.network, layout, rel.stats, workers) as pool:
+        return _teach(rel, layout, name, clip, known, settings, prior_weights, choose_by_rollout, align,
+                      motion if refining else None, pool, log)
+
+
+def _teach(rel, layout, name, clip, known, settings, prior_weights, choose_by_rollout, align, motion, pool, log):
     known = dict(rel.styles if known is None else known)
     names = list(known)
     V = np.stack([known[n] for n in names]).astype(np.float64)
-    clip = clip_rows(motions, files, name, require_steps)
+    # the known styles walk in the worker processes (if any) while this one fits: the space the
+    # refinement measures distances in is made of their walks
+    known_walks = pool.submit(V, clip.speed, motion.seconds) if motion is not None else None
     share_as_read, turns = None, None
     if align:
         share_as_read = input_distance(rel.stats.normalize_x(clip.x), layout)[0]
@@ -236,15 +256,14 @@ def teach(rel, layout: FeatureLayout, name: str, motions: Sequence[Motion], file
     candidates[chosen]["chosen"] = True
     distance.known_losses = [own_loss(rel, r, len(films), ref, best_known)]
     windows = clip_summaries(clip, rel.stats, layout)
-    if motion is not None and motion.rounds > 0 and len(windows) >= 2:
-        log(f"refining by motion: {motion.rounds} rounds of {motion.population} walks ...")
-        path = straight_path(clip.speed, motion.seconds + 1)
-
-        def faults(rollout, b):           # what finetune would warn about, by kind
-            return walk_report(rollout, b, toes, path, clip_steps_per_s=clip.steps_per_s,
-                               clip_hips=clip.hips).problems_by_kind()
+    if motion is not None and len(windows) >= 2:
+        shared = (f", shared with {len(pool.pids)} worker process{'es' if len(pool.pids) > 1 else ''} "
+                  f"(ids {', '.join(map(str, pool.pids))})") if pool.pids else ""
+        log(f"refining by motion: {motion.rounds} rounds of {motion.population} walks{shared} ...")
+        faults = FaultCheck(toes, straight_path(clip.speed, motion.seconds + 1), clip.steps_per_s, clip.hips)
         refit = refine_by_motion(rel.network, layout, rel.stats, film, known, windows, clip.speed, motion,
-                                 problems=faults)
+                                 known_summaries=dict(zip(names, known_walks.result()[0])), problems=faults,
+                                 pool=pool)
         r, path = candidate_rollouts(rel.network, layout, refit.film[None], clip.speed)
         check = walk_report(r, 0, toes, path, clip_steps_per_s=clip.steps_per_s, clip_hips=clip.hips)
         candidates[chosen]["chosen"] = False
@@ -264,7 +283,7 @@ def teach(rel, layout: FeatureLayout, name: str, motions: Sequence[Motion], file
 
 def teach_released(params, name: str, files: Sequence, out, replace: bool = False,
                    settings: FitSettings = FitSettings(), motion: Optional[RefitSettings] = RefitSettings(),
-                   log: Callable[[str], None] = print) -> TaughtStyle:
+                   workers: Optional[int] = None, log: Callable[[str], None] = print) -> TaughtStyle:
     """``minifilm finetune --params NET --name NAME --out PACK CLIP...``: read and check everything,
     teach, then write PACK (the old pack's styles kept) in one step. The network folder is only read."""
     check_name(name, "--name")
@@ -285,7 +304,8 @@ def teach_released(params, name: str, files: Sequence, out, replace: bool = Fals
     motions = [m for m, _ in read]
     layout = FeatureLayout.for_skeleton(STYLE100)
     align = any(retargeted for _, retargeted in read)
-    taught = teach(rel, layout, name, motions, files, settings=settings, align=align, motion=motion, log=log)
+    taught = teach(rel, layout, name, motions, files, settings=settings, align=align, motion=motion,
+                   workers=workers, log=log)
     pack.with_style(name, taught.film, taught.pack_info(), replace=replace).save(out)
     return taught
 

@@ -4,6 +4,9 @@ walks and of a clip. Shared by teaching (teach_released.py, motion_refit.py) and
 (judge_taught.py)."""
 from __future__ import annotations
 
+from dataclasses import asdict, dataclass
+from typing import Dict, List
+
 import numpy as np
 
 from minifilm.evaluation.style_judge import motion_block, rows_block, summaries
@@ -11,6 +14,7 @@ from minifilm.features.layout import FeatureLayout
 from minifilm.runtime.control import CommandScript
 from minifilm.runtime.controller import Controller
 from minifilm.runtime.start_state import root_joint_indices
+from minifilm.runtime.walk_checks import walk_report
 from minifilm.synthetic.generator import rest_motion
 
 FPS = 60.0
@@ -57,3 +61,29 @@ def clip_summaries(clip, stats, layout) -> np.ndarray:
             parts.append(summaries(block))
         a = b
     return np.concatenate(parts)
+
+
+@dataclass
+class FaultCheck:
+    """What ``finetune`` would warn about in one character's walk, by kind ('steps', 'floor', 'hips',
+    'path': runtime/walk_checks.py), judged against the clip. Plain numbers only, so a worker process
+    can be told it as JSON (:meth:`to_dict`, ``FaultCheck(**d)``).
+
+    toes: exported joint indices of the two toes; path: (2, 2) the straight path walked
+    (:func:`straight_path`); the clip's steps per second and hip height."""
+    toes: List[int]
+    path: List[List[float]]
+    clip_steps_per_s: float
+    clip_hips: float
+
+    def __post_init__(self):        # plain Python numbers, whatever they were given as
+        self.toes = [int(t) for t in self.toes]
+        self.path = np.asarray(self.path, float).reshape(2, 2).tolist()
+        self.clip_steps_per_s, self.clip_hips = float(self.clip_steps_per_s), float(self.clip_hips)
+
+    def __call__(self, rollout, character: int) -> Dict[str, str]:
+        return walk_report(rollout, character, self.toes, np.asarray(self.path, float),
+                           clip_steps_per_s=self.clip_steps_per_s, clip_hips=self.clip_hips).problems_by_kind()
+
+    def to_dict(self) -> dict:
+        return asdict(self)

@@ -122,6 +122,30 @@ class RuntimeNetwork:
                              f"statistics have {len(stats.p_mean)}")
         return cls(gate, experts, stats, FilmHidden(cfg.hidden, unbiased, eps), dtype)
 
+    def to_arrays(self) -> dict:
+        """A FiLM network with a :class:`GatingMLP` gate as named arrays (an ``.npz`` archive, e.g. for a
+        worker process: minifilm/pipeline/walkers.py); :meth:`from_arrays` makes the same network."""
+        if not (isinstance(self.gate, GatingMLP) and isinstance(self.hidden, FilmHidden)):
+            raise TypeError("RuntimeNetwork.to_arrays: only a FiLM network with a GatingMLP gate is written")
+        h = self.hidden
+        arrays = {**self.stats.to_arrays(), "film": np.array([h.hidden, h.ln_unbiased, h.ln_eps], np.float64)}
+        for l, (W, b) in enumerate(self.gate.layers):
+            arrays[f"gate.W{l}"], arrays[f"gate.b{l}"] = W, b
+        for l, (Wc, b, O) in enumerate(self.layers):       # back to (K, in, out), as the constructor takes it
+            arrays[f"expert.W{l}"] = Wc.reshape(len(Wc), self.n_experts, O).transpose(1, 0, 2)
+            arrays[f"expert.b{l}"] = b
+        return arrays
+
+    @classmethod
+    def from_arrays(cls, arrays) -> "RuntimeNetwork":
+        """The network :meth:`to_arrays` wrote, in the dtype of its arrays."""
+        stats = NormStats.from_arrays(arrays)
+        dtype = np.asarray(arrays["expert.W0"]).dtype
+        gate = GatingMLP([(arrays[f"gate.W{l}"], arrays[f"gate.b{l}"]) for l in range(3)], stats, dtype=dtype)
+        hidden, unbiased, eps = np.asarray(arrays["film"], np.float64)
+        experts = [(arrays[f"expert.W{l}"], arrays[f"expert.b{l}"]) for l in range(3)]
+        return cls(gate, experts, stats, FilmHidden(int(hidden), bool(unbiased), float(eps)), dtype)
+
     @property
     def film_dim(self) -> Optional[int]:
         """The length of a FiLM style vector (4 * hidden) for a FiLM network; None for the other

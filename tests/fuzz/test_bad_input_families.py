@@ -247,6 +247,9 @@ def test_family_4_a_killed_training_leaves_no_run(tmp_path, monkeypatch):
      "--motion-rounds: -1 must be >= 0"),
     (["finetune", "--params", "{P}", "--name", "X", "--out", "{T}/pack", "--motion-rounds", "1e9", "{B}"],
      "--motion-rounds"),
+    (["finetune", "--params", "{P}", "--name", "X", "--out", "{T}/pack", "--workers", "0", "{B}"],
+     "--workers: 0 must be >= 1"),
+    (["finetune", "--params", "{P}", "--name", "X", "--out", "{T}/pack", "--workers", "1e9", "{B}"], "--workers"),
 ])
 def test_family_5_arguments_are_checked_first(shared_data, tmp_path, capsys, argv, message):
     fill = lambda a: (a.replace("{P}", str(shared_data / "released-lpn")).replace("{T}", str(tmp_path))

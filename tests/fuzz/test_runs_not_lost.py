@@ -9,7 +9,8 @@ temporary is removed by the next command writing the folder). Training with work
 worker left running, no shared-memory segment left in /dev/shm, the earlier run kept. Two commands
 writing one folder: the second is refused, naming the first's process. ``minifilm dataset --workers
 2`` stopped while its workers label (SIGINT, SIGTERM, Ctrl-C to the group, SIGKILL): no worker
-left running, no cache written."""
+left running, no cache written. ``minifilm finetune --params`` stopped while a worker shares its
+walks, or with that worker killed: no worker left running, no style pack written."""
 import hashlib
 import os
 import re
@@ -208,3 +209,27 @@ def test_a_stopped_dataset_build_with_workers_leaves_no_process_and_no_cache(bvh
             time.sleep(0.1)
     assert not [pid for pid in pids if running(pid)]
     assert not cache.exists() or list(cache.iterdir()) == []   # no cache, whole or half
+
+
+FINETUNE_STOPS = [("parent", signal.SIGINT), ("parent", signal.SIGTERM), ("worker", signal.SIGKILL)]
+
+
+@pytest.mark.parametrize("who,sig", FINETUNE_STOPS, ids=[f"{w}-{s.name}" for w, s in FINETUNE_STOPS])
+def test_a_stopped_teaching_with_a_walk_worker_leaves_no_process_and_no_pack(shared_data, tmp_path, who, sig):
+    pack = tmp_path / "pack"
+    clip = shared_data / "bandai2" / "dataset-2_walk_elderly_001.bvh"
+    proc = start(["finetune", "--params", shared_data / "released-lpn", "--name", "Taught", "--out", pack,
+                  "--steps", "20", "--motion-rounds", "50", "--workers", "2", clip])
+    seen = wait_for(proc, "refining by motion")
+    pids = [int(p) for p in re.search(r"\(ids ([\d, ]+)\)", seen).group(1).split(",")]
+    assert len(pids) == 1
+    proc.send_signal(sig) if who == "parent" else os.kill(pids[0], sig)
+    rest, _ = proc.communicate(timeout=600)
+    if who == "parent":
+        assert proc.returncode == (130 if sig == signal.SIGINT else 143), rest[-800:]
+    else:
+        assert proc.returncode == 2, rest[-800:]
+        assert re.search(rf"walks: worker 0 \(process {pids[0]}\) was killed by SIGKILL while walking", rest), rest[-800:]
+    assert "Traceback" not in rest, rest[-2000:]
+    assert not running(pids[0])
+    assert not pack.exists()

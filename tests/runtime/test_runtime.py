@@ -314,3 +314,30 @@ def test_a_skeleton_without_the_layouts_joints_is_named():
     skel.names[2] = "Skull"                          # the layout wants "Head"
     with pytest.raises(ValueError, match=r"lacks 1 of the network's 5 joints \(\['Head'\]\)"):
         root_joint_indices(LAYOUT, skel)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_runtime_network_written_as_arrays_is_the_same_network(dtype):
+    """to_arrays / from_arrays (how a worker process gets the network) keep every weight, the
+    statistics, the layer-norm convention and the dtype: the same outputs, bit for bit."""
+    rng = np.random.default_rng(1)
+    cfg = ModelConfig.tiny(x_dim=LAYOUT.x_dim, z_dim=LAYOUT.z_dim)
+    model = StyleModel(cfg, rng, dtype=dtype)
+    for ps in model.parameter_sets():
+        ps.data[...] = rng.normal(scale=0.3, size=ps.data.shape)
+    net = RuntimeNetwork.from_model(model, random_stats(LAYOUT, rng), runtime_layer_norm=True, dtype=dtype)
+    again = RuntimeNetwork.from_arrays(net.to_arrays())
+    assert again.dtype == np.dtype(dtype)
+    assert (again.hidden.hidden, again.hidden.ln_unbiased, again.hidden.ln_eps) == (cfg.hidden, False, 0.0)
+    X, P = rng.normal(size=(7, LAYOUT.x_dim)), rng.normal(size=(7, 8))
+    film = rng.normal(size=(7, cfg.film_dim))
+    np.testing.assert_array_equal(again.predict(X, P, film), net.predict(X, P, film))
+    other = RuntimeNetwork.from_model(model, random_stats(LAYOUT, rng), dtype=dtype)      # training's layer norm
+    assert RuntimeNetwork.from_arrays(other.to_arrays()).hidden.ln_unbiased == cfg.ln_unbiased
+
+
+def test_only_a_film_network_is_written_as_arrays():
+    net = RuntimeNetwork.__new__(RuntimeNetwork)
+    net.gate, net.hidden = (lambda x, p: x), (lambda *a: a[1])
+    with pytest.raises(TypeError, match="only a FiLM network"):
+        net.to_arrays()

@@ -1,0 +1,94 @@
+"""Walks shared with worker processes (minifilm/pipeline/walkers.py): the same window summaries
+and faults as one process walking them all, by ``walk`` (split) and ``submit`` (all in the
+workers); a worker that dies is named; the refinement by motion finds the same vector with
+workers as without."""
+import os
+import signal
+
+import numpy as np
+import pytest
+
+from minifilm.features.layout import FeatureLayout
+from minifilm.motion.skeletons import STYLE100
+from minifilm.pipeline.walkers import WalkPool, walk_here
+from minifilm.pipeline.walks import FaultCheck, straight_path
+from minifilm.processes import WorkerDied
+
+LAYOUT = FeatureLayout.for_skeleton(STYLE100)
+SPEED, SECONDS = 1.3, 2.0
+
+
+@pytest.fixture(scope="module")
+def rel(shared_data):
+    from minifilm.runtime.released import load_released
+    return load_released(shared_data / "released-lpn")
+
+
+def films_of(rel, n):
+    return np.stack(list(rel.styles.values())[:n]).astype(np.float32)
+
+
+def check_for(speed, seconds):
+    toes = [LAYOUT.joint_names.index("RightToe"), LAYOUT.joint_names.index("LeftToe")]
+    return FaultCheck(toes, straight_path(speed, seconds + 1), clip_steps_per_s=1.8, clip_hips=0.93)
+
+
+def assert_same_walks(got, expected):
+    (walks, faults), (walks0, faults0) = got, expected
+    assert len(walks) == len(walks0) and faults == faults0
+    for w, w0 in zip(walks, walks0):
+        np.testing.assert_allclose(w, w0, rtol=1e-4, atol=1e-4)
+
+
+def test_walks_shared_with_workers_are_those_of_one_process(rel):
+    films, check = films_of(rel, 7), check_for(SPEED, SECONDS)
+    alone = walk_here(rel.network, LAYOUT, rel.stats, films, SPEED, SECONDS, check)
+    assert any(alone[1]) and not all(alone[1]), "the check finds faults in some walks, not all"
+    with WalkPool(rel.network, LAYOUT, rel.stats, workers=2) as pool:
+        pending = pool.submit(films[:5], SPEED, SECONDS)
+        assert_same_walks(pending.result(), (alone[0][:5], [set()] * 5))
+        assert_same_walks(pool.walk(films, SPEED, SECONDS, check), alone)
+        pending = pool.submit(films[2:], SPEED, SECONDS, check)
+        # a walk asked before the submitted ones were collected waits for them first
+        assert_same_walks(pool.walk(films[:3], SPEED, SECONDS, check), (alone[0][:3], alone[1][:3]))
+        assert_same_walks(pending.result(), (alone[0][2:], alone[1][2:]))
+        procs = list(pool.procs)
+        assert len(procs) == 2 and all(p.is_alive() for p in procs)
+    assert not any(p.is_alive() for p in procs)
+
+
+def test_a_pool_without_workers_walks_here_and_takes_any_check(rel):
+    films = films_of(rel, 2)
+    with WalkPool(rel.network, LAYOUT, rel.stats, workers=0) as pool:
+        walks, faults = pool.walk(films, SPEED, SECONDS, lambda r, b: {"odd"} if b % 2 else set())
+        assert pool.procs == [] and faults == [set(), {"odd"}] and len(walks) == 2
+    with WalkPool(rel.network, LAYOUT, rel.stats, workers=1) as pool:
+        with pytest.raises(TypeError, match="FaultCheck"):
+            pool.walk(films, SPEED, SECONDS, lambda r, b: set())
+
+
+def test_a_killed_walk_worker_is_named_and_nothing_is_left(rel):
+    films = films_of(rel, 4)
+    with pytest.raises(WorkerDied, match=r"walks: worker 0 \(process \d+\) was killed by SIGKILL while walking 2 vectors"):
+        with WalkPool(rel.network, LAYOUT, rel.stats, workers=1) as pool:
+            procs = list(pool.procs)
+            pool.walk(films, SPEED, SECONDS)            # started and working
+            os.kill(procs[0].pid, signal.SIGKILL)
+            pool.walk(films, SPEED, SECONDS)
+    assert not any(p.is_alive() for p in procs)
+
+
+def test_refining_by_motion_with_workers_finds_the_vector_of_one_process(rel):
+    from minifilm.evaluation.style_judge import motion_block, summaries
+    from minifilm.pipeline.motion_refit import RefitSettings, refine_by_motion
+    from minifilm.pipeline.refit_released import generated_motions
+    motion, = generated_motions(rel, ["Zombie"], 5.0, script="straight")
+    clip = summaries(motion_block(motion, rel.stats, LAYOUT))
+    known = {n: rel.styles[n] for n in list(rel.styles)[:10] if n != "Zombie"}
+    settings = RefitSettings(directions=4, rounds=2, population=6, elite=2, seconds=2.0, dims=8)
+    start = next(iter(known.values()))
+    alone = refine_by_motion(rel.network, LAYOUT, rel.stats, start, known, clip, SPEED, settings)
+    with WalkPool(rel.network, LAYOUT, rel.stats, workers=1) as pool:
+        shared = refine_by_motion(rel.network, LAYOUT, rel.stats, start, known, clip, SPEED, settings, pool=pool)
+    np.testing.assert_allclose(shared.film, alone.film, rtol=1e-5, atol=1e-6)
+    assert shared.score == pytest.approx(alone.score, rel=1e-4)
