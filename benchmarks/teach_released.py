@@ -41,6 +41,15 @@ from minifilm.train.film_fit import FitSettings  # noqa: E402
 REPO = Path(__file__).resolve().parents[1]
 
 
+def refit_settings(args) -> RefitSettings:
+    """finetune's refinement settings, with --motion-rounds and the fields --motion names changed."""
+    fields = {"rounds": args.motion_rounds}
+    for item in filter(None, args.motion.split(",")):
+        key, value = item.split("=")
+        fields[key.strip()] = type(getattr(RefitSettings, key.strip()))(value)
+    return RefitSettings(**fields)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--params", type=Path, default=REPO.parent / "shared" / "data" / "released-lpn")
@@ -52,6 +61,8 @@ def main() -> None:
     ap.add_argument("--motion-rounds", type=int, default=RefitSettings.rounds,
                     help="rounds of refining each fit by the motion it makes, as finetune does (0: the "
                          "teacher-forced fit alone, as before; minifilm/pipeline/motion_refit.py)")
+    ap.add_argument("--motion", default="", help="other settings of the refinement, e.g. 'population=32,elite=8' "
+                                                 "(RefitSettings' fields; default: finetune's)")
     ap.add_argument("--judge-seconds", type=float, default=20.0, help="rollout judged by motion (0: skip)")
     ap.add_argument("--seeds", type=int, default=3, help="classifier seeds (the minimum recognition counts)")
     ap.add_argument("--fitted", type=Path, help="an .npz of the fitted vectors: written, or if it exists read "
@@ -74,7 +85,7 @@ def main() -> None:
           f"{'teach s':>7s}  steps/s (clip)  walks")
     for name, motion in zip(names, motions):
         r = refit(rel, name, motion, FitSettings(steps=args.steps), prior_weights=tuple(args.prior_weights),
-                  by_motion=RefitSettings(rounds=args.motion_rounds) if args.motion_rounds > 0 else None)
+                  by_motion=refit_settings(args) if args.motion_rounds > 0 else None)
         rows.append(r)
         print(f"{name:16s} {r['film_rank']:9d} {r['output_rank']:11d} {r['loss_rank']:9d}  "
               f"{r['nearest_film']} / {r['nearest_output']:12s} {r['seconds']:7.1f}  "

@@ -61,7 +61,7 @@ def add_arguments(ap) -> None:
     ap.add_argument("--foot-lock", action="store_true", help="start with foot locking on")
     ap.add_argument("--no-fit", action="store_true", help="start with the skeleton fit off")
     ap.add_argument("--no-calibrate", action="store_true",
-                    help="command the raw speed (the released network then walks slower than asked)")
+                    help="command the raw speed (the network then walks slower or faster than asked)")
     ap.add_argument("--record", type=gif_path, help="write a scripted session as an animated GIF instead of serving")
     ap.add_argument("--record-seconds", type=in_range(1.0, 60.0), default=5.0, help="length of --record, seconds")
 
@@ -77,7 +77,7 @@ def run(args) -> int:
     if args.styles is not None and args.params is None:
         raise InputError("--styles (a style pack) is for --params; a run folder keeps its styles itself")
     source = DemoSource.released(args.params, calibrate=not args.no_calibrate, pack=args.styles) \
-        if args.params is not None else DemoSource.run_folder(args.run)
+        if args.params is not None else DemoSource.run_folder(args.run, calibrate=not args.no_calibrate)
     settings = DemoSettings(style=args.style or source.default_style(), walk_speed=args.walk_speed,
                             run_speed=args.run_speed, turn_rate_deg=args.turn_rate, foot_lock=args.foot_lock,
                             fit=not args.no_fit)

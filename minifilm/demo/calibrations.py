@@ -1,10 +1,12 @@
 """Speed calibration per style for the live demo, measured in the frame loop's idle time.
 
 The released network needs one (:func:`minifilm.runtime.calibration.calibrate_speed`: commanding
-1.3 m/s makes it walk at about 0.5 m/s), and measuring one takes about 2.4 s of CPU (27
+1.3 m/s makes it walk at about 0.5 m/s), and so does a run trained here (train_small's Drunk walks
+0.68 m/s at 1.3 m/s commanded, its PendulumHands 2.36; measured with the commands its data holds,
+``source.calibration_commands``). Measuring one for the released network takes about 2.4 s of CPU (27
 characters for 8 s of frames: 481 steps of one batch, about 5 ms each). So nothing is measured
 before the server starts (it serves its page within a second or two): calibrations come from the
-cache of earlier runs (``calibration_cache.py``, keyed by a hash of the network's files), and the
+cache of earlier runs (``calibration_cache.py``, keyed by a hash of the released network's files; a run's are measured at each start), and the
 missing ones, the start style first, any other style the first time a page asks for it, are
 measured one batch step at a time (:func:`~minifilm.runtime.calibration.calibrate_speed_stepwise`)
 by the frame loop, in the time left before the next frame is due (:meth:`run_slice`, called by
@@ -59,7 +61,7 @@ def measure(source, name: str) -> SpeedCalibration:
     """The SpeedCalibration of style ``name`` of a :class:`~minifilm.demo.source.DemoSource`, all at
     once (the plain version: tests, ``--record``)."""
     ctrl, x, p = _start_of(source, name)
-    return calibrate_speed(ctrl, source.library[name], phases=p, start_x=x)
+    return calibrate_speed(ctrl, source.library[name], commands=source.calibration_commands, phases=p, start_x=x)
 
 
 def measure_steps(source, name: str) -> Generator[None, None, SpeedCalibration]:
@@ -67,7 +69,8 @@ def measure_steps(source, name: str) -> Generator[None, None, SpeedCalibration]:
     each; returns the same SpeedCalibration (tested equal)."""
     ctrl, x, p = _start_of(source, name)
     yield
-    return (yield from calibrate_speed_stepwise(ctrl, source.library[name], phases=p, start_x=x))
+    return (yield from calibrate_speed_stepwise(ctrl, source.library[name], commands=source.calibration_commands,
+                                                phases=p, start_x=x))
 
 
 

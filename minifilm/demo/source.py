@@ -7,8 +7,9 @@ The two differ in the settings ``minifilm generate`` measured for them (its ``So
   per-style speed calibration (the network follows the user's trajectory only partly, so the
   commanded m/s is mapped to the command that makes it really move that fast);
 * a run folder written by ``minifilm train`` (``--run``): its own skeleton, fit as an output
-  post-process only, its position bias, start frames per style, no calibration (a small model
-  does not survive the commands far outside its data that calibration asks for).
+  post-process only, its position bias, start frames per style, and a speed calibration measured
+  only with commands its data holds (``RUN_CALIBRATION_COMMANDS``, up to 4 m/s: a small model
+  does not survive the 24 m/s the released network's calibration asks for).
 
 Both turn the body towards the steered heading while walking (``runtime/heading.py``).
 """
@@ -24,6 +25,7 @@ from minifilm.features.layout import FeatureLayout
 from minifilm.motion.motion import Motion
 from minifilm.motion.skeletons import STYLE100
 from minifilm.pipeline.run_folder import RunFolder
+from minifilm.runtime.calibration import CALIBRATION_COMMANDS, RUN_CALIBRATION_COMMANDS
 from minifilm.runtime.heading import HeadingFollow
 from minifilm.runtime.network import RuntimeNetwork
 from minifilm.runtime.released import load_released
@@ -38,6 +40,7 @@ class DemoSource:
 
     feed_back_fit: with the skeleton fit on, feed the fitted pose back to the network.
     calibrate: map the user's m/s through a per-style speed calibration.
+    calibration_commands: the commanded speeds (m/s) a calibration measures.
     starts: style -> (x (x_dim,), p (8,)) raw start frame; styles without one start from the mean pose.
     params: the released folder (the calibration cache is keyed by its files).
     pack: a style pack folder whose styles join the released network's (its worker loads it too).
@@ -60,6 +63,7 @@ class DemoSource:
     pack: Optional[Path] = None
     pack_names: Tuple[str, ...] = ()
     run_feed_speed: Optional[float] = None
+    calibration_commands: Tuple[float, ...] = CALIBRATION_COMMANDS
 
     @classmethod
     def released(cls, params, calibrate: bool = True, pack=None) -> "DemoSource":
@@ -72,12 +76,12 @@ class DemoSource:
                    pack=Path(pack) if pack else None, pack_names=tuple(styles.names) if styles else ())
 
     @classmethod
-    def run_folder(cls, path) -> "DemoSource":
+    def run_folder(cls, path, calibrate: bool = True) -> "DemoSource":
         run = RunFolder.load(path)
         return cls(f"trained run ({Path(path).name})", run.network(), run.layout, run.fps, run.styles(),
-                   run.template(), feed_back_fit=False, calibrate=False,
+                   run.template(), feed_back_fit=False, calibrate=calibrate,
                    options={"position_bias": run.position_bias, "heading_follow": HeadingFollow()},
-                   starts=run.starts())
+                   starts=run.starts(), calibration_commands=RUN_CALIBRATION_COMMANDS)
 
     def default_style(self) -> str:
         return "Neutral" if "Neutral" in self.library else self.library.names[0]

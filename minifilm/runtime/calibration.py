@@ -20,6 +20,11 @@ from minifilm.runtime.root_frames import floor_angle
 #: network follows the commanded future only partly (the released Neutral runs at its fastest,
 #: about 1.8 m/s, at 12-24 m/s commanded; benchmarks/run_speed.py)
 CALIBRATION_COMMANDS = (0.5, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0)
+#: commanded speeds for a model trained here: within what a small model's data holds. Commands
+#: far beyond it (CALIBRATION_COMMANDS' 24 m/s) stretched the train_small model's bones (a bone's
+#: length varied by up to 69 %); up to 4 m/s every style of that run reached the speeds asked,
+#: its bones as steady as uncalibrated (benchmarks/trained_speed.py)
+RUN_CALIBRATION_COMMANDS = (0.25, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0)
 #: directions of travel (degrees from the facing) a calibration measures
 CALIBRATION_DIRECTIONS = (0.0, 90.0, 180.0)
 
@@ -128,10 +133,8 @@ def calibrate_speed(controller, film: np.ndarray,
     ``settle`` seconds. ``film`` is the style (4H,); ``phases`` (8,) and ``start_x`` (x_dim,)
     the start state (see :meth:`~minifilm.runtime.controller.Controller.reset`; default the data's means).
 
-    Made for the released network. A small network trained on little data may move at its data's
-    speeds only (a walk and a run, nothing between), so the calibration asks for commands far
-    outside its data; in ``benchmarks/trained_rollout.py`` that made the train_small model's
-    bones stretch (CV up to 69 %) and its path error grow, so check before using it there.
+    The default commands are the released network's. A small network trained on little data must
+    not be commanded far outside its data: give it ``RUN_CALIBRATION_COMMANDS`` (the demo does).
 
     :func:`calibrate_speed_stepwise` measures the same one network step at a time."""
     n, k0, scripts = _calibration_plan(controller.fps, commands, directions, seconds, settle)

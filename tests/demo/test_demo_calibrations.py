@@ -10,7 +10,7 @@ import numpy as np
 from demo_helpers import released_source, tiny_source  # noqa: F401  (fixtures)
 from minifilm.demo import calibrations
 from minifilm.demo.calibrations import Calibrations
-from minifilm.runtime.calibration import SpeedCalibration
+from minifilm.runtime.calibration import CALIBRATION_COMMANDS, RUN_CALIBRATION_COMMANDS, SpeedCalibration
 
 
 def fake_measure(source, name):
@@ -59,8 +59,8 @@ def test_other_styles_are_measured_in_slices_when_first_asked_for(released_sourc
 
 
 def test_a_calibration_measured_in_slices_is_the_one_measured_at_once(tiny_source):
-    # a trained run's source is never calibrated by the demo; told to, its small network measures fast
-    source = replace(tiny_source, calibrate=True)
+    # a trained run's source: its small network measures fast
+    source = tiny_source
     name = source.library.names[-1]                                # a style with its own start frame
     assert name in source.starts
     at_once = calibrations.measure(source, name)
@@ -89,7 +89,8 @@ def test_closing_drops_the_measurement_in_hand_and_the_queue(released_source):
 
 
 def test_sources_without_calibration_pass_velocities_unchanged(tiny_source):
-    cal = Calibrations(tiny_source, first=[tiny_source.default_style()])
+    source = replace(tiny_source, calibrate=False)                # minifilm demo --no-calibrate
+    cal = Calibrations(source, first=[source.default_style()])
     assert not cal.enabled
     v = np.array([0.3, 1.1])
     np.testing.assert_array_equal(cal.command(v, np.array([0.0, 1.0]), {"Neutral": 1.0}), v)
@@ -142,3 +143,14 @@ def test_the_terminal_is_told_how_many_styles_are_queued_and_about_how_long(rele
     assert "minute or less" not in logs[-1]
     assert calibrations.estimate(12.0) == "10 s" and calibrations.estimate(600.0) == "10 min"
     cal.close()
+
+
+def test_a_trained_run_is_calibrated_only_with_commands_its_data_holds(tiny_source):
+    """A run's source is calibrated (its styles walk slower or faster than asked), with commands up to
+    4 m/s, not the released network's 24 m/s."""
+    assert tiny_source.calibrate and tiny_source.calibration_commands == RUN_CALIBRATION_COMMANDS
+    assert max(RUN_CALIBRATION_COMMANDS) <= 4.0 < max(CALIBRATION_COMMANDS)
+    measured = calibrations.measure(tiny_source, tiny_source.default_style())
+    np.testing.assert_array_equal(measured.commanded, np.r_[0.0, RUN_CALIBRATION_COMMANDS])
+    cal = Calibrations(tiny_source, first=[tiny_source.default_style()], background=False)
+    assert cal.enabled and cal.has(tiny_source.default_style())

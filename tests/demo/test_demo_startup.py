@@ -6,6 +6,7 @@ import json
 import math
 import os
 import time
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -176,7 +177,8 @@ def test_a_run_beyond_the_style_is_scaled_to_what_it_can_do_and_said(released_so
 
 
 def test_readouts_have_no_value_before_they_have_data(tiny_source):
-    c = Character(1, tiny_source, Calibrations(tiny_source), DemoSettings(style=tiny_source.default_style()))
+    source = replace(tiny_source, calibrate=False)
+    c = Character(1, source, Calibrations(source), DemoSettings(style=source.default_style()))
     frame, _ = c.step()
     assert frame["inputMs"] is None and frame["sentFps"] is None and frame["maxSpeed"] is None
     assert frame["calibration"] == {"state": "off"}
