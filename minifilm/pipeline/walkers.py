@@ -83,12 +83,14 @@ class Pending:
     """Walks sent to the workers by :meth:`WalkPool.submit`; :meth:`result` waits for them."""
 
     def __init__(self, pool: "WalkPool", shares: List[int], done: Optional[Walks] = None):
-        self.pool, self.shares, self.done = pool, shares, done
+        self.pool, self.shares, self.done, self.asked = pool, shares, done, done is not None
 
     def result(self) -> Walks:
-        if self.done is None:
+        if not self.asked:              # the replies are read once, whatever happens
+            self.asked, self.pool.pending = True, None
             self.done = self.pool._collect(self.shares)
-            self.pool.pending = None
+        if self.done is None:
+            raise RuntimeError("WalkPool: these walks failed (the error was raised when they were collected)")
         return self.done
 
 
@@ -99,6 +101,7 @@ class WalkPool:
     def __init__(self, network, layout: FeatureLayout, stats: NormStats, workers: int):
         self.network, self.layout, self.stats, self.workers = network, layout, stats, max(0, int(workers))
         self.procs, self.conns, self.pending, self.sender = [], [], None, None
+        self.ready, self.outbox = [], None
 
     def __enter__(self) -> "WalkPool":
         if self.workers:
@@ -196,7 +199,7 @@ class WalkPool:
             w, data = item
             try:
                 self.conns[w].send_bytes(data)
-            except (OSError, ValueError):       # died, or its pipe closed by __exit__: _reply says so
+            except Exception:       # noqa: BLE001 -- died, or its pipe closed by __exit__ mid-send: _reply says so
                 pass
 
     def _reply(self, w: int, doing: str) -> dict:
