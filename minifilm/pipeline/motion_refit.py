@@ -23,9 +23,9 @@ feet leaving the floor, say): with ``problems`` (a rollout and a character -> th
 wrong with that walk, runtime/walk_checks.py), such a vector is never chosen.
 
 Cost: the known styles' walks once, then one batch rollout of population + 2 characters (the
-centre and the best so far beside the new ones) per round, about 4 s each on one core: about a
-minute in all with the defaults, shared between processes by a WalkPool (walkers.py). The motion is deterministic, so a vector's score does not change
-between rounds.
+centre and the best so far beside the new ones) per round, about 3.5 s each on one core: about
+a minute in all with the defaults, shared between processes by a WalkPool (walkers.py). The motion
+is deterministic, so a vector's score does not change between rounds.
 """
 from __future__ import annotations
 
@@ -42,7 +42,11 @@ from minifilm.pipeline.walkers import WalkPool
 class RefitSettings:
     """The search: k directions, rounds, candidates per round, the best kept, start spread σ (in
     units of the styles' own spread along each direction) and how it shrinks per round; seconds of
-    walking per candidate (after the first second), the space's dimensions."""
+    walking per candidate (after the first second), the space's dimensions.
+
+    Six rounds of 32 (elite 8, shrink 0.85²: the same 192 candidates and final spread) would cost
+    less, a round of 34 walks about as much as one of 18, and found 9 of 10 known styles again
+    against 8; but four real clips ranked worse (benchmarks/README.md), so twelve of 16 stay."""
     directions: int = 16
     rounds: int = 12
     population: int = 16

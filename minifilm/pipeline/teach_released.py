@@ -46,7 +46,7 @@ RECOMMENDED_SECONDS = 10.0        # shorter clips are taught, with a warning
 SIGMA = 5.0                       # a normalised feature beyond this many σ of the network's data is "far"
 PRIOR_WEIGHTS = (0.3, 1.0, 3.0)   # λ of the fit: the candidates the rollouts choose between
 #: worker processes at most beside this one for the refinement's walks: a round's 18 walks in
-#: shares of 4-5; smaller shares save little (a step costs about as much Python for 1 walk as for 9)
+#: shares of 4-5; smaller shares save little (a step costs about as much for 1 walk as for 9)
 WALK_WORKERS = 3
 
 
@@ -215,6 +215,8 @@ def teach(rel, layout: FeatureLayout, name: str, motions: Sequence[Motion], file
 
 
 def _teach(rel, layout, name, clip, known, settings, prior_weights, choose_by_rollout, align, motion, pool, log):
+    """:func:`teach` with the clip's rows made and the walkers' pool open (``motion``: None when
+    not refining)."""
     known = dict(rel.styles if known is None else known)
     names = list(known)
     V = np.stack([known[n] for n in names]).astype(np.float64)
