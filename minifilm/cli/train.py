@@ -51,7 +51,8 @@ def add_arguments(parser) -> None:
                         help="style clips per minibatch, shared by its samples (default "
                              f"{d.clips_per_batch}; 32 = one clip per sample, as the paper)")
     parser.add_argument("--workers", type=in_range(1, 1024, int), default=None,
-                        help="processes computing each minibatch's gradients, one BLAS thread each (default: "
+                        help="processes computing each minibatch's gradients, one BLAS thread each (1: the "
+                             "data set is labelled in this process too; default: "
                              "every core this process may use, at most one per style clip of a minibatch; "
                              "give 1 on a busy machine, where a second process only splits one core's share "
                              "(benchmarks/README.md); the results are the same to float32 round-off)")

@@ -251,8 +251,11 @@ def prepare_data(s: Settings, data: Optional[Path], out: Path):
     extra = {} if not own_data else data_settings(data, s)
     if own_data and s.rig is not None:      # a folder of mixed rigs: every file onto one rig first
         data = retarget_files(resolve_files(data), load_target(s.rig), out / "data", log)
+    # --workers 1 keeps the labelling in this process too; otherwise the builder takes the cores where
+    # the motion pays for a worker's start (the data set is the same for any number)
     ds = build_dataset(data, cache_dir=out / "cache", progress=True, clip_seconds=s.clip_seconds,
-                       clip_stride_seconds=s.clip_seconds / 2, seed=s.seed, **extra)
+                       clip_stride_seconds=s.clip_seconds / 2, seed=s.seed,
+                       workers=1 if s.workers == 1 else None, **extra)
     log(f"[dataset] built in {time.perf_counter() - t0:.1f} s")
     log(ds.summary())
     empty = [name for name in ("val", "test") if len(getattr(ds, name)) == 0]

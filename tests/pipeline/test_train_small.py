@@ -159,3 +159,21 @@ def test_importing_the_example_loads_no_viewer_demo_evaluation_or_scipy_signal()
     bad = [m for m in loaded if m.startswith(("minifilm.viewer", "minifilm.demo", "minifilm.evaluation",
                                               "scipy.signal", "matplotlib"))]
     assert not bad, f"loaded before use: {bad}"
+
+
+@pytest.mark.parametrize("workers,expected", [(1, 1), (2, None), (None, None)])
+def test_workers_1_labels_the_data_set_in_this_process_too(tmp_path, monkeypatch, workers, expected):
+    """--workers 1 means one process for the whole job, the data set's labelling included; any
+    other count leaves the labelling's own choice (the cores, where the motion pays for a worker)."""
+    import minifilm.pipeline.train_small as ts
+    seen = {}
+
+    def build(*args, **kw):
+        seen.update(kw)
+        raise KeyboardInterrupt          # stop the job here: only the call is looked at
+
+    monkeypatch.setattr(ts, "build_dataset", build)
+    s = replace(Settings().quick(), styles=["Neutral"], gaits=["FW"], seconds_per_clip=6.0, workers=workers)
+    with pytest.raises(KeyboardInterrupt):
+        ts.prepare_data(s, None, tmp_path)
+    assert seen["workers"] == expected
