@@ -122,3 +122,14 @@ def input_path(text: str) -> Path:
     p = Path(text)
     note_input(p)
     return p
+
+
+def add_network_source(ap) -> None:
+    """The network a command drives, one of two: --params (the authors' released network, with
+    --styles PACK beside its own styles) or --run (a run folder written by minifilm train)."""
+    src = ap.add_mutually_exclusive_group(required=True)
+    src.add_argument("--params", type=input_path, help="the released network's parameter folder")
+    src.add_argument("--run", type=input_path, help="a run folder written by minifilm train")
+    ap.add_argument("--styles", type=input_path,
+                    help="with --params: a style pack folder (minifilm finetune --params ... --out PACK) whose "
+                         "styles join the network's own")

@@ -24,9 +24,8 @@ Needs the websockets package: pip install 'minifilm[demo]'.
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
-from minifilm.cli.args import gif_path, in_range, input_path
+from minifilm.cli.args import add_network_source, gif_path, in_range
 from minifilm.demo.calibration_cache import CalibrationCache
 from minifilm.demo.character import DemoSettings
 from minifilm.demo.record import record_gif
@@ -40,11 +39,7 @@ HELP = "steer a character live in the browser (released network or a trained run
 
 
 def add_arguments(ap) -> None:
-    src = ap.add_mutually_exclusive_group(required=True)
-    src.add_argument("--params", type=input_path, help="the released network's parameter folder")
-    src.add_argument("--run", type=input_path, help="a run folder written by minifilm train")
-    ap.add_argument("--styles", type=input_path,
-                    help="with --params: a style pack folder (minifilm finetune --params ... --out PACK)")
+    add_network_source(ap)
     ap.add_argument("--host", default="127.0.0.1",
                     help="interface to listen on (default 127.0.0.1, this machine only; another opens the demo "
                          "to whoever can reach that interface)")

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from minifilm.cli.args import bvh_path, gif_path, html_path, in_range, input_path, png_path, positive
+from minifilm.cli.args import add_network_source, bvh_path, gif_path, html_path, in_range, input_path, png_path, positive
 from minifilm.cli.memory import GENERATE_BYTES_PER_JOINT_FRAME, VIEW_BYTES_PER_JOINT_FRAME, add_memory_option, \
     check_memory
 from minifilm.errors import InputError
@@ -55,12 +55,7 @@ HELP = "generate motion with the released network or a trained run"
 
 
 def add_arguments(ap) -> None:
-    src = ap.add_mutually_exclusive_group(required=True)
-    src.add_argument("--params", type=input_path, help="the released network's parameter folder")
-    src.add_argument("--run", type=input_path, help="a run folder written by minifilm train")
-    ap.add_argument("--styles", type=input_path,
-                    help="with --params: a style pack folder (minifilm finetune --params ... --out PACK) whose "
-                         "styles join the network's own")
+    add_network_source(ap)
     ap.add_argument("--style", type=style_name, help="style name (see --list-styles); default: the first style")
     ap.add_argument("--style2", type=style_name, help="second style, blended with --blend w: (1-w) style + w style2")
     ap.add_argument("--blend", type=in_range(0.0, 1.0), help="weight of --style2, in [0, 1] (default 0.5)")

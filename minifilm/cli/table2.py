@@ -5,7 +5,6 @@
 Parameter counts come from the architectures in the paper's configuration; run times are measured
 here, batch 1 through the one inference path (see minifilm/evaluation/table2.py).
 """
-from pathlib import Path
 
 from minifilm.cli.args import in_range, markdown_path
 from minifilm.evaluation.table2 import report
