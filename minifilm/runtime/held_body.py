@@ -40,7 +40,8 @@ def leg_chains(joint_names: Sequence[str], parents: Sequence[int]) -> Optional[n
 
 def plant_feet(positions: np.ndarray, held: Optional[np.ndarray], weight: np.ndarray,
                chains: np.ndarray, lower: Optional[np.ndarray] = None, floor: float = 0.08,
-               lowering: Optional[np.ndarray] = None) -> Tuple[np.ndarray, np.ndarray, Optional[np.ndarray]]:
+               lowering: Optional[np.ndarray] = None,
+               fresh: Optional[np.ndarray] = None) -> Tuple[np.ndarray, np.ndarray, Optional[np.ndarray]]:
     """Hold the feet where they come to rest: the lower body of a settled character.
 
     positions (B, J, 3) world joints; held (B, 2, 2, 3) the [right, left] feet's held ankle and toe
@@ -51,17 +52,24 @@ def plant_feet(positions: np.ndarray, held: Optional[np.ndarray], weight: np.nda
     its length). A foot held with its toe higher than ``floor`` (m) (a knee up, a hop, a kick
     when the stop came) is put down, by up to ``lower`` (B,) metres a frame, to the other toe's
     height (half ``floor`` at most): a standing body stands on both feet. ``lowering`` (B, 2)
-    says which feet are on their way down (None: none yet). Returns the new positions (B, J, 3),
-    held feet (B, 2, 2, 3) and lowering (B, 2) (None without ``lower``).
+    says which feet are on their way down (None: none yet). ``fresh`` (B,) marks the characters
+    whose hold begins now (not held the frame before): their rows of ``held`` and ``lowering`` are
+    not used, so a character's hold starts as it would alone, whatever its batch-mates do.
+    Returns the new positions (B, J, 3), held feet (B, 2, 2, 3) and lowering (B, 2) (None
+    without ``lower``).
     """
     P = np.array(positions, dtype=np.float64)
     hip, knee, ankle, toe = (chains[:, i] for i in range(4))
     now = np.stack([P[:, ankle], P[:, toe]], axis=2)                    # (B, 2 feet, 2 joints, 3)
     w = np.asarray(weight, dtype=np.float64)[:, None, None, None]
+    if held is not None and fresh is not None:
+        held = np.where(fresh[:, None, None, None], now, held)
     held = now if held is None else w * held + (1.0 - w) * now
     if lower is not None:
         toe_y = held[:, :, 1, 1]                                        # (B, 2)
         down = np.minimum(toe_y[:, ::-1], floor / 2)                   # the other toe, or half-way
+        if lowering is not None and fresh is not None:
+            lowering = lowering & ~fresh[:, None]
         lowering = (toe_y > floor) if lowering is None else (lowering | (toe_y > floor))
         step = np.where(lowering, np.clip(toe_y - down, 0.0, np.asarray(lower, dtype=np.float64)[:, None]), 0.0)
         held = held.copy()

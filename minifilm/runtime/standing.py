@@ -242,9 +242,11 @@ class StandStill:
         the held feet are kept in ``st.feet``. Characters not held are returned unchanged."""
         w = st.feet_weight
         if st.feet is None:
-            st.lowering = None
+            st.lowering = st.held_rows = None
+        fresh = None if st.held_rows is None else ~st.held_rows       # their hold begins now
         planted, st.feet, st.lowering = plant_feet(positions, st.feet, w, legs, w * self.lower_speed * dt,
-                                                   self.contact_height, st.lowering)
+                                                   self.contact_height, st.lowering, fresh)
+        st.held_rows = w > 0
         return np.where((w > 0)[:, None, None], planted, positions)
 
     def refit(self, st, fit, positions, rotations, legs):

@@ -53,6 +53,7 @@ class CharacterState:
     feet_weight: Optional[np.ndarray] = None     # (B,) how firmly the feet are held (standing.py)
     feet: Optional[np.ndarray] = None            # (B, 2, 2, 3) held [right, left] (ankle, toe) (standing.py)
     lowering: Optional[np.ndarray] = None        # (B, 2) held feet on their way down to the floor (standing.py)
+    held_rows: Optional[np.ndarray] = None       # (B,) the characters whose feet were held last frame (standing.py)
 
     @property
     def batch(self) -> int:

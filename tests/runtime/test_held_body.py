@@ -108,3 +108,32 @@ def test_the_root_keeps_what_is_asked_and_the_body_goes_with_it():
     unturn = np.array([[c, 0, -s], [0, 1, 0], [s, 0, c]])                # heading -10 degrees
     np.testing.assert_allclose(rel_after, rel_before @ unturn.T, atol=1e-12)
     np.testing.assert_allclose(np.linalg.norm(v, axis=-1), np.linalg.norm(vel, axis=-1))
+
+
+def test_a_character_s_hold_does_not_depend_on_its_batch_mates():
+    """A walks (not held, a foot up: it steps) while B already stands held, then A stops: A's held
+    body is the one it gets alone, where nothing is planted until its own hold begins. (A's raised
+    foot while it walked once marked that foot as 'on its way down' for its later hold.)"""
+    walking, stopped = standing_pose(), standing_pose()
+    walking[0, [3, 4], 1] += 0.05                             # mid-step: right toe at 0.07 m
+    walking[0, [7, 8], 1] += 0.2                              # left toe 22 cm up
+    stopped[0, [3, 4], 1] += 0.03                             # comes to rest with a toe just off the floor
+    lower = 0.01
+    # alone: no hold while it walks; then its hold starts fresh
+    alone, held, lowering = [], None, None
+    for _ in range(5):
+        p, held, lowering = plant_feet(stopped, held, np.ones(1), CHAINS, np.full(1, lower), 0.08, lowering)
+        alone.append(p[0])
+    # beside B, held from the start: A's rows go through plant_feet with weight 0 while it walks
+    B = standing_pose()
+    held, lowering = None, None
+    for _ in range(4):
+        _, held, lowering = plant_feet(np.concatenate([walking, B]), held, np.array([0.0, 1.0]), CHAINS,
+                                       np.array([0.0, lower]), 0.08, lowering)
+    together, fresh = [], np.array([True, False])            # A's hold begins (as StandStill.plant says)
+    for _ in range(5):
+        p, held, lowering = plant_feet(np.concatenate([stopped, B]), held, np.array([1.0, 1.0]), CHAINS,
+                                       np.full(2, lower), 0.08, lowering, fresh)
+        together.append(p[0])
+        fresh = np.array([False, False])
+    np.testing.assert_allclose(np.array(together), np.array(alone), atol=1e-12)

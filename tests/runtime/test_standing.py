@@ -233,3 +233,20 @@ def test_an_idle_character_stands_with_its_feet_planted_and_is_not_a_statue(rele
     assert np.all(np.linalg.norm(np.diff(root, axis=1), axis=-1).sum(axis=1) / 5.0 < 0.05)
     assert np.all(moved[:, feet].max(axis=1) <= 0.02)
     assert np.all(moved.max(axis=1) >= 0.01), moved.max(axis=1)
+
+
+def test_a_character_stops_as_it_would_alone_beside_one_already_standing(released):
+    """Batch rollouts are per character: Zombie, stopping at 3 s beside Neutral (stopped at 1 s,
+    its feet held by then), moves as Zombie alone does. (Held feet and feet on their way down were
+    kept for the whole batch: a walker's raised foot stayed marked for its later stop.)"""
+    from minifilm.runtime.control import CommandScript
+
+    def run(styles, stops):
+        ctrl = Controller(released.network, released.layout, fps=60, feed_back_fit=True, stand=StandStill(),
+                          skeleton=Controller.skeleton_for(released.layout, released.skeleton))
+        scripts = [CommandScript([(0, 1.3, 0, 0), (t, 1.3, 0, 0), (t + 0.01, 0, 0, 0), (6, 0, 0, 0)]) for t in stops]
+        return ctrl.run(scripts, 300, np.stack([released.library[s] for s in styles]))
+
+    alone = run(["Zombie"], [3.0])
+    together = run(["Neutral", "Zombie"], [1.0, 3.0])
+    np.testing.assert_allclose(together.positions[1], alone.positions[0], atol=1e-4)
