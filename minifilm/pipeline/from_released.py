@@ -12,6 +12,10 @@ skeleton, plus ``manifest.csv`` (``minifilm train --data`` reads the folder or t
 The network is driven as ``minifilm generate --params`` does it, each style along its own seeded
 paths (:mod:`minifilm.pipeline.released_driver`: the speed calibration, the fitting onto the
 100STYLE skeleton, foot locking, the warm-up cut from every rollout).
+
+With ``workers`` > 1 (the default on a machine of several cores) worker processes each drive a
+share of the styles and write their files (:mod:`minifilm.pipeline.from_released_workers`); this
+process writes the manifest and the description. The data set is the same, to float32 round-off.
 """
 from __future__ import annotations
 
@@ -21,7 +25,7 @@ import re
 import time
 from dataclasses import asdict
 from pathlib import Path
-from typing import Callable, Dict, List, Sequence
+from typing import Callable, Dict, List, Optional, Sequence
 
 import numpy as np
 
@@ -30,10 +34,12 @@ from minifilm.dataset.survey import MIN_FRAMES
 from minifilm.errors import InputError
 from minifilm.evaluation.label_agreement import summarise
 from minifilm.files import atomic_directory, atomic_write_text, file_names, read_json
+from minifilm.pipeline.from_released_workers import ReleasedWorkers
 from minifilm.pipeline.gait_scripts import GAIT_SHARES
 # the driving (released_driver.py), named here too: the job's settings, and its parts for studies/
 from minifilm.pipeline.released_driver import (FPS, ReleasedDataSettings, StyleDriver,  # noqa: F401 (re-exported)
                                                calibrate_styles, drive_gaits, style_seed)
+from minifilm.processes import default_workers
 from minifilm.runtime.released import load_released
 
 _OWN_NAME = re.compile(r"^[A-Za-z0-9]+_[A-Z]+[0-9]*\.bvh$|^manifest\.csv$|^dataset\.json$")
@@ -89,11 +95,19 @@ def check_settings(s: ReleasedDataSettings) -> None:
 
 
 def make_released_dataset(params: Path, out: Path, settings: ReleasedDataSettings = ReleasedDataSettings(),
-                          log: Callable[[str], None] = print) -> dict:
+                          log: Callable[[str], None] = print, workers: Optional[int] = None) -> dict:
     """Write the data set into the folder ``out`` (atomically: the whole folder or nothing) and
-    return its description (also written as ``out/dataset.json``)."""
+    return its description (also written as ``out/dataset.json``).
+
+    workers: processes driving the network at once, each a contiguous share of the styles
+    (from_released_workers.py); default every core this process may use, at most one per style;
+    1 drives them all in this process. The data set is the same for any number, to float32 round-off.
+    """
     s = settings
     check_settings(s)
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise ValueError(f"make_released_dataset: workers must be a whole number >= 1 (or None: every core), "
+                         f"got {workers!r}")
     rel = load_released(params)
     names = list(rel.styles) if s.styles is None else list(s.styles)
     unknown = [n for n in names if n not in rel.styles]
@@ -101,12 +115,13 @@ def make_released_dataset(params: Path, out: Path, settings: ReleasedDataSetting
         raise InputError(f"--styles: {'unknown ' + str(unknown) if unknown else 'each style once, at least one'}; "
                          f"the released network has {' '.join(rel.styles)}")
     stems = style_file_names(names)
+    workers = min(default_workers(len(names)) if workers is None else workers, len(names))
     own = previous_output(Path(out))
     t_start = time.perf_counter()
     described: List[dict] = []
     with atomic_directory(out, "data set folder",
                           replaceable=lambda name: name in own or bool(_OWN_NAME.match(name))) as tmp, \
-            contextlib.nullcontext(StyleDriver(rel, names, stems, tmp, s)) as driver:
+            _drivers(params, rel, names, stems, tmp, s, workers, log) as driver:
         if s.calibrate:
             t0 = time.perf_counter()
             driver.calibrate()
@@ -119,6 +134,19 @@ def make_released_dataset(params: Path, out: Path, settings: ReleasedDataSetting
         info = _write_description(tmp, params, s, names, described)
     log(f"{len(described)} files of {len(names)} styles -> {out} in {time.perf_counter() - t_start:.1f} s")
     return info
+
+
+@contextlib.contextmanager
+def _drivers(params, rel, names, stems, folder: Path, s: ReleasedDataSettings, workers: int, log):
+    """What drives the styles: a :class:`StyleDriver` of them all here (1 worker), or worker
+    processes each driving a share (the same calibrate() and gait(), the rows in style order),
+    stopped when the block is left, however it is left."""
+    if workers <= 1:
+        yield StyleDriver(rel, names, stems, folder, s)
+        return
+    with ReleasedWorkers(params, names, stems, folder, s, workers) as pool:
+        log(f"{len(names)} styles in {workers} worker processes (ids {', '.join(map(str, pool.pids))})")
+        yield pool
 
 
 def _write_description(folder: Path, params, s: ReleasedDataSettings, names: Sequence[str],
