@@ -15,7 +15,8 @@ walks, runs, turns, sidesteps, walks backwards, stops and stands in each of its 
 motion is written as ``<Style>_<Gait>.bvh`` plus ``manifest.csv`` and ``dataset.json`` into --out
 (minifilm/pipeline/from_released.py), ready for ``minifilm train --data DATA``. The styles are
 driven in --workers processes at once, each a share of them (default: every core this process may
-use, at most one per style); the data set is the same for any number, to float32 round-off.
+use, at most one per style); the data set is the same for any number but for float32 round-off
+and the end of a few TR1 files (minifilm/pipeline/from_released_workers.py says why).
 """
 from __future__ import annotations
 
@@ -41,7 +42,7 @@ def add_arguments(parser) -> None:
                         help="processes labelling the files at once (with --from-released: driving the "
                              "network, each a share of the styles), one BLAS thread each (default: the cores this "
                              "process may use, at most one per file or style); the data set is the same for any "
-                             "number (with --from-released: to float32 round-off)")
+                             "number (with --from-released: nearly, see the command's description)")
     parser.add_argument("--split-files", action="store_true",
                         help="whole files go to train/val/test (per style) instead of 80/10/10 segments "
                              "of every file; better for many short files such as Bandai")
