@@ -12,7 +12,7 @@ each, so that it uses every core: each worker drives a contiguous share of the s
                                                    folder (the atomic_directory's temporary), label
                                         <--------- its rows (JSON: file, style, gait, frames, speed,
                                                    label agreement)
-    gait BW, FR, ...  (each sent once the gait two before it is back from every worker, so a
+    gait BW, FR, ...  (each sent once the job two before it is back from every worker, so a
     worker always has its next gait waiting; the rows are collected gait by gait, worker 0's first)
 
 The parent joins the rows in the order one process makes them (gait-major, then style order) and
