@@ -13,7 +13,10 @@ the data set is the same, bit for bit, for any number of them.
 With ``--from-released`` the command makes a data set instead of reading one: the authors' network
 walks, runs, turns, sidesteps, walks backwards, stops and stands in each of its styles, and the
 motion is written as ``<Style>_<Gait>.bvh`` plus ``manifest.csv`` and ``dataset.json`` into --out
-(minifilm/pipeline/from_released.py), ready for ``minifilm train --data DATA``.
+(minifilm/pipeline/from_released.py), ready for ``minifilm train --data DATA``. The styles are
+driven in --workers processes at once, each a share of them (default: every core this process may
+use, at most one per style); the data set is the same for any number but for float32 round-off
+and the end of a few TR1 files (minifilm/pipeline/from_released_workers.py says why).
 """
 from __future__ import annotations
 
@@ -36,8 +39,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--seed", type=in_range(0, 2**32 - 1, int), default=0)
     parser.add_argument("--fps", type=in_range(1.0, 1000.0), default=None, help="resample every file to this rate")
     parser.add_argument("--workers", type=in_range(1, 1024, int), default=None,
-                        help="processes labelling the files at once, one BLAS thread each (default: the cores "
-                             "this process may use, at most one per file); the data set is the same for any number")
+                        help="processes labelling the files at once (with --from-released: driving the "
+                             "network, each a share of the styles), one BLAS thread each (default: the cores this "
+                             "process may use, at most one per file or style); the data set is the same for any "
+                             "number (with --from-released: nearly, see the command's description)")
     parser.add_argument("--split-files", action="store_true",
                         help="whole files go to train/val/test (per style) instead of 80/10/10 segments "
                              "of every file; better for many short files such as Bandai")
@@ -62,7 +67,7 @@ def run_from_released(args) -> int:
     s = ReleasedDataSettings(seconds_per_style=args.seconds_per_style, styles=args.styles, seed=args.seed,
                              calibrate=not args.no_calibrate, foot_lock=not args.no_foot_lock,
                              check_labels=not args.no_label_check, batch=args.batch)
-    info = make_released_dataset(args.from_released, args.out, s)
+    info = make_released_dataset(args.from_released, args.out, s, workers=args.workers)
     if "label_agreement" in info:
         print("minifilm's labels against the network's own outputs, per style "
               "(contacts: share of equal frames; phase: median foot-phase error, cycles; share within 0.1):")

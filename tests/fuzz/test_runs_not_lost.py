@@ -10,7 +10,9 @@ worker left running, no shared-memory segment left in /dev/shm, the earlier run 
 writing one folder: the second is refused, naming the first's process. ``minifilm dataset --workers
 2`` stopped while its workers label (SIGINT, SIGTERM, Ctrl-C to the group, SIGKILL): no worker
 left running, no cache written. ``minifilm finetune --params`` stopped while a worker shares its
-walks, or with that worker killed: no worker left running, no style pack written."""
+walks, or with that worker killed: no worker left running, no style pack written. ``minifilm dataset
+--from-released --workers 2`` stopped while its workers drive the network (SIGINT, SIGTERM, Ctrl-C
+to the group), or with a worker killed: no worker left running, no data set folder."""
 import hashlib
 import os
 import re
@@ -233,3 +235,31 @@ def test_a_stopped_teaching_with_a_walk_worker_leaves_no_process_and_no_pack(sha
     assert "Traceback" not in rest, rest[-2000:]
     assert not running(pids[0])
     assert not pack.exists()
+
+
+RELEASED_STOPS = [("parent", signal.SIGINT), ("parent", signal.SIGTERM), ("group", signal.SIGINT),
+                  ("worker", signal.SIGKILL)]
+
+
+@pytest.mark.parametrize("who,sig", RELEASED_STOPS, ids=[f"{w}-{s.name}" for w, s in RELEASED_STOPS])
+def test_a_stopped_released_data_set_with_workers_leaves_no_process_and_no_folder(shared_data, tmp_path, who, sig):
+    out = tmp_path / "made"
+    proc = start(["dataset", "--from-released", shared_data / "released-lpn", "--out", out, "--workers", "2",
+                  "--styles", "Neutral", "Zombie", "Aeroplane", "Chicken", "--seconds-per-style", "0.5"],
+                 start_new_session=who == "group")
+    pids = worker_ids(wait_for(proc, "4 styles in 2 worker processes"))
+    wait_for(proc, "speed calibration of 4 styles")      # calibrated: the workers drive the gaits
+    if who == "group":
+        os.killpg(proc.pid, sig)
+    else:
+        proc.send_signal(sig) if who == "parent" else os.kill(pids[1], sig)
+    rest, _ = proc.communicate(timeout=600)
+    if who == "worker":                                   # one line naming the worker and the signal
+        assert proc.returncode == 2, rest[-800:]
+        assert re.search(rf"error: from-released: worker 1 \(process {pids[1]}\) was killed by SIGKILL while "
+                         r"driving gait", rest), rest[-800:]
+    else:
+        assert proc.returncode == (130 if sig == signal.SIGINT else 143), rest[-800:]
+    assert "Traceback" not in rest, rest[-2000:]
+    assert not [pid for pid in pids if running(pid)]
+    assert list(tmp_path.iterdir()) == []                 # no folder, no temporary beside it
