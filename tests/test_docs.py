@@ -149,13 +149,18 @@ def dispatched_options(source: Path) -> frozenset:
     return frozenset(out)
 
 
+@lru_cache(maxsize=None)
 def command_options(name: str):
-    """The options of ``minifilm NAME`` (every '--option' literal of its module), None if no such
-    subcommand."""
+    """The options of ``minifilm NAME`` (those its module's ``add_arguments`` defines, shared
+    helpers included), None if no such subcommand."""
+    import argparse
+    import importlib
     from minifilm.cli import COMMANDS
     if name not in COMMANDS:
         return None
-    return script_options(REPO_ROOT / (COMMANDS[name][0].replace(".", "/") + ".py"))
+    parser = argparse.ArgumentParser()
+    importlib.import_module(COMMANDS[name][0]).add_arguments(parser)
+    return frozenset(s for s in parser._option_string_actions if s.startswith("--"))
 
 
 def check_minifilm_command(words) -> str | None:

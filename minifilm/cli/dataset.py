@@ -16,7 +16,7 @@ motion is written as ``<Style>_<Gait>.bvh`` plus ``manifest.csv`` and ``dataset.
 (minifilm/pipeline/from_released.py), ready for ``minifilm train --data DATA``. The styles are
 driven in --workers processes at once, each a share of them (default: every core this process may
 use, at most one per style); the data set is the same for any number but for float32 round-off
-and the end of a few TR1 files (minifilm/pipeline/from_released_workers.py says why).
+(minifilm/pipeline/from_released_workers.py says how much).
 """
 from __future__ import annotations
 

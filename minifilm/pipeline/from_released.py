@@ -16,7 +16,7 @@ paths (:mod:`minifilm.pipeline.released_driver`: the speed calibration, the fitt
 With ``workers`` > 1 (the default on a machine of several cores) worker processes each drive a
 share of the styles and write their files (:mod:`minifilm.pipeline.from_released_workers`); this
 process writes the manifest and the description. The data set is the same but for float32
-round-off and the end of a few TR1 files (from_released_workers.py says why).
+round-off, which standing can grow (from_released_workers.py says how much).
 """
 from __future__ import annotations
 
@@ -103,7 +103,7 @@ def make_released_dataset(params: Path, out: Path, settings: ReleasedDataSetting
     workers: processes driving the network at once, each a contiguous share of the styles
     (from_released_workers.py); default every core this process may use, at most one per style;
     1 drives them all in this process. The data set is the same for any number but for float32
-    round-off and the end of a few TR1 files (from_released_workers.py says why).
+    round-off, which standing can grow (from_released_workers.py says how much).
     """
     s = settings
     check_settings(s)

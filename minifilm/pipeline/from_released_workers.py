@@ -24,15 +24,12 @@ generator (style_seed), and a character of a batch rollout depends only on its o
 batch is the rows of the same matrix products), so a style drives the same in any share, to
 float32 round-off (a batch of 2-4 characters takes the network's vector-product path,
 runtime/network.py); the calibration's batches mix styles too, with the same argument. Tested
-against one process (short files). One exception, in the runtime: a batch keeps the standing
-characters' held feet in one state (runtime/standing.py, StandStill.plant: the held feet and
-which feet are being lowered), which is not reset for a character that was not standing, so a
-character that stops while a batch-mate already stands starts its hold otherwise than alone or
-beside walkers. From there its motion drifts from one process's. With 20 styles at 60 s,
-1 worker against 2: 153 of the 160 files equal to every printed digit, 7 TR1 files (walk, run,
-stop, stand, turn) apart from frame 512-526 of 540 on, by up to 1.9 cm at the root and 19
-degrees at a joint. One process itself gives other digits for another --batch (the same
-coupling) or BLAS thread count (round-off).
+against one process (short files). Bit for bit, two workers of four styles write what one
+process writes with ``batch=4`` (the same products); against another batch size the round-off
+differs, and a few seconds of standing can grow it: 8 styles' TR1 and ID files, 1 worker against
+2, all within 0.01 (cm, degrees) but Swimming's ID, 1.2. (A coupling between characters of one
+batch -- a walker's feet kept as the held feet of another's stop, runtime/standing.py -- is
+fixed; before, 7 of 160 TR1 files differed by up to 1.9 cm and 19 degrees.)
 
 Errors: a worker's error comes back as one JSON line and is raised as the same error
 (rebuilt_error), the first worker's first when several fail on one gait. A worker that dies raises
