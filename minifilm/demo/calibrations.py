@@ -92,10 +92,12 @@ class Calibrations:
             False: measure ``first`` here and now and use the first style's calibration for
             every other style.
         clock: seconds, monotonic (the pace in the terminal's estimates).
+        begin: with ``background``, start at once (False: at :meth:`begin`; the server begins
+            once it listens, so a port in use is the only thing said).
     """
 
     def __init__(self, source, first: Sequence[str] = (), background: bool = True,
-                 cache: Optional[CalibrationCache] = None, log=None, clock=time.monotonic):
+                 cache: Optional[CalibrationCache] = None, log=None, clock=time.monotonic, begin: bool = True):
         self.source = source
         self.enabled = bool(source.calibrate)
         self._cal: Dict[str, SpeedCalibration] = {}
@@ -119,11 +121,10 @@ class Calibrations:
         if not self.enabled:
             return
         if self._background:
-            # the cache is read (its name hashes the network's files) and the start style asked
-            # for on a thread of their own: the server starts serving meanwhile
             self.requested = len(first)      # counted until the cache says what is left
-            threading.Thread(target=self._start, args=(list(first),), name="minifilm-demo-calibrate",
-                             daemon=True).start()
+            self._first, self._begun = list(first), False
+            if begin:
+                self.begin()
             return
         self._load_cache(first)
         for name in first:          # measured here and now (tests, --record)
@@ -132,6 +133,15 @@ class Calibrations:
                 self._store(name, self._cal[name])
         if first and self.fallback is None:
             self.fallback = self._cal[first[0]]
+
+    def begin(self) -> None:
+        """Start the background work (once): the cache is read (its name hashes the network's
+        files) and the start style asked for on a thread of their own, the pages served meanwhile."""
+        with self._lock:
+            if not self.enabled or not self._background or self._begun:
+                return
+            self._begun = True
+        threading.Thread(target=self._start, args=(self._first,), name="minifilm-demo-calibrate", daemon=True).start()
 
     def _load_cache(self, first) -> None:
         if self.cache is not None:

@@ -161,7 +161,7 @@ class DemoServer:
         self.source, self.settings, self.host, self.port = source, settings, host, int(port)
         self.hosts = HostAllowList(host, allow_hosts)
         self.calibrations = Calibrations(source, first=[settings.style], background=background_calibration,
-                                         cache=calibration_cache)
+                                         cache=calibration_cache, begin=False)      # begun once listening
         self.stage = Stage(lambda ident: Character(ident, source, self.calibrations, settings), source.fps,
                            max_characters)
         # the calibrations are measured in the frame loop's idle time, a slice at a time (calibrations.py)
@@ -349,6 +349,7 @@ class DemoServer:
                 self.port = server.sockets[0].getsockname()[1]
                 self.hosts.port = self.port
                 self.stage.start()
+                self.calibrations.begin()
                 self._ready.set()
                 if on_ready is not None:
                     on_ready(self.url)
