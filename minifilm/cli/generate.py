@@ -24,7 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from minifilm.cli.args import add_network_source, bvh_path, gif_path, html_path, in_range, input_path, png_path, positive
+from minifilm.cli.args import (add_network_source, bvh_path, gif_path, html_path, in_range, input_path, png_path,
+                               positive)
 from minifilm.cli.memory import GENERATE_BYTES_PER_JOINT_FRAME, VIEW_BYTES_PER_JOINT_FRAME, add_memory_option, \
     check_memory
 from minifilm.errors import InputError

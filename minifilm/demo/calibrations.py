@@ -3,13 +3,13 @@
 The released network needs one (:func:`minifilm.runtime.calibration.calibrate_speed`: commanding
 1.3 m/s makes it walk at about 0.5 m/s), and so does a run trained here (train_small's Drunk walks
 0.68 m/s at 1.3 m/s commanded, its PendulumHands 2.36; measured with the commands its data holds,
-``source.calibration_commands``). Measuring one for the released network takes about 2.4 s of CPU (27
-characters for 8 s of frames: 481 steps of one batch, about 5 ms each). So nothing is measured
-before the server starts (it serves its page within a second or two): calibrations come from the
-cache of earlier runs (``calibration_cache.py``, keyed by a hash of the released network's files; a run's are measured at each start), and the
-missing ones, the start style first, any other style the first time a page asks for it, are
-measured one batch step at a time (:func:`~minifilm.runtime.calibration.calibrate_speed_stepwise`)
-by the frame loop, in the time left before the next frame is due (:meth:`run_slice`, called by
+``source.calibration_commands``). Measuring one for the released network takes about 2.4 s of
+CPU (27 characters for 8 s of frames: 481 steps of one batch, about 5 ms each). So nothing is
+measured before the server listens (it serves its page within a second or two): calibrations come
+from the cache of earlier runs (``calibration_cache.py``, keyed by a hash of the released
+network's files; a run's are measured at each start, about a second each), and the missing
+ones, the start style first, any other style the first time a page asks for it, are measured one
+batch step at a time (:func:`~minifilm.runtime.calibration.calibrate_speed_stepwise`) by the frame loop, in the time left before the next frame is due (:meth:`run_slice`, called by
 ``frame_loop.py`` only when the slice is expected to end before the deadline). A measurement
 cannot hold a frame up by more than one slice that took longer than expected: in a
 worker process at low priority (the earlier design) it shared the cores with the frame loop, and

@@ -106,7 +106,8 @@ class WalkPool:
     def __enter__(self) -> "WalkPool":
         if self.workers:
             data = _npz(self.network.to_arrays())
-            self.procs, self.conns = spawn(self.workers, worker, (json.dumps(self.layout.to_dict()),), "minifilm-walk-worker")
+            self.procs, self.conns = spawn(self.workers, worker, (json.dumps(self.layout.to_dict()),),
+                                           "minifilm-walk-worker")
             self.ready = [False] * self.workers
             self.outbox = queue.Queue()
             self.sender = threading.Thread(target=self._send_all, daemon=True, name="minifilm-walk-sender")
