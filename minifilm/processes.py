@@ -5,7 +5,8 @@ how they start, how they answer, how they stop.
     usable_cores() / default_workers(jobs)   how many: the cores this process may run on
     spawn(n, target, args, name)             n workers, 'spawn' start, one BLAS thread each
     serve(conn, setup, job)                  a worker's loop: set up once, then answer jobs
-    stop(procs, conns)                       close the pipes, then terminate (kill) what still runs
+    stop(procs, conns, at_once)              close the pipes, then terminate (kill) what still runs
+    WorkerGroup                              a group's ids; leaving its ``with`` block stops it
 
 Why 'spawn': a fresh interpreter inherits nothing of the parent's threads, locks or BLAS state, so
 it is safe whatever the parent runs, and it is the start method every platform has. Why one BLAS
@@ -239,8 +240,13 @@ def _main_module_hidden():
             setattr(main, k, v)
 
 
-def stop(procs, conns) -> None:
-    """Close the pipes, give the workers a moment to leave, terminate (then kill) any still running."""
+def stop(procs, conns, at_once: bool = False) -> None:
+    """Close the pipes, give the workers a moment to leave, terminate (then kill) any still running.
+    ``at_once``: terminate them first (stopped or failed: what they are doing is not wanted)."""
+    if at_once:
+        for p in procs:
+            if p.is_alive():
+                p.terminate()
     for c in conns:
         c.close()
     for p in procs:
@@ -252,3 +258,18 @@ def stop(procs, conns) -> None:
         if p.is_alive():
             p.kill()
             p.join()
+
+
+class WorkerGroup:
+    """What a group of worker processes (``procs``, this side's ``conns``) has in common: their
+    ids, and leaving a ``with`` block stops them (at once when it is left by an error)."""
+    procs: list
+    conns: list
+
+    def __exit__(self, kind, error, trace) -> None:
+        stop(self.procs, self.conns, at_once=kind is not None)
+
+    @property
+    def pids(self) -> list:
+        """The workers' process ids."""
+        return [p.pid for p in self.procs]

@@ -44,7 +44,7 @@ from minifilm.dataset.manifest import MotionFile
 from minifilm.dataset.settings import DatasetSettings
 from minifilm.features.compute import FrameFeatures
 from minifilm.motion.skeletons import Skeleton
-from minifilm.processes import WithBytes, WorkerDied, how_it_ended, rebuilt_error, serve, spawn, stop
+from minifilm.processes import WithBytes, WorkerDied, WorkerGroup, how_it_ended, rebuilt_error, serve, spawn
 
 #: files a worker may label ahead of the oldest file not yet back (per worker)
 WINDOW = 4
@@ -102,7 +102,7 @@ def worker(spec_text: str, conn) -> None:
 
 
 # ---- the parent's side --------------------------------------------------------------------------
-class LabellingWorkers:
+class LabellingWorkers(WorkerGroup):
     """``workers`` processes labelling ``jobs`` ([(MotionFile, its whole-file split or None)]);
     :meth:`next` gives their FileRows in the jobs' order. Use it as a context manager: the workers
     start when it is entered and are stopped when it is left, however it is left."""
@@ -127,18 +127,6 @@ class LabellingWorkers:
             raise
         self.idle = list(range(self.workers))
         return self
-
-    def __exit__(self, kind, error, trace) -> None:
-        if kind is not None:        # stopped or failed: what the workers are doing is not wanted
-            for p in self.procs:
-                if p.is_alive():
-                    p.terminate()
-        stop(self.procs, self.conns)
-
-    @property
-    def pids(self) -> List[int]:
-        """The workers' process ids."""
-        return [p.pid for p in self.procs]
 
     def next(self) -> FileRows:
         """The next file's rows, in the jobs' order; its error, raised as one process raises it."""

@@ -49,7 +49,7 @@ from typing import Dict, List, Sequence
 import numpy as np
 
 from minifilm.pipeline.released_driver import ReleasedDataSettings, StyleDriver
-from minifilm.processes import WorkerDied, how_it_ended, rebuilt_error, serve, spawn, stop
+from minifilm.processes import WorkerDied, WorkerGroup, how_it_ended, rebuilt_error, serve, spawn
 from minifilm.runtime.released import load_released
 
 
@@ -71,7 +71,7 @@ def worker(common_text: str, conn) -> None:
     serve(conn, setup, job)
 
 
-class ReleasedWorkers:
+class ReleasedWorkers(WorkerGroup):
     """``workers`` processes, each driving a contiguous share of ``names`` and writing its files
     into ``folder``; :meth:`calibrate` and :meth:`gait` are those of a :class:`StyleDriver` of all
     the styles, called in the job's order (calibrate if settings.calibrate, then settings.gaits).
@@ -101,18 +101,6 @@ class ReleasedWorkers:
             self.__exit__(type(e), e, e.__traceback__)
             raise
         return self
-
-    def __exit__(self, kind, error, trace) -> None:
-        if kind is not None:        # stopped or failed: what the workers are doing is not wanted
-            for p in self.procs:
-                if p.is_alive():
-                    p.terminate()
-        stop(self.procs, self.conns)
-
-    @property
-    def pids(self) -> List[int]:
-        """The workers' process ids."""
-        return [p.pid for p in self.procs]
 
     def calibrate(self) -> None:
         """Every worker calibrates its styles."""

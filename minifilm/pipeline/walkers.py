@@ -40,7 +40,8 @@ from minifilm.dataset.stats import NormStats
 from minifilm.evaluation.style_judge import summaries
 from minifilm.features.layout import FeatureLayout
 from minifilm.pipeline.walks import FaultCheck, walk_blocks
-from minifilm.processes import WithBytes, WorkerDied, how_it_ended, rebuilt_error, serve, spawn, stop
+from minifilm.processes import (WithBytes, WorkerDied, WorkerGroup, how_it_ended, rebuilt_error, serve, spawn,
+                                stop)
 from minifilm.runtime.network import RuntimeNetwork
 
 Walks = Tuple[List[np.ndarray], List[set]]
@@ -94,7 +95,7 @@ class Pending:
         return self.done
 
 
-class WalkPool:
+class WalkPool(WorkerGroup):
     """``workers`` processes beside this one walking vectors of ``network`` (module docstring);
     0 workers: everything in this process, no context needed."""
 
@@ -117,20 +118,13 @@ class WalkPool:
         return self
 
     def __exit__(self, kind, error, trace) -> None:
-        for p in self.procs:
-            if p.is_alive() and kind is not None:      # stopped or failed: their work is not wanted
-                p.terminate()
         if self.sender is not None:
             self.outbox.put(None)
-        stop(self.procs, self.conns)                    # (a send still blocked fails: its pipe is closed)
+        # (a send still blocked fails: its pipe is closed)
+        stop(self.procs, self.conns, at_once=kind is not None)
         if self.sender is not None:
             self.sender.join(timeout=2.0)
         self.procs, self.conns, self.pending, self.sender = [], [], None, None
-
-    @property
-    def pids(self) -> List[int]:
-        """The workers' process ids."""
-        return [p.pid for p in self.procs]
 
     def submit(self, films: np.ndarray, speed: float, seconds: float, check: Optional[FaultCheck] = None) -> Pending:
         """Start the walks in the workers only (this process is free meanwhile); without workers,
