@@ -5,8 +5,9 @@
 
 Every style at once (one batch), driven as the demo drives it (its source's settings: the skeleton
 fit, fed back for the released network, the run's own position bias and start frames; the
-released network's forward speed calibration): the heading turns right at --turn-rate deg/s from
-the start while the character is asked to walk along it at --speed m/s, for --seconds. Printed per
+forward speed calibration, a run's with the commands its data holds): the heading turns right at
+--turn-rate deg/s from the start while the character is asked to walk along it at --speed m/s,
+for --seconds. Printed per
 style: the angle between the body's facing (the root's) and the heading at the end, its largest
 over the last second, how far the heading and the facing turned, and the mean root speed.
 Target: heading error after 5 s <= 30 degrees.
@@ -46,7 +47,8 @@ def turning_figures(source, styles, speed=1.3, turn_rate=120.0, seconds=5.0, cal
     films = np.stack([source.library[s] for s in styles])
     cal = None
     if calibrate and source.calibrate:
-        cal = PerCharacterCalibration([calibrate_speed(ctrl, f, directions=(0.0,)) for f in films])
+        cal = PerCharacterCalibration([calibrate_speed(ctrl, f, commands=source.calibration_commands, directions=(0.0,))
+                                       for f in films])
     # the demo's E: the heading turns right (towards -x from +z), the walk is along it
     scripts = [CommandScript([(0.0, speed, 0.0, 0.0), (seconds, speed, -turn_rate * seconds, 0.0)])
                for _ in styles]
