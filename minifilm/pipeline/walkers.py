@@ -147,7 +147,11 @@ class WalkPool(WorkerGroup):
         self._finish_pending()
         bounds = np.linspace(0, len(films), len(self.procs) + 2).round().astype(int)
         shares = self._send_shares(films[bounds[1]:], speed, seconds, check, len(self.procs), bounds[1:] - bounds[1])
-        walks, faults = walk_here(self.network, self.layout, self.stats, films[:bounds[1]], speed, seconds, check)
+        try:
+            walks, faults = walk_here(self.network, self.layout, self.stats, films[:bounds[1]], speed, seconds, check)
+        except Exception:
+            self._collect(shares)       # their replies read, so the pipes stay in step for the next walk
+            raise
         theirs = self._collect(shares)
         return walks + theirs[0], faults + theirs[1]
 

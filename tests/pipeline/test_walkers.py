@@ -92,3 +92,17 @@ def test_refining_by_motion_with_workers_finds_the_vector_of_one_process(rel):
         shared = refine_by_motion(rel.network, LAYOUT, rel.stats, start, known, clip, SPEED, settings, pool=pool)
     np.testing.assert_allclose(shared.film, alone.film, rtol=1e-5, atol=1e-6)
     assert shared.score == pytest.approx(alone.score, rel=1e-4)
+
+
+def test_a_walk_that_fails_here_leaves_the_pool_in_step(rel, monkeypatch):
+    """An error in this process's share is raised once the workers' shares are read, so the
+    next walk gets its own answers (the workers are separate processes: the patch is not theirs)."""
+    import minifilm.pipeline.walkers as walkers
+    films, here = films_of(rel, 4), walkers.walk_here
+    with WalkPool(rel.network, LAYOUT, rel.stats, workers=1) as pool:
+        monkeypatch.setattr(walkers, "walk_here", lambda *a, **k: (_ for _ in ()).throw(ValueError("here")))
+        with pytest.raises(ValueError, match="here"):
+            pool.walk(films, SPEED, SECONDS)
+        monkeypatch.setattr(walkers, "walk_here", here)
+        got = pool.walk(films[2:], SPEED, SECONDS)
+    assert_same_walks(got, walk_here(rel.network, LAYOUT, rel.stats, films[2:], SPEED, SECONDS))
