@@ -69,7 +69,8 @@ def test_a_pool_without_workers_walks_here_and_takes_any_check(rel):
 
 def test_a_killed_walk_worker_is_named_and_nothing_is_left(rel):
     films = films_of(rel, 4)
-    with pytest.raises(WorkerDied, match=r"walks: worker 0 \(process \d+\) was killed by SIGKILL while walking 2 vectors"):
+    said = r"walks: worker 0 \(process \d+\) was killed by SIGKILL while walking 2 vectors"
+    with pytest.raises(WorkerDied, match=said):
         with WalkPool(rel.network, LAYOUT, rel.stats, workers=1) as pool:
             procs = list(pool.procs)
             pool.walk(films, SPEED, SECONDS)            # started and working
