@@ -5,8 +5,10 @@ how they start, how they answer, how they stop.
     usable_cores() / default_workers(jobs)   how many: the cores this process may run on
     spawn(n, target, args, name)             n workers, 'spawn' start, one BLAS thread each
     serve(conn, setup, job)                  a worker's loop: set up once, then answer jobs
+    read_reply(conn)                         a worker's reply, its arrays' bytes included
     stop(procs, conns, at_once)              close the pipes, then terminate (kill) what still runs
-    WorkerGroup                              a group's ids; leaving its ``with`` block stops it
+    WorkerGroup                              a group's ids, messages and errors; leaving its ``with``
+                                             block stops it
 
 Why 'spawn': a fresh interpreter inherits nothing of the parent's threads, locks or BLAS state, so
 it is safe whatever the parent runs, and it is the start method every platform has. Why one BLAS
@@ -260,11 +262,23 @@ def stop(procs, conns, at_once: bool = False) -> None:
             p.join()
 
 
+def read_reply(conn) -> dict:
+    """A worker's next reply as :func:`serve` sends it: the JSON, and the arrays' bytes that follow
+    it (:class:`WithBytes`) in 'data'. EOFError or OSError when the worker has gone."""
+    reply = json.loads(conn.recv_bytes())
+    if "bytes" in reply:
+        reply["data"] = conn.recv_bytes()
+    return reply
+
+
 class WorkerGroup:
     """What a group of worker processes (``procs``, this side's ``conns``) has in common: their
-    ids, and leaving a ``with`` block stops them (at once when it is left by an error)."""
+    ids, a message to one and its reply, the one error for one that has died (``what``: the
+    group's work, which the error names), and leaving a ``with`` block stops them (at once when it
+    is left by an error)."""
     procs: list
     conns: list
+    what = "workers"
 
     def __exit__(self, kind, error, trace) -> None:
         stop(self.procs, self.conns, at_once=kind is not None)
@@ -273,3 +287,22 @@ class WorkerGroup:
     def pids(self) -> list:
         """The workers' process ids."""
         return [p.pid for p in self.procs]
+
+    def send(self, w: int, message: dict, doing: str) -> None:
+        """Send worker w ``message`` as JSON; WorkerDied if it has gone."""
+        try:
+            self.conns[w].send_bytes(json.dumps(message).encode())
+        except OSError:                     # its end of the pipe is closed: it has died
+            raise self.died(w, doing) from None
+
+    def read(self, w: int, doing: str) -> dict:
+        """Worker w's next reply (:func:`read_reply`); WorkerDied if it has gone."""
+        try:
+            return read_reply(self.conns[w])
+        except (EOFError, OSError):
+            raise self.died(w, doing) from None
+
+    def died(self, w: int, doing: str) -> WorkerDied:
+        """The error for worker w, whose pipe is closed: how it ended, and what it was ``doing``."""
+        proc = self.procs[w]
+        return WorkerDied(f"{self.what}: worker {w} (process {proc.pid}) {how_it_ended(proc)} while {doing}")

@@ -44,7 +44,7 @@ from minifilm.dataset.manifest import MotionFile
 from minifilm.dataset.settings import DatasetSettings
 from minifilm.features.compute import FrameFeatures
 from minifilm.motion.skeletons import Skeleton
-from minifilm.processes import WithBytes, WorkerDied, WorkerGroup, how_it_ended, rebuilt_error, serve, spawn
+from minifilm.processes import WithBytes, WorkerGroup, rebuilt_error, serve, spawn
 
 #: files a worker may label ahead of the oldest file not yet back (per worker)
 WINDOW = 4
@@ -106,6 +106,7 @@ class LabellingWorkers(WorkerGroup):
     """``workers`` processes labelling ``jobs`` ([(MotionFile, its whole-file split or None)]);
     :meth:`next` gives their FileRows in the jobs' order. Use it as a context manager: the workers
     start when it is entered and are stopped when it is left, however it is left."""
+    what = "dataset"
 
     def __init__(self, jobs: List[Tuple[MotionFile, Optional[str]]], settings: DatasetSettings, skeleton,
                  fps: float, dtype, workers: int):
@@ -151,10 +152,7 @@ class LabellingWorkers(WorkerGroup):
             message = {"file": {"path": str(f.path), "style": f.style, "gait": f.gait, "start": f.start,
                                 "end": f.end, "mirror": f.mirror},
                        "split": split, "clips": f.gait in st.clip_gaits or st.clip_fallback}
-            try:
-                self.conns[w].send_bytes(json.dumps(message).encode())
-            except OSError:                     # its end of the pipe is closed: it has died
-                raise self._died(w, f"labelling {f.path}") from None
+            self.send(w, message, f"labelling {f.path}")
             self.busy[w] = self.sent
             self.sent += 1
 
@@ -172,18 +170,7 @@ class LabellingWorkers(WorkerGroup):
 
     def _reply(self, w: int, doing: str) -> dict:
         """Worker w's next reply (its arrays, if it sends any, in 'data'), or WorkerDied."""
-        conn = self.conns[w]
-        try:
-            reply = json.loads(conn.recv_bytes())
-            if "bytes" in reply:
-                reply["data"] = conn.recv_bytes()
-        except (EOFError, OSError):
-            raise self._died(w, doing) from None
+        reply = self.read(w, doing)
         if doing == "starting" and "error" in reply:
             raise rebuilt_error(reply)
         return reply
-
-    def _died(self, w: int, doing: str) -> WorkerDied:
-        """The error for worker w, whose pipe is closed: how it ended, and what it was doing."""
-        proc = self.procs[w]
-        return WorkerDied(f"dataset: worker {w} (process {proc.pid}) {how_it_ended(proc)} while {doing}")

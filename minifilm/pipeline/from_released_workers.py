@@ -49,7 +49,7 @@ from typing import Dict, List, Sequence
 import numpy as np
 
 from minifilm.pipeline.released_driver import ReleasedDataSettings, StyleDriver
-from minifilm.processes import WorkerDied, WorkerGroup, how_it_ended, rebuilt_error, serve, spawn
+from minifilm.processes import WorkerGroup, rebuilt_error, serve, spawn
 from minifilm.runtime.released import load_released
 
 
@@ -77,6 +77,8 @@ class ReleasedWorkers(WorkerGroup):
     the styles, called in the job's order (calibrate if settings.calibrate, then settings.gaits).
     Use it as a context manager: the workers start when it is entered and are stopped when it is
     left, however it is left."""
+
+    what = "from-released"
 
     def __init__(self, params: Path, names: Sequence[str], stems: Dict[str, str], folder: Path,
                  settings: ReleasedDataSettings, workers: int):
@@ -146,27 +148,18 @@ class ReleasedWorkers(WorkerGroup):
         return [replies[w] for w in range(self.workers)]
 
     def _send(self, w: int, message: dict) -> None:
-        try:
-            self.conns[w].send_bytes(json.dumps(message).encode())
-        except OSError:                     # its end of the pipe is closed: it has died
-            raise self._died(w) from None
+        self.send(w, message, self._doing(w))
 
     def _read(self, w: int) -> dict:
-        try:
-            reply = json.loads(self.conns[w].recv_bytes())
-        except (EOFError, OSError):
-            raise self._died(w) from None
+        reply = self.read(w, self._doing(w))
         self.answered[w] += 1
         return reply
 
-    def _died(self, w: int) -> WorkerDied:
-        """The error for worker w, whose pipe is closed: how it ended, and what it was doing (the
-        first job it had not answered)."""
-        proc, k = self.procs[w], self.answered[w] - 1
+    def _doing(self, w: int) -> str:
+        """What worker w is doing: the first job it has not answered."""
+        k = self.answered[w] - 1
         if k < 0:
-            doing = "starting"
-        elif self.plan[k]["do"] == "calibrate":
-            doing = f"calibrating the speeds of its {len(self.shares[w])} styles"
-        else:
-            doing = f"driving gait {self.plan[k]['gait']}"
-        return WorkerDied(f"from-released: worker {w} (process {proc.pid}) {how_it_ended(proc)} while {doing}")
+            return "starting"
+        if self.plan[k]["do"] == "calibrate":
+            return f"calibrating the speeds of its {len(self.shares[w])} styles"
+        return f"driving gait {self.plan[k]['gait']}"

@@ -40,8 +40,7 @@ from minifilm.dataset.stats import NormStats
 from minifilm.evaluation.style_judge import summaries
 from minifilm.features.layout import FeatureLayout
 from minifilm.pipeline.walks import FaultCheck, walk_blocks
-from minifilm.processes import (WithBytes, WorkerDied, WorkerGroup, how_it_ended, rebuilt_error, serve, spawn,
-                                stop)
+from minifilm.processes import WithBytes, WorkerGroup, rebuilt_error, serve, spawn, stop
 from minifilm.runtime.network import RuntimeNetwork
 
 Walks = Tuple[List[np.ndarray], List[set]]
@@ -98,6 +97,7 @@ class Pending:
 class WalkPool(WorkerGroup):
     """``workers`` processes beside this one walking vectors of ``network`` (module docstring);
     0 workers: everything in this process, no context needed."""
+    what = "walks"
 
     def __init__(self, network, layout: FeatureLayout, stats: NormStats, workers: int):
         self.network, self.layout, self.stats, self.workers = network, layout, stats, max(0, int(workers))
@@ -205,20 +205,7 @@ class WalkPool(WorkerGroup):
         """Worker w's next reply (after its 'ready', the first time), its arrays in 'data'."""
         if not self.ready[w]:
             self.ready[w] = True
-            reply = self._read(w, "starting")
+            reply = self.read(w, "starting")
             if "error" in reply:
                 raise rebuilt_error(reply)
-        return self._read(w, doing)
-
-    def _read(self, w: int, doing: str) -> dict:
-        try:
-            reply = json.loads(self.conns[w].recv_bytes())
-            if "bytes" in reply:
-                reply["data"] = self.conns[w].recv_bytes()
-        except (EOFError, OSError):
-            raise self._died(w, doing) from None
-        return reply
-
-    def _died(self, w: int, doing: str) -> WorkerDied:
-        proc = self.procs[w]
-        return WorkerDied(f"walks: worker {w} (process {proc.pid}) {how_it_ended(proc)} while {doing}")
+        return self.read(w, doing)
