@@ -220,13 +220,15 @@ def _teach(rel, layout, name, clip, known, settings, prior_weights, choose_by_ro
     known = dict(rel.styles if known is None else known)
     names = list(known)
     V = np.stack([known[n] for n in names]).astype(np.float64)
-    # the known styles walk in the worker processes (if any) while this one fits: the space the
-    # refinement measures distances in is made of their walks
-    known_walks = pool.submit(V, clip.speed, motion.seconds) if motion is not None else None
     share_as_read, turns = None, None
     if align:
         share_as_read = input_distance(rel.stats.normalize_x(clip.x), layout)[0]
         clip.x, clip.z, turns = align_axes(clip.x, clip.z, layout, rel.stats)
+    windows = clip_summaries(clip, rel.stats, layout)       # the clip's windows, as taught (axes turned)
+    motion = motion if len(windows) >= 2 else None          # too short to measure a walk against: no refining
+    # the known styles walk in the worker processes (if any) while this one fits: the space the
+    # refinement measures distances in is made of their walks
+    known_walks = pool.submit(V, clip.speed, motion.seconds) if motion is not None else None
     x, p, z = normalised(rel.stats, clip)
     t0 = time.perf_counter()
     rows = FrozenRows(rel.model, x, p, z)
@@ -257,8 +259,7 @@ def _teach(rel, layout, name, clip, known, settings, prior_weights, choose_by_ro
     film, check = films[chosen], reports[chosen]
     candidates[chosen]["chosen"] = True
     distance.known_losses = [own_loss(rel, r, len(films), ref, best_known)]
-    windows = clip_summaries(clip, rel.stats, layout)
-    if motion is not None and len(windows) >= 2:
+    if motion is not None:
         shared = (f", shared with {len(pool.pids)} worker process{'es' if len(pool.pids) > 1 else ''} "
                   f"(ids {', '.join(map(str, pool.pids))})") if pool.pids else ""
         log(f"refining by motion: {motion.rounds} rounds of {motion.population} walks{shared} ...")
