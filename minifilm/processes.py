@@ -3,6 +3,7 @@ comparison; data-parallel training takes its core count and thread settings from
 how they start, how they answer, how they stop.
 
     usable_cores() / default_workers(jobs)   how many: the cores this process may run on
+    check_workers(workers, where)            a count given: None or a whole number >= 1
     spawn(n, target, args, name)             n workers, 'spawn' start, one BLAS thread each
     serve(conn, setup, job)                  a worker's loop: set up once, then answer jobs
     read_reply(conn)                         a worker's reply, its arrays' bytes included
@@ -72,6 +73,13 @@ def usable_cores() -> int:
         return max(1, len(os.sched_getaffinity(0)))
     except (AttributeError, OSError):
         return max(1, os.cpu_count() or 1)
+
+
+def check_workers(workers, where: str) -> None:
+    """A worker count given to ``where`` (a function's name) is None (every core) or a whole number
+    >= 1; ValueError naming it otherwise."""
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise ValueError(f"{where}: workers must be a whole number >= 1 (or None: every core), got {workers!r}")
 
 
 def default_workers(jobs: int) -> int:

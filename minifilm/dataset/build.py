@@ -42,7 +42,7 @@ from minifilm.errors import DataError
 from minifilm.files import check_name, note_input, owned_writes
 from minifilm.features.layout import FeatureLayout
 from minifilm.motion.skeletons import builtin_skeleton, detect_skeleton
-from minifilm.processes import default_workers
+from minifilm.processes import check_workers, default_workers
 
 
 def resolve_files(source: Union[str, Path, Sequence[MotionFile]]) -> List[MotionFile]:
@@ -94,8 +94,7 @@ def build_dataset(source: Union[str, Path, Sequence[MotionFile]],
             number (it is not in the cache key).
     """
     settings = settings or DatasetSettings()
-    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
-        raise ValueError(f"build_dataset: workers must be a whole number >= 1 (or None: every core), got {workers!r}")
+    check_workers(workers, "build_dataset")
     if overrides:
         settings = DatasetSettings(**{**settings.to_dict(), **overrides})
     files = [f for f in resolve_files(source) if f.gait not in settings.idle_gaits]

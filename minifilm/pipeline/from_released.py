@@ -40,7 +40,7 @@ from minifilm.pipeline.gait_scripts import GAIT_SHARES
 # the driving (released_driver.py), named here too: the job's settings, and its parts for studies/
 from minifilm.pipeline.released_driver import (FPS, ReleasedDataSettings, StyleDriver,  # noqa: F401 (re-exported)
                                                calibrate_styles, drive_gaits, style_seed)
-from minifilm.processes import default_workers
+from minifilm.processes import check_workers, default_workers
 from minifilm.runtime.released import load_released
 
 _OWN_NAME = re.compile(r"^[A-Za-z0-9]+_[A-Z]+[0-9]*\.bvh$|^manifest\.csv$|^dataset\.json$")
@@ -107,9 +107,7 @@ def make_released_dataset(params: Path, out: Path, settings: ReleasedDataSetting
     """
     s = settings
     check_settings(s)
-    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
-        raise ValueError(f"make_released_dataset: workers must be a whole number >= 1 (or None: every core), "
-                         f"got {workers!r}")
+    check_workers(workers, "make_released_dataset")
     rel = load_released(params)
     names = list(rel.styles) if s.styles is None else list(s.styles)
     unknown = [n for n in names if n not in rel.styles]

@@ -128,3 +128,11 @@ def test_a_killed_worker_is_one_error_and_leaves_nothing(shared_data, tmp_path):
                         r"(BW|FR)", str(e.value)), str(e.value)
     assert not out.exists() and list(tmp_path.iterdir()) == []         # nor a temporary beside it
     assert not [pid for pid in pids if running(pid)]
+
+
+@pytest.mark.parametrize("bad", [0, -1, True, 1.5, "2"])
+def test_a_bad_worker_count_is_one_error_and_writes_nothing(shared_data, tmp_path, bad):
+    out = tmp_path / "made"
+    with pytest.raises(ValueError, match=r"make_released_dataset: workers must be a whole number >= 1"):
+        make_released_dataset(shared_data / "released-lpn", out, settings(), log=lambda m: None, workers=bad)
+    assert list(tmp_path.iterdir()) == []
