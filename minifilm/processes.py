@@ -60,6 +60,15 @@ def how_it_ended(proc) -> str:
         return f"was killed by signal {-code}"
 
 
+def attach(name: str):
+    """The existing shared-memory segment ``name``, in a worker. A worker started by 'spawn' shares
+    its parent's resource tracker, whose record of the segment is a set: the worker's registration
+    adds nothing, and the parent's unlink removes it (the tracker also removes it if the parent is
+    killed before it can)."""
+    from multiprocessing import shared_memory   # (here: a module that imports this one stays light)
+    return shared_memory.SharedMemory(name=name)
+
+
 class WithBytes(NamedTuple):
     """What a job returns to send arrays too: ``figures`` as the JSON reply, then ``data`` (bytes,
     an .npz archive) as the next message on the pipe."""
@@ -154,7 +163,8 @@ def serve(conn, setup: Callable[[], Any], job: Callable[[Any, dict], Any]) -> No
     """A worker's loop (called by the target of its process): ``setup()`` makes its state once,
     then ``job(state, message)`` answers every job it is sent until the parent closes the pipe.
     Replies are JSON: {'ok': figures} or :func:`error_reply`; a job that returns
-    :class:`WithBytes` sends {'ok': figures, 'bytes': size}, then the bytes."""
+    :class:`WithBytes` sends {'ok': figures, 'bytes': size}, then the bytes. A job sent the same
+    way (its JSON with 'bytes', then the bytes) gets them in its message as 'data'."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     die_with_parent()
     try:
@@ -166,6 +176,8 @@ def serve(conn, setup: Callable[[], Any], job: Callable[[Any, dict], Any]) -> No
     while True:
         try:
             message = json.loads(conn.recv_bytes())
+            if "bytes" in message:
+                message["data"] = conn.recv_bytes()
         except (EOFError, OSError):          # the parent closed the pipe or went away: stop
             return
         data = None

@@ -44,6 +44,8 @@ import platform
 import signal
 import sys
 
+from minifilm.processes import attach
+
 #: reply on the pipe: b"ok" once built, or b"er" + the error's text (utf-8)
 OK, ERROR = b"ok", b"er"
 #: what a command does (bits of the control block's OPS)
@@ -81,14 +83,6 @@ def wait_until(ready, check, wake) -> None:
     while not ready():
         if not wake.acquire(timeout=CHECK_EVERY):
             check()
-
-
-def attach(name: str):
-    """The existing shared-memory segment ``name``. The worker shares the parent's resource
-    tracker (the 'spawn' start method passes it on), whose record of the segment is a set: the
-    worker's registration adds nothing, and the parent's unlink removes it."""
-    from multiprocessing import shared_memory   # (here: this module's top stays light, see above)
-    return shared_memory.SharedMemory(name=name)
 
 
 def views(shm, layout: dict) -> dict:
