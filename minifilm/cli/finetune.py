@@ -47,8 +47,8 @@ def add_arguments(ap) -> None:
                          "looks like the clip (pipeline/motion_refit.py; default %(default)s, about 3 s each on "
                          "two cores; 0: keep the teacher-forced fit)")
     ap.add_argument("--workers", type=in_range(1, 64, int), default=None,
-                    help="with --params: processes that share the walks of --motion-rounds, this one included "
-                         f"(default: every usable core, at most {WALK_WORKERS + 1})")
+                    help="with --params: processes that share the walks of --motion-rounds and the teacher-forced "
+                         f"fits, this one included (default: every usable core, at most {WALK_WORKERS + 1})")
     ap.add_argument("--rollout-rounds", type=in_range(0, 100, int), default=ROLLOUT_ROUNDS,
                     help="rounds of training on the model's own rollouts along the clip after the "
                          f"teacher-forced steps (pipeline/self_fed.py; default {ROLLOUT_ROUNDS}: teacher forcing "

@@ -201,8 +201,9 @@ def teach(rel, layout: FeatureLayout, name: str, motions: Sequence[Motion], file
     the prior is made of (default all of the network's); ``align``: turn the joint axes to the
     network's convention (:func:`align_axes`; for retargeted clips); ``motion``: how the kept vector
     is then refined by the motion it makes (:func:`refine_by_motion`; None or 0 rounds: not at
-    all); ``workers``: processes beside this one that share the refinement's walks (default: one
-    per further usable core, at most WALK_WORKERS). Nothing is written."""
+    all); ``workers``: processes beside this one that share the refinement's walks and the
+    teacher-forced fits (default: one per further usable core, at most WALK_WORKERS; none when not
+    refining). Nothing is written."""
     clip = clip_rows(motions, files, name, require_steps)
     refining = motion is not None and motion.rounds > 0
     if not refining:
@@ -238,16 +239,21 @@ def _teach(rel, layout, name, clip, known, settings, prior_weights, choose_by_ro
     share, worst = input_distance(x, layout)
     distance = Distance(share, worst, float(losses.min()), [], share_as_read, turns)
     prior = StylePrior.from_vectors(V)
+    # the first candidates (the weakest priors, which run longest) are fitted in the workers once
+    # their walks are done, the rest here; each is the same fit wherever it runs
+    fits = [FitSettings(**{**settings.__dict__, "prior_weight": lam}) for lam in prior_weights]
+    away = min(len(pool.procs), len(fits) - 1)
+    start = V[int(np.argmin(losses))]
+    sent = [pool.submit_fit(rows, prior, start, f, worker=w) for w, f in enumerate(fits[:away])]
+    here = [fit_film(rows, prior, start=start, settings=f) for f in fits[away:]]
     candidates, films = [], []
-    for lam in prior_weights:
-        fit = fit_film(rows, prior, start=V[int(np.argmin(losses))],
-                       settings=FitSettings(**{**settings.__dict__, "prior_weight": lam}))
+    for lam, fit in zip(prior_weights, [pending.result() for pending in sent] + here):
         candidates.append({"prior_weight": lam, "loss": fit.loss, "holdout_loss": fit.holdout_loss,
                            "steps": fit.steps})
         films.append(fit.film)
     # one batch: every candidate, and the closest known style (its own loss on its own motion is
     # the yardstick the clip's loss is printed beside)
-    ref = V[int(np.argmin(losses))]
+    ref = start
     r, path = candidate_rollouts(rel.network, layout, np.stack(films + [ref]).astype(np.float32), clip.speed)
     toes = [list(layout.joint_names).index(t) for t in ("RightToe", "LeftToe")]
     reports = [walk_report(r, b, toes, path, clip_steps_per_s=clip.steps_per_s, clip_hips=clip.hips)

@@ -235,6 +235,7 @@ def test_a_stopped_teaching_with_a_walk_worker_leaves_no_process_and_no_pack(sha
     assert "Traceback" not in rest, rest[-2000:]
     assert not running(pids[0])
     assert not pack.exists()
+    assert not list(Path("/dev/shm").glob(f"minifilm_{proc.pid}_*"))      # the walks' shared weights
 
 
 RELEASED_STOPS = [("parent", signal.SIGINT), ("parent", signal.SIGTERM), ("group", signal.SIGINT),

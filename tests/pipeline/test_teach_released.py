@@ -122,3 +122,26 @@ def test_refining_by_motion_brings_the_walk_nearer_the_clip(shared_data):
                             problems=lambda rollout, b: {"floor"} if b > 0 else set())
     np.testing.assert_array_equal(kept.film, np.asarray(start, np.float32))
     assert kept.score == kept.start_score
+
+
+def test_teaching_with_a_worker_gives_the_vector_of_one_process(shared_data):
+    """With a worker, one candidate's fit and the known styles' walks run there and every round is
+    split: the candidates, the refined vector and its distance are those of one process."""
+    from minifilm.pipeline.motion_refit import RefitSettings
+    from minifilm.pipeline.refit_released import generated_motions
+    from minifilm.pipeline.teach_released import teach
+    from minifilm.runtime.released import load_released
+    from minifilm.train.film_fit import FitSettings
+    rel = load_released(shared_data / "released-lpn")
+    motion, = generated_motions(rel, ["Zombie"], 8.0, script="straight")
+    known = {n: rel.styles[n] for n in list(rel.styles)[:12] if n != "Zombie"}
+    kw = dict(known=known, settings=FitSettings(steps=20, every=5), prior_weights=(0.3, 3.0),
+              motion=RefitSettings(directions=4, rounds=2, population=4, elite=2, seconds=2.0, dims=8),
+              log=lambda line: None)
+    alone = teach(rel, LAYOUT, "Taught", [motion], ["zombie.bvh"], workers=0, **kw)
+    shared = teach(rel, LAYOUT, "Taught", [motion], ["zombie.bvh"], workers=1, **kw)
+    assert [c.get("steps") for c in shared.candidates] == [c.get("steps") for c in alone.candidates]
+    np.testing.assert_array_equal(shared.candidate_films[:2], alone.candidate_films[:2])       # the teacher-forced fits
+    np.testing.assert_allclose(shared.film, alone.film, rtol=1e-5, atol=1e-6)
+    assert shared.candidates[-1]["motion_distance"] == pytest.approx(alone.candidates[-1]["motion_distance"], rel=1e-4)
+    assert shared.candidates[-1]["label"] == "refined by motion"
