@@ -39,6 +39,7 @@ from minifilm.motion.measures import bone_length_cv  # noqa: E402
 from minifilm.motion.skeletons import STYLE100  # noqa: E402
 from minifilm.pipeline.joint_axes import align_axes  # noqa: E402
 from minifilm.pipeline.judge_taught import judge_taught  # noqa: E402
+from minifilm.pipeline.motion_refit import RefitSettings  # noqa: E402
 from minifilm.pipeline.rollout_refit import rollout_refit  # noqa: E402
 from minifilm.pipeline.teach_released import clip_rows, read_clip, teach  # noqa: E402
 from minifilm.pipeline.walks import candidate_rollouts, clip_summaries  # noqa: E402
@@ -118,6 +119,15 @@ def print_judged(style, taught, judged) -> None:
               f"{j['clip_distance_first_half']:.0f}{mark}", flush=True)
 
 
+def refit_settings(text: str) -> RefitSettings:
+    """finetune's refinement settings with the fields ``text`` names ('key=value,...') changed."""
+    fields = {}
+    for item in filter(None, text.split(",")):
+        key, value = item.split("=")
+        fields[key.strip()] = type(getattr(RefitSettings, key.strip()))(value)
+    return RefitSettings(**fields)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--params", type=Path, default=DATA / "released-lpn")
@@ -130,6 +140,8 @@ def main() -> None:
                     help="also refit the kept vector at the states it visits, this many rounds "
                          "(minifilm/pipeline/rollout_refit.py); each round's vector is judged too")
     ap.add_argument("--seeds", type=int, default=3, help="classifier seeds (the minimum recognition counts)")
+    ap.add_argument("--motion", default="", help="settings of the refinement by motion other than finetune's, e.g. "
+                                                 "'population=32,elite=8' (RefitSettings' fields)")
     ap.add_argument("--json", type=Path)
     ap.add_argument("--out", type=Path, help="folder for <style>_clip.bvh (retargeted), <style>_taught.bvh and "
                                              "the pictures <style>.gif / .png, the clip beside the result "
@@ -145,7 +157,8 @@ def main() -> None:
         read = [read_clip(f, log=lambda m: None) for f in files]
         motions = [m for m, _ in read]
         t0 = time.perf_counter()
-        taught = teach(rel, layout, style, motions, files, align=True, log=lambda m: None)
+        taught = teach(rel, layout, style, motions, files, align=True, motion=refit_settings(args.motion),
+                       log=lambda m: None)
         seconds = time.perf_counter() - t0
         clip = []
         for m in motions:

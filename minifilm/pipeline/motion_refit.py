@@ -6,11 +6,17 @@ numbers barely change one prediction and the rows cannot pin them down, but in a
 up (reports on teaching the released network). So here the vector is moved to where the *motion*
 it generates looks like the clip:
 
-    objective(film) = d²( windows of the network's own walk in ``film`` , windows of the clip )
+    objective(film) = d²(walk, clip) / min over s in N of d²(walk, walk of known style s)
 
-d² is the Fréchet distance between the two sets of window summaries (mean and spread of every
+    walk: the windows of the network's own walk in ``film``; N: the ``contrast`` known styles whose
+    walks lie nearest the clip (10 by default; with none, the objective is d²(walk, clip) alone)
+
+d² is the Fréchet distance between two sets of window summaries (mean and spread of every
 joint's features over 0.75 s, minifilm/evaluation/style_judge.py) in a StyleSpace fitted on the
-clip and the known styles' own walks. A rollout has no gradient here, so the search is
+clip and the known styles' own walks. Below 1, the walk lies nearer the clip than any of those
+styles' walks: it is the clip's style, not a neighbour's, that it is taken for. Measured only
+against the clip, a search can end on a walk that is nearer the clip than the start's and still
+nearer a neighbouring style than the clip (reports/2026-12-05_teaching_by_motion.md). A rollout has no gradient here, so the search is
 derivative-free: the cross-entropy method over the k leading principal directions of the known
 styles' vectors (the directions along which styles differ), around the teacher-forced fit:
 
@@ -42,9 +48,11 @@ from minifilm.pipeline.walkers import WalkPool
 class RefitSettings:
     """The search: k directions, rounds, candidates per round, the best kept, start spread σ (in
     units of the styles' own spread along each direction) and how it shrinks per round; seconds of
-    walking per candidate (after the first second), the space's dimensions.
+    walking per candidate (after the first second), the space's dimensions; ``contrast``: how many
+    of the known styles nearest the clip the walk is measured against (module docstring; 0: the
+    distance to the clip alone).
 
-    Six rounds of 32 (elite 8, shrink 0.85²: the same 192 candidates and final spread) would cost
+    Without contrast, six rounds of 32 (elite 8, shrink 0.85²: the same 192 candidates and spread) cost
     less, a round of 34 walks about as much as one of 18, and found 9 of 10 known styles again
     against 8; but four real clips ranked worse (benchmarks/README.md), so twelve of 16 stay."""
     directions: int = 16
@@ -56,15 +64,20 @@ class RefitSettings:
     seconds: float = 8.0
     dims: int = 32
     seed: int = 0
+    contrast: int = 10
 
 
 @dataclass
 class Refit:
-    """The refined vector, its objective, the start's objective, and one line per round."""
+    """The refined vector, its objective, the start's objective, one line per round, and the
+    distances of the refined and the start's walks to the clip's windows (the objective itself
+    without ``contrast``)."""
     film: np.ndarray
     score: float
     start_score: float
     history: list = field(default_factory=list)
+    distance: float = float("nan")
+    start_distance: float = float("nan")
 
 
 def style_directions(known: np.ndarray, k: int):
@@ -99,6 +112,16 @@ def refine_by_motion(network, layout, stats, start: np.ndarray, known: Mapping[s
     clip_key = "\0clip"                 # beside the styles: no style name holds a NUL character
     space = StyleSpace.fit({**known_summaries, clip_key: clip_summaries}, dims=s.dims, summarised=True)
     target = space.gaussians[clip_key]
+    # contrast k: the distance to the clip over that to the nearest of the k known styles nearest
+    # the clip (below 1: the walk is nearer the clip than any of them)
+    near = sorted(names, key=lambda n: frechet_distance(*space.gaussians[n], *target))[:s.contrast]
+    rivals = [space.gaussians[n] for n in near]
+
+    def objective(w):
+        """-> (the objective, the distance to the clip) of one walk's window summaries."""
+        g = gaussian(space.project(w, summarised=True))
+        d = frechet_distance(*g, *target)
+        return (d / max(min(frechet_distance(*g, *r) for r in rivals), 1e-9) if rivals else d), d
 
     allowed = None                      # the start's faults, once its walk is seen
 
@@ -106,8 +129,9 @@ def refine_by_motion(network, layout, stats, start: np.ndarray, known: Mapping[s
         nonlocal allowed
         walks, faults = pool.walk(films, speed, s.seconds, problems)
         allowed = faults[0] if allowed is None else allowed         # films[0] is the start in round 1
-        return np.array([frechet_distance(*gaussian(space.project(w, summarised=True)), *target)
-                         if len(w) >= 2 and f <= allowed else np.inf for w, f in zip(walks, faults)])
+        got = np.array([objective(w) if len(w) >= 2 and f <= allowed else (np.inf, np.inf)
+                        for w, f in zip(walks, faults)])
+        return got[:, 0], got[:, 1]
 
     def film_of(c):
         return np.asarray(start, np.float64) + (c * scales) @ directions
@@ -117,16 +141,17 @@ def refine_by_motion(network, layout, stats, start: np.ndarray, known: Mapping[s
     best_c, best, history = mean.copy(), None, []
     for r in range(s.rounds):
         cs = np.concatenate([mean[None], best_c[None], mean + sigma * rng.standard_normal((s.population, len(mean)))])
-        got = scores(np.stack([film_of(c) for c in cs]))
+        got, distance = scores(np.stack([film_of(c) for c in cs]))
         if best is None:
-            start_score = best = float(got[0])
+            start_score, best, start_distance = float(got[0]), float(got[0]), float(distance[0])
+            best_distance = start_distance
         order = np.argsort(got)
         if got[order[0]] < best:
-            best, best_c = float(got[order[0]]), cs[order[0]].copy()
+            best, best_c, best_distance = float(got[order[0]]), cs[order[0]].copy(), float(distance[order[0]])
         kept = [i for i in order[:s.elite] if np.isfinite(got[i])]      # a refused walk never sets the centre
         mean = cs[kept].mean(axis=0) if kept else mean
         sigma *= s.shrink
         history.append(f"round {r + 1}: best {best:.1f} (start {start_score:.1f}), this round's best "
                        f"{got[order[0]]:.1f}, σ {sigma:.3f}")
         log(history[-1])
-    return Refit(film_of(best_c).astype(np.float32), best, start_score, history)
+    return Refit(film_of(best_c).astype(np.float32), best, start_score, history, best_distance, start_distance)

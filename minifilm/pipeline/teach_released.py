@@ -277,13 +277,16 @@ def _teach(rel, layout, name, clip, known, settings, prior_weights, choose_by_ro
         check = walk_report(r, 0, toes, path, clip_steps_per_s=clip.steps_per_s, clip_hips=clip.hips)
         candidates[chosen]["chosen"] = False
         candidates.append({"label": "refined by motion", "from_candidate": chosen, "rounds": motion.rounds,
-                           "motion_distance_start": refit.start_score, "motion_distance": refit.score,
+                           "motion_distance_start": refit.start_distance, "motion_distance": refit.distance,
+                           "motion_ratio_start": refit.start_score, "motion_ratio": refit.score,
                            "loss": rows.loss(refit.film), "rollout_score": float(rollout_score(check, clip)),
                            "steps_per_s": check.steps_per_s, "hips": check.hips,
                            "toe_on_floor": check.toe_on_floor, "chosen": True})
         film = refit.film.astype(np.float64)
         films.append(film)
-        log(f"refined by motion: distance to the clip's windows {refit.start_score:.0f} -> {refit.score:.0f}")
+        log(f"refined by motion: distance to the clip's windows {refit.start_distance:.0f} -> {refit.distance:.0f}"
+            + (f"; {refit.start_score:.2f} -> {refit.score:.2f} times that to the nearest known style's"
+               if motion.contrast else ""))
     seconds = time.perf_counter() - t0
     d = np.linalg.norm(V - film, axis=1)
     return TaughtStyle(name, film.astype(np.float32), seconds, clip, distance, rows.loss(film), names[int(np.argmin(d))],
@@ -339,7 +342,9 @@ def report_lines(r: TaughtStyle) -> List[str]:
     if refined:
         m = refined[0]
         lines.append(f"    refined by the motion it makes ({m['rounds']} rounds): distance of its walk's windows to the "
-                     f"clip's {m['motion_distance_start']:.0f} -> {m['motion_distance']:.0f}")
+                     f"clip's {m['motion_distance_start']:.0f} -> {m['motion_distance']:.0f}"
+                     + (f", {m['motion_ratio_start']:.2f} -> {m['motion_ratio']:.2f} times that to the nearest "
+                        "known style's (below 1: nearer the clip than any)" if "motion_ratio" in m else ""))
     lines.append(f"    nearest of the network's styles in FiLM space: {r.nearest}")
     lines.append(f"    rolled out {CHECK_SECONDS:g} s: {k.steps_per_s:.2f} steps/s (clip {c.steps_per_s:.2f}), hips "
                  f"{k.hips:.2f} m (clip {c.hips:.2f}), lowest toe on the floor in {k.toe_on_floor:.0%} of frames, "

@@ -81,6 +81,9 @@ def test_the_report_warns_in_words():
                                                   "motion_distance_start": 496.4, "motion_distance": 85.2}]
     assert "refined by the motion it makes (12 rounds): distance of its walk's windows to the clip's 496 -> 85" \
         in "\n".join(report_lines(refined))
+    refined.candidates[-1].update(motion_ratio_start=1.62, motion_ratio=0.81)
+    assert "496 -> 85, 1.62 -> 0.81 times that to the nearest known style's (below 1: nearer the clip than any)" \
+        in "\n".join(report_lines(refined))
 
 
 def test_a_released_style_is_found_again_from_its_own_motion(shared_data):
@@ -145,3 +148,32 @@ def test_teaching_with_a_worker_gives_the_vector_of_one_process(shared_data):
     np.testing.assert_allclose(shared.film, alone.film, rtol=1e-5, atol=1e-6)
     assert shared.candidates[-1]["motion_distance"] == pytest.approx(alone.candidates[-1]["motion_distance"], rel=1e-4)
     assert shared.candidates[-1]["label"] == "refined by motion"
+
+
+def test_the_contrast_is_the_distance_to_the_clip_over_that_to_the_nearest_rival(shared_data):
+    """With contrast k, a walk scores d(walk, clip) / min d(walk, s) over the k known styles whose
+    walks lie nearest the clip (computed here from the walks themselves); without, d(walk, clip)."""
+    from minifilm.evaluation.style_judge import motion_block, summaries
+    from minifilm.evaluation.style_measures import StyleSpace, frechet_distance, gaussian
+    from minifilm.pipeline.motion_refit import RefitSettings, refine_by_motion
+    from minifilm.pipeline.refit_released import generated_motions
+    from minifilm.pipeline.walkers import walk_here
+    from minifilm.runtime.released import load_released
+    rel = load_released(shared_data / "released-lpn")
+    motion, = generated_motions(rel, ["Zombie"], 6.0, script="straight")
+    clip = summaries(motion_block(motion, rel.stats, LAYOUT))
+    known = {n: rel.styles[n] for n in list(rel.styles)[:8] if n != "Zombie"}
+    first, second = list(known.values())[:2]
+    start = 0.5 * (first + second)                         # not a known style: no rival walks as it does
+    walks = dict(zip(known, walk_here(rel.network, LAYOUT, rel.stats, np.stack(list(known.values())), 1.3, 2.0)[0]))
+    space = StyleSpace.fit({**walks, "\0clip": clip}, dims=8, summarised=True)
+    own = gaussian(space.project(walk_here(rel.network, LAYOUT, rel.stats, start[None], 1.3, 2.0)[0][0], summarised=True))
+    to_clip = frechet_distance(*own, *space.gaussians["\0clip"])
+    by_nearness = sorted(known, key=lambda n: frechet_distance(*space.gaussians[n], *space.gaussians["\0clip"]))
+    for k in (0, 1, 3):
+        settings = RefitSettings(directions=2, rounds=1, population=1, elite=1, seconds=2.0, dims=8, contrast=k)
+        r = refine_by_motion(rel.network, LAYOUT, rel.stats, start, known, clip, 1.3, settings, known_summaries=walks)
+        rival = min(frechet_distance(*own, *space.gaussians[n]) for n in by_nearness[:k]) if k else 1.0
+        assert r.start_score == pytest.approx(to_clip / rival, rel=1e-6)
+        assert r.start_distance == pytest.approx(to_clip, rel=1e-6)
+        assert r.score <= r.start_score
