@@ -30,7 +30,6 @@ its budget is logged in one line a second.
 """
 from __future__ import annotations
 
-import asyncio
 import logging
 from typing import Callable, Optional, Tuple
 

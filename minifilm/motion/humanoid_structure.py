@@ -17,7 +17,6 @@ def humanoid_by_structure(motion) -> Humanoid:
 
     HumanoidError naming the first part that could not be found."""
     tree = PosedTree(motion)
-    H = tree.height
     # the feet: the two lowest ends of the hierarchy that are far apart along the bones; the hips:
     # where their chains meet, or the first joint above that with a chain going up (the spine)
     foot_a, foot_b = _two_feet(tree)
