@@ -8,6 +8,7 @@ GFLOP/s for 1 and 2 worker processes, more workers extrapolated, and (--job) the
     python benchmarks/parallel_training.py --job --repeats 3    # each job 3 times, interleaved
     python benchmarks/parallel_training.py --sync       # the round trip to a worker: pipe, semaphores, counters
     python benchmarks/parallel_training.py --profile    # cProfile of the one-process step, top functions
+    python benchmarks/parallel_training.py --bound      # the most 2 workers can gain, from one process's parts
 
 The model and minibatches are those of examples/train_small.py (ModelConfig.small on x 348, z 342,
 clips 120 x 300; batch 32, 4 clips per minibatch, dropout 0.2, Adam), on random normalised data
@@ -89,13 +90,13 @@ def random_data(c: ModelConfig, seed: int = 0) -> TrainData:
                      clip_style=np.arange(clips) % STYLES)
 
 
-def new_trainer(c: ModelConfig) -> Trainer:
+def new_trainer(c: ModelConfig, batch: int = 32, clips: int = 4) -> Trainer:
     stats = NormStats(x_mean=np.zeros(c.x_dim), x_std=np.ones(c.x_dim), z_mean=np.zeros(c.z_dim),
                       z_std=np.ones(c.z_dim), p_mean=np.zeros(c.phase_dim), p_std=np.ones(c.phase_dim))
     positions = np.arange(3 * 23).reshape(23, 3)                  # 23 joints, as the 100STYLE skeleton
     parents = np.arange(-1, 22)
     return Trainer(StyleModel(c, np.random.default_rng(0)), stats,
-                   TrainConfig(batch_size=32, lr=5e-4, clips_per_batch=4, seed=0),
+                   TrainConfig(batch_size=batch, lr=5e-4, clips_per_batch=clips, seed=0),
                    positions_idx=positions, parents=parents)
 
 
@@ -184,8 +185,7 @@ class Runner:
         self.times, self.wall, self.cpu = [], 0.0, 0.0
 
     def _batches(self):
-        while True:
-            yield from self.trainer.minibatches(self.data)
+        return endless(self.trainer, self.data)
 
     def run(self, steps: int) -> None:
         t = self.trainer
@@ -413,6 +413,47 @@ def print_sync(n: int = 2000) -> dict:
     return result
 
 
+def endless(trainer: Trainer, data: TrainData):
+    """The trainer's minibatches, epoch after epoch."""
+    while True:
+        yield from trainer.minibatches(data)
+
+
+def bound(steps: int, blocks: int = 6) -> None:
+    """The most 2 workers can gain on this step, from one process's parts: a 2-worker step is at
+    least one worker's half of the gradients (batch 16, 2 clips) plus half of Adam, so
+
+        bound = (gradients(32) + Adam) / (gradients(16) + Adam / 2)
+
+    (the sum of the two gradient slots and every wait come on top). Blocks interleaved, the least
+    block median counts."""
+    data = random_data(config())
+    trainers = {32: new_trainer(config(), 32, 4), 16: new_trainer(config(), 16, 2)}
+    streams = {b: endless(t, data) for b, t in trainers.items()}
+    times = {"g32": [], "g16": [], "adam": []}
+    for _ in range(blocks):
+        for b, t in trainers.items():
+            got = []
+            for _ in range(steps):
+                mb = next(streams[b])
+                s0 = time.perf_counter()
+                t.gradients(mb)
+                got.append(time.perf_counter() - s0)
+                if b == 32:
+                    s0 = time.perf_counter()
+                    t.optimizer.step()
+                    times["adam"].append(time.perf_counter() - s0)
+            times[f"g{b}"].append(statistics.median(got))
+    n = len(times["adam"]) // blocks
+    adam = min(statistics.median(times["adam"][k * n:(k + 1) * n]) for k in range(blocks))
+    g32, g16 = min(times["g32"]), min(times["g16"])
+    print(f"# the most 2 workers can gain on train_small's step; {cpu_name()}; {load()}")
+    print(f"gradients, batch 32 / 4 clips: {g32 * 1e3:.2f} ms; batch 16 / 2 clips: {g16 * 1e3:.2f} ms "
+          f"({g32 / g16:.2f}x); Adam: {adam * 1e3:.2f} ms")
+    print(f"one-process step {(g32 + adam) * 1e3:.2f} ms; a 2-worker step at least {(g16 + adam / 2) * 1e3:.2f} ms: "
+          f"speed-up at most {(g32 + adam) / (g16 + adam / 2):.2f}x")
+
+
 def profile(steps: int) -> None:
     data = random_data(config())
     r = Runner(1, data)
@@ -432,6 +473,8 @@ def main() -> None:
     ap.add_argument("--profile", action="store_true", help="cProfile of the one-process step only")
     ap.add_argument("--sync", action="store_true", help="only the round trip to a worker: pipe, semaphores, "
                     "shared counters")
+    ap.add_argument("--bound", action="store_true", help="only the most 2 workers can gain: one process's "
+                    "gradients at batch 32 and 16 and its Adam step")
     ap.add_argument("--repeats", type=int, default=1, help="with --job: runs of each job (the least time counts)")
     ap.add_argument("--steps", type=int, help="timed steps per row (default 600, --quick 120)")
     a = ap.parse_args()
@@ -441,6 +484,9 @@ def main() -> None:
         return
     if a.sync:
         print_sync()
+        return
+    if a.bound:
+        bound(steps // 2)
         return
     steps_, step_load = step_table(steps, blocks=6)
     jobs = job_table(a.repeats) if a.job else None
