@@ -16,9 +16,11 @@ joint's features over 0.75 s, minifilm/evaluation/style_judge.py) in a StyleSpac
 clip and the known styles' own walks. Below 1, the walk lies nearer the clip than any of those
 styles' walks: it is the clip's style, not a neighbour's, that it is taken for. Measured only
 against the clip, a search can end on a walk that is nearer the clip than the start's and still
-nearer a neighbouring style than the clip (reports/2026-12-05_teaching_by_motion.md). A rollout has no gradient here, so the search is
-derivative-free: the cross-entropy method over the k leading principal directions of the known
-styles' vectors (the directions along which styles differ), around the teacher-forced fit:
+nearer a neighbouring style than the clip (reports/2026-12-05_teaching_by_motion.md).
+
+A rollout has no gradient here, so the search is derivative-free: the cross-entropy method over
+the k leading principal directions of the known styles' vectors (the directions along which
+styles differ), around the teacher-forced fit:
 
     film(c) = start + (c * scales) @ directions        c in R^k, scales: the styles' spread
     each round: draw ``population`` c ~ N(m, σ² I), walk them all in one batch, keep the best
@@ -52,9 +54,10 @@ class RefitSettings:
     of the known styles nearest the clip the walk is measured against (module docstring; 0: the
     distance to the clip alone).
 
-    Without contrast, six rounds of 32 (elite 8, shrink 0.85²: the same 192 candidates and spread) cost
-    less, a round of 34 walks about as much as one of 18, and found 9 of 10 known styles again
-    against 8; but four real clips ranked worse (benchmarks/README.md), so twelve of 16 stay."""
+    Without contrast, six rounds of 32 (elite 8, shrink 0.85²: the same 192 candidates and
+    spread) cost less, a round of 34 walks about as much as one of 18, and found 9 of 10 known
+    styles again against 8; but four real clips ranked worse (benchmarks/README.md), so twelve
+    of 16 stay."""
     directions: int = 16
     rounds: int = 12
     population: int = 16
