@@ -6,7 +6,7 @@ how they start, how they answer, how they stop.
     check_workers(workers, where)            a count given: None or a whole number >= 1
     spawn(n, target, args, name)             n workers, 'spawn' start, one BLAS thread each
     serve(conn, setup, job)                  a worker's loop: set up once, then answer jobs
-    read_reply(conn)                         a worker's reply, its arrays' bytes included
+    read_reply(conn)                         a reply (or a job), its arrays' bytes included
     stop(procs, conns, at_once)              close the pipes, then terminate (kill) what still runs
     WorkerGroup                              a group's ids, messages and errors; leaving its ``with``
                                              block stops it
@@ -175,9 +175,7 @@ def serve(conn, setup: Callable[[], Any], job: Callable[[Any, dict], Any]) -> No
         return
     while True:
         try:
-            message = json.loads(conn.recv_bytes())
-            if "bytes" in message:
-                message["data"] = conn.recv_bytes()
+            message = read_reply(conn)          # a job is sent as a reply is: JSON, then its bytes
         except (EOFError, OSError):          # the parent closed the pipe or went away: stop
             return
         data = None
@@ -284,7 +282,8 @@ def stop(procs, conns, at_once: bool = False) -> None:
 
 def read_reply(conn) -> dict:
     """A worker's next reply as :func:`serve` sends it: the JSON, and the arrays' bytes that follow
-    it (:class:`WithBytes`) in 'data'. EOFError or OSError when the worker has gone."""
+    it (:class:`WithBytes`) in 'data'; a worker reads a job sent the same way with it too.
+    EOFError or OSError when the other side has gone."""
     reply = json.loads(conn.recv_bytes())
     if "bytes" in reply:
         reply["data"] = conn.recv_bytes()
