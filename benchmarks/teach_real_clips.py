@@ -39,7 +39,6 @@ from minifilm.motion.measures import bone_length_cv  # noqa: E402
 from minifilm.motion.skeletons import STYLE100  # noqa: E402
 from minifilm.pipeline.joint_axes import align_axes  # noqa: E402
 from minifilm.pipeline.judge_taught import judge_taught  # noqa: E402
-from minifilm.pipeline.motion_refit import RefitSettings  # noqa: E402
 from minifilm.pipeline.rollout_refit import rollout_refit  # noqa: E402
 from minifilm.pipeline.teach_released import clip_rows, read_clip, teach  # noqa: E402
 from minifilm.pipeline.walks import candidate_rollouts, clip_summaries  # noqa: E402
@@ -52,6 +51,7 @@ from minifilm.synthetic.generator import rest_motion  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 from teach_pictures import clip_and_result  # noqa: E402  (beside this script)
+from teach_released import refit_settings  # noqa: E402  (beside this script: the --motion option)
 DATA = REPO.parent / "shared" / "data"
 
 
@@ -117,15 +117,6 @@ def print_judged(style, taught, judged) -> None:
             " <- nearest the clip (first half)" if i == judged["by_frechet"] else "")
         print(f"    {c.get('label') or 'λ=%g' % c['prior_weight']}: {words(j)}; to the clip on the first half "
               f"{j['clip_distance_first_half']:.0f}{mark}", flush=True)
-
-
-def refit_settings(text: str) -> RefitSettings:
-    """finetune's refinement settings with the fields ``text`` names ('key=value,...') changed."""
-    fields = {}
-    for item in filter(None, text.split(",")):
-        key, value = item.split("=")
-        fields[key.strip()] = type(getattr(RefitSettings, key.strip()))(value)
-    return RefitSettings(**fields)
 
 
 def main() -> None:

@@ -41,10 +41,10 @@ from minifilm.train.film_fit import FitSettings  # noqa: E402
 REPO = Path(__file__).resolve().parents[1]
 
 
-def refit_settings(args) -> RefitSettings:
-    """finetune's refinement settings, with --motion-rounds and the fields --motion names changed."""
-    fields = {"rounds": args.motion_rounds}
-    for item in filter(None, args.motion.split(",")):
+def refit_settings(text: str, **fields) -> RefitSettings:
+    """finetune's refinement settings with ``fields`` and the fields ``text`` names ('key=value,...',
+    the --motion option here and in teach_real_clips.py) changed."""
+    for item in filter(None, text.split(",")):
         key, value = item.split("=")
         fields[key.strip()] = type(getattr(RefitSettings, key.strip()))(value)
     return RefitSettings(**fields)
@@ -85,7 +85,7 @@ def main() -> None:
           f"{'teach s':>7s}  steps/s (clip)  walks")
     for name, motion in zip(names, motions):
         r = refit(rel, name, motion, FitSettings(steps=args.steps), prior_weights=tuple(args.prior_weights),
-                  by_motion=refit_settings(args) if args.motion_rounds > 0 else None)
+                  by_motion=refit_settings(args.motion, rounds=args.motion_rounds) if args.motion_rounds > 0 else None)
         rows.append(r)
         print(f"{name:16s} {r['film_rank']:9d} {r['output_rank']:11d} {r['loss_rank']:9d}  "
               f"{r['nearest_film']} / {r['nearest_output']:12s} {r['seconds']:7.1f}  "
