@@ -9,7 +9,8 @@ measured before the server listens (it serves its page within a second or two): 
 from the cache of earlier runs (``calibration_cache.py``, keyed by a hash of the released
 network's files; a run's are measured at each start, about a second each), and the missing
 ones, the start style first, any other style the first time a page asks for it, are measured one
-batch step at a time (:func:`~minifilm.runtime.calibration.calibrate_speed_stepwise`) by the frame loop, in the time left before the next frame is due (:meth:`run_slice`, called by
+batch step at a time (:func:`~minifilm.runtime.calibration.calibrate_speed_stepwise`) by the
+frame loop, in the time left before the next frame is due (:meth:`run_slice`, called by
 ``frame_loop.py`` only when the slice is expected to end before the deadline). A measurement
 cannot hold a frame up by more than one slice that took longer than expected: in a
 worker process at low priority (the earlier design) it shared the cores with the frame loop, and

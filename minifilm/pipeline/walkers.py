@@ -115,7 +115,8 @@ def _fit_result(reply: dict) -> FitResult:
         film, snapshots = z["film"], list(z["snapshots"])
     f = reply["ok"]
     history = [(int(s), loss, held) for s, loss, held in f["history"]]
-    return FitResult(film, f["start_loss"], f["loss"], f["holdout_loss"], f["steps"], f["best_step"], history, snapshots)
+    return FitResult(film, f["start_loss"], f["loss"], f["holdout_loss"], f["steps"], f["best_step"], history,
+                     snapshots)
 
 
 class Pending:

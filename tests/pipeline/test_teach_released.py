@@ -167,7 +167,8 @@ def test_the_contrast_is_the_distance_to_the_clip_over_that_to_the_nearest_rival
     start = 0.5 * (first + second)                         # not a known style: no rival walks as it does
     walks = dict(zip(known, walk_here(rel.network, LAYOUT, rel.stats, np.stack(list(known.values())), 1.3, 2.0)[0]))
     space = StyleSpace.fit({**walks, "\0clip": clip}, dims=8, summarised=True)
-    own = gaussian(space.project(walk_here(rel.network, LAYOUT, rel.stats, start[None], 1.3, 2.0)[0][0], summarised=True))
+    start_walk = walk_here(rel.network, LAYOUT, rel.stats, start[None], 1.3, 2.0)[0][0]
+    own = gaussian(space.project(start_walk, summarised=True))
     to_clip = frechet_distance(*own, *space.gaussians["\0clip"])
     by_nearness = sorted(known, key=lambda n: frechet_distance(*space.gaussians[n], *space.gaussians["\0clip"]))
     for k in (0, 1, 3):

@@ -349,8 +349,9 @@ def test_a_network_sharing_a_buffer_reads_its_weights_there_and_predicts_the_sam
     shared = net.sharing(buffer, fill=True)
     X, P, film = rng.normal(size=(5, LAYOUT.x_dim)), rng.normal(size=(5, 8)), rng.normal(size=(5, cfg.film_dim))
     np.testing.assert_array_equal(shared.predict(X, P, film), net.predict(X, P, film))
-    blank = RuntimeNetwork.from_arrays({**net.to_arrays(), **{f"expert.W{l}": np.zeros_like(net.to_arrays()[f"expert.W{l}"])
-                                                               for l in range(3)}})
+    arrays = net.to_arrays()
+    blank = RuntimeNetwork.from_arrays({**arrays, **{f"expert.W{l}": np.zeros_like(arrays[f"expert.W{l}"])
+                                                     for l in range(3)}})
     assert not np.array_equal(blank.predict(X, P, film), net.predict(X, P, film))
     np.testing.assert_array_equal(blank.sharing(buffer, fill=False).predict(X, P, film), net.predict(X, P, film))
     for (Wc, _, _), (Ws, _, _) in zip(net.layers, shared.layers):
