@@ -13,8 +13,9 @@ Steps, each timed (the load is printed beside):
 1. ``minifilm train``'s pipeline on the trained styles (``--epochs``, ``--quick`` for the small model);
 2. each held-out style taught from ``--clip-seconds`` of its files (FW, FR, TR1, BW, ... in that
    order) with ``minifilm finetune``'s code (Ψ alone; Ω and Φ frozen), once per ``--variants``:
-   ``teacher`` (teacher forcing alone, the paper) and ``self-fed`` (then rollout-aware rounds,
-   pipeline/self_fed.py), each in its own copy of the run folder; the trained styles' FiLM
+   ``teacher`` (teacher forcing alone, the paper), ``self-fed`` (then rollout-aware rounds,
+   pipeline/self_fed.py) and ``motion`` (then the vector refined by the motion it makes,
+   pipeline/run_motion_refit.py), each in its own copy of the run folder; the trained styles' FiLM
    vectors and one trained style's rollout compared bit for bit before and after;
 3. every style generated for ``--generate-seconds`` along a figure-eight (one batch), and measured:
    the style classifier (minifilm/evaluation/style_classifier.py) trained on all styles' data, for
@@ -61,12 +62,13 @@ from minifilm.runtime.released import load_released  # noqa: E402
 from minifilm.synthetic.generator import rest_motion  # noqa: E402
 from minifilm.pipeline.new_style import read_clip, teach_style  # noqa: E402
 from minifilm.pipeline.run_folder import RunFolder  # noqa: E402
+from minifilm.pipeline.motion_refit import RefitSettings  # noqa: E402
 from minifilm.pipeline.self_fed import SelfFed  # noqa: E402
 from minifilm.pipeline.train_small import Settings, run as train_run  # noqa: E402
 from minifilm.runtime.control import figure_eight  # noqa: E402
 
 CLIP_ORDER = ("FW", "FR", "TR1", "BW", "SW", "BR", "SR", "ID")
-VARIANTS = {"teacher": None, "self-fed": SelfFed(), "span": None}
+VARIANTS = {"teacher": None, "self-fed": SelfFed(), "span": None, "motion": None}
 
 
 def onto_span(vector: np.ndarray, trained: np.ndarray) -> np.ndarray:
@@ -325,6 +327,8 @@ def main():
     ap.add_argument("--teacher", type=Path, help="the released network's folder that made the data set")
     ap.add_argument("--path-seed", type=int, default=1, help="gait scripts' seed (the data set's is 0)")
     ap.add_argument("--path-seconds", type=float, default=60.0, help="seconds per style over the gait scripts")
+    ap.add_argument("--walk-workers", type=int, default=1, help="motion: worker processes beside this one "
+                    "sharing the refinement's walks")
     ap.add_argument("--reuse-run", action="store_true", help="keep --work/run as trained (skip training)")
     ap.add_argument("--trained-vectors", choices=("library", "clip", "tuned"), default="library",
                     help="the trained styles' FiLM vectors for generating: the run's (mean Ψ over the style's "
@@ -399,11 +403,18 @@ def main():
             clip, secs = clip_files(held_files, h, a.clip_seconds)
             t0 = time.perf_counter()
             taught = teach_style(folder, h, [f.path for f in clip], steps=a.steps, log=lambda m: None,
-                                 self_fed=VARIANTS[v])            # a new style: --replace would be an error
+                                 self_fed=VARIANTS[v],            # a new style: --replace would be an error
+                                 motion=RefitSettings() if v == "motion" else None, workers=a.walk_workers)
             took = time.perf_counter() - t0
             report["finetune"][f"{v}/{h}"] = dict(
                 seconds=took, clip_seconds=secs, files=[Path(f.path).name for f in clip], loss_before=taught.loss_before,
-                loss_after=taught.loss_after, nearest=taught.nearest, rollout_errors=taught.rollout_errors)
+                loss_after=taught.loss_after, nearest=taught.nearest, rollout_errors=taught.rollout_errors,
+                motion=None if taught.refit is None else {k: getattr(taught.refit, k) for k in
+                                                         ("start_distance", "distance", "start_score", "score")})
+            if taught.refit is not None:
+                f = taught.refit
+                print(f"[study] {v} {h}: refined by motion, distance {f.start_distance:.0f} -> {f.distance:.0f}, "
+                      f"against the nearest trained styles {f.start_score:.2f} -> {f.score:.2f}", flush=True)
             errs = " -> ".join(f"{e * 100:.1f}" for e in taught.rollout_errors)
             print(f"[study] {v} {h}: fine-tuned on {secs:.1f} s ({len(clip)} files) in {took:.1f} s; loss "
                   f"{taught.loss_before:.3f} -> {taught.loss_after:.3f}; rollout error {errs or '-'} cm; nearest "

@@ -24,6 +24,7 @@ from minifilm.errors import InputError
 from minifilm.pipeline.new_style import teach_style
 from minifilm.pipeline.self_fed import SelfFed
 from minifilm.pipeline.motion_refit import RefitSettings
+from minifilm.processes import default_workers
 from minifilm.pipeline.teach_released import RECOMMENDED_SECONDS, SIGMA, WALK_WORKERS, report_lines, teach_released
 from minifilm.train.film_fit import FitSettings
 
@@ -42,13 +43,14 @@ def add_arguments(ap) -> None:
     ap.add_argument("--steps", type=in_range(1, 100_000, int), default=400, help="fine-tuning steps (default 400)")
     ap.add_argument("--lr", type=positive(float, 1.0), default=5e-4, help="learning rate (default 5e-4)")
     ap.add_argument("--seed", type=in_range(0, 2**32 - 1, int), default=0)
-    ap.add_argument("--motion-rounds", type=in_range(0, 200, int), default=RefitSettings.rounds,
-                    help="with --params: rounds of moving the taught vector until the network's own walk in it "
-                         "looks like the clip (pipeline/motion_refit.py; default %(default)s, about 3 s each on "
-                         "two cores; 0: keep the teacher-forced fit)")
+    ap.add_argument("--motion-rounds", type=in_range(0, 200, int), default=None,
+                    help="rounds of moving the taught vector until the network's own walk in it looks like the "
+                         f"clip (pipeline/motion_refit.py; about 3 s each on two cores; 0: not at all). Default: "
+                         f"{RefitSettings.rounds} with --params, 0 with --run (Ψ alone, the paper)")
     ap.add_argument("--workers", type=in_range(1, 64, int), default=None,
-                    help="with --params: processes that share the walks of --motion-rounds and the teacher-forced "
-                         f"fits, this one included (default: every usable core, at most {WALK_WORKERS + 1})")
+                    help="processes that share the walks of --motion-rounds (with --params also the "
+                         "teacher-forced fits), this one included (default: every usable core, at most "
+                         f"{WALK_WORKERS + 1})")
     ap.add_argument("--rollout-rounds", type=in_range(0, 100, int), default=ROLLOUT_ROUNDS,
                     help="rounds of training on the model's own rollouts along the clip after the "
                          f"teacher-forced steps (pipeline/self_fed.py; default {ROLLOUT_ROUNDS}: teacher forcing "
@@ -60,17 +62,23 @@ def run(args) -> int:
         return run_released(args)
     if args.out is not None:
         raise InputError("--out is for --params (a style pack); a run folder keeps its styles itself")
-    if args.workers is not None:
-        raise InputError("--workers is for --params (the walks of --motion-rounds); fine-tuning Ψ runs in one process")
+    if args.workers is not None and not args.motion_rounds:
+        raise InputError("--workers is for the walks of --motion-rounds; fine-tuning Ψ runs in one process")
+    motion = RefitSettings(rounds=args.motion_rounds, seed=args.seed) if args.motion_rounds else None
     r = teach_style(args.run, args.name, args.files, steps=args.steps, lr=args.lr, seed=args.seed,
                     replace=args.replace,
-                    self_fed=SelfFed(rounds=args.rollout_rounds) if args.rollout_rounds else None)
+                    self_fed=SelfFed(rounds=args.rollout_rounds) if args.rollout_rounds else None,
+                    motion=motion, workers=walk_workers(args.workers) if motion else 0)
     print(f"[finetune] {r.name}: Ψ fine-tuned for {r.steps} steps on {r.frames} frames ({r.clips} style clips) "
           f"in {r.seconds:.1f} s")
     print(f"    loss on the clip (MSE + BLL): {r.loss_before:.4f} with Ψ as trained -> {r.loss_after:.4f}")
     if r.rollout_errors:
         print("    rollouts along the clip, mean joint error per round: "
               + " -> ".join(f"{e * 100:.1f} cm" for e in r.rollout_errors) + f" (kept {min(r.rollout_errors) * 100:.1f})")
+    if r.refit is not None:
+        f = r.refit
+        print(f"    refined by motion: distance to the clip's windows {f.start_distance:.0f} -> {f.distance:.0f}; "
+              f"{f.start_score:.2f} -> {f.score:.2f} times that to the nearest trained style's")
     if r.nearest:
         print(f"    nearest trained style in FiLM space: {r.nearest}")
     for line in run_warnings(r):
@@ -78,6 +86,12 @@ def run(args) -> int:
     print(f"    added to {args.run / 'styles.npz'}; fine-tuned checkpoint {r.checkpoint}")
     print(f"    try: minifilm generate --run {args.run} --style {r.name!r} --out {r.name}.bvh")
     return 0
+
+
+def walk_workers(asked) -> int:
+    """Worker processes beside this one for the walks: --workers minus this process, or one per
+    further usable core, at most WALK_WORKERS."""
+    return asked - 1 if asked is not None else default_workers(WALK_WORKERS + 1) - 1
 
 
 def run_warnings(r) -> list:
@@ -103,7 +117,8 @@ def run_released(args) -> int:
                          "(the network folder is never written)")
     settings = FitSettings(steps=min(args.steps, 1000), seed=args.seed)
     r = teach_released(args.params, args.name, args.files, args.out, replace=args.replace, settings=settings,
-                       motion=RefitSettings(rounds=args.motion_rounds, seed=args.seed),
+                       motion=RefitSettings(rounds=RefitSettings.rounds if args.motion_rounds is None
+                                            else args.motion_rounds, seed=args.seed),
                        workers=None if args.workers is None else args.workers - 1)
     for line in report_lines(r):
         print(line)

@@ -27,7 +27,9 @@ from minifilm.motion.skeletons import builtin_skeleton
 from minifilm.phases.label import label
 from minifilm.files import check_name, check_writable, child_path, folder_lock, owned_writes, same_file_key
 
+from minifilm.pipeline.motion_refit import Refit, RefitSettings
 from minifilm.pipeline.run_folder import RunFolder
+from minifilm.pipeline.run_motion_refit import clip_figures, count_steps, refinable, refine_run_style
 from minifilm.pipeline.run_rig import retarget_onto_run
 from minifilm.pipeline.self_fed import SelfFed, self_fed_rounds
 from minifilm.runtime.control import CommandScript
@@ -53,6 +55,7 @@ class NewStyleResult:
     share_beyond: float = 0.0     # share of the clip's normalised input numbers beyond 5 σ of the run's data
     worst: list = field(default_factory=list)              # [(feature, share of rows)] worst first
     check: object = None          # WalkReport of the new style rolled out (runtime/walk_checks.py)
+    refit: Optional[Refit] = None  # the refinement by motion (run_motion_refit.py), if asked for
 
 
 def check_new_name(name: str, run: RunFolder, replace: bool) -> None:
@@ -90,12 +93,6 @@ def read_clip(path, run: RunFolder, log: Callable[[str], None]) -> Motion:
         log(f"    {Path(path).name}: {motion.fps:g} fps resampled to the run's {run.fps:g} fps")
         motion = resample(motion, run.fps)
     return motion
-
-
-def count_steps(contacts: np.ndarray) -> int:
-    """Foot strikes (a contact starting) over both feet: contacts (F, 2) 0/1."""
-    c = np.asarray(contacts) > 0.5
-    return int(np.sum(c[1:] & ~c[:-1]))
 
 
 def clip_training_data(motions: Sequence[Motion], files, run: RunFolder, stats, clip_frames: int, name: str,
@@ -140,34 +137,41 @@ def clip_training_data(motions: Sequence[Motion], files, run: RunFolder, stats, 
 
 def teach_style(run_path, name: str, files: Sequence, steps: int = 400, lr: float = 5e-4, seed: int = 0,
                 replace: bool = False, log: Callable[[str], None] = print, with_mirror: bool = False,
-                self_fed: Optional[SelfFed] = None) -> NewStyleResult:
+                self_fed: Optional[SelfFed] = None, motion: Optional[RefitSettings] = None,
+                workers: int = 0) -> NewStyleResult:
     """Fine-tune the run's Ψ on ``files`` and add ``name`` to its style library (see the module
     docstring). ``self_fed``: rollout-aware rounds after the teacher-forced steps (self_fed.py;
     None, the default: teacher forcing alone, as the paper. On the 90-style runs of
     studies/dense_study.py, SelfFed() lowered the rollout error along the clip by 10-32 % for
     each of five held-out styles but reproduced no more of them on a new path: see
-    benchmarks/README.md).
+    benchmarks/README.md). ``motion``: then the style's vector is refined by the motion it makes
+    (run_motion_refit.py; None or 0 rounds, the default: not), its walks shared with ``workers``
+    processes beside this one.
     Raises ValueError naming the file or setting that is wrong; the run folder is then untouched.
     The run folder is locked meanwhile: a second command writing it is refused."""
     RunFolder.load(run_path)                    # a run folder at all, before a lock file is made beside it
     with folder_lock(run_path):
         return _teach_style(RunFolder.load(run_path), name, files, steps, lr, seed, replace, log, with_mirror,
-                            self_fed)
+                            self_fed, motion if motion is not None and motion.rounds > 0 else None, workers)
 
 
 def _teach_style(run: RunFolder, name: str, files: Sequence, steps: int, lr: float, seed: int, replace: bool,
-                 log: Callable[[str], None], with_mirror: bool, self_fed: Optional[SelfFed]) -> NewStyleResult:
+                 log: Callable[[str], None], with_mirror: bool, self_fed: Optional[SelfFed],
+                 motion: Optional[RefitSettings], workers: int) -> NewStyleResult:
     log(f"[finetune] teaching {run.path} the style {name!r} from {len(files)} file(s)")
     check_new_name(name, run, replace)
+    if motion is not None and refinable(run):
+        raise ValueError(f"--motion-rounds: {refinable(run)}")
     checkpoint = checkpoint_path(run, name)
     written = (checkpoint, run.path / "styles.npz", run.path / "starts.npz")
     with owned_writes(*written):        # finetune owns these files of the run (minifilm/files/state.py)
-        return _teach(run, name, files, steps, lr, seed, log, with_mirror, self_fed, checkpoint, written)
+        return _teach(run, name, files, steps, lr, seed, log, with_mirror, self_fed, checkpoint, written,
+                      motion, workers)
 
 
 def _teach(run: RunFolder, name: str, files: Sequence, steps: int, lr: float, seed: int,
            log: Callable[[str], None], with_mirror: bool, self_fed: Optional[SelfFed], checkpoint: Path,
-           written) -> NewStyleResult:
+           written, motion: Optional[RefitSettings], workers: int) -> NewStyleResult:
     for path in written:   # before the work
         check_writable(path, f"run folder {run.path}:")
     files = [Path(f) for f in files]
@@ -193,6 +197,13 @@ def _teach(run: RunFolder, name: str, files: Sequence, steps: int, lr: float, se
     after = tuned.evaluate(data)["loss"]
 
     library.add_from_clips(name, tuned.model, data.clips)   # existing styles: stored vectors untouched
+    refit = None
+    if motion is not None:
+        log(f"[finetune] refining {name!r} by the motion it makes: {motion.rounds} rounds of {motion.population} walks")
+        own = segments[::2] if with_mirror else segments       # the clip as recorded, not its mirror
+        refit = refine_run_style(run, tuned.model, stats, library[name], {n: library[n] for n in library.names
+                                 if n != name}, own, motion, workers, log=lambda m: log("    " + m))
+        library.add(name, refit.film)
     share, worst = input_distance(data.x, run.layout)
     check = rollout_check(run, tuned.model, stats, library[name], start, segments)
     others = [n for n in library.names if n != name]
@@ -204,7 +215,7 @@ def _teach(run: RunFolder, name: str, files: Sequence, steps: int, lr: float, se
     run.save_starts(starts)
     run.save_styles(library)
     return NewStyleResult(name, seconds, tuned.step, len(data), len(data.clips), before, after, nearest, checkpoint,
-                          rollout_errors, sum(m.n_frames for m in motions) / run.fps, share, worst, check)
+                          rollout_errors, sum(m.n_frames for m in motions) / run.fps, share, worst, check, refit)
 
 
 def shortest_clip_frames(clip_seconds: float, fps: float) -> int:
@@ -228,13 +239,7 @@ def rollout_check(run: RunFolder, model, stats, film, start, segments, seconds: 
     names = list(run.layout.joint_names)
     if not all(t in names for t in ("RightToe", "LeftToe")):
         return None
-    x, _, z = segments[0]
-    cols = run.layout.joint_columns("x", "position")
-    clip_hips = float(np.median(x[:, cols[0, 1]]))
-    traj = run.layout.trajectory_columns("x", len(run.layout.trajectory_seconds) - 1)
-    speed = float(np.clip(np.median(np.hypot(x[:, traj[0]], x[:, traj[1]])) / run.layout.trajectory_seconds[-1], 0.3, 4))
-    contacts = np.concatenate([seg[2][:, run.layout.z_contacts] for seg in segments])
-    clip_steps = count_steps(contacts) / (len(contacts) / run.fps)
+    speed, clip_steps, clip_hips = clip_figures(run, segments)
     ctrl = run.controller(RuntimeNetwork.from_model(model, stats))
     n = int(round(seconds * run.fps))
     r = ctrl.run(CommandScript([(0.0, speed, 0.0, 0.0), (seconds, speed, 0.0, 0.0)]), n, film,

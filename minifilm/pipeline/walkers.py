@@ -51,7 +51,7 @@ import numpy as np
 from minifilm.dataset.stats import NormStats
 from minifilm.evaluation.style_judge import summaries
 from minifilm.features.layout import FeatureLayout
-from minifilm.pipeline.walks import FaultCheck, walk_blocks
+from minifilm.pipeline.walks import POSITION_BIAS, FaultCheck, walk_blocks
 from minifilm.processes import (WithBytes, WorkerDied, WorkerGroup, attach, read_reply, rebuilt_error, serve,
                                  spawn, stop)
 from minifilm.runtime.network import RuntimeNetwork
@@ -64,12 +64,12 @@ RECEIVER_LOOKS = 0.05
 
 
 def walk_here(network, layout, stats, films: np.ndarray, speed: float, seconds: float,
-              check: Optional[Callable] = None) -> Walks:
+              check: Optional[Callable] = None, position_bias: float = POSITION_BIAS) -> Walks:
     """In this process: every vector's walk summaries, and the kinds of fault ``check`` finds."""
     films = np.asarray(films, np.float32)
     if not len(films):
         return [], []
-    blocks, r = walk_blocks(network, layout, stats, films, speed, seconds)
+    blocks, r = walk_blocks(network, layout, stats, films, speed, seconds, position_bias)
     return [summaries(b) for b in blocks], [set(check(r, b)) if check else set() for b in range(len(films))]
 
 
@@ -94,7 +94,8 @@ def worker(layout_text: str, segment: str, conn) -> None:
             return _fit_reply(m)
         films = np.frombuffer(base64.b64decode(m["films"]), "<f4").reshape(m["shape"])
         check = FaultCheck(**m["check"]) if m["check"] else None
-        walks, faults = walk_here(network, layout, network.stats, films, m["speed"], m["seconds"], check)
+        walks, faults = walk_here(network, layout, network.stats, films, m["speed"], m["seconds"], check,
+                                  m["position_bias"])
         return WithBytes([sorted(f) for f in faults], _npz({f"w{i}": w for i, w in enumerate(walks)}))
     serve(conn, setup, job)
 
@@ -148,11 +149,14 @@ class Pending:
 
 class WalkPool(WorkerGroup):
     """``workers`` processes beside this one walking vectors of ``network`` (module docstring);
-    0 workers: everything in this process, no context needed."""
+    0 workers: everything in this process, no context needed. position_bias: the controller's
+    (walks.candidate_rollouts)."""
     what = "walks"
 
-    def __init__(self, network, layout: FeatureLayout, stats: NormStats, workers: int):
+    def __init__(self, network, layout: FeatureLayout, stats: NormStats, workers: int,
+                 position_bias: float = POSITION_BIAS):
         self.network, self.layout, self.stats, self.workers = network, layout, stats, max(0, int(workers))
+        self.position_bias = float(position_bias)
         self.procs, self.conns, self.pending, self.threads = [], [], [], []
         self.ready, self.outboxes, self.inboxes = [], [], []
         # with workers: the network whose expert weights are in the shared segment (the one copy
@@ -213,7 +217,8 @@ class WalkPool(WorkerGroup):
         walk them now."""
         films = np.asarray(films, np.float32)
         if not self.procs:
-            return Pending(self, done=walk_here(self.network, self.layout, self.stats, films, speed, seconds, check))
+            return Pending(self, done=walk_here(self.network, self.layout, self.stats, films, speed, seconds, check,
+                                                self.position_bias))
         shares = self._send_shares(films, speed, seconds, check, len(self.procs))
         return self._pending(lambda: self._collect(shares))
 
@@ -234,14 +239,15 @@ class WalkPool(WorkerGroup):
         """The walks, split between this process (the first share) and the workers."""
         films = np.asarray(films, np.float32)
         if not self.procs:
-            return walk_here(self.network, self.layout, self.stats, films, speed, seconds, check)
+            return walk_here(self.network, self.layout, self.stats, films, speed, seconds, check, self.position_bias)
         if check is not None and not isinstance(check, FaultCheck):
             raise TypeError("WalkPool.walk: with workers, the check must be a FaultCheck (it is sent as JSON)")
         self._read_until(None)
         bounds = np.linspace(0, len(films), len(self.procs) + 2).round().astype(int)
         shares = self._send_shares(films[bounds[1]:], speed, seconds, check, len(self.procs), bounds[1:] - bounds[1])
         try:
-            walks, faults = walk_here(self.here, self.layout, self.stats, films[:bounds[1]], speed, seconds, check)
+            walks, faults = walk_here(self.here, self.layout, self.stats, films[:bounds[1]], speed, seconds, check,
+                                      self.position_bias)
         except Exception:
             self._collect(shares)       # their replies read, so the pipes stay in step for the next walk
             raise
@@ -270,7 +276,8 @@ class WalkPool(WorkerGroup):
         for w in range(n):
             share = np.ascontiguousarray(films[bounds[w]:bounds[w + 1]], "<f4")
             message = {"films": base64.b64encode(share.tobytes()).decode("ascii"), "shape": list(share.shape),
-                       "speed": float(speed), "seconds": float(seconds), "check": check.to_dict() if check else None}
+                       "speed": float(speed), "seconds": float(seconds), "check": check.to_dict() if check else None,
+                       "position_bias": self.position_bias}
             self._send(w, json.dumps(message).encode())
             sizes.append(len(share))
         return sizes

@@ -9,7 +9,7 @@ from typing import Dict, List
 
 import numpy as np
 
-from minifilm.evaluation.style_judge import motion_block, rows_block, summaries
+from minifilm.evaluation.style_judge import WINDOW, motion_block, rows_block, summaries
 from minifilm.features.layout import FeatureLayout
 from minifilm.runtime.control import CommandScript
 from minifilm.runtime.controller import Controller
@@ -19,12 +19,16 @@ from minifilm.synthetic.generator import rest_motion
 
 FPS = 60.0
 CHECK_SECONDS = 6.0               # rollout of each candidate vector
+POSITION_BIAS = 0.75              # the controller's blend of the user's path (the original demo's)
 
 
-def candidate_rollouts(network, layout: FeatureLayout, films: np.ndarray, speed: float, seconds: float = CHECK_SECONDS):
-    """All candidate vectors walked straight ahead at the clip's speed, one batch; -> (rollout, path)."""
+def candidate_rollouts(network, layout: FeatureLayout, films: np.ndarray, speed: float, seconds: float = CHECK_SECONDS,
+                       position_bias: float = POSITION_BIAS):
+    """All candidate vectors walked straight ahead at the clip's speed, one batch; -> (rollout, path).
+    position_bias: the controller's (a trained run's own; the released network's is the default)."""
     skeleton = rest_motion()
-    ctrl = Controller(network, layout, fps=FPS, skeleton=Controller.skeleton_for(layout, skeleton), feed_back_fit=True)
+    ctrl = Controller(network, layout, fps=FPS, skeleton=Controller.skeleton_for(layout, skeleton), feed_back_fit=True,
+                      position_bias=position_bias)
     v = float(np.clip(speed, 0.3, 4.0))
     script = CommandScript([(0.0, v, 0.0, 0.0), (seconds, v, 0.0, 0.0)])
     r = ctrl.run([script] * len(films), int(round(seconds * FPS)), films)
@@ -38,10 +42,11 @@ def straight_path(speed: float, seconds: float) -> np.ndarray:
     return np.array([[0.0, 0.0], [0.0, v * seconds * 2]])
 
 
-def walk_blocks(network, layout, stats, films: np.ndarray, speed: float, seconds: float):
+def walk_blocks(network, layout, stats, films: np.ndarray, speed: float, seconds: float,
+                position_bias: float = POSITION_BIAS):
     """Every vector walked straight ahead at ``speed`` for ``seconds`` after a first second cut
     (the start from the mean pose): -> (list of (F, 12 J) normalised clip-feature blocks, rollout)."""
-    r, _ = candidate_rollouts(network, layout, np.asarray(films, np.float32), speed, seconds + 1)
+    r, _ = candidate_rollouts(network, layout, np.asarray(films, np.float32), speed, seconds + 1, position_bias)
     skeleton = rest_motion()
     joints = root_joint_indices(layout, skeleton)
     n = r.positions.shape[1]
@@ -53,14 +58,19 @@ def walk_blocks(network, layout, stats, films: np.ndarray, speed: float, seconds
 def clip_summaries(clip, stats, layout) -> np.ndarray:
     """The clip's own windows (the rows the fit saw, joint axes as taught), file by file so no
     window spans two files."""
-    parts, a = [], 0
+    files, a = [], 0
     for src in clip.sources:
         b = a + max(0, int(src["frames"]) - 2)              # frame_features: frames 1 .. F-2
-        block = rows_block(clip.x[a:b], stats, layout)
-        if len(block) >= 45:
-            parts.append(summaries(block))
+        files.append(clip.x[a:b])
         a = b
-    return np.concatenate(parts)
+    return rows_summaries(files, stats, layout)
+
+
+def rows_summaries(files, stats, layout) -> np.ndarray:
+    """Window summaries (M, 2C) of raw input rows, one (F_i, x_dim) array per file, each cut into
+    windows of its own (a file too short for one window gives none)."""
+    parts = [summaries(block) for block in (rows_block(x, stats, layout) for x in files) if len(block) >= WINDOW]
+    return np.concatenate(parts) if parts else np.zeros((0, 0))
 
 
 @dataclass

@@ -111,6 +111,8 @@ OTHER = [
     ("finetune: name too long", ["finetune", "--run", R, "--name", "x" * 100, f"{R}/data/Neutral_FW.bvh"]),
     ("finetune: not a run", ["finetune", "--run", T, "--name", "New", f"{R}/data/Neutral_FW.bvh"]),
     ("finetune: no clip", ["finetune", "--run", R, "--name", "New"]),
+    ("finetune: workers without motion rounds", ["finetune", "--run", R, "--name", "New", "--workers", "2",
+                                                 f"{R}/data/Neutral_FW.bvh"]),
     ("phases: file missing", ["phases", f"{T}/nope.bvh"]),
     ("phases: out is a folder", ["phases", f"{R}/data/Neutral_FW.bvh", "--out", T]),
     ("phases: not BVH", ["phases", f"{R}/run.json", "--out", f"{T}/p.png"]),

@@ -172,3 +172,15 @@ def test_a_fit_that_fails_in_a_worker_is_one_error_and_the_pool_stays_in_step(re
         with pytest.raises(ValueError):
             bad.result()
         assert_same_walks(walks.result(), walk_here(rel.network, LAYOUT, rel.stats, films, SPEED, SECONDS))
+
+
+def test_the_controllers_position_bias_reaches_the_workers(rel):
+    """A trained run walks with its own position bias: the workers' walks are this process's with
+    that bias, and the bias changes the walk (else the test could not fail)."""
+    films = films_of(rel, 3)
+    plain = walk_here(rel.network, LAYOUT, rel.stats, films, SPEED, SECONDS)
+    biased = walk_here(rel.network, LAYOUT, rel.stats, films, SPEED, SECONDS, position_bias=2.0)
+    assert max(np.abs(a - b).max() for a, b in zip(plain[0], biased[0])) > 1e-2
+    with WalkPool(rel.network, LAYOUT, rel.stats, workers=1, position_bias=2.0) as pool:
+        assert_same_walks(pool.walk(films, SPEED, SECONDS), biased)
+        assert_same_walks(pool.submit(films, SPEED, SECONDS).result(), biased)
