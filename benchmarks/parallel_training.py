@@ -9,6 +9,7 @@ GFLOP/s for 1 and 2 worker processes, more workers extrapolated, and (--job) the
     python benchmarks/parallel_training.py --sync       # the round trip to a worker: pipe, semaphores, counters
     python benchmarks/parallel_training.py --profile    # cProfile of the one-process step, top functions
     python benchmarks/parallel_training.py --bound      # the most 2 workers can gain, from one process's parts
+    python benchmarks/parallel_training.py --contention # the same with both cores busy (two copies of a share)
 
 The model and minibatches are those of examples/train_small.py (ModelConfig.small on x 348, z 342,
 clips 120 x 300; batch 32, 4 clips per minibatch, dropout 0.2, Adam), on random normalised data
@@ -454,6 +455,63 @@ def bound(steps: int, blocks: int = 6) -> None:
           f"speed-up at most {(g32 + adam) / (g16 + adam / 2):.2f}x")
 
 
+def _share_times(batch: int, clips: int, steps: int, start, out) -> None:
+    """A worker's share on its own (no pool, no messages): ``steps`` gradients at ``batch`` / ``clips``
+    and Adam steps, begun together with the other copies (``start``, a barrier); medians to ``out``."""
+    data = random_data(config())
+    t = new_trainer(config(), batch, clips)
+    stream = endless(t, data)
+    for _ in range(20):                 # warm: first products, allocations
+        t.gradients(next(stream))
+        t.optimizer.step()
+    start.wait()
+    grads, adam = [], []
+    for _ in range(steps):
+        mb = next(stream)
+        t0 = time.perf_counter()
+        t.gradients(mb)
+        t1 = time.perf_counter()
+        t.optimizer.step()
+        grads.append(t1 - t0)
+        adam.append(time.perf_counter() - t1)
+    out.put((statistics.median(grads), statistics.median(adam)))
+
+
+def contention(steps: int, repeats: int = 3) -> None:
+    """What the two cores give each other when both are busy: one process's step at batch 32
+    (the 1-worker step's work), then a worker's share (batch 16, 2 clips) run alone and run as
+    two independent processes at once, with no messages between them. The least of ``repeats``
+    counts. With both cores busy a share costs what it costs beside another, so
+
+        most a 2-worker step can gain = (gradients(32) + Adam) / (gradients(16, two at once) + Adam(two at once) / 2)
+
+    which is --bound's figure with the slowdown two busy cores cause each other (shared cache,
+    memory bandwidth, the hypervisor) folded in."""
+    ctx = multiprocessing.get_context("spawn")
+    got = {}
+    for _ in range(repeats):
+        for batch, clips, copies in ((32, 4, 1), (16, 2, 1), (16, 2, 2)):
+            out, start = ctx.Queue(), ctx.Barrier(copies)
+            procs = [ctx.Process(target=_share_times, args=(batch, clips, steps, start, out)) for _ in range(copies)]
+            for p in procs:
+                p.start()
+            times = [out.get(timeout=600) for _ in procs]
+            for p in procs:
+                p.join()
+            g, a = max(t[0] for t in times), max(t[1] for t in times)
+            old = got.get((batch, copies), (math.inf, math.inf))
+            got[(batch, copies)] = (min(old[0], g), min(old[1], a))
+    (g32, a32), (g16, a16), (g16x2, a16x2) = got[(32, 1)], got[(16, 1)], got[(16, 2)]
+    print(f"# two busy cores: a worker's share alone and beside a copy of itself; {cpu_name()}; {load()}")
+    print("| work | alone ms | two at once ms | slowdown |")
+    print("|---|---|---|---|")
+    print(f"| gradients, batch 16 / 2 clips | {g16 * 1e3:.2f} | {g16x2 * 1e3:.2f} | {g16x2 / g16:.2f}x |")
+    print(f"| Adam step | {a16 * 1e3:.2f} | {a16x2 * 1e3:.2f} | {a16x2 / a16:.2f}x |")
+    print(f"one-process step (batch 32): {(g32 + a32) * 1e3:.2f} ms; a 2-worker step at least "
+          f"{(g16 + a16 / 2) * 1e3:.2f} ms with a free core each, {(g16x2 + a16x2 / 2) * 1e3:.2f} ms with both busy: "
+          f"speed-up at most {(g32 + a32) / (g16 + a16 / 2):.2f}x / {(g32 + a32) / (g16x2 + a16x2 / 2):.2f}x")
+
+
 def profile(steps: int) -> None:
     data = random_data(config())
     r = Runner(1, data)
@@ -475,6 +533,8 @@ def main() -> None:
                     "shared counters")
     ap.add_argument("--bound", action="store_true", help="only the most 2 workers can gain: one process's "
                     "gradients at batch 32 and 16 and its Adam step")
+    ap.add_argument("--contention", action="store_true", help="only what two busy cores cost each other: a "
+                    "worker's share alone and as two independent processes at once")
     ap.add_argument("--repeats", type=int, default=1, help="with --job: runs of each job (the least time counts)")
     ap.add_argument("--steps", type=int, help="timed steps per row (default 600, --quick 120)")
     a = ap.parse_args()
@@ -487,6 +547,9 @@ def main() -> None:
         return
     if a.bound:
         bound(steps // 2)
+        return
+    if a.contention:
+        contention(steps // 2)
         return
     steps_, step_load = step_table(steps, blocks=6)
     jobs = job_table(a.repeats) if a.job else None
