@@ -29,12 +29,12 @@ from minifilm.files import check_name, check_writable, child_path, folder_lock, 
 
 from minifilm.pipeline.motion_refit import Refit, RefitSettings
 from minifilm.pipeline.run_folder import RunFolder
-from minifilm.pipeline.run_motion_refit import clip_figures, count_steps, refinable, refine_run_style
+from minifilm.pipeline.run_motion_refit import clip_figures, refinable, refine_run_style
 from minifilm.pipeline.run_rig import retarget_onto_run
 from minifilm.pipeline.self_fed import SelfFed, self_fed_rounds
 from minifilm.runtime.control import CommandScript
 from minifilm.runtime.network import RuntimeNetwork
-from minifilm.runtime.walk_checks import walk_report
+from minifilm.runtime.walk_checks import count_strikes, walk_report
 from minifilm.pipeline.teach_released import input_distance
 from minifilm.train.finetune import finetune
 from minifilm.train.trainer import TrainConfig, Trainer
@@ -106,7 +106,7 @@ def clip_training_data(motions: Sequence[Motion], files, run: RunFolder, stats, 
     labelled = [label(motion, skeleton, name) for motion in motions]
     # the clip as a whole must hold locomotion; one file of it may have no step the contact test
     # finds (a fast one-legged hop, a turn on the spot) and still show the style
-    if sum(count_steps(lab.contacts) for lab in labelled) < 2:
+    if sum(count_strikes(lab.contacts) for lab in labelled) < 2:
         seconds = sum(m.n_frames for m in motions) / run.fps
         where = files[0] if len(files) == 1 else f"{len(files)} files ({', '.join(str(f) for f in files)})"
         raise ValueError(f"{where}: fewer than two foot steps in {seconds:.1f} s (a style is learnt from "

@@ -29,6 +29,7 @@ from minifilm.pipeline.run_folder import RunFolder
 from minifilm.pipeline.walkers import WalkPool
 from minifilm.pipeline.walks import FPS, FaultCheck, rows_summaries, straight_path
 from minifilm.runtime.network import RuntimeNetwork
+from minifilm.runtime.walk_checks import count_strikes
 
 
 def refinable(run: RunFolder) -> str:
@@ -38,12 +39,6 @@ def refinable(run: RunFolder) -> str:
     if run.skeleton_name != STYLE100.name or list(run.layout.joint_names) != list(STYLE100.joints):
         return f"the run's skeleton is {run.skeleton_name!r}; the walks of the refinement are on {STYLE100.name!r}"
     return ""
-
-
-def count_steps(contacts: np.ndarray) -> int:
-    """Foot strikes (a contact starting) over both feet: contacts (F, 2) 0/1."""
-    c = np.asarray(contacts) > 0.5
-    return int(np.sum(c[1:] & ~c[:-1]))
 
 
 def clip_figures(run: RunFolder, segments: Sequence) -> tuple:
@@ -56,7 +51,7 @@ def clip_figures(run: RunFolder, segments: Sequence) -> tuple:
     traj = layout.trajectory_columns("x", len(layout.trajectory_seconds) - 1)
     speed = float(np.clip(np.median(np.hypot(x[:, traj[0]], x[:, traj[1]])) / layout.trajectory_seconds[-1], 0.3, 4))
     contacts = np.concatenate([seg[2][:, layout.z_contacts] for seg in segments])
-    return speed, count_steps(contacts) / (len(contacts) / run.fps), hips
+    return speed, count_strikes(contacts) / (len(contacts) / run.fps), hips
 
 
 def refine_run_style(run: RunFolder, model, stats, film: np.ndarray, known: dict, segments: Sequence,
