@@ -26,9 +26,10 @@ styles differ), around the teacher-forced fit:
     each round: draw ``population`` c ~ N(m, σ² I), walk them all in one batch, keep the best
     ``elite``, m <- their mean, σ <- σ * ``shrink``; the best vector seen is returned
 
-A walk may look like the clip by its windows and still add a fault the start's walk has not (the
-feet leaving the floor, say): with ``problems`` (a rollout and a character -> the kinds of what is
-wrong with that walk, runtime/walk_checks.py), such a vector is never chosen.
+A walk may look like the clip by its windows and still be worse than the start's walk (the feet
+leaving the floor, say): with ``problems`` (a rollout and a character -> what is wrong with that
+walk, kind -> how bad, runtime/walk_checks.py), a vector whose walk has a kind of fault the
+start's has not, or one of the start's worse by more than walk_checks.WORSE_BY, is never chosen.
 
 Cost: the known styles' walks once, then one batch rollout of population + 2 characters (the
 centre and the best so far beside the new ones) per round, about 3.5 s each on one core: about
@@ -38,12 +39,13 @@ is deterministic, so a vector's score does not change between rounds.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable, Collection, Mapping, Optional
+from typing import Callable, Mapping, Optional
 
 import numpy as np
 
 from minifilm.evaluation.style_measures import StyleSpace, frechet_distance, gaussian
 from minifilm.pipeline.walkers import WalkPool
+from minifilm.runtime.walk_checks import Faults, adds_faults
 
 
 @dataclass
@@ -95,16 +97,17 @@ def style_directions(known: np.ndarray, k: int):
 def refine_by_motion(network, layout, stats, start: np.ndarray, known: Mapping[str, np.ndarray],
                      clip_summaries: np.ndarray, speed: float, settings: RefitSettings = RefitSettings(),
                      known_summaries: Optional[Mapping[str, np.ndarray]] = None,
-                     problems: Optional[Callable[[object, int], Collection[str]]] = None,
+                     problems: Optional[Callable[[object, int], Faults]] = None,
                      pool: Optional[WalkPool] = None, log: Callable[[str], None] = lambda m: None) -> Refit:
     """Move ``start`` (D,) so that the network's walk in it looks like the clip (module docstring).
 
     known: the styles whose vectors give the search directions (name -> (D,)), and whose walks,
     with the clip's windows ``clip_summaries`` (M, 2C), give the space the distance is measured in
     (``known_summaries``: those walks' summaries if already made). speed: m/s of the walks.
-    problems: (rollout, character) -> kinds of fault of that walk; a vector whose walk has a kind
-    the start's has not scores infinity (module docstring). pool: the processes that share the
-    walks (walkers.py; with workers, ``problems`` must be a FaultCheck); default: this one alone."""
+    problems: (rollout, character) -> the faults of that walk (kind -> severity, or a set of kinds);
+    a vector whose walk is worse than the start's (walk_checks.adds_faults) scores infinity.
+    pool: the processes that share the walks (walkers.py; with workers, ``problems`` must be a
+    FaultCheck); default: this one alone."""
     s = settings
     names = list(known)
     V = np.stack([np.asarray(known[n], np.float64) for n in names])
@@ -132,7 +135,7 @@ def refine_by_motion(network, layout, stats, start: np.ndarray, known: Mapping[s
         nonlocal allowed
         walks, faults = pool.walk(films, speed, s.seconds, problems)
         allowed = faults[0] if allowed is None else allowed         # films[0] is the start in round 1
-        got = np.array([objective(w) if len(w) >= 2 and f <= allowed else (np.inf, np.inf)
+        got = np.array([objective(w) if len(w) >= 2 and not adds_faults(f, allowed) else (np.inf, np.inf)
                         for w, f in zip(walks, faults)])
         return got[:, 0], got[:, 1]
 

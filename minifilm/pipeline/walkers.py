@@ -12,8 +12,8 @@ worker too, once its walks are done), and every round is split, this process wal
         walks, faults = pending.result()
         fit.result()                                             # a FitResult
 
-walks: each vector's window summaries (M, 2C); faults: the kinds of what is wrong with each walk
-(``check``, a :class:`~minifilm.pipeline.walks.FaultCheck`; none without one).
+walks: each vector's window summaries (M, 2C); faults: what is wrong with each walk, kind -> how
+bad (``check``, a :class:`~minifilm.pipeline.walks.FaultCheck`; none without one).
 
 Why the answer is that of one process: a character of a batch rollout depends only on its own
 vector (the batch is the rows of the same matrix products), so a vector walks the same in any
@@ -44,7 +44,7 @@ import sys
 import threading
 from dataclasses import asdict
 from multiprocessing import shared_memory
-from typing import Callable, List, Optional, Tuple
+from typing import Callable, List, Mapping, Optional, Tuple
 
 import numpy as np
 
@@ -65,12 +65,17 @@ RECEIVER_LOOKS = 0.05
 
 def walk_here(network, layout, stats, films: np.ndarray, speed: float, seconds: float,
               check: Optional[Callable] = None, position_bias: float = POSITION_BIAS) -> Walks:
-    """In this process: every vector's walk summaries, and the kinds of fault ``check`` finds."""
+    """In this process: every vector's walk summaries, and the faults ``check`` finds (a mapping
+    kind -> severity as FaultCheck gives, or a set of kinds from another check)."""
     films = np.asarray(films, np.float32)
     if not len(films):
         return [], []
     blocks, r = walk_blocks(network, layout, stats, films, speed, seconds, position_bias)
-    return [summaries(b) for b in blocks], [set(check(r, b)) if check else set() for b in range(len(films))]
+    return [summaries(b) for b in blocks], [_faults(check(r, b)) if check else {} for b in range(len(films))]
+
+
+def _faults(found):
+    return dict(found) if isinstance(found, Mapping) else set(found)
 
 
 def _npz(arrays: dict) -> bytes:
@@ -96,7 +101,7 @@ def worker(layout_text: str, segment: str, conn) -> None:
         check = FaultCheck(**m["check"]) if m["check"] else None
         walks, faults = walk_here(network, layout, network.stats, films, m["speed"], m["seconds"], check,
                                   m["position_bias"])
-        return WithBytes([sorted(f) for f in faults], _npz({f"w{i}": w for i, w in enumerate(walks)}))
+        return WithBytes(faults, _npz({f"w{i}": w for i, w in enumerate(walks)}))     # FaultCheck: dicts
     serve(conn, setup, job)
 
 
@@ -298,7 +303,7 @@ class WalkPool(WorkerGroup):
                 continue
             with np.load(io.BytesIO(reply["data"]), allow_pickle=False) as z:
                 walks += [z[f"w{i}"] for i in range(n)]
-            faults += [set(f) for f in reply["ok"]]
+            faults += [_faults(f) for f in reply["ok"]]
         if error is not None:           # every reply read first, so the pipes stay in step
             raise error
         return walks, faults

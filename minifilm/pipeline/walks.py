@@ -91,9 +91,10 @@ class FaultCheck:
         self.path = np.asarray(self.path, float).reshape(2, 2).tolist()
         self.clip_steps_per_s, self.clip_hips = float(self.clip_steps_per_s), float(self.clip_hips)
 
-    def __call__(self, rollout, character: int) -> Dict[str, str]:
+    def __call__(self, rollout, character: int) -> Dict[str, float]:
+        """The walk's faults: kind -> how far past its limit (WalkReport.severity_by_kind)."""
         return walk_report(rollout, character, self.toes, np.asarray(self.path, float),
-                           clip_steps_per_s=self.clip_steps_per_s, clip_hips=self.clip_hips).problems_by_kind()
+                           clip_steps_per_s=self.clip_steps_per_s, clip_hips=self.clip_hips).severity_by_kind()
 
     def to_dict(self) -> dict:
         return asdict(self)

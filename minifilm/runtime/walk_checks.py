@@ -13,7 +13,7 @@ from the data's mean pose) and compare, where given, with the clip the style was
 from __future__ import annotations
 
 from dataclasses import dataclass, asdict
-from typing import Dict, List, Optional, Sequence
+from typing import Collection, Dict, List, Mapping, Optional, Sequence, Union
 
 import numpy as np
 
@@ -24,6 +24,11 @@ MIN_STEPS_PER_S = 0.5         # fewer strikes than this while asked to move: not
 STEP_RATIO = (0.75, 1.25)     # steps/s against the clip's: within 25 %
 PATH_LIMIT = 1.0              # m, mean distance from the path
 FLOOR_SHARE = 0.9             # share of frames with the lowest toe on the floor
+HIPS_SHARE = 0.1              # hips within 10 % of the clip's
+#: how much worse than a reference walk's (in the measure of severity_by_kind) a fault may get
+#: before a walk counts as worse than it (adds_faults): a step rate 0.1 steps/s further out, 5 %
+#: more of the frames with the feet off the floor, hips 2 cm further off, the path 25 cm further
+WORSE_BY = {"steps": 0.1, "floor": 0.05, "hips": 0.02, "path": 0.25}
 
 
 def count_strikes(contacts: np.ndarray) -> int:
@@ -57,11 +62,30 @@ class WalkReport:
         if self.toe_on_floor < FLOOR_SHARE:
             out["floor"] = (f"the feet leave the floor (lowest toe within {FLOOR_TOLERANCE * 100:.0f} cm of it in only "
                             f"{self.toe_on_floor:.0%} of frames)")
-        if self.clip_hips and abs(self.hips / self.clip_hips - 1) > 0.1:
+        if self.clip_hips and abs(self.hips / self.clip_hips - 1) > HIPS_SHARE:
             out["hips"] = f"hips at {self.hips:.2f} m, the clip's at {self.clip_hips:.2f} m"
         if self.path_mean > PATH_LIMIT:
             out["path"] = f"it leaves the path ({self.path_mean:.2f} m from it on average)"
         return out
+
+    def severity_by_kind(self) -> Dict[str, float]:
+        """How far past its limit each fault of :meth:`problems_by_kind` is, in its own measure:
+        steps per second outside the clip's band (or below MIN_STEPS_PER_S), the share of frames
+        short of FLOOR_SHARE, metres of hips beyond HIPS_SHARE of the clip's, metres of path beyond
+        PATH_LIMIT. Two walks with the same kind of fault can so be told apart by how bad it is."""
+        out = {}
+        for kind in self.problems_by_kind():
+            if kind == "steps":
+                c, s = self.clip_steps_per_s, self.steps_per_s
+                out[kind] = max(MIN_STEPS_PER_S - s, (STEP_RATIO[0] * c - s) if c else 0.0,
+                                (s - STEP_RATIO[1] * c) if c else 0.0)
+            elif kind == "floor":
+                out[kind] = FLOOR_SHARE - self.toe_on_floor
+            elif kind == "hips":
+                out[kind] = abs(self.hips - self.clip_hips) - HIPS_SHARE * self.clip_hips
+            else:
+                out[kind] = self.path_mean - PATH_LIMIT
+        return {k: float(v) for k, v in out.items()}
 
     def problems(self) -> List[str]:
         """What is wrong, in words ([] when it walks)."""
@@ -87,3 +111,15 @@ def walk_report(rollout, character: int, toes: Sequence[int], path: Optional[np.
     on_floor = float(np.mean(np.abs(toe) <= FLOOR_TOLERANCE))
     d = float(distance_to_path(rollout.root_positions[character, k0:], path).mean()) if path is not None else 0.0
     return WalkReport(float(steps), on_floor, float(np.median(P[:, 0, 1])), d, clip_steps_per_s, clip_hips)
+
+
+Faults = Union[Mapping[str, float], Collection[str]]
+
+
+def adds_faults(faults: Faults, reference: Faults) -> bool:
+    """Is a walk with ``faults`` worse than one with ``reference``: a kind of fault the reference
+    has not, or one it has, worse by more than WORSE_BY? Each is a mapping kind -> severity
+    (:meth:`WalkReport.severity_by_kind`) or a collection of kinds (each of severity 0)."""
+    f = faults if isinstance(faults, Mapping) else dict.fromkeys(faults, 0.0)
+    r = reference if isinstance(reference, Mapping) else dict.fromkeys(reference, 0.0)
+    return any(k not in r or v > r[k] + WORSE_BY.get(k, 0.0) for k, v in f.items())

@@ -178,3 +178,29 @@ def test_the_contrast_is_the_distance_to_the_clip_over_that_to_the_nearest_rival
         assert r.start_score == pytest.approx(to_clip / rival, rel=1e-6)
         assert r.start_distance == pytest.approx(to_clip, rel=1e-6)
         assert r.score <= r.start_score
+
+
+def test_the_refinement_refuses_a_walk_that_makes_the_starts_fault_worse(shared_data):
+    """The start's walk leaves the floor a little (severity 0.1); every other walk leaves it far more
+    (0.3: worse by more than WORSE_BY): the start is kept. Worse by less than the margin: it moves."""
+    from minifilm.evaluation.style_judge import motion_block, summaries
+    from minifilm.pipeline.motion_refit import RefitSettings, refine_by_motion
+    from minifilm.pipeline.refit_released import generated_motions
+    from minifilm.runtime.released import load_released
+    from minifilm.runtime.walk_checks import WORSE_BY
+    rel = load_released(shared_data / "released-lpn")
+    layout = FeatureLayout.for_skeleton(STYLE100)
+    motion, = generated_motions(rel, ["Zombie"], 6.0, script="straight")
+    clip = summaries(motion_block(motion, rel.stats, layout))
+    known = {n: rel.styles[n] for n in list(rel.styles)[:12] if n != "Zombie"}
+    settings = RefitSettings(directions=4, rounds=2, population=4, elite=2, seconds=3.0, dims=8)
+    start = next(iter(known.values()))
+
+    def floor(worse_by):
+        return lambda rollout, b: {"floor": 0.1 + (worse_by if b > 0 else 0.0)}
+    kept = refine_by_motion(rel.network, layout, rel.stats, start, known, clip, 1.3, settings,
+                            problems=floor(3 * WORSE_BY["floor"]))
+    np.testing.assert_array_equal(kept.film, np.asarray(start, np.float32))
+    moved = refine_by_motion(rel.network, layout, rel.stats, start, known, clip, 1.3, settings,
+                             problems=floor(0.5 * WORSE_BY["floor"]))
+    assert moved.score < moved.start_score and not np.array_equal(moved.film, np.asarray(start, np.float32))

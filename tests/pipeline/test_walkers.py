@@ -64,7 +64,7 @@ def test_walks_shared_with_workers_are_those_of_one_process(rel):
     assert any(alone[1]) and not all(alone[1]), "the check finds faults in some walks, not all"
     with WalkPool(rel.network, LAYOUT, rel.stats, workers=2) as pool:
         pending = pool.submit(films[:5], SPEED, SECONDS)
-        assert_same_walks(pending.result(), (alone[0][:5], [set()] * 5))
+        assert_same_walks(pending.result(), (alone[0][:5], [{}] * 5))
         assert_same_walks(pool.walk(films, SPEED, SECONDS, check), alone)
         pending = pool.submit(films[2:], SPEED, SECONDS, check)
         # a walk asked before the submitted ones were collected waits for them first
