@@ -18,7 +18,9 @@ styles the classifiers pick and which released styles lie nearest the clip, for 
 finetune keeps and for the one nearest the clip by Fréchet distance on the first half; also the
 style's next walk file (real, not taught from) judged the same way: what a perfect generator would
 score. --rollout-rounds N adds the vectors of N rounds of refitting at the states the network
-visits (minifilm/pipeline/rollout_refit.py) to the candidates. Pictures (benchmarks/teach_pictures.py):
+visits (minifilm/pipeline/rollout_refit.py) to the candidates; --probes N judges N more vectors
+near the released styles, none of them fitted, to ask whether any makes motion taken for the
+clip (add_probes). Pictures (benchmarks/teach_pictures.py):
 <style>.gif, the clip beside the result, and <style>.png, a contact sheet, in --out.
 """
 from __future__ import annotations
@@ -101,6 +103,46 @@ def add_rollout_rounds(rel, layout, taught, rounds: int, row: dict) -> None:
     print(f"    rollout refit: {time.perf_counter() - t0:.0f} s", flush=True)
 
 
+def add_probes(rel, taught, n: int, seed: int = 0) -> None:
+    """``n`` more vectors the network can walk join the candidates, to ask whether any vector near
+    the released styles makes motion the judge takes for the clip (a ceiling for teaching in that
+    region, not a fit): a third are blends of two of the 10 released styles nearest the kept vector
+    (weights 0.25-0.75), a third the kept vector moved along the 16 leading principal directions of
+    the released vectors (σ 0.4-1.2 of the styles' spread), a third the kept vector moved past each
+    of those 10 styles (1.0-1.5 times the way to it). Seeded, the same for every clip."""
+    from minifilm.pipeline.motion_refit import style_directions
+    rng = np.random.default_rng(seed)
+    names = list(rel.styles)
+    V = np.stack([rel.styles[m] for m in names]).astype(np.float64)
+    start = np.asarray(taught.film, np.float64)
+    near = V[np.argsort(np.linalg.norm(V - start, axis=1))[:10]]
+    directions, scales = style_directions(V, 16)
+    probes, k = [], n // 3
+    for _ in range(k):
+        a, b = rng.choice(10, 2, replace=False)
+        w = rng.uniform(0.25, 0.75)
+        probes.append(w * near[a] + (1 - w) * near[b])
+    for _ in range(k):
+        probes.append(start + (rng.uniform(0.4, 1.2) * rng.standard_normal(len(scales)) * scales) @ directions)
+    for _ in range(n - 2 * k):
+        probes.append(start + rng.uniform(1.0, 1.5) * (near[rng.integers(10)] - start))
+    for i in range(n):
+        taught.candidates.append({"label": f"probe {i + 1}"})
+    taught.candidate_films = np.concatenate([taught.candidate_films, np.stack(probes).astype(np.float32)])
+
+
+def print_ceiling(taught, judged, first_probe: int) -> dict:
+    """The best any probe (add_probes) reached: rank, recognition, and how many met both targets."""
+    probes = judged["candidates"][first_probe:]
+    met = [j for j in probes if j["rank"] == 1 and j["recognition_min"] >= 0.8]
+    best_rank = min(j["rank"] for j in probes)
+    best_rec = max(j["recognition_min"] for j in probes)
+    print(f"    {len(probes)} probe vectors: best rank {best_rank}, best recognition (min of seeds) {best_rec:.2f}; "
+          f"rank 1 and recognised >= 0.8: {len(met)}", flush=True)
+    return dict(probes=len(probes), best_rank=int(best_rank), best_recognition=float(best_rec), met=len(met),
+                rank1=int(sum(j["rank"] == 1 for j in probes)))
+
+
 def print_judged(style, taught, judged) -> None:
     print(f"    judged among {judged['n_styles']} styles (released styles ranking themselves first: "
           f"{judged['released_self']}/{judged['n_styles'] - 1}); the clip itself is nearest "
@@ -130,6 +172,10 @@ def main() -> None:
     ap.add_argument("--rollout-rounds", type=int, default=0,
                     help="also refit the kept vector at the states it visits, this many rounds "
                          "(minifilm/pipeline/rollout_refit.py); each round's vector is judged too")
+    ap.add_argument("--probes", type=int, default=0,
+                    help="also judge this many vectors near the released styles (blends of the clip's nearest "
+                         "styles, moves along their principal directions and past them): does any make motion "
+                         "taken for the clip? (a ceiling for teaching there)")
     ap.add_argument("--seeds", type=int, default=3, help="classifier seeds (the minimum recognition counts)")
     ap.add_argument("--motion", default="", help="settings of the refinement by motion other than finetune's, e.g. "
                                                  "'population=32,elite=8' (RefitSettings' fields)")
@@ -184,9 +230,16 @@ def main() -> None:
               flush=True)
         if args.rollout_rounds > 0:
             add_rollout_rounds(rel, layout, taught, args.rollout_rounds, row)
+        first_probe = len(taught.candidates)
+        if args.probes > 0:
+            add_probes(rel, taught, args.probes)
         if args.judge_seconds > 0:
             row["judged"] = judged = judge_taught(rel, layout, taught, args.judge_seconds, seeds=range(args.seeds),
                                                   unseen=unseen_summaries(rel, layout, style, args.files))
+            if args.probes > 0:
+                row["ceiling"] = print_ceiling(taught, judged, first_probe)
+                judged["candidates"] = judged["candidates"][:first_probe]       # the fit's own, printed below
+                taught.candidates = taught.candidates[:first_probe]
             print_judged(style, taught, judged)
     print(f"load {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
     if args.json:
