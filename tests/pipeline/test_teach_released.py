@@ -99,12 +99,11 @@ def test_a_released_style_is_found_again_from_its_own_motion(shared_data):
     assert r["output_rank"] == 1, r
 
 
-def test_refining_by_motion_brings_the_walk_nearer_the_clip(shared_data):
-    """motion_refit on a small scale: Zombie's own motion as the clip, the vector of the style the
-    network finds nearest by loss as the start. The distance to the clip's windows never grows
-    (the start is a candidate of every round), falls here, and a rerun gives the same vector."""
+def small_refit_case(shared_data):
+    """The released network, Zombie's own 6 s straight walk as the clip (window summaries), 11
+    other styles as the known ones, small search settings, and Rushed's vector as the start."""
     from minifilm.evaluation.style_judge import motion_block, summaries
-    from minifilm.pipeline.motion_refit import RefitSettings, refine_by_motion
+    from minifilm.pipeline.motion_refit import RefitSettings
     from minifilm.pipeline.refit_released import generated_motions
     from minifilm.runtime.released import load_released
     rel = load_released(shared_data / "released-lpn")
@@ -114,6 +113,15 @@ def test_refining_by_motion_brings_the_walk_nearer_the_clip(shared_data):
     known = {n: rel.styles[n] for n in list(rel.styles)[:12] if n != "Zombie"}
     settings = RefitSettings(directions=4, rounds=2, population=4, elite=2, seconds=3.0, dims=8)
     start = known["Rushed"] if "Rushed" in known else next(iter(known.values()))
+    return rel, layout, clip, known, settings, start
+
+
+def test_refining_by_motion_brings_the_walk_nearer_the_clip(shared_data):
+    """motion_refit on a small scale: Zombie's own motion as the clip, the vector of the style the
+    network finds nearest by loss as the start. The distance to the clip's windows never grows
+    (the start is a candidate of every round), falls here, and a rerun gives the same vector."""
+    from minifilm.pipeline.motion_refit import refine_by_motion
+    rel, layout, clip, known, settings, start = small_refit_case(shared_data)
     r = refine_by_motion(rel.network, layout, rel.stats, start, known, clip, 1.3, settings)
     assert r.film.shape == start.shape and np.all(np.isfinite(r.film))
     assert r.score < r.start_score and len(r.history) == 2
@@ -183,18 +191,9 @@ def test_the_contrast_is_the_distance_to_the_clip_over_that_to_the_nearest_rival
 def test_the_refinement_refuses_a_walk_that_makes_the_starts_fault_worse(shared_data):
     """The start's walk leaves the floor a little (severity 0.1); every other walk leaves it far more
     (0.3: worse by more than WORSE_BY): the start is kept. Worse by less than the margin: it moves."""
-    from minifilm.evaluation.style_judge import motion_block, summaries
-    from minifilm.pipeline.motion_refit import RefitSettings, refine_by_motion
-    from minifilm.pipeline.refit_released import generated_motions
-    from minifilm.runtime.released import load_released
+    from minifilm.pipeline.motion_refit import refine_by_motion
     from minifilm.runtime.walk_checks import WORSE_BY
-    rel = load_released(shared_data / "released-lpn")
-    layout = FeatureLayout.for_skeleton(STYLE100)
-    motion, = generated_motions(rel, ["Zombie"], 6.0, script="straight")
-    clip = summaries(motion_block(motion, rel.stats, layout))
-    known = {n: rel.styles[n] for n in list(rel.styles)[:12] if n != "Zombie"}
-    settings = RefitSettings(directions=4, rounds=2, population=4, elite=2, seconds=3.0, dims=8)
-    start = next(iter(known.values()))
+    rel, layout, clip, known, settings, start = small_refit_case(shared_data)
 
     def floor(worse_by):
         return lambda rollout, b: {"floor": 0.1 + (worse_by if b > 0 else 0.0)}
