@@ -199,10 +199,9 @@ def _teach(run: RunFolder, name: str, files: Sequence, steps: int, lr: float, se
     library.add_from_clips(name, tuned.model, data.clips)   # existing styles: stored vectors untouched
     refit = None
     if motion is not None:
-        log(f"[finetune] refining {name!r} by the motion it makes: {motion.rounds} rounds of {motion.population} walks")
         own = segments[::2] if with_mirror else segments       # the clip as recorded, not its mirror
         refit = refine_run_style(run, tuned.model, stats, library[name], {n: library[n] for n in library.names
-                                 if n != name}, own, motion, workers, log=lambda m: log("    " + m))
+                                 if n != name}, own, motion, workers, log=lambda m: log("[finetune] " + m))
         library.add(name, refit.film)
     share, worst = input_distance(data.x, run.layout)
     check = rollout_check(run, tuned.model, stats, library[name], start, segments)

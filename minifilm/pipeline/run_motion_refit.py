@@ -73,5 +73,6 @@ def refine_run_style(run: RunFolder, model, stats, film: np.ndarray, known: dict
                        straight_path(speed, settings.seconds + 1), steps_per_s, hips)
     network = RuntimeNetwork.from_model(model, stats)
     with WalkPool(network, run.layout, stats, workers, position_bias=run.position_bias) as pool:
+        log(f"refining by motion: {settings.rounds} rounds of {settings.population} walks{pool.sharing_words()} ...")
         return refine_by_motion(network, run.layout, stats, np.asarray(film, np.float64), known, windows, speed,
                                 settings, problems=check, pool=pool, log=log)

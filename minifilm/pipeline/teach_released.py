@@ -266,9 +266,7 @@ def _teach(rel, layout, name, clip, known, settings, prior_weights, choose_by_ro
     candidates[chosen]["chosen"] = True
     distance.known_losses = [own_loss(rel, r, len(films), ref, best_known)]
     if motion is not None:
-        shared = (f", shared with {len(pool.pids)} worker process{'es' if len(pool.pids) > 1 else ''} "
-                  f"(ids {', '.join(map(str, pool.pids))})") if pool.pids else ""
-        log(f"refining by motion: {motion.rounds} rounds of {motion.population} walks{shared} ...")
+        log(f"refining by motion: {motion.rounds} rounds of {motion.population} walks{pool.sharing_words()} ...")
         faults = FaultCheck(toes, straight_path(clip.speed, motion.seconds + 1), clip.steps_per_s, clip.hips)
         refit = refine_by_motion(rel.network, layout, rel.stats, film, known, windows, clip.speed, motion,
                                  known_summaries=dict(zip(names, known_walks.result()[0])), problems=faults,

@@ -217,6 +217,13 @@ class WalkPool(WorkerGroup):
                 pass
             segment.unlink()
 
+    def sharing_words(self) -> str:
+        """', shared with N worker process(es) (ids ...)' for a log line; '' without workers."""
+        if not self.pids:
+            return ""
+        return (f", shared with {len(self.pids)} worker process{'es' if len(self.pids) > 1 else ''} "
+                f"(ids {', '.join(map(str, self.pids))})")
+
     def submit(self, films: np.ndarray, speed: float, seconds: float, check: Optional[FaultCheck] = None) -> Pending:
         """Start the walks in the workers only (this process is free meanwhile); without workers,
         walk them now."""

@@ -238,6 +238,32 @@ def test_a_stopped_teaching_with_a_walk_worker_leaves_no_process_and_no_pack(sha
     assert not list(Path("/dev/shm").glob(f"minifilm_{proc.pid}_*"))      # the walks' shared weights
 
 
+@pytest.mark.parametrize("who,sig", FINETUNE_STOPS, ids=[f"{w}-{s.name}" for w, s in FINETUNE_STOPS])
+def test_a_stopped_run_refinement_with_a_walk_worker_leaves_no_process_and_the_run_as_it_was(
+        old_run, tmp_path, who, sig):
+    """finetune --run --motion-rounds with a walk worker, stopped while it refines: the run folder
+    is as it was (no new style, no checkpoint), no process and no shared memory is left."""
+    before = fingerprint(old_run)
+    proc = start(["finetune", "--run", old_run, "--name", "Taught", "--steps", "20", "--motion-rounds", "50",
+                  "--workers", "2", old_run / "data" / "Neutral_FW.bvh"])
+    seen = wait_for(proc, "[finetune] refining by motion")
+    pids = [int(p) for p in re.search(r"\(ids ([\d, ]+)\)", seen).group(1).split(",")]
+    assert len(pids) == 1
+    proc.send_signal(sig) if who == "parent" else os.kill(pids[0], sig)
+    rest, _ = proc.communicate(timeout=600)
+    if who == "parent":
+        assert proc.returncode == (130 if sig == signal.SIGINT else 143), rest[-800:]
+    else:
+        assert proc.returncode == 2, rest[-800:]
+        # (the refinement's first line comes as its pool starts: the worker may not have walked yet)
+        assert re.search(rf"walks: worker 0 \(process {pids[0]}\) was killed by SIGKILL while (starting|walking)",
+                         rest), rest[-800:]
+    assert "Traceback" not in rest, rest[-2000:]
+    assert not running(pids[0])
+    assert fingerprint(old_run) == before
+    assert not list(Path("/dev/shm").glob(f"minifilm_{proc.pid}_*"))
+
+
 RELEASED_STOPS = [("parent", signal.SIGINT), ("parent", signal.SIGTERM), ("group", signal.SIGINT),
                   ("worker", signal.SIGKILL)]
 

@@ -46,7 +46,7 @@ def test_the_refined_vector_moves_only_along_the_trained_styles_directions(train
     lines = []
     r = teach_style(refined, "Drunk", [clip], steps=10, motion=SMALL, log=lines.append)
     assert r.refit is not None and len(r.refit.history) == SMALL.rounds
-    assert any("refining 'Drunk' by the motion" in line for line in lines)
+    assert any(line.startswith("[finetune] refining by motion: 2 rounds of 4 walks") for line in lines), lines
     library = RunFolder.load(refined).styles()
     for name, vector in before.items():                 # the trained styles' vectors untouched
         np.testing.assert_array_equal(library[name], vector)
@@ -67,6 +67,6 @@ def test_a_run_at_another_rate_is_refused_before_anything_is_written(trained, cl
     meta["fps"] = 30.0
     (folder / "run.json").write_text(json.dumps(meta))
     digests = {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in folder.iterdir() if p.is_file()}
-    with pytest.raises(ValueError, match=r"--motion-rounds: the run is at 30 fps; the walks of the refinement are at 60"):
+    with pytest.raises(ValueError, match=r"--motion-rounds: the run is at 30 fps; the walks of the refinement are at"):
         teach_style(folder, "Drunk", [clip], steps=5, motion=SMALL, log=lambda m: None)
     assert {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in folder.iterdir() if p.is_file()} == digests
