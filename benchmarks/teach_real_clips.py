@@ -173,9 +173,9 @@ def main() -> None:
                     help="also refit the kept vector at the states it visits, this many rounds "
                          "(minifilm/pipeline/rollout_refit.py); each round's vector is judged too")
     ap.add_argument("--probes", type=int, default=0,
-                    help="also judge this many vectors near the released styles (blends of the clip's nearest "
-                         "styles, moves along their principal directions and past them): does any make motion "
-                         "taken for the clip? (a ceiling for teaching there)")
+                    help="also judge this many vectors near the released styles (blends of those nearest the "
+                         "kept vector, moves along their principal directions and past them): does any make "
+                         "motion taken for the clip? (a ceiling for teaching there)")
     ap.add_argument("--seeds", type=int, default=3, help="classifier seeds (the minimum recognition counts)")
     ap.add_argument("--motion", default="", help="settings of the refinement by motion other than finetune's, e.g. "
                                                  "'population=32,elite=8' (RefitSettings' fields)")
