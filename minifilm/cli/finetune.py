@@ -14,6 +14,9 @@ is resampled) are labelled (contacts, local phases), featurised, and Ψ is fine-
 with Ω and Φ frozen. NAME joins the run's style library: ``minifilm generate --run RUN --style
 NAME`` then uses it like any other style, and blends work. Existing styles keep their stored FiLM
 vectors exactly; the fine-tuned checkpoint is saved as RUN/model-NAME.npz, never over model.npz.
+With --motion-rounds N the new style's vector is then moved until the run's own walk in it looks
+like the clip, as a style taught to the released network is (pipeline/run_motion_refit.py; off
+by default for a run: Ψ alone, as the paper).
 """
 from __future__ import annotations
 
