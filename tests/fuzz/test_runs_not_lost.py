@@ -216,13 +216,13 @@ def test_a_stopped_dataset_build_with_workers_leaves_no_process_and_no_cache(bvh
 FINETUNE_STOPS = [("parent", signal.SIGINT), ("parent", signal.SIGTERM), ("worker", signal.SIGKILL)]
 
 
-@pytest.mark.parametrize("who,sig", FINETUNE_STOPS, ids=[f"{w}-{s.name}" for w, s in FINETUNE_STOPS])
-def test_a_stopped_teaching_with_a_walk_worker_leaves_no_process_and_no_pack(shared_data, tmp_path, who, sig):
-    pack = tmp_path / "pack"
-    clip = shared_data / "bandai2" / "dataset-2_walk_elderly_001.bvh"
-    proc = start(["finetune", "--params", shared_data / "released-lpn", "--name", "Taught", "--out", pack,
-                  "--steps", "20", "--motion-rounds", "50", "--workers", "2", clip])
-    seen = wait_for(proc, "refining by motion")
+def stop_while_refining(argv, marker: str, who: str, sig, killed_while: str = "walking") -> None:
+    """Start ``argv`` (finetune with one walk worker), stop it once ``marker`` is printed -- the
+    parent by ``sig``, or the worker killed -- and check the exit: 130 / 143, or 2 with one line
+    naming the worker (killed while ``killed_while``, a regular expression); no traceback, no
+    process and no shared memory left."""
+    proc = start(argv)
+    seen = wait_for(proc, marker)
     pids = [int(p) for p in re.search(r"\(ids ([\d, ]+)\)", seen).group(1).split(",")]
     assert len(pids) == 1
     proc.send_signal(sig) if who == "parent" else os.kill(pids[0], sig)
@@ -231,11 +231,21 @@ def test_a_stopped_teaching_with_a_walk_worker_leaves_no_process_and_no_pack(sha
         assert proc.returncode == (130 if sig == signal.SIGINT else 143), rest[-800:]
     else:
         assert proc.returncode == 2, rest[-800:]
-        assert re.search(rf"walks: worker 0 \(process {pids[0]}\) was killed by SIGKILL while walking", rest), rest[-800:]
+        assert re.search(rf"walks: worker 0 \(process {pids[0]}\) was killed by SIGKILL while {killed_while}",
+                         rest), rest[-800:]
     assert "Traceback" not in rest, rest[-2000:]
     assert not running(pids[0])
-    assert not pack.exists()
     assert not list(Path("/dev/shm").glob(f"minifilm_{proc.pid}_*"))      # the walks' shared weights
+
+
+@pytest.mark.parametrize("who,sig", FINETUNE_STOPS, ids=[f"{w}-{s.name}" for w, s in FINETUNE_STOPS])
+def test_a_stopped_teaching_with_a_walk_worker_leaves_no_process_and_no_pack(shared_data, tmp_path, who, sig):
+    pack = tmp_path / "pack"
+    clip = shared_data / "bandai2" / "dataset-2_walk_elderly_001.bvh"
+    stop_while_refining(["finetune", "--params", shared_data / "released-lpn", "--name", "Taught", "--out", pack,
+                         "--steps", "20", "--motion-rounds", "50", "--workers", "2", clip],
+                        "refining by motion", who, sig)
+    assert not pack.exists()
 
 
 @pytest.mark.parametrize("who,sig", FINETUNE_STOPS, ids=[f"{w}-{s.name}" for w, s in FINETUNE_STOPS])
@@ -244,24 +254,11 @@ def test_a_stopped_run_refinement_with_a_walk_worker_leaves_no_process_and_the_r
     """finetune --run --motion-rounds with a walk worker, stopped while it refines: the run folder
     is as it was (no new style, no checkpoint), no process and no shared memory is left."""
     before = fingerprint(old_run)
-    proc = start(["finetune", "--run", old_run, "--name", "Taught", "--steps", "20", "--motion-rounds", "50",
-                  "--workers", "2", old_run / "data" / "Neutral_FW.bvh"])
-    seen = wait_for(proc, "[finetune] refining by motion")
-    pids = [int(p) for p in re.search(r"\(ids ([\d, ]+)\)", seen).group(1).split(",")]
-    assert len(pids) == 1
-    proc.send_signal(sig) if who == "parent" else os.kill(pids[0], sig)
-    rest, _ = proc.communicate(timeout=600)
-    if who == "parent":
-        assert proc.returncode == (130 if sig == signal.SIGINT else 143), rest[-800:]
-    else:
-        assert proc.returncode == 2, rest[-800:]
-        # (the refinement's first line comes as its pool starts: the worker may not have walked yet)
-        assert re.search(rf"walks: worker 0 \(process {pids[0]}\) was killed by SIGKILL while (starting|walking)",
-                         rest), rest[-800:]
-    assert "Traceback" not in rest, rest[-2000:]
-    assert not running(pids[0])
+    # (the refinement's first line comes as its pool starts: the worker may not have walked yet)
+    stop_while_refining(["finetune", "--run", old_run, "--name", "Taught", "--steps", "20", "--motion-rounds", "50",
+                         "--workers", "2", old_run / "data" / "Neutral_FW.bvh"],
+                        "[finetune] refining by motion", who, sig, killed_while="(starting|walking)")
     assert fingerprint(old_run) == before
-    assert not list(Path("/dev/shm").glob(f"minifilm_{proc.pid}_*"))
 
 
 RELEASED_STOPS = [("parent", signal.SIGINT), ("parent", signal.SIGTERM), ("group", signal.SIGINT),
