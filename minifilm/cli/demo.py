@@ -15,9 +15,11 @@ stick moves, right stick turns, right trigger runs; pick a style, or blend three
 toggle foot locking and the skeleton fit. Each open page gets its own character (up to
 --max-characters); closing the page frees it. Ctrl-C stops the server.
 
-The page is served within a few seconds: the released network's speed calibration (per style)
-is measured in the background, printed here as it goes, and kept in the user's cache folder
-($XDG_CACHE_HOME/minifilm, or ~/.cache/minifilm; MINIFILM_CACHE overrides it) for the next start.
+The page is served within a few seconds. The speed calibration (per style) of the released
+network comes with the package; a trained run's, or a new style's, is measured in the background,
+printed here as it goes, and kept in the user's cache folder ($XDG_CACHE_HOME/minifilm, or
+~/.cache/minifilm; MINIFILM_CACHE overrides it) for the next start (--recalibrate measures every
+style again).
 
 Needs the websockets package: pip install 'minifilm[demo]'.
 """
@@ -26,7 +28,7 @@ from __future__ import annotations
 import sys
 
 from minifilm.cli.args import add_network_source, gif_path, in_range
-from minifilm.demo.calibration_cache import CalibrationCache
+from minifilm.demo.calibration_cache import SHIPPED, CalibrationCache
 from minifilm.demo.character import DemoSettings
 from minifilm.demo.record import record_gif
 from minifilm.demo.hosts import check_name, is_loopback
@@ -57,6 +59,9 @@ def add_arguments(ap) -> None:
     ap.add_argument("--no-fit", action="store_true", help="start with the skeleton fit off")
     ap.add_argument("--no-calibrate", action="store_true",
                     help="command the raw speed (the network then walks slower or faster than asked)")
+    ap.add_argument("--recalibrate", action="store_true",
+                    help="measure every style's speed calibration again (the package's and the cache's are not read; "
+                         "the new ones replace the cache's)")
     ap.add_argument("--record", type=gif_path, help="write a scripted session as an animated GIF instead of serving")
     ap.add_argument("--record-seconds", type=in_range(1.0, 60.0), default=5.0, help="length of --record, seconds")
 
@@ -69,6 +74,8 @@ def run(args) -> int:
     allow = [check_name(n) for n in args.allow_host]
     if args.record is not None:
         check_writable(args.record, "--record")
+    if args.recalibrate and args.no_calibrate:
+        raise InputError("--recalibrate measures the speed calibrations that --no-calibrate turns off: give one of them")
     if args.styles is not None and args.params is None:
         raise InputError("--styles (a style pack) is for --params; a run folder keeps its styles itself")
     source = DemoSource.released(args.params, calibrate=not args.no_calibrate, pack=args.styles) \
@@ -80,9 +87,8 @@ def run(args) -> int:
         path = record_gif(source, settings, args.record, seconds=args.record_seconds)
         print(f"recorded {args.record_seconds:g} s of {settings.style} -> {path}")
         return 0
-    cache = None
-    if source.calibrate and source.params is not None:
-        cache = CalibrationCache(source.params)
+    cache = CalibrationCache(source, shipped=None if args.recalibrate else SHIPPED,
+                             ignore_cached=args.recalibrate) if source.calibrate else None
     try:
         server = DemoServer(source, settings, host=host, port=args.port, max_characters=args.max_characters,
                             allow_hosts=allow, calibration_cache=cache)

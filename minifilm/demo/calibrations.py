@@ -6,8 +6,9 @@ The released network needs one (:func:`minifilm.runtime.calibration.calibrate_sp
 ``source.calibration_commands``). Measuring one for the released network takes about 2.4 s of
 CPU (27 characters for 8 s of frames: 481 steps of one batch, about 5 ms each). So nothing is
 measured before the server listens (it serves its page within a second or two): calibrations come
-from the cache of earlier runs (``calibration_cache.py``, keyed by a hash of the released
-network's files; a run's are measured at each start, about a second each), and the missing
+from the package (the released network's) or the cache of earlier runs (``calibration_cache.py``,
+keyed by a hash of the network and of each style; a run's styles are measured at its first
+start, about a second each), and the missing
 ones, the start style first, any other style the first time a page asks for it, are measured one
 batch step at a time (:func:`~minifilm.runtime.calibration.calibrate_speed_stepwise`) by the
 frame loop, in the time left before the next frame is due (:meth:`run_slice`, called by
@@ -146,8 +147,7 @@ class Calibrations:
 
     def _load_cache(self, first) -> None:
         if self.cache is not None:
-            # a pack's styles are measured anew each start: a style of that name may have been re-taught
-            cached = {n: c for n, c in self.cache.load().items() if n not in self.source.pack_names}
+            cached = self.cache.load()      # only entries whose style is unchanged (its vector's digest)
             with self._lock:
                 self._cal.update(cached)
                 self._memo.clear()
@@ -275,7 +275,7 @@ class Calibrations:
                   f"{f', {waited:.0f} s' if waited >= 1 else ''})")
 
     def _store(self, name: str, cal: SpeedCalibration) -> None:
-        if self.cache is not None and not self._closed and name not in self.source.pack_names:
+        if self.cache is not None and not self._closed:
             self.cache.put(name, cal)
 
     def command(self, velocity: np.ndarray, facing: np.ndarray, weights: Mapping[str, float]) -> np.ndarray:

@@ -65,17 +65,24 @@ def test_the_network_folder_is_only_read(params, pack):
     assert np.isfinite(load_released(params).styles["Neutral"]).all()
 
 
-def test_the_demo_source_holds_the_pack_styles_and_does_not_cache_them(params, pack, tmp_path):
+def test_the_demo_source_holds_the_pack_styles_and_caches_them_by_their_vector(params, pack, tmp_path):
     from minifilm.demo.calibration_cache import CalibrationCache
     from minifilm.demo.calibrations import Calibrations
     from minifilm.demo.source import DemoSource
-    from minifilm.runtime.calibration import SpeedCalibration
+    from minifilm.runtime.calibration import CALIBRATION_COMMANDS, CALIBRATION_DIRECTIONS, SpeedCalibration
     source = DemoSource.released(params, calibrate=True, pack=pack)
     assert source.library.names[-1] == "Mine" and len(source.library) == 101
     assert source.pack_names == ("Mine",) and "style pack" in source.name
-    cache = CalibrationCache(params, where=tmp_path)
-    cal = SpeedCalibration(np.array([0.0, 1.0]), np.array([[0.0, 1.0]]), (0.0,))
+    cache = CalibrationCache(source, where=tmp_path, shipped=None)
+    c = np.array(CALIBRATION_COMMANDS)
+    cal = SpeedCalibration(c, np.stack([0.4 * c] * len(CALIBRATION_DIRECTIONS)), CALIBRATION_DIRECTIONS)
     calibrations = Calibrations(source, background=False, cache=cache, log=lambda m: None)
     calibrations._store("Mine", cal)
     calibrations._store("Neutral", cal)
-    assert set(cache.entries) == {"Neutral"}
+    assert set(CalibrationCache(source, where=tmp_path, shipped=None).load()) == {"Mine", "Neutral"}
+    # another pack with a style of the same name and another vector: its entry is not used for it
+    rel = load_released(params)
+    other = tmp_path / "other"
+    StylePack.empty().with_style("Mine", rel.styles["Zombie"], {"taught_from": []}).save(other)
+    again = DemoSource.released(params, calibrate=True, pack=other)
+    assert set(CalibrationCache(again, where=tmp_path, shipped=None).load()) == {"Neutral"}

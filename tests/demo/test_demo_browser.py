@@ -40,7 +40,7 @@ def released():
 def server(tmp_path_factory):
     source = ["--params", RELEASED] if HAS_RELEASED else ["--run", make_tiny_run(tmp_path_factory.mktemp("tiny"))]
     s = DemoProcess(*source, "--max-characters", 4)
-    if HAS_RELEASED:       # the start style's speed calibration is measured in the background: wait for it
+    if HAS_RELEASED:       # the start style's speed calibration (from the package) is read on a thread: wait for it
         with DemoClient(s.url) as page:
             page.wait_for(lambda m: m.get("type") == "frame" and m["calibration"]["state"] != "measuring", 900)
     yield s

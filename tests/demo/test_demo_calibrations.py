@@ -100,14 +100,15 @@ def test_sources_without_calibration_pass_velocities_unchanged(tiny_source):
 
 def test_sigterm_ends_the_server_at_once_with_calibrations_queued(released_source):
     # One page asks for a mix of all 100 styles and then for ten single styles: measurements
-    # queue for the frame loop's idle time. SIGTERM must still end the server in seconds.
+    # (--recalibrate: none is taken from the package) queue for the frame loop's idle time.
+    # SIGTERM must still end the server in seconds.
     import signal
 
     from demo_helpers import RELEASED
     from minifilm.demo.client import DemoClient
     from minifilm.demo.process import DemoProcess
 
-    demo = DemoProcess("--params", RELEASED)
+    demo = DemoProcess("--params", RELEASED, "--recalibrate")
     try:
         with DemoClient(demo.url) as page:
             page.next_frame()

@@ -33,7 +33,8 @@ def test_help_names_the_controls_and_options(module):
                                   ["--run", "{run}", "--port", "http"], ["--run", "{run}", "--max-characters", "0"],
                                   ["--run", "{run}", "--walk-speed", "nan"], ["--run", "{run}", "--style", "Ninja"],
                                   ["--run", "{run}", "--record", "{run}/run.json/demo.gif"],
-                                  ["--run", "{run}", "--walk-speed", "3", "--run-speed", "1"], []])
+                                  ["--run", "{run}", "--walk-speed", "3", "--run-speed", "1"],
+                                  ["--run", "{run}", "--recalibrate", "--no-calibrate"], []])
 def test_bad_input_is_one_line_and_exit_code_2(argv, tmp_path, tiny_run):
     proc = minifilm(*[a.format(missing=tmp_path / "missing", run=tiny_run) for a in argv])
     assert proc.returncode == 2, proc.stderr

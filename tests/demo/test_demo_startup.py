@@ -1,5 +1,5 @@
 """Start-up and honest read-outs: the calibration cache (minifilm/demo/calibration_cache.py)
-keyed by the network's files, written atomically, a corrupt one ignored with a warning; the
+keyed by the network, how it is driven and each style, written atomically, a corrupt one ignored with a warning; the
 demo command serves its page without measuring anything first; a command beyond what the style
 can reach is scaled and said; the frames carry what the page needs for its read-outs."""
 import json
@@ -13,84 +13,119 @@ import pytest
 
 from demo_helpers import RELEASED, released_source, tiny_source  # noqa: F401  (fixtures)
 from minifilm.demo import calibrations
-from minifilm.demo.calibration_cache import CALIBRATION_VERSION, CalibrationCache, max_speed, network_key
+from minifilm.demo.calibration_cache import (CALIBRATION_VERSION, CalibrationCache, calibration_key, max_speed,
+                                             style_digest)
 from minifilm.demo.calibrations import Calibrations
 from minifilm.demo.character import REACHABLE, Character, DemoSettings, RateCounter
 from minifilm.demo.protocol import InputMessage
 from minifilm.demo.server import held_out
-from minifilm.runtime.calibration import CALIBRATION_COMMANDS, CALIBRATION_DIRECTIONS, SpeedCalibration
+from minifilm.runtime.calibration import (CALIBRATION_COMMANDS, CALIBRATION_DIRECTIONS, RUN_CALIBRATION_COMMANDS,
+                                          SpeedCalibration)
+from minifilm.runtime.heading import HeadingFollow
+from minifilm.runtime.network import RuntimeNetwork
+from minifilm.runtime.style_library import StyleLibrary
 
 
-def fake(name="Neutral", k=1.0):
+def fake(name="Neutral", k=1.0, commands=CALIBRATION_COMMANDS):
     """A calibration at the commands and directions really measured: forwards up to 1.8 m/s,
     sideways 1.2, backwards 1.0."""
-    c = np.array(CALIBRATION_COMMANDS)
+    c = np.array(commands)
     achieved = np.stack([np.minimum(0.45 * c, top) for top in (1.8, 1.2, 1.0)])
     return SpeedCalibration(c, k * achieved, CALIBRATION_DIRECTIONS)
 
 
-@pytest.fixture
-def network(tmp_path):
-    folder = tmp_path / "net"
-    folder.mkdir()
-    (folder / "a.bin").write_bytes(b"\x00" * 64)
-    (folder / "b.bin").write_bytes(b"\x01" * 64)
-    return folder
+def run_fake(k=1.0):
+    return fake(k=k, commands=RUN_CALIBRATION_COMMANDS)
 
 
-def test_the_key_changes_with_any_file_of_the_network(network):
-    key = network_key(network)
-    assert network_key(network) == key
-    (network / "b.bin").write_bytes(b"\x01" * 63 + b"\x02")
-    assert network_key(network) != key
-    (network / "b.bin").write_bytes(b"\x01" * 64)
-    (network / "c.bin").write_bytes(b"")
-    assert network_key(network) != key
+def test_the_key_follows_the_network_and_how_it_is_driven(tiny_source):
+    key = calibration_key(tiny_source)
+    assert len(key) == 20 and calibration_key(tiny_source) == key
+    assert calibration_key(replace(tiny_source, network=RuntimeNetwork.from_arrays(tiny_source.network.to_arrays()))) == key
+    arrays = tiny_source.network.to_arrays()
+    arrays["expert.W1"] = arrays["expert.W1"].copy()
+    arrays["expert.W1"][0, 3, 5] = np.nextafter(arrays["expert.W1"][0, 3, 5], np.inf)     # one weight, one bit
+    assert calibration_key(replace(tiny_source, network=RuntimeNetwork.from_arrays(arrays))) != key
+    assert calibration_key(replace(tiny_source, fps=30.0)) != key
+    assert calibration_key(replace(tiny_source, calibration_commands=(0.5, 1.0))) != key
+    options = dict(tiny_source.options, position_bias=tiny_source.options["position_bias"] + 0.25)
+    assert calibration_key(replace(tiny_source, options=options)) != key
+    options = dict(tiny_source.options, heading_follow=HeadingFollow(tau=0.3))
+    assert calibration_key(replace(tiny_source, options=options)) != key
 
 
-def test_a_cache_round_trips_and_is_written_atomically(network, tmp_path):
+def test_a_style_entry_follows_its_vector_and_start(tiny_source, tmp_path):
+    name = tiny_source.default_style()
+    cache = CalibrationCache(tiny_source, tmp_path)
+    cache.put(name, run_fake())
+    assert sorted(CalibrationCache(tiny_source, tmp_path).load()) == [name]
+    films = {n: tiny_source.library[n] for n in tiny_source.library.names}
+    films[name] = films[name] * 1.01                                 # re-taught under the same name
+    retaught = replace(tiny_source, library=StyleLibrary(films))
+    assert CalibrationCache(retaught, tmp_path).load() == {}
+    x, p = tiny_source.starts[name]                                  # the run has start frames
+    moved = replace(tiny_source, starts=dict(tiny_source.starts, **{name: (x + 0.01, p)}))
+    assert CalibrationCache(moved, tmp_path).load() == {}
+
+
+def test_a_cache_round_trips_and_is_written_atomically(tiny_source, tmp_path):
     where = tmp_path / "cache"
-    cache = CalibrationCache(network, where)
+    a, b = tiny_source.library.names[:2]
+    cache = CalibrationCache(tiny_source, where)
     assert cache.load() == {}
-    cache.put("Neutral", fake())
-    cache.put("Zombie", fake(k=0.5))
+    cache.put(a, run_fake())
+    cache.put(b, run_fake(k=0.5))
     assert sorted(p.name for p in where.iterdir()) == [cache.path.name]     # no temporary left
-    again = CalibrationCache(network, where).load()
-    assert sorted(again) == ["Neutral", "Zombie"]
-    np.testing.assert_allclose(again["Zombie"].achieved, fake(k=0.5).achieved)
-    assert again["Neutral"].command_for(1.0) == pytest.approx(fake().command_for(1.0))
+    again = CalibrationCache(tiny_source, where).load()
+    assert sorted(again) == sorted([a, b])
+    np.testing.assert_allclose(again[b].achieved, run_fake(k=0.5).achieved)
+    assert again[a].command_for(1.0) == pytest.approx(run_fake().command_for(1.0))
+
+
+def test_recalibrating_reads_no_entry_and_keeps_the_others(tiny_source, tmp_path):
+    a, b = tiny_source.library.names[:2]
+    cache = CalibrationCache(tiny_source, tmp_path)
+    cache.put(a, run_fake())
+    cache.put(b, run_fake())
+    fresh = CalibrationCache(tiny_source, tmp_path, ignore_cached=True)
+    assert fresh.load() == {}
+    fresh.put(a, run_fake(k=0.5))                                   # measured again: replaces a, keeps b
+    again = CalibrationCache(tiny_source, tmp_path).load()
+    np.testing.assert_allclose(again[a].achieved, run_fake(k=0.5).achieved)
+    np.testing.assert_allclose(again[b].achieved, run_fake().achieved)
 
 
 @pytest.mark.parametrize("content", [
     b"{not json", b"", b"[]", json.dumps({"version": "other", "styles": {}}).encode(),
-    json.dumps({"version": CALIBRATION_VERSION, "styles": {"N": {"commanded": [1, 2], "achieved": [[1]],
+    json.dumps({"version": CALIBRATION_VERSION, "styles": {"N": {"style": "0", "commanded": [1, 2], "achieved": [[1]],
                                                                  "directions": [0]}}}).encode(),
-    json.dumps({"version": CALIBRATION_VERSION, "styles": {"N": {"commanded": [1], "achieved": [[1e400]],
+    json.dumps({"version": CALIBRATION_VERSION, "styles": {"N": {"style": "0", "commanded": [1], "achieved": [[1e400]],
                                                                  "directions": [0]}}}).encode(),
     b"[" * 100000,
 ])
-def test_a_corrupt_cache_is_ignored_with_one_warning(network, tmp_path, capsys, content):
-    cache = CalibrationCache(network, tmp_path / "cache")
+def test_a_corrupt_cache_is_ignored_with_one_warning(tiny_source, tmp_path, capsys, content):
+    name = tiny_source.default_style()
+    cache = CalibrationCache(tiny_source, tmp_path / "cache")
     cache.path.parent.mkdir(parents=True)
     cache.path.write_bytes(content)
     assert cache.load() == {}
     err = capsys.readouterr().err
     assert err.count("warning: ignoring the speed calibration cache") == 1 and "Traceback" not in err
-    cache.put("Neutral", fake())                         # and it is rewritten whole
-    assert sorted(CalibrationCache(network, tmp_path / "cache").load()) == ["Neutral"]
+    cache.put(name, run_fake())                         # and it is rewritten whole
+    assert sorted(CalibrationCache(tiny_source, tmp_path / "cache").load()) == [name]
 
 
-def test_a_cache_that_is_not_a_regular_file_is_ignored(network, tmp_path, capsys):
-    cache = CalibrationCache(network, tmp_path / "cache")
+def test_a_cache_that_is_not_a_regular_file_is_ignored(tiny_source, tmp_path, capsys):
+    cache = CalibrationCache(tiny_source, tmp_path / "cache")
     cache.path.mkdir(parents=True)
     assert cache.load() == {}
     assert "ignoring" in capsys.readouterr().err
 
 
-def test_an_unwritable_cache_folder_is_a_warning_not_an_error(network, tmp_path, capsys):
+def test_an_unwritable_cache_folder_is_a_warning_not_an_error(tiny_source, tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("x")
-    CalibrationCache(network, blocker / "cache").put("Neutral", fake())
+    CalibrationCache(tiny_source, blocker / "cache").put(tiny_source.default_style(), run_fake())
     assert "could not write the speed calibration cache" in capsys.readouterr().err
 
 
@@ -106,17 +141,17 @@ def test_the_cache_folder_follows_xdg_cache_home(monkeypatch, tmp_path):
 def test_cached_styles_are_not_measured_again(released_source, tmp_path, monkeypatch):
     measured = []
     monkeypatch.setattr(calibrations, "measure", lambda source, name: measured.append(name) or fake())
-    cache = CalibrationCache(RELEASED, tmp_path)
+    cache = CalibrationCache(released_source, tmp_path, shipped=None)
     Calibrations(released_source, first=["Neutral"], background=False, cache=cache)
     assert measured == ["Neutral"]
-    cal = Calibrations(released_source, first=["Neutral"], background=False, cache=CalibrationCache(RELEASED, tmp_path))
+    cal = Calibrations(released_source, first=["Neutral"], background=False, cache=CalibrationCache(released_source, tmp_path, shipped=None))
     assert measured == ["Neutral"] and cal.has("Neutral")
     assert cal.progress() == {"state": "done", "done": 0, "total": 0, "measuring": None, "known": 1}
 
 
-def tampered(how):
-    """The cache entry of fake() changed as a hostile or broken file would change it."""
-    entry = {"commanded": list(CALIBRATION_COMMANDS), "achieved": fake().achieved[:, 1:].tolist(),
+def tampered(how, style="0123456789abcdef"):
+    """The cache entry of fake() for ``style`` (a digest) changed as a hostile or broken file would change it."""
+    entry = {"style": style, "commanded": list(CALIBRATION_COMMANDS), "achieved": fake().achieved[:, 1:].tolist(),
              "directions": list(CALIBRATION_DIRECTIONS)}
     if how == "zeros":
         entry["achieved"] = np.zeros_like(fake().achieved[:, 1:]).tolist()
@@ -137,20 +172,23 @@ def tampered(how):
 def test_a_tampered_cache_is_refused_and_measured_again(released_source, tmp_path, monkeypatch, capsys, how):
     measured = []
     monkeypatch.setattr(calibrations, "measure", lambda source, name: measured.append(name) or fake())
-    cache = CalibrationCache(RELEASED, tmp_path)
-    cache.path.write_text(json.dumps({"version": CALIBRATION_VERSION, "styles": {"Neutral": tampered(how)}}))
-    cal = Calibrations(released_source, first=["Neutral"], background=False, cache=CalibrationCache(RELEASED, tmp_path))
+    cache = CalibrationCache(released_source, tmp_path, shipped=None)
+    entry = tampered(how, style_digest(released_source, "Neutral"))
+    cache.path.write_text(json.dumps({"version": CALIBRATION_VERSION, "styles": {"Neutral": entry}}))
+    cal = Calibrations(released_source, first=["Neutral"], background=False, cache=CalibrationCache(released_source, tmp_path, shipped=None))
     assert measured == ["Neutral"], how                        # not taken from the file: measured again
     assert "warning: ignoring the speed calibration cache" in capsys.readouterr().err
     assert max_speed(cal._cal["Neutral"], 0.0) == pytest.approx(1.8)
-    again = CalibrationCache(RELEASED, tmp_path).load()        # and the file now holds the measurement
+    again = CalibrationCache(released_source, tmp_path, shipped=None).load()        # and the file now holds the measurement
     np.testing.assert_allclose(again["Neutral"].achieved, fake().achieved)
 
 
 def test_an_untampered_entry_is_read_back():
     assert tampered("none")["commanded"] == list(CALIBRATION_COMMANDS)
     from minifilm.demo.calibration_cache import _from_json
-    np.testing.assert_allclose(_from_json(tampered("none")).achieved, fake().achieved)
+    np.testing.assert_allclose(_from_json(tampered("none"), CALIBRATION_COMMANDS).achieved, fake().achieved)
+    with pytest.raises(ValueError, match="not the measured"):
+        _from_json(tampered("none"), RUN_CALIBRATION_COMMANDS)
 
 
 def test_max_speed_reads_the_fastest_measured_per_direction():
@@ -200,13 +238,36 @@ def test_held_out_styles_are_named_as_what_is_known_of_them():
     assert held_out(["Neutral", "LeftHop"]) == {}
 
 
-def test_the_released_demo_serves_its_page_without_measuring_first(tmp_path):
-    """No speed calibration before the URL: the command's own start-up is loading the network and
-    binding (timings are for benchmarks/demo_startup.py; here: what happens before the URL)."""
+def test_the_released_demo_starts_calibrated_from_the_package(tmp_path):
+    """The released network's calibrations come with the package: every style is known at the
+    first frame, nothing is measured, nothing is written to the cache."""
+    from minifilm.demo.client import DemoClient
     from minifilm.demo.process import DemoProcess
     if not (RELEASED / "Xmean.bin").is_file():
         pytest.skip("needs the released network")
     with DemoProcess("--params", RELEASED, cache=tmp_path) as demo:
+        with DemoClient(demo.url) as page:
+            end = time.monotonic() + 120
+            frame = page.next_frame()
+            while frame["calibration"]["known"] < 100 and time.monotonic() < end:   # the cache is read on a thread
+                frame = page.next_frame()
+            assert frame["calibration"] == {"state": "done", "done": 0, "total": 0, "measuring": None, "known": 100}
+            page.send({"type": "style", "weights": {"Zombie": 0.5, "Old": 0.3, "Drunk": 0.2}})
+            for _ in range(30):
+                frame = page.next_frame()
+            assert frame["calibration"]["state"] == "done" and frame["calibration"]["total"] == 0
+        assert "measuring the speed calibration" not in "".join(demo.lines)
+    assert os.listdir(tmp_path) == []
+
+
+def test_the_released_demo_serves_its_page_without_measuring_first(tmp_path):
+    """With --recalibrate, no speed calibration before the URL: the command's own start-up is
+    loading the network and binding (timings are for benchmarks/demo_startup.py; here: what
+    happens before the URL), then the start style is measured and cached."""
+    from minifilm.demo.process import DemoProcess
+    if not (RELEASED / "Xmean.bin").is_file():
+        pytest.skip("needs the released network")
+    with DemoProcess("--params", RELEASED, "--recalibrate", cache=tmp_path) as demo:
         end = time.monotonic() + 60
         while "speed calibration of Neutral in the background" not in "".join(demo.lines) \
                 and time.monotonic() < end:
