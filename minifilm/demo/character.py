@@ -227,8 +227,9 @@ class Character:
         if running:
             name = " + ".join(n for n, w in sorted(weights.items(), key=lambda nw: -nw[1]) if w > 0.01)
             top = "" if self.max_speed is None else f"; walking it goes at most {self.max_speed:.2f} m/s"
-            self.speed_note = (f"Shift: {name} runs at this network's own running pace for it (the actual "
-                               f"speed; reports/2026-12-04_released_run_speed.md){top}")
+            self.speed_note = (f"Shift: {name} runs at this network's own running pace for it (the speed "
+                               f"shown); it cannot run faster: no command, nor a faster run shown to it, makes it "
+                               f"(measured: reports/2026-12-04_released_run_speed.md){top}")
 
     def _reachable(self, velocity: np.ndarray, facing: np.ndarray, weights) -> np.ndarray:
         """The held velocity, scaled down to ``REACHABLE`` of the fastest the mix was measured to go

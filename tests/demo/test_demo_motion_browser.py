@@ -5,8 +5,8 @@ Checked, from every frame the page receives (captured off the page's WebSocket):
 with nothing held, the character stops within about a second and then stands for 5 s (root speed
 under 0.05 m/s, no contact changes); Shift+W for 4 s reaches at least 90 % of the commanded run
 speed (every length of time is the character's own, counted in network steps: a loaded machine
-only makes the test slower), or of the style's measured top speed when it cannot run that fast (the frame then says
-so); and the page is served within 3 s of the command starting (the speed calibration no longer
+only makes the test slower), or, when the network cannot run that fast (the frame then says so),
+runs faster than its fastest walk with both feet off the ground at times; and the page is served within 3 s of the command starting (the speed calibration no longer
 runs before it).
 """
 import json
@@ -22,7 +22,7 @@ from repo_paths import need_data
 from minifilm.demo.process import DemoProcess
 
 STAND_SPEED = 0.05
-CALIBRATION_WAIT = 900.0       # s: a cold calibration on a busy two-core machine (bounded, generous)
+CALIBRATION_WAIT = 300.0       # s: the package's calibrations read on a busy two-core machine (generous)
 
 
 @pytest.fixture(scope="module")
@@ -49,7 +49,7 @@ def contact_changes(frames):
 @pytest.fixture(scope="module")
 def page(browser, demo):
     p = DemoPage(browser, demo.url, 800, 500, keep_frames=True)
-    # the speed calibration of the start style, measured in the frame loop's idle time, must be there first
+    # the speed calibration of the start style (from the package, read on a thread) must be there first
     p.wait(lambda: p.frames[-1]["calibration"]["state"] == "done", CALIBRATION_WAIT, poll=0.1)
     yield p
     p.close()
@@ -94,6 +94,12 @@ def test_shift_w_runs_at_the_commanded_speed_or_the_styles_stated_top(page):
     # per simulated second (frame numbers count network steps): the run itself, whatever the load
     simulated = distance / ((tail[-1]["n"] - tail[0]["n"]) / 60.0)
     assert simulated >= 0.9 * target, (simulated, target, last["speedNote"])
+    if last["maxSpeed"] is not None and last["maxSpeed"] < 2.8:
+        # it runs, not a walk at its cap: faster than the fastest walk measured, with flight phases
+        assert simulated > 1.05 * last["maxSpeed"], (simulated, last["maxSpeed"])
+        assert "cannot run faster" in last["speedNote"]
+        contacts = np.array([f["contacts"] for f in tail])
+        assert np.any(np.all(contacts < 0.5, axis=1)), "no frame with both feet off the ground"
     # per real second: the same while no step was dropped; when the machine could not keep up,
     # the page was told so (the frames carry the steps dropped)
     reached = distance / (tail[-1]["t"] - tail[0]["t"])

@@ -55,6 +55,7 @@ def test_shift_blends_the_run_feed_in_and_out_and_says_what_it_does(released_sou
     frame, _ = ch.step(steps=n)
     assert ch.run_feed == 1.0 and ch.ctrl.run_feed_speed == released_source.run_feed_speed
     assert "Shift: Neutral runs at this network's own running pace" in frame["speedNote"]
+    assert "it cannot run faster" in frame["speedNote"]                  # said plainly, not a cap
     assert "1.80" in frame["speedNote"]                                 # what the walk's calibration tops at
     ch.submit(InputMessage((0.0, 1.0), 0.0, 0.0, seq=3))                 # Shift let go
     ch.step(steps=n + 1)
