@@ -3,7 +3,8 @@
 
 Checked: the camera swings behind the body's facing, not the steered heading, while Q runs the
 heading ahead of the body; the path ahead (predicted trajectory and the held keys' path) is drawn
-and the checkbox and T hide and show it; at 800 x 600 (and larger) every control of the panel is in the window
+and the checkbox and T hide and show it; the "real time" row gives the steps per second and says
+when the loop is behind or dropped steps (slow motion); at 800 x 600 (and larger) every control of the panel is in the window
 (foot locking and "back to the start" included) and a speed note moves none of the read-outs; the
 character has the same colour on every connection. Every wait is for a condition, never for a
 length of time, so a loaded machine is only slower.
@@ -174,26 +175,32 @@ NOTE = ("Neutral 50 % + Old 50 % goes at most 1.80 m/s this way (its speed calib
         "for is scaled to 1.71")
 
 
-def with_speed_note(ws):
-    """Route the page's socket through the test: after the page's first input message, every
-    frame from the server carries a long speed note (as a scaled command does)."""
+def rewriting(**fields):
+    """A route for the page's socket through the test: after the page's first input message, every
+    frame from the server carries ``fields`` (as the server sends them in the case shown)."""
     import json
-    server = ws.connect_to_server()
-    state = {"on": False}
 
-    def to_server(message):
-        if '"input"' in message:
-            state["on"] = True
-        server.send(message)
+    def route(ws):
+        server = ws.connect_to_server()
+        state = {"on": False}
 
-    def to_page(message):
-        if state["on"] and '"type":"frame"' in message:
-            f = json.loads(message)
-            f.update(speedNote=NOTE, reachable=1.7123, maxSpeed=1.8, commanded=12.3456)
-            message = json.dumps(f)
-        ws.send(message)
-    ws.on_message(to_server)
-    server.on_message(to_page)
+        def to_server(message):
+            if '"input"' in message:
+                state["on"] = True
+            server.send(message)
+
+        def to_page(message):
+            if state["on"] and '"type":"frame"' in message:
+                f = json.loads(message)
+                f.update(fields)
+                message = json.dumps(f)
+            ws.send(message)
+        ws.on_message(to_server)
+        server.on_message(to_page)
+    return route
+
+
+with_speed_note = rewriting(speedNote=NOTE, reachable=1.7123, maxSpeed=1.8, commanded=12.3456)
 
 
 def test_a_speed_note_moves_none_of_the_read_outs(browser, server):
@@ -228,3 +235,30 @@ def test_the_character_has_the_same_colour_on_every_connection(browser, server):
         assert second.js("minifilmDemo.shownColour()") == colour            # ...the same colour
     finally:
         second.close()
+
+
+def test_the_real_time_row_says_the_steps_per_second_and_when_it_falls_behind(browser, server):
+    p = DemoPage(browser, server.url)
+    try:      # as the server sends it: its own steps per second, no warning while none is dropped
+        # the read-outs are redrawn 10 times a second from the newest frame: wait for one that shows it
+        p.wait("(() => { const f = minifilmDemo.frame, row = document.getElementById('realtime'); return f && "
+               "row.textContent.startsWith(`${f.stepsPerSecond} steps / s`) && "
+               "row.classList.contains('warn') === (f.dropped > 0); })()")
+        rate = p.js("minifilmDemo.frame.stepsPerSecond")
+        assert 0 < rate <= 70, rate
+    finally:
+        p.close()
+    cases = [(dict(stepsPerSecond=48, behind=20, dropped=0), "48 steps / s, 20 behind, catching up", False),
+             (dict(stepsPerSecond=31, behind=30, dropped=12),
+              "31 steps / s: 12 dropped in the last second, slow motion (the machine is too busy)", True)]
+    for fields, said, warned in cases:
+        p = DemoPage(browser, server.url, route=rewriting(**fields))
+        try:
+            p.wait("document.getElementById('commanded').textContent.endsWith('m/s')")
+            p.page.keyboard.down("KeyW")                # the first input: from now on the frames say so
+            p.wait(f"document.getElementById('realtime').textContent === {said!r}")
+            p.page.keyboard.up("KeyW")
+            assert ("warn" in p.js("document.getElementById('realtime').className")) is warned
+            assert p.errors() == []
+        finally:
+            p.close()
