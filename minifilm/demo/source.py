@@ -42,8 +42,9 @@ class DemoSource:
     calibrate: map the user's m/s through a per-style speed calibration.
     calibration_commands: the commanded speeds (m/s) a calibration measures.
     starts: style -> (x (x_dim,), p (8,)) raw start frame; styles without one start from the mean pose.
-    params: the released folder (the calibration cache is keyed by its files).
-    pack: a style pack folder whose styles join the released network's (its worker loads it too).
+    params: the released folder (None for a run).
+    pack: a style pack folder whose styles join the released network's (its worker loads it too);
+    pack_names: those styles' names.
     run_feed_speed: m/s of the perfect run fed as the trajectory input while Shift is held
         (``Controller.run_feed``): the released network runs only when shown a run; None: Shift
         is only a faster command.
