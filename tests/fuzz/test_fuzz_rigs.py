@@ -124,6 +124,13 @@ def test_the_cmu_layout_through_the_commands(shared_data, tmp_path, capsys):
     write_bvh(m, path, scale=0.01)
     code, io = _cli(["retarget", path, "--to", "100style", "--out", tmp_path / "out"], capsys)
     assert code == 0 and (tmp_path / "out" / "cmu_layout.bvh").is_file(), io.err
+    # the same body on the same-sized skeleton: each end and the neck where the file has it (the
+    # file's spine is two joints shorter and its neck three long, so the bend is shared out
+    # differently: 3-7 cm; a limb or the head on the wrong chain is 20 cm and more off)
+    out = read_bvh(tmp_path / "out" / "cmu_layout.bvh", scale=0.01)
+    for name in ("Head", "Neck", "RightWrist", "LeftWrist", "RightAnkle", "LeftAnkle"):
+        off = np.linalg.norm(out.world()[0][:, out.names.index(name)] - m.world()[0][:, m.names.index(name)], axis=-1)
+        assert off.max() < 0.10, (name, off.max())
     code, io = _cli(["view", path, "--on", "100style", "--html", tmp_path / "on.html"], capsys)
     assert code == 0 and (tmp_path / "on.html").is_file(), io.err
 
