@@ -133,6 +133,12 @@ def _from_json(entry, commands) -> SpeedCalibration:
     return SpeedCalibration(c, a, tuple(d.tolist()))
 
 
+def file_text(entries: Dict[str, dict]) -> str:
+    """A calibration file's JSON, one style a line (the package's file reads well in a diff)."""
+    lines = [f"  {json.dumps(name)}: {json.dumps(entry, allow_nan=False)}" for name, entry in entries.items()]
+    return f'{{"version": {json.dumps(CALIBRATION_VERSION)}, "styles": {{\n' + ",\n".join(lines) + "\n}}\n"
+
+
 class CalibrationCache:
     """The cached calibrations of one DemoSource's styles; ``load()`` then ``put()`` as styles are
     measured. ``where``: the cache folder (default :func:`cache_folder`); ``shipped``: the folder of
@@ -198,7 +204,7 @@ class CalibrationCache:
         if self.path is None:
             return
         self.entries[name] = _to_json(cal, style_digest(self.source, name))
-        text = json.dumps({"version": CALIBRATION_VERSION, "styles": self.entries}, allow_nan=False)
+        text = file_text(self.entries)
         try:
             with owned_writes(self.path):    # the demo owns its cache (minifilm/files/state.py)
                 atomic_write_text(self.path, text, "calibration cache")
