@@ -75,7 +75,8 @@ def run(args) -> int:
     if args.record is not None:
         check_writable(args.record, "--record")
     if args.recalibrate and args.no_calibrate:
-        raise InputError("--recalibrate measures the speed calibrations that --no-calibrate turns off: give one of them")
+        raise InputError("--recalibrate measures the speed calibrations that --no-calibrate turns off: "
+                         "give one of them")
     if args.styles is not None and args.params is None:
         raise InputError("--styles (a style pack) is for --params; a run folder keeps its styles itself")
     source = DemoSource.released(args.params, calibrate=not args.no_calibrate, pack=args.styles) \

@@ -86,7 +86,8 @@ def calibration_key(source) -> Optional[str]:
         h.update(a.tobytes())
     layout = source.layout
     driven = {"fps": float(source.fps), "joints": list(layout.joint_names), "parents": list(layout.parents),
-              "trajectory": list(layout.trajectory_seconds), "commands": [float(c) for c in source.calibration_commands],
+              "trajectory": list(layout.trajectory_seconds),
+              "commands": [float(c) for c in source.calibration_commands],
               "directions": list(CALIBRATION_DIRECTIONS),
               "options": {k: _plain(v) for k, v in sorted(source.options.items())}}
     h.update(json.dumps(driven, sort_keys=True).encode())

@@ -41,7 +41,8 @@ def run_fake(k=1.0):
 def test_the_key_follows_the_network_and_how_it_is_driven(tiny_source):
     key = calibration_key(tiny_source)
     assert len(key) == 20 and calibration_key(tiny_source) == key
-    assert calibration_key(replace(tiny_source, network=RuntimeNetwork.from_arrays(tiny_source.network.to_arrays()))) == key
+    reloaded = RuntimeNetwork.from_arrays(tiny_source.network.to_arrays())
+    assert calibration_key(replace(tiny_source, network=reloaded)) == key
     arrays = tiny_source.network.to_arrays()
     arrays["expert.W1"] = arrays["expert.W1"].copy()
     arrays["expert.W1"][0, 3, 5] = np.nextafter(arrays["expert.W1"][0, 3, 5], np.inf)     # one weight, one bit
@@ -144,7 +145,8 @@ def test_cached_styles_are_not_measured_again(released_source, tmp_path, monkeyp
     cache = CalibrationCache(released_source, tmp_path, shipped=None)
     Calibrations(released_source, first=["Neutral"], background=False, cache=cache)
     assert measured == ["Neutral"]
-    cal = Calibrations(released_source, first=["Neutral"], background=False, cache=CalibrationCache(released_source, tmp_path, shipped=None))
+    cal = Calibrations(released_source, first=["Neutral"], background=False,
+                       cache=CalibrationCache(released_source, tmp_path, shipped=None))
     assert measured == ["Neutral"] and cal.has("Neutral")
     assert cal.progress() == {"state": "done", "done": 0, "total": 0, "measuring": None, "known": 1}
 
@@ -175,11 +177,12 @@ def test_a_tampered_cache_is_refused_and_measured_again(released_source, tmp_pat
     cache = CalibrationCache(released_source, tmp_path, shipped=None)
     entry = tampered(how, style_digest(released_source, "Neutral"))
     cache.path.write_text(json.dumps({"version": CALIBRATION_VERSION, "styles": {"Neutral": entry}}))
-    cal = Calibrations(released_source, first=["Neutral"], background=False, cache=CalibrationCache(released_source, tmp_path, shipped=None))
+    cal = Calibrations(released_source, first=["Neutral"], background=False,
+                       cache=CalibrationCache(released_source, tmp_path, shipped=None))
     assert measured == ["Neutral"], how                        # not taken from the file: measured again
     assert "warning: ignoring the speed calibration cache" in capsys.readouterr().err
     assert max_speed(cal._cal["Neutral"], 0.0) == pytest.approx(1.8)
-    again = CalibrationCache(released_source, tmp_path, shipped=None).load()        # and the file now holds the measurement
+    again = CalibrationCache(released_source, tmp_path, shipped=None).load()   # the file now holds the measurement
     np.testing.assert_allclose(again["Neutral"].achieved, fake().achieved)
 
 
