@@ -1,13 +1,13 @@
 """The released network's character as a user meets it in the page, in headless Chromium
 driving the real page of ``minifilm demo`` started as a user starts it (its own process).
 
-Checked, from every frame the page receives (captured off the page's WebSocket): after walking,
-with nothing held, the character stops within about a second and then stands for 5 s (root speed
-under 0.05 m/s, no contact changes); Shift+W for 4 s reaches at least 90 % of the commanded run
-speed (every length of time is the character's own, counted in network steps: a loaded machine
-only makes the test slower), or, when the network cannot run that fast (the frame then says so),
-runs faster than its fastest walk with both feet off the ground at times; and the page is served within 3 s of the command starting (the speed calibration no longer
-runs before it).
+Checked, from every frame the page receives (captured off the page's WebSocket): after walking, with
+nothing held, the character stops within about a second and then stands for 5 s (root speed under
+0.05 m/s, no contact changes); Shift+W for 4 s reaches at least 90 % of the commanded run speed
+(every length of time is the character's own, counted in network steps: a loaded machine only makes
+the test slower), or, when the network cannot run that fast (the frame then says so), runs faster
+than its fastest walk with both feet off the ground at times; and the page is served within 3 s of
+the command starting (the speed calibration no longer runs before it).
 """
 import json
 import time

@@ -6,8 +6,8 @@ heading ahead of the body; the path ahead (predicted trajectory and the held key
 and the checkbox and T hide and show it; the "real time" row gives the steps per second and says
 when the loop is behind or dropped steps (slow motion); at 800 x 600 (and larger) every control of
 the panel is in the window (foot locking and "back to the start" included) and a speed note moves
-none of the read-outs; the character has the same colour on every connection. Every wait is for a condition, never for a
-length of time, so a loaded machine is only slower.
+none of the read-outs; the character has the same colour on every connection. Every wait is for a
+condition, never for a length of time, so a loaded machine is only slower.
 """
 import io
 import math
