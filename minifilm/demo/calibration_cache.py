@@ -148,7 +148,9 @@ class CalibrationCache:
 
     def __init__(self, source, where: Optional[Path] = None, shipped: Optional[Path] = SHIPPED,
                  ignore_cached: bool = False):
-        self.source, self.where, self.shipped, self.ignore_cached = source, where, shipped, ignore_cached
+        self.source, self.ignore_cached = source, ignore_cached
+        self.where = None if where is None else Path(where)
+        self.shipped = None if shipped is None else Path(shipped)
         self._key: Optional[str] = None
         self._keyed = False
         self.entries: Dict[str, dict] = {}
