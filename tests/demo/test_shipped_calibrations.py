@@ -10,8 +10,9 @@ from demo_helpers import released_source  # noqa: F401  (fixture)
 from minifilm.demo.calibration_cache import SHIPPED, CalibrationCache, calibration_key
 from minifilm.demo.calibrations import measure
 
-#: m/s: the same measurement on another CPU may differ in the last bits of its sums, and a
-#: walk of 480 steps carries them; a stale table differs by far more (a changed option or step)
+#: m/s: generous. Another CPU's sums differ in their last bits; the whole network in float64
+#: instead of float32 moves Neutral's speeds by 1.5e-7 m/s (the walks do not amplify rounding),
+#: while a stale table differs by far more (a changed option or step)
 SPEED_TOLERANCE = 0.02
 
 
