@@ -413,9 +413,7 @@ def main():
                                                          ("start_distance", "distance", "start_score", "score")})
             if taught.check is not None:            # the plain statistics of a 6 s straight walk against the clip
                 k = taught.check
-                report["finetune"][f"{v}/{h}"]["walk"] = dict(
-                    steps_per_s=k.steps_per_s, clip_steps_per_s=k.clip_steps_per_s, hips=k.hips, clip_hips=k.clip_hips,
-                    toe_on_floor=k.toe_on_floor, path_mean=k.path_mean)
+                report["finetune"][f"{v}/{h}"]["walk"] = k.to_dict()
                 print(f"[study] {v} {h}: walked 6 s straight: {k.steps_per_s:.2f} steps/s "
                       f"(clip {k.clip_steps_per_s:.2f}), "
                       f"hips {k.hips:.3f} m (clip {k.clip_hips:.3f}), lowest toe on the floor {k.toe_on_floor:.0%}, "
