@@ -7,6 +7,8 @@ must exist in the repository.
   folder or to ``minifilm/``;
 * ``::name``: a function, class, ``Class.method`` or module-level assignment of that file;
 * ``§N.M``: a section of docs/original-code.md;
+* a file that says its paths are "as of commit <hash>" (a dated report about code since replaced)
+  may cite files of that commit (``git show <hash>:<path>`` opens them);
 * and nothing a reader cannot open at all: no issue numbers ("issue 27", "(issue 8)": the repository
   has no tracker a reader can see), no work sessions or helpers, no absolute machine paths
   (``/work/…``, ``/home/…``, ``/tmp/…``): a repository's text says what it means in its own words.
@@ -93,9 +95,22 @@ def original_sections() -> frozenset:
     return frozenset(heads + items)
 
 
+AS_OF = re.compile(r"\bas of commit ([0-9a-f]{7,40})\b", re.IGNORECASE)
+
+
+@lru_cache(maxsize=None)
+def existed_at(commit: str, ref: str) -> bool:
+    """Whether ``ref`` (a path from the repository root) is a file of ``commit``; True when this
+    clone does not have the commit at all (a shallow clone cannot tell)."""
+    def git(*args):
+        return subprocess.run(["git", *args], cwd=REPO_ROOT, capture_output=True).returncode == 0
+    return git("cat-file", "-e", f"{commit}:{ref}") or not git("cat-file", "-e", f"{commit}^{{commit}}")
+
+
 def problems_in(path: Path) -> list:
     text = path.read_text(encoding="utf-8")
     rel = path.relative_to(REPO_ROOT).as_posix()
+    as_of = AS_OF.search(text)
     out = []
 
     def where(m):
@@ -108,6 +123,8 @@ def problems_in(path: Path) -> list:
         if "no_such" in ref:                      # the negative examples of the checkers' own tests
             continue
         target = resolve_path(ref, path)
+        if target is None and as_of and existed_at(as_of.group(1), ref):
+            continue                              # a file of the commit the text is about
         if target is None:
             out.append(f"{where(m)}: {ref} does not exist")
         elif target != "skip" and name and target.suffix == ".py" and name not in defined_names(target, imported=True):
@@ -158,6 +175,20 @@ def test_the_reference_checker_can_fail(tmp_path):
     assert "absent.py does not exist" in joined and "defines no NoSuchName" in joined
     assert "Nope" in joined and "_scratch" in joined and "§99.9" in joined
     assert "Adam" not in joined and "§12.3" not in joined and len(found) == 5
+
+
+def test_a_text_as_of_a_commit_may_cite_that_commit_s_files_only():
+    probe = REPO_ROOT / "tests" / "_reference_probe_as_of.md"      # read only through problems_in
+    commit = "2e18e45"                  # the last commit with the project's own worker processes
+    if subprocess.run(["git", "cat-file", "-e", f"{commit}^{{commit}}"], cwd=REPO_ROOT).returncode:
+        pytest.skip(f"this clone does not have commit {commit} (a shallow clone)")
+    try:
+        probe.write_text(f"As of commit {commit}: minifilm/train/parallel.py, minifilm/train/never_was.py\n",
+                         encoding="utf-8")
+        found = problems_in(probe)
+    finally:
+        probe.unlink()
+    assert len(found) == 1 and "never_was.py does not exist" in found[0], found
 
 
 @pytest.mark.parametrize("section", ["0.3", "1.1", "2", "3.3", "4.8", "10.2", "12.3", "12.17", "13.1"])

@@ -135,15 +135,11 @@ def script_options(path: Path) -> frozenset:
 def dispatched_options(source: Path) -> frozenset:
     """Options of the `minifilm` subcommands a script hands its arguments to
     (``main(["train"] + sys.argv[1:])``) or whose options it takes (``from minifilm.cli import train
-    as options``), and the settings of a script whose module-level UPPER_CASE values are replaced by
-    ``--name value`` (``override_settings`` in examples/train_small.py: SEED -> --seed)."""
+    as options``, or ``from minifilm.cli.train import add_arguments`` as examples/train_small.py)."""
     out = set()
     text = source.read_text(encoding="utf-8")
-    if "def override_settings(" in text:
-        tree = ast.parse(text)
-        out |= {"--" + t.id.lower().replace("_", "-") for node in tree.body if isinstance(node, ast.Assign)
-                for t in node.targets if isinstance(t, ast.Name) and t.id.isupper()}
-    names = re.findall(r"main\(\[[\"'](\w+)[\"']\]", text) + re.findall(r"from minifilm\.cli import (\w+) as \w+", text)
+    names = (re.findall(r"main\(\[[\"'](\w+)[\"']\]", text) + re.findall(r"from minifilm\.cli import (\w+) as \w+", text)
+             + re.findall(r"from minifilm\.cli\.(\w+) import [^\n]*\badd_arguments\b", text))
     for name in names:
         out |= command_options(name) or set()
     return frozenset(out)

@@ -5,6 +5,8 @@
     minifilm train --data pool.csv --rig 100style --fps 60   # files of several rigs, retargeted onto one
     minifilm train --quick              # a smaller, faster run of the same steps
 
+    mpiexec -n 2 minifilm train         # each minibatch split across 2 MPI ranks (minifilm/train/mpi.py)
+
 The same job as ``python examples/train_small.py``; the steps are in minifilm/pipeline/train_small.py.
 Writes a run folder (--out, default runs/train_small) that ``minifilm generate --run`` reads.
 """
@@ -17,6 +19,7 @@ from minifilm.errors import InputError
 from minifilm.pipeline.train_small import Settings
 from minifilm.pipeline.run_rig import load_target
 from minifilm.pipeline.train_small import run as run_job
+from minifilm.train import mpi
 
 HELP = "the main job: synthetic or your data -> trained model -> generated motion"
 
@@ -50,18 +53,22 @@ def add_arguments(parser) -> None:
     parser.add_argument("--clips-per-batch", type=in_range(1, 4096, int), default=d.clips_per_batch,
                         help="style clips per minibatch, shared by its samples (default "
                              f"{d.clips_per_batch}; 32 = one clip per sample, as the paper)")
+    parser.add_argument("--batch-size", type=in_range(1, 4096, int), default=d.batch_size,
+                        help=f"samples per minibatch (default {d.batch_size})")
+    parser.add_argument("--learning-rate", type=positive(float, 1.0), default=d.learning_rate,
+                        help=f"Adam's learning rate (default {d.learning_rate:g}; the paper's 1e-4 is for its 40x "
+                             "larger network)")
     parser.add_argument("--workers", type=in_range(1, 1024, int), default=None,
-                        help="processes computing each minibatch's gradients, one BLAS thread each (1: the "
-                             "data set is labelled in this process too; default: "
-                             "every core this process may use, at most one per style clip of a minibatch; "
-                             "give 1 on a busy machine, where a second process only splits one core's share "
-                             "(benchmarks/README.md); the results are the same to float32 round-off)")
+                        help="processes labelling the data set's files (default: every core this process may use; "
+                             "1: all in this process). Training runs in this process; to split each minibatch "
+                             "across processes or machines, start the job with mpiexec -n N")
 
 
 def settings(args) -> Settings:
-    clips = None if args.clips_per_batch is None or args.clips_per_batch >= Settings().batch_size else args.clips_per_batch
+    clips = None if args.clips_per_batch is None or args.clips_per_batch >= args.batch_size else args.clips_per_batch
     s = Settings(seed=args.seed, out=args.out, split=args.split, mirror=args.mirror, clips_per_batch=clips,
-                 fps=args.fps, rig=args.rig, workers=args.workers)
+                 fps=args.fps, rig=args.rig, workers=args.workers, batch_size=args.batch_size,
+                 learning_rate=args.learning_rate)
     if args.quick:
         s = s.quick()
     changes = {"epochs": args.epochs, "seconds_per_clip": args.seconds, "generate_seconds": args.generate_seconds,
@@ -72,8 +79,8 @@ def settings(args) -> Settings:
 
 
 def check_options(args) -> None:
-    """InputError for options that would be silently ignored: the real-data ones without --data,
-    the synthetic set's with it."""
+    """InputError for options that would be silently ignored (the real-data ones without --data,
+    the synthetic set's with it) and for a --rig that is not one, before any work starts."""
     if args.data is None:
         given = [flag for flag, value in (("--split", args.split != "auto"), ("--mirror", args.mirror),
                                           ("--fps", args.fps is not None), ("--rig", args.rig is not None))
@@ -87,11 +94,11 @@ def check_options(args) -> None:
         if given:
             raise InputError(f"{', '.join(given)}: only for the synthetic set, not with --data "
                              "(the styles of your data come from its file names or manifest)")
+    if args.rig is not None:       # a wrong target is one line now, not after the data set step
+        load_target(args.rig)
 
 
 def run(args) -> int:
     check_options(args)
-    if args.rig is not None:       # a wrong target is one line now, not after the data set step
-        load_target(args.rig)
-    run_job(settings(args), args.data)
+    run_job(settings(args), args.data, mpi.world())     # under mpiexec: data-parallel (train/mpi.py)
     return 0

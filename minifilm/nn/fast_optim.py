@@ -60,8 +60,7 @@ class ChunkedAdam(Adam):
 
     def advance(self) -> list:
         """Count one step for every trainable set; returns [(set index, step_size, eps_hat)] of
-        those sets, the scalars of :func:`adam_span` (the data-parallel trainer sends them to its
-        workers, which update slices of the buffers: minifilm/train/parallel.py)."""
+        those sets, the scalars of :func:`adam_span`."""
         out = []
         for i, p in enumerate(self.sets):
             if not p.trainable:

@@ -54,9 +54,10 @@ class Parameters:
         self.trainable = True
 
     def bind(self, data: np.ndarray, grad: np.ndarray) -> None:
-        """Move the set onto the given flat buffers (N,) of its dtype, e.g. views into shared
-        memory (minifilm/train/parallel.py): the current values are copied into ``data`` and
-        ``grad``, and ``params`` / ``grads`` become views into them."""
+        """Move the set onto the given flat buffers (N,) of its dtype, e.g. a view into one gradient
+        buffer shared by several sets (minifilm/train/mpi.py sums it across MPI ranks in one call):
+        the current values are copied into ``data`` and ``grad``, and ``params`` / ``grads`` become
+        views into them."""
         for name, buf in (("data", data), ("grad", grad)):
             if buf.shape != (self.size,) or buf.dtype != self.dtype:
                 raise ValueError(f"Parameters.bind: {name} must be ({self.size},) {self.dtype}, "

@@ -51,7 +51,7 @@ from minifilm.pipeline.results import (generate_per_style, save_loss_curve, show
                                        style_library, style_recognition, test_table)
 from minifilm.runtime.start_state import start_from_dataset
 from minifilm.synthetic import generator as synthetic
-from minifilm.train.parallel import data_parallel
+from minifilm.train import mpi
 from minifilm.train.trainer import TrainConfig, Trainer
 
 
@@ -92,9 +92,9 @@ class Settings:
     mirror: bool = False                 # also train on the left/right mirror of every file
     fps: Optional[float] = None          # your own data: resample every file to this rate (None: as recorded)
     rig: Optional[str] = None            # your own data: retarget every file onto this rig first (docs/retargeting.md)
-    # processes computing each minibatch's gradients, one BLAS thread each (minifilm/train/parallel.py);
-    # None: every core this process may use, at most one per style clip of a minibatch
-    # (parallel_shares.default_workers). The results do not depend on it (to float32 round-off).
+    # processes labelling the files of the data set (concurrent.futures; None: every core this process
+    # may use, 1: in this process). Training runs in this process, or across the ranks of mpiexec
+    # (minifilm/train/mpi.py). The data set is the same for any number.
     workers: Optional[int] = None
 
     def quick(self) -> "Settings":
@@ -149,7 +149,8 @@ def phase_accuracy(clips):
 # ---- 4. training ----------------------------------------------------------------------------------
 def new_trainer(job: "Job") -> Trainer:
     """The small LPN + FiLM model (Ω, Φ, Ψ) and its Trainer (Adam, the random generator, the history,
-    a checkpoint after every epoch); prints the [train] header."""
+    a checkpoint after every epoch on rank 0); prints the [train] header. Under mpiexec every rank
+    builds the same model from the same seed, and the Trainer shares each minibatch among them."""
     ds, s = job.ds, job.settings
     layout = ds.layout
     train_data, val_data = ds.train_data("train"), ds.train_data("val")
@@ -159,48 +160,36 @@ def new_trainer(job: "Job") -> Trainer:
     trainer = Trainer(model, ds.stats,
                       TrainConfig(epochs=s.epochs, batch_size=s.batch_size, lr=s.learning_rate, seed=s.seed,
                                   lr_schedule=s.lr_schedule, clips_per_batch=s.clips_per_batch,
-                                  input_noise=s.input_noise,
-                                  checkpoint_path=str(job.work / "model.npz")),
+                                  input_noise=s.input_noise, progress=False if job.work is None else None,
+                                  checkpoint_path=None if job.work is None else str(job.work / "model.npz")),
                       positions_idx=layout.joint_columns("z", "position"), parents=np.asarray(layout.parents),
-                      style_names=ds.styles)
-    n_params = sum(p.size for p in model.parameter_sets())
-    log(f"[train] {n_params:,} parameters; {len(train_data)} training / {len(val_data)} validation frames; "
-        f"clips {train_data.clips.shape[1]} x {layout.clip_dim}")
-    log(f"    {'epoch':>5} {'train MSE':>10} {'train BLL':>10} {'val MSE':>9} {'val BLL':>9} {'time':>7}")
+                      style_names=ds.styles, ranks=job.ranks)
+    if job.work is not None:
+        n_params = sum(p.size for p in model.parameter_sets())
+        where = ("this process" if job.ranks is None else
+                 f"{job.ranks.size} MPI ranks, each minibatch split among them")
+        log(f"[train] {n_params:,} parameters; {len(train_data)} training / {len(val_data)} validation frames; "
+            f"clips {train_data.clips.shape[1]} x {layout.clip_dim}; training in {where}")
+        log(f"    {'epoch':>5} {'train MSE':>10} {'train BLL':>10} {'val MSE':>9} {'val BLL':>9} {'time':>7}")
     return trainer
 
 
-def log_epoch(record: dict, seconds: float) -> None:
-    """One line per epoch: training and validation losses, and the epoch's time."""
-    log(f"    {record['epoch']:>5} {record['train']['mse']:>10.4f} {record['train']['bll']:>10.4f} "
-        f"{record['val']['mse']:>9.4f} {record['val']['bll']:>9.4f} {seconds:>6.1f}s")
-
-
-def workers(trainer: Trainer, s: Settings):
-    """``with workers(trainer, s) as pool``: the worker processes of the training (None: train in
-    this process); prints how many and their process ids."""
-    @contextlib.contextmanager
-    def started():
-        with data_parallel(trainer, s.workers) as pool:
-            if pool is None:
-                log("    training in this process (1 worker)")
-            else:
-                log(f"    {pool.workers} worker processes (ids {', '.join(map(str, pool.pids))}): worker 0 is this "
-                    "process, one BLAS thread each")
-            yield pool
-    return started()
+def log_epoch(job: "Job", record: dict, seconds: float) -> None:
+    """One line per epoch (rank 0): training and validation losses, and the epoch's time."""
+    if job.work is not None:
+        log(f"    {record['epoch']:>5} {record['train']['mse']:>10.4f} {record['train']['bll']:>10.4f} "
+            f"{record['val']['mse']:>9.4f} {record['val']['bll']:>9.4f} {seconds:>6.1f}s")
 
 
 def train(job: "Job") -> Trainer:
     """Train the small LPN + FiLM model, one line per epoch; checkpoint after every epoch
-    (examples/train_small.py shows the same epochs; a minibatch is Trainer.train_step)."""
+    (examples/train_small.py spells out the same epochs, minibatch by minibatch)."""
     trainer = new_trainer(job)
     train_data, val_data = job.ds.train_data("train"), job.ds.train_data("val")
-    with workers(trainer, job.settings) as pool:
-        for _ in range(job.settings.epochs):
-            t0 = time.perf_counter()
-            record = trainer.end_epoch(trainer.train_epoch(train_data, pool), val_data)
-            log_epoch(record, time.perf_counter() - t0)
+    for _ in range(job.settings.epochs):
+        t0 = time.perf_counter()
+        record = trainer.end_epoch(trainer.train_epoch(train_data), val_data)
+        log_epoch(job, record, time.perf_counter() - t0)
     return trainer
 
 
@@ -239,9 +228,10 @@ def check_inputs(s: Settings, data: Optional[Path]) -> None:
         raise InputError("--styles / --gaits: give at least one style and one gait that is not idle (ID)")
 
 
-def prepare_data(s: Settings, data: Optional[Path], out: Path):
+def prepare_data(s: Settings, data: Optional[Path], out: Path, executor=None):
     """The synthetic files (with their phase check) unless ``data`` is given, then the dataset
-    (cached in ``out``/cache)."""
+    (cached in ``out``/cache); its files labelled by ``executor`` (a concurrent.futures executor)
+    when given, else by ``s.workers`` processes."""
     own_data = data is not None
     if data is None:
         data = out / "data"
@@ -251,11 +241,9 @@ def prepare_data(s: Settings, data: Optional[Path], out: Path):
     extra = {} if not own_data else data_settings(data, s)
     if own_data and s.rig is not None:      # a folder of mixed rigs: every file onto one rig first
         data = retarget_files(resolve_files(data), load_target(s.rig), out / "data", log)
-    # --workers 1 keeps the labelling in this process too; otherwise the builder takes the cores where
-    # the motion pays for a worker's start (the data set is the same for any number)
     ds = build_dataset(data, cache_dir=out / "cache", progress=True, clip_seconds=s.clip_seconds,
                        clip_stride_seconds=s.clip_seconds / 2, seed=s.seed,
-                       workers=1 if s.workers == 1 else None, **extra)
+                       workers=s.workers if executor is None else 1, **extra)  # until build_dataset maps on an executor
     log(f"[dataset] built in {time.perf_counter() - t0:.1f} s")
     log(ds.summary())
     empty = [name for name in ("val", "test") if len(getattr(ds, name)) == 0]
@@ -270,19 +258,21 @@ def prepare_data(s: Settings, data: Optional[Path], out: Path):
 @dataclass
 class Job:
     """The main job under way: its settings, the data folder (None: synthetic), the run folder
-    ``out``, the folder ``work`` the run is built in (swapped in for ``out`` when complete), the
-    dataset and the time it started."""
+    ``out``, the folder ``work`` the run is built in (swapped in for ``out`` when complete; None on
+    the ranks of mpiexec other than 0, which write nothing), the dataset, the time it started and
+    the MPI ranks (None: one process)."""
 
     settings: Settings
     data: Optional[Path]
     out: Path
-    work: Path
+    work: Optional[Path]
     ds: object
     t_start: float
+    ranks: object = None
 
 
 @contextlib.contextmanager
-def main_job(s: Settings, data: Optional[Path] = None):
+def main_job(s: Settings, data: Optional[Path] = None, ranks=None):
     """Steps 1-3 (check the settings, make the synthetic data with its phase check unless ``data``
     is given, build the dataset), then the body of the ``with`` block (training and ``finish``).
 
@@ -290,23 +280,34 @@ def main_job(s: Settings, data: Optional[Path] = None):
     without an error (minifilm/files/atomic.py), with the folder locked meanwhile
     (minifilm/files/lock.py): an earlier run there stays whole and usable until then, whatever
     stops this one (an error, Ctrl-C, SIGTERM, SIGKILL), and a second command writing the same
-    folder is refused. Yields a :class:`Job`."""
-    check_inputs(s, data)          # before the run folder is touched
+    folder is refused. Under mpiexec (``ranks``, minifilm/train/mpi.py) rank 0 alone does all of
+    this, the other ranks labelling files for it, and every rank gets the data set. Yields a
+    :class:`Job`."""
     out = Path(s.out)
     t_start = time.perf_counter()
-    with folder_lock(out), atomic_directory(out, "run folder", replaceable=is_run_entry) as work:
-        reuse_cache(out / "cache", work / "cache")
-        ds = prepare_data(s, data, work)
-        yield Job(s, data, out, work, ds, t_start)
-    log(f"[done] {time.perf_counter() - t_start:.0f} s in all; outputs in {out}")
+    work = None
+    with contextlib.ExitStack() as stack:
+        def steps_1_to_3(executor=None):
+            nonlocal work
+            check_inputs(s, data)          # before the run folder is touched
+            stack.enter_context(folder_lock(out))
+            work = stack.enter_context(atomic_directory(out, "run folder", replaceable=is_run_entry))
+            reuse_cache(out / "cache", work / "cache")
+            return prepare_data(s, data, work, executor)
+        ds = steps_1_to_3() if ranks is None else ranks.from_rank0(steps_1_to_3)
+        yield Job(s, data, out, work, ds, t_start, ranks)
+    if work is not None:
+        log(f"[done] {time.perf_counter() - t_start:.0f} s in all; outputs in {out}")
 
 
 def finish(job: Job, trainer: Trainer) -> dict:
     """Step 5: checkpoint, test table, loss curve, style library, generated motion, style
     recognition, pictures, written into the run being built (printed with the run folder's
     paths). Returns the test result (MSE per style) with the style recognition under
-    'recognition'."""
+    'recognition'. Nothing on the ranks of mpiexec other than 0 (None)."""
     ds, out, work, s = job.ds, job.out, job.work, job.settings
+    if work is None:
+        return None
     trainer.save(work / "model.npz")
     log(f"[train] checkpoint (model, optimiser, normalisation statistics) saved to {out / 'model.npz'}")
     result = test_table(trainer, ds)
@@ -326,10 +327,10 @@ def finish(job: Job, trainer: Trainer) -> dict:
     return result
 
 
-def run(s: Settings, data: Optional[Path] = None) -> dict:
+def run(s: Settings, data: Optional[Path] = None, ranks=None) -> dict:
     """The whole main job (``minifilm train``); returns the test result (MSE per style) with the
-    style recognition of the generated motion under 'recognition'."""
-    with main_job(s, data) as job:
+    style recognition of the generated motion under 'recognition' (None on ranks other than 0)."""
+    with mpi.one_job(ranks), main_job(s, data, ranks) as job:
         result = finish(job, train(job))
     return result
 

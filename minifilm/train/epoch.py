@@ -16,7 +16,9 @@ class Minibatch:
 
     x (B, x_dim), p (B, phase_dim), z (B, z_dim), clips (M, T, C); kw: the model's extra forward
     arguments (``clip_index`` (B,) when M clips are shared by the batch, ``style`` ids for the
-    comparison variants); index of count in the epoch; where: "epoch e, batch i, style s"."""
+    comparison variants, ``masks`` under mpiexec); index of count in the epoch; where: "epoch e,
+    batch i, style s"; share: the part of the minibatch's rows these are (1 in one process; under
+    mpiexec a rank's n_r / B, minifilm/train/mpi.py)."""
 
     index: int
     count: int
@@ -27,6 +29,7 @@ class Minibatch:
     clips: np.ndarray
     kw: dict
     where: str
+    share: float = 1.0
 
 
 class EpochLosses:

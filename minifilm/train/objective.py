@@ -1,6 +1,5 @@
-"""The training objective of one minibatch, L = L_mse + w L_bll (Eq. 5-7), as one function that the
-Trainer and the data-parallel workers (parallel_worker.py) both call, and the finiteness test the
-Trainer applies to its losses and gradients before an update."""
+"""The training objective of one minibatch, L = L_mse + w L_bll (Eq. 5-7), as one function, and the
+finiteness test the Trainer applies to its losses and gradients before an update."""
 from __future__ import annotations
 
 import numpy as np

@@ -30,7 +30,6 @@ from minifilm.nn.fast_optim import ChunkedAdam
 from minifilm.train.batches import draw_clips, draw_shared_clips, epoch_batches
 from minifilm.train.epoch import EpochLosses, Minibatch
 from minifilm.train.objective import all_finite, objective
-from minifilm.train.parallel import data_parallel
 from minifilm.train.checkpoint import (NETWORKS, CheckpointError, build_style_model, load_checkpoint,
                                        load_model_arrays, model_arrays, save_checkpoint, subset)
 
@@ -108,7 +107,9 @@ class Trainer:
     """Holds the model, the optimiser, the random generator and the loss history.
 
     positions_idx (J, 3) and parents (J,): joint-position columns of z and the skeleton's parent
-    list for the bone-length loss (None: train with MSE only).
+    list for the bone-length loss (None: train with MSE only). ranks: None (one process, the
+    default) or the ranks of an ``mpiexec`` job (minifilm.train.mpi.world()), which then share
+    every minibatch.
     """
 
     model: StyleModel
@@ -117,6 +118,7 @@ class Trainer:
     positions_idx: np.ndarray | None = None
     parents: np.ndarray | None = None
     style_names: list = field(default_factory=list)
+    ranks: object = None
 
     def __post_init__(self):
         for net in NETWORKS:
@@ -124,6 +126,8 @@ class Trainer:
             if sub is not None:
                 sub.params.trainable = net not in self.config.freeze
         self.optimizer = ChunkedAdam(self.model.parameter_sets(), lr=self.config.lr)   # fast form of nn/optim.py::Adam
+        if self.ranks is not None:          # under mpiexec: one flat gradient buffer to sum (train/mpi.py)
+            self.ranks.bind(self.model, self.config.batch_size)
         self.rng = np.random.default_rng(self.config.seed)
         self.epoch = 0
         self.step = 0
@@ -164,7 +168,8 @@ class Trainer:
         """The epoch's minibatches, drawn with the trainer's generator as :meth:`train_epoch` uses
         them: style-balanced (batches.epoch_batches), each sample with a clip of its style (shared
         by the batch when config.clips_per_batch is set), inputs in the model's dtype with the
-        configured input noise. Yields :class:`Minibatch`."""
+        configured input noise. Yields :class:`Minibatch`; under ``mpiexec`` this rank's share of
+        each (train/mpi.py: its rows, and their rows of the dropout masks drawn for the whole)."""
         dtype = self.model.dtype
         batches = epoch_batches(data.style, self.config.batch_size, self.rng)
         for i, (s, idx) in enumerate(batches):
@@ -181,48 +186,43 @@ class Trainer:
                 x = x + (self.config.input_noise * self.rng.standard_normal(x.shape)).astype(dtype)
                 p = p + (self.config.input_noise * self.rng.standard_normal(p.shape)).astype(dtype)
             where = f"epoch {self.epoch + 1}, batch {i + 1}, style {self._name(s)}"
-            yield Minibatch(i, len(batches), int(s), x, p, z, clips, kw, where)
+            b = Minibatch(i, len(batches), int(s), x, p, z, clips, kw, where)
+            yield b if self.ranks is None else self.ranks.share(b, self.rng)   # this rank's rows of it
 
-    def train_epoch(self, data: TrainData, pool=None):
+    def train_epoch(self, data: TrainData):
         """One epoch of style-balanced minibatches, :meth:`train_step` on each; returns
-        {'mse', 'bll', 'per_style'} means. pool: worker processes for the gradients, or None."""
+        {'mse', 'bll', 'per_style'} means."""
         losses = EpochLosses(self)
         for b in self.minibatches(data):
-            mse, bll = self.train_step(b, pool)
+            mse, bll = self.train_step(b)
             losses.add(b, mse, bll)
         return losses.summary()
 
-    def train_step(self, b: "Minibatch", pool=None):
+    def train_step(self, b: Minibatch):
         """One minibatch: forward, the losses, every gradient by hand, Adam. Returns (mse, bll).
-        pool: a minifilm.train.parallel.DataParallel, whose train_step is this step split across
-        processes (the same numbers to round-off), or None: all in this process, as here."""
-        if pool is not None:
-            return pool.train_step(b)
-        mse, bll = self.gradients(b)
-        self.check_finite(b, mse, bll)                      # a NaN or inf stops before the update
-        self.optimizer.lr = self.learning_rate(self.epoch + b.index / b.count)
-        self.optimizer.step()                               # minifilm/nn/fast_optim.py
-        self.step += 1
-        return mse, bll
-
-    def gradients(self, b: Minibatch, pool=None):
-        """The gradients of minibatch ``b`` into the networks' ``.params.grad``; returns (mse, bll).
-        pool: a minifilm.train.parallel.DataParallel (the same numbers to round-off), or None."""
-        if pool is not None:
-            return pool.gradients(b)
+        examples/train_small.py spells out the same lines in its loop."""
         self.model.zero_grad()
         pred = self.model.forward(b.x, b.p, b.clips, train=True, rng=self.rng, **b.kw)   # Eq. (4)
         mse, bll, dpred = self.losses(pred, b.z)                  # Eq. (5)-(7) and dL/dz
         self.model.backward(dpred, need_input_grads=False)   # Ψ, Φ, Ω in reverse; inputs are data
+        mse, bll = self.sum_over_ranks(b, mse, bll)
+        self.update(b, mse, bll)
         return mse, bll
 
-    def update(self, pool=None) -> None:
-        """The optimiser's step (after :meth:`check_finite`); with a pool its workers compute it,
-        each on a part of the parameters (the same numbers: Adam works number by number)."""
-        if pool is not None:
-            pool.update(self.optimizer)
-        else:
-            self.optimizer.step()                           # minifilm/nn/fast_optim.py
+    def sum_over_ranks(self, b: Minibatch, mse: float, bll: float):
+        """Under ``mpiexec`` (``self.ranks``, train/mpi.py): the gradients and losses of this rank's
+        rows summed over the ranks into the minibatch's, in place. In one process: as they are."""
+        if self.ranks is None:
+            return mse, bll
+        return self.ranks.sum_gradients(b, mse, bll)
+
+    def update(self, b: Minibatch, mse: float, bll: float) -> None:
+        """After the backward pass: stop on a NaN or inf before any weight changes, then Adam's
+        step at this point's learning rate, counted."""
+        self.check_finite(b, mse, bll)
+        self.optimizer.lr = self.learning_rate(self.epoch + b.index / b.count)
+        self.optimizer.step()                               # minifilm/nn/fast_optim.py
+        self.step += 1
 
     def check_finite(self, b: "Minibatch", mse: float, bll: float) -> None:
         """TrainingDiverged naming the minibatch and the quantity when a loss or a network's
@@ -292,14 +292,11 @@ class Trainer:
 
 
     # -- the run -----------------------------------------------------------------------
-    def fit(self, train: TrainData, val: TrainData | None = None, epochs: int | None = None, workers: int = 1):
-        """Train until `epochs` (default config.epochs) epochs are done in total; returns history.
-        workers: processes computing the gradients (minibatches split across them, the same
-        results; None: every usable core; see minifilm/train/parallel.py)."""
+    def fit(self, train: TrainData, val: TrainData | None = None, epochs: int | None = None):
+        """Train until `epochs` (default config.epochs) epochs are done in total; returns history."""
         target = self.config.epochs if epochs is None else epochs
-        with data_parallel(self, workers) as pool:
-            while self.epoch < target:
-                self.end_epoch(self.train_epoch(train, pool), val)
+        while self.epoch < target:
+            self.end_epoch(self.train_epoch(train), val)
         return self.history
 
     # -- checkpoints -------------------------------------------------------------------

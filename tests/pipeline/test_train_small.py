@@ -87,54 +87,96 @@ def test_a_folder_that_is_not_a_run_is_refused(tmp_path):
         RunFolder.load(tmp_path)
 
 
-def example_settings(argv):
+class Stop(Exception):
+    """Raised by a stand-in main_job: the settings were made, the job is not run."""
+
+
+def example_settings(argv, monkeypatch):
+    """(Settings, data) that ``python examples/train_small.py ARGV`` would run the job with."""
     example = runpy.run_path(str(EXAMPLE), run_name="example")
-    return example["job_settings"](*example["override_settings"](argv))
+    seen = {}
+
+    def main_job(settings, data, ranks):
+        seen.update(settings=settings, data=data)
+        raise Stop
+    monkeypatch.setitem(example["main"].__globals__, "main_job", main_job)
+    with pytest.raises(Stop):
+        example["main"](argv)
+    return seen["settings"], seen["data"]
 
 
-@pytest.mark.parametrize("argv", [[], ["--quick"], MINI, ["--quick", "--epochs", "5", "--clips-per-batch", "32"],
-                                  ["--data", str(EXAMPLE.parent), "--split", "files", "--mirror", "--fps", "30"]],
-                         ids=["defaults", "quick", "mini", "quick epochs", "own data"])
-def test_the_example_s_plain_settings_make_the_command_s_settings(argv):
-    """``python examples/train_small.py ARGS`` runs the job ``minifilm train ARGS`` runs: its plain
-    values at the top are the command's defaults, and ``--name value`` changes what the option does."""
-    from minifilm.cli import Parser
-    from minifilm.cli import train as options
-    parser = Parser(prog="minifilm train")
-    options.add_arguments(parser)
-    command = options.settings(parser.parse_args(argv))
-    assert example_settings(argv) == command
+#: every setting of the example: a good value, the Settings field it sets with the value it gets,
+#: and a bad value (refused with one line naming the option)
+SETTINGS = {
+    "--epochs": ("3", "epochs", 3, "0"), "--seed": ("7", "seed", 7, "-1"),
+    "--batch-size": ("16", "batch_size", 16, "many"), "--learning-rate": ("1e-3", "learning_rate", 1e-3, "nan"),
+    "--clips-per-batch": ("2", "clips_per_batch", 2, "0"), "--styles": ("Neutral,Limp", "styles", ("Neutral", "Limp"), "Nobody"),
+    "--gaits": ("FW,TR", "gaits", ("FW", "TR"), "XX"), "--seconds": ("4", "seconds_per_clip", 4.0, "-2"),
+    "--clip-seconds": ("1.5", "clip_seconds", 1.5, "0"), "--generate-seconds": ("3", "generate_seconds", 3.0, "inf"),
+    "--workers": ("1", "workers", 1, "0"), "--out": ("elsewhere", "out", Path("elsewhere"), ""),
+    "--split": ("files", "split", "files", "sideways"), "--fps": ("30", "fps", 30.0, "0"),
+    "--rig": ("cmu", "rig", "cmu", "no-such-rig"),
+}
+OWN_DATA = ("--split", "--fps", "--rig")          # settings for your own data: given with --data
 
 
-def test_a_setting_the_example_does_not_have_is_one_clear_error():
-    with pytest.raises(InputError, match="--no-such-setting: not a setting"):
-        example_settings(["--no-such-setting", "1"])
-    with pytest.raises(InputError, match="--epochs"):
-        example_settings(["--epochs", "many"])
+@pytest.mark.parametrize("option", list(SETTINGS))
+def test_every_setting_of_the_example_takes_a_good_value_and_refuses_a_bad_one(option, monkeypatch, capsys,
+                                                                               tmp_path):
+    good, field, value, bad = SETTINGS[option]
+    data = ["--data", str(EXAMPLE.parent)] if option in OWN_DATA else []
+    monkeypatch.chdir(tmp_path)
+    settings, _ = example_settings([*data, option, good], monkeypatch)
+    assert getattr(settings, field) == value
+    example = runpy.run_path(str(EXAMPLE), run_name="example")
+    with pytest.raises(SystemExit) as stop:
+        from minifilm.cli import run_command
+        run_command(lambda: example["main"]([*data, option, bad]))
+    assert stop.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ") and (option in err[0] or bad in err[0]), err
+    assert list(tmp_path.iterdir()) == []                 # refused before anything was written
+
+
+def test_the_example_s_flags_and_defaults(monkeypatch, tmp_path):
+    monkeypatch.chdir(tmp_path)
+    assert example_settings([], monkeypatch)[0] == Settings()
+    assert example_settings(["--quick"], monkeypatch)[0] == Settings().quick()
+    settings, data = example_settings(["--data", str(EXAMPLE.parent), "--mirror"], monkeypatch)
+    assert settings.mirror and data == EXAMPLE.parent
+    settings, _ = example_settings(["--quick", "--epochs", "5"], monkeypatch)       # a setting wins over --quick
+    assert settings == replace(Settings().quick(), epochs=5)
+
+
+@pytest.mark.parametrize("argv,says", [(["--workers", "1", "--epochs", "x"], "--epochs"),
+                                       (["--no-such-setting", "1"], "--no-such-setting"),
+                                       (["--mirror"], "only with --data"),
+                                       (["--data", "no/such/folder"], "no/such/folder")])
+def test_the_example_s_command_line_refuses_bad_settings_in_one_line(tmp_path, argv, says):
+    """Through the real command line (a new Python): exit code 2, one line, nothing written."""
+    proc = subprocess.run([sys.executable, str(EXAMPLE), *argv], cwd=tmp_path, capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 2 and proc.stdout == "", proc.stdout + proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1 and says in proc.stderr, proc.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_setting_that_cannot_make_a_run_is_refused_before_anything_is_written():
     with pytest.raises(InputError, match="only with your own data"):
-        run(replace(Settings(), mirror=True))          # checked before anything is written
+        run(replace(Settings(), mirror=True))
 
 
-def test_the_example_imports_nothing_from_the_command_line_layer():
-    tree = ast.parse(EXAMPLE.read_text(encoding="utf-8"))
-    imported = {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
-    imported |= {a.name for node in ast.walk(tree) if isinstance(node, ast.Import) for a in node.names}
-    assert not [m for m in imported if m and m.startswith("minifilm.cli")], imported
-
-
-def test_the_training_loop_is_written_once(mini_run, tmp_path, capsys):
-    """The example runs the Trainer's one epoch loop (Trainer.train_epoch, a Trainer.train_step per
-    minibatch) rather than a copy of it, and calls the package for the rest: the same run folder,
-    bit for bit the same checkpoint as the main job (pipeline/train_small.py::run, the job of
-    ``minifilm train``)."""
+def test_the_example_spells_out_the_training_step_and_trains_as_the_job_does(mini_run, tmp_path, capsys):
+    """The example's loop is the training step itself -- forward, the losses, the backward pass,
+    Adam's update -- and it makes what the main job makes: the same run folder, the same checkpoint
+    bit for bit (both in this process, with the same BLAS threads: the same arithmetic in the
+    same order), so the loop a reader follows is the one Trainer.train_step runs."""
     tree = ast.parse(EXAMPLE.read_text(encoding="utf-8"))
     calls = {ast.unparse(node.func) for node in ast.walk(tree) if isinstance(node, ast.Call)}
-    assert "trainer.train_epoch" in calls
-    assert not [c for c in calls if c.endswith((".forward", ".backward", ".step", ".train_step"))], calls
-    epoch_loop = inspect.getsource(Trainer.train_epoch)
-    assert "self.train_step(b, pool)" in epoch_loop and "forward(" not in epoch_loop
+    for step in ("model.forward", "trainer.losses", "model.backward", "trainer.update", "trainer.minibatches"):
+        assert step in calls, step
+    assert not [c for c in calls if c.endswith(("train_epoch", "train_step", ".fit"))], calls
     out, _ = mini_run
-    # in this process, like mini_run: BLAS's rounding depends on its thread count
     runpy.run_path(str(EXAMPLE), run_name="example")["main"]([*MINI, "--out", str(tmp_path / "ex")])
     printed = capsys.readouterr().out
     mine, theirs = np.load(tmp_path / "ex" / "model.npz"), np.load(out / "model.npz")
@@ -161,10 +203,9 @@ def test_importing_the_example_loads_no_viewer_demo_evaluation_or_scipy_signal()
     assert not bad, f"loaded before use: {bad}"
 
 
-@pytest.mark.parametrize("workers,expected", [(1, 1), (2, None), (None, None)])
-def test_workers_1_labels_the_data_set_in_this_process_too(tmp_path, monkeypatch, workers, expected):
-    """--workers 1 means one process for the whole job, the data set's labelling included; any
-    other count leaves the labelling's own choice (the cores, where the motion pays for a worker)."""
+@pytest.mark.parametrize("workers", [1, 2, None])
+def test_workers_is_the_number_of_processes_labelling_the_data_set(tmp_path, monkeypatch, workers):
+    """--workers N reaches the data set's builder (1: all in this process; None: every core)."""
     import minifilm.pipeline.train_small as ts
     seen = {}
 
@@ -176,4 +217,4 @@ def test_workers_1_labels_the_data_set_in_this_process_too(tmp_path, monkeypatch
     s = replace(Settings().quick(), styles=["Neutral"], gaits=["FW"], seconds_per_clip=6.0, workers=workers)
     with pytest.raises(KeyboardInterrupt):
         ts.prepare_data(s, None, tmp_path)
-    assert seen["workers"] == expected
+    assert seen["workers"] == workers
