@@ -138,12 +138,6 @@ def test_the_rules_can_fail(tmp_path):
     assert inner and "#" not in src.split("\n")[inner[0].lineno - 1]
 
 
-def test_no_module_is_much_longer_than_400_lines():
-    long = {str(p.relative_to(REPO_ROOT)): n for p in MODULES
-            if (n := len(p.read_text(encoding="utf-8").split("\n"))) > 420}
-    assert not long, f"modules over about 400 lines (split them by idea): {long}"
-
-
 # ---- no circles: following imports from any module never leads back to it -------------------------
 def module_name(path: Path) -> str:
     """'minifilm.demo.record' for minifilm/demo/record.py, 'minifilm.files' for its __init__.py."""
