@@ -3,7 +3,9 @@ data flow, and sit at the top of their file unless a comment says why not.
 
     errors, files, processes   shared by every layer: input errors, the file system, worker processes
     nn, motion           the bottom: the kit and the motion data know nothing of each other
-    phases, features, synthetic, dataset     -> motion (and each other, downwards)
+    body                 -> motion: which joint is the hips, a foot, a hand, decided once per file
+    phases, features, synthetic, dataset     -> body, motion (and each other, downwards)
+    rigs                 -> body, phases, synthetic: retargeting onto a rig, with the roles the body found
     model                -> nn
     train                -> model, dataset
     runtime, viewer      -> model, features, motion, dataset
@@ -29,26 +31,27 @@ ALLOWED = {
     "processes": set(),
     "nn": set(),
     "motion": {"errors", "files"},
-    "phases": {"errors", "motion", "files"},
+    "body": {"errors", "motion", "files"},
+    "phases": {"errors", "body", "motion", "files"},
     "features": {"errors", "motion", "files"},
-    "rigs": {"errors", "motion", "phases", "synthetic", "files"},
+    "rigs": {"errors", "body", "motion", "phases", "synthetic", "files"},
     "synthetic": {"errors", "motion", "files"},
-    "dataset": {"errors", "motion", "phases", "features", "files", "processes"},
+    "dataset": {"errors", "body", "motion", "phases", "features", "files", "processes"},
     "model": {"nn"},
     "train": {"errors", "model", "nn", "dataset", "files", "processes"},
     "runtime": {"errors", "model", "nn", "features", "motion", "dataset", "files"},
-    "viewer": {"errors", "motion", "phases", "features", "runtime", "dataset", "files"},
+    "viewer": {"errors", "body", "motion", "phases", "features", "runtime", "dataset", "files"},
     "baselines": {"errors", "model", "nn", "dataset", "features", "runtime", "files"},
-    "evaluation": {"errors", "baselines", "model", "nn", "dataset", "features", "motion", "phases", "synthetic", "train",
-                   "runtime", "viewer", "files", "rigs", "processes"},
-    "pipeline": {"errors", "evaluation", "baselines", "model", "nn", "dataset", "features", "motion", "phases", "synthetic",
-                 "train", "runtime", "viewer", "files", "rigs", "processes"},
+    "evaluation": {"errors", "baselines", "model", "nn", "dataset", "features", "body", "motion", "phases", "synthetic",
+                   "train", "runtime", "viewer", "files", "rigs", "processes"},
+    "pipeline": {"errors", "evaluation", "baselines", "model", "nn", "dataset", "features", "body", "motion", "phases",
+                 "synthetic", "train", "runtime", "viewer", "files", "rigs", "processes"},
     "demo": {"errors", "cli", "pipeline", "runtime", "viewer", "motion", "features", "dataset", "synthetic", "files"},
-    "cli": {"errors", "demo", "pipeline", "evaluation", "baselines", "model", "nn", "dataset", "features", "motion",
+    "cli": {"errors", "demo", "pipeline", "evaluation", "baselines", "model", "nn", "dataset", "features", "body", "motion",
             "phases", "synthetic", "train", "runtime", "viewer", "files", "rigs", "processes"},
     "__main__": {"cli"},
 }
-CORE = {"errors", "files", "processes", "nn", "motion", "phases", "features", "synthetic", "rigs", "dataset", "model",
+CORE = {"errors", "files", "processes", "nn", "motion", "body", "phases", "features", "synthetic", "rigs", "dataset", "model",
         "train", "runtime", "viewer"}
 COMPARISON = {"baselines", "evaluation"}
 

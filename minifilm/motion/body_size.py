@@ -25,7 +25,7 @@ from typing import Optional, Sequence, Tuple, Union
 import numpy as np
 
 from minifilm.motion.bvh import read_bvh
-from minifilm.motion.humanoid import Humanoid, HumanoidError, find_humanoid
+from minifilm.body.humanoid import Humanoid, HumanoidError, find_humanoid
 from minifilm.motion.motion import Motion
 from minifilm.motion.skeletons import detect_skeleton
 

@@ -5,7 +5,7 @@ positions are taken in, §3.4), the four end effectors [left hand, right hand, l
 foot] (§3.1), the two toe-tip contact sensors [right, left] (§2), and the hips-local axis pointing
 to the character's front (which signs the hands' principal component, Sec. 4.1.3). A built-in
 :class:`~minifilm.motion.skeletons.Skeleton` names them; for any other humanoid file
-:class:`HumanoidRig` takes them from the parts :func:`~minifilm.motion.humanoid.find_humanoid`
+:class:`HumanoidRig` takes them from the parts :func:`~minifilm.body.humanoid.find_humanoid`
 finds (by names or by structure):
 
     hips           Humanoid.hips
@@ -27,7 +27,7 @@ import numpy as np
 
 from minifilm.motion.body_size import BodyUnit, body_unit, scaled
 from minifilm.motion.bvh import read_bvh
-from minifilm.motion.humanoid import Humanoid, HumanoidError, find_humanoid
+from minifilm.body.humanoid import Humanoid, HumanoidError, find_humanoid
 from minifilm.motion.motion import Motion
 from minifilm.motion.skeletons import Skeleton, builtin_skeleton, detect_skeleton
 

@@ -14,7 +14,7 @@ is a parameter, estimated by default as the median height of the slow sensor sam
 toes rest), or a low percentile of the heights.
 
 Any humanoid file, not only the built-in skeletons: ``humanoid_contacts`` finds the toe tips from
-the skeleton's names or structure (minifilm/motion/humanoid.py) and takes a motion in metres
+the skeleton's names or structure (minifilm/body/humanoid.py) and takes a motion in metres
 (read with the unit of minifilm/motion/body_size.py), so the thresholds above mean what they say.
 """
 from __future__ import annotations
@@ -23,7 +23,7 @@ from typing import Optional, Tuple
 
 import numpy as np
 
-from minifilm.motion.humanoid import Humanoid, find_humanoid
+from minifilm.body.humanoid import Humanoid, find_humanoid
 
 __all__ = ["estimate_floor_height", "foot_contacts", "majority_filter", "humanoid_contacts"]
 

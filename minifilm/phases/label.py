@@ -24,7 +24,7 @@ from typing import Optional, Sequence, Tuple
 
 import numpy as np
 
-from minifilm.motion.humanoid import Humanoid
+from minifilm.body.humanoid import Humanoid
 from minifilm.motion.motion import Motion
 from minifilm.phases.any_rig import HumanoidRig, humanoid_rig
 from minifilm.phases.contacts import foot_contacts, humanoid_contacts

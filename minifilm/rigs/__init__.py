@@ -8,7 +8,7 @@
 Modules, in the order the data flows through them:
 
 * joint_map.py   -- the roles of a rig's joints (hips, spine, neck, limbs), JSON maps, chain spreading
-* roles.py       -- roles from the humanoid parts minifilm/motion/humanoid.py finds
+* roles.py       -- roles from the humanoid parts minifilm/body/humanoid.py finds
 * builtin_rigs.py -- the Bandai and CMU hierarchies (100STYLE's is minifilm/synthetic/body.py)
 * rig.py         -- a target rig: hierarchy, roles, units (``load_rig``)
 * pose.py        -- canonical rest poses and the transfer of world bone directions

@@ -7,7 +7,7 @@ leg, knee, ankle, toe, toe end). Collars, toes and ends are optional: a rig with
 foot as one bone.
 
 Roles come from (in this order): a user's JSON map (``--map``), the built-in rigs' name maps
-below, or the structure and naming conventions that :mod:`minifilm.motion.humanoid` recognises.
+below, or the structure and naming conventions that :mod:`minifilm.body.humanoid` recognises.
 
 Chains of different lengths (a 2-joint spine onto 4) meet by normalised arc length:
 :func:`chain_overlaps` gives, for each target bone, how much of it each source bone covers.

@@ -23,7 +23,7 @@ import numpy as np
 from minifilm.files import note_input, read_json
 from minifilm.motion.body_size import BodyUnit, body_unit, leg_bones, scaled, stature_from_legs, unit_for_stature
 from minifilm.motion.bvh import parse_bvh, read_bvh
-from minifilm.motion.humanoid import HumanoidError, find_humanoid
+from minifilm.body.humanoid import HumanoidError, find_humanoid
 from minifilm.motion.motion import Motion
 from minifilm.motion.skeletons import Skeleton, builtin_skeleton
 from minifilm.rigs import builtin_rigs
@@ -88,7 +88,7 @@ def builtin_rig(name: str) -> Rig:
 
 def find_roles(motion: Motion, map_path: Union[str, os.PathLike, None] = None) -> Roles:
     """The roles of ``motion``'s joints: from the JSON map at ``map_path`` if given, else from the
-    humanoid parts :mod:`minifilm.motion.humanoid` finds by name and structure (on the motion's
+    humanoid parts :mod:`minifilm.body.humanoid` finds by name and structure (on the motion's
     first frame). RigError naming what could not be found."""
     if map_path is not None:
         mapping = read_json(note_input(Path(map_path)), "joint map", error=RigError)

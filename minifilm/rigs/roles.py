@@ -1,4 +1,4 @@
-"""Roles for retargeting from the humanoid parts that :mod:`minifilm.motion.humanoid` finds.
+"""Roles for retargeting from the humanoid parts that :mod:`minifilm.body.humanoid` finds.
 
 humanoid.py recognises a skeleton (by names, else by structure) and names its parts as joint
 indices; retargeting (:mod:`minifilm.rigs.joint_map`) names them as joint names, with the neck
@@ -6,7 +6,7 @@ as a chain up to the head and the hand's end where the wrist has a single child.
 """
 from __future__ import annotations
 
-from minifilm.motion.humanoid import Humanoid, HumanoidError, find_humanoid
+from minifilm.body.humanoid import Humanoid, HumanoidError, find_humanoid
 from minifilm.rigs.joint_map import Limb, RigError, Roles
 
 __all__ = ["roles_from_humanoid", "roles_of"]

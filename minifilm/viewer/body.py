@@ -1,7 +1,7 @@
 """Which bone of a drawn skeleton is torso, neck, head, arm or leg: the mannequin's body plan.
 
 The shaded body of the player and the demo (``assets/mannequin.js``) gives each bone a thickness by
-its part. The parts are the ones :func:`minifilm.motion.humanoid.find_humanoid` finds (by names,
+its part. The parts are the ones :func:`minifilm.body.humanoid.find_humanoid` finds (by names,
 checked against the hierarchy, else by structure), so the page never guesses them itself and
 every command that knows a rig agrees with what is drawn. :func:`body_plan` returns, for the page:
 
@@ -21,7 +21,7 @@ from typing import Dict, List, Optional, Sequence
 
 import numpy as np
 
-from minifilm.motion.humanoid import HumanoidError, find_humanoid
+from minifilm.body.humanoid import HumanoidError, find_humanoid
 from minifilm.motion.motion import Motion
 
 __all__ = ["body_plan", "body_plan_of_positions", "joint_parts"]

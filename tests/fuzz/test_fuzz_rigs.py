@@ -22,7 +22,7 @@ from minifilm.errors import InputError
 from minifilm.motion.body_size import read_in_metres
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.bvh_write import write_bvh
-from minifilm.motion.humanoid import find_humanoid, humanoid_by_structure
+from minifilm.body.humanoid import find_humanoid, humanoid_by_structure
 from minifilm.rigs import load_rig, retarget_motion
 from minifilm.rigs.roles import roles_from_humanoid
 

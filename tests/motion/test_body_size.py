@@ -8,7 +8,7 @@ from humanoid_rigs import (CMU_CONVERSION_FROM_MB, CMU_CONVERSION_FROM_XIA, quad
 from minifilm.motion.body_size import body_unit, read_in_metres, scaled, standing_height
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.bvh_write import write_bvh
-from minifilm.motion.humanoid import find_humanoid
+from minifilm.body.humanoid import find_humanoid
 
 REAL = ["100style/Neutral_FR_first3frames.bvh", "bandai2/dataset-2_walk_normal_001.bvh",
         "bandai2/dataset-2_run_active_002.bvh", "bvh/bandai1/dataset-1_walk_normal_001.bvh",

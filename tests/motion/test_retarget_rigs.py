@@ -10,7 +10,7 @@ import pytest
 from minifilm.evaluation.retargeting import (bone_direction_errors, contact_agreement, round_trip_errors, skating,
                                              standing_height)
 from minifilm.motion.bvh import read_bvh
-from minifilm.motion.humanoid import find_humanoid
+from minifilm.body.humanoid import find_humanoid
 from minifilm.rigs.joint_map import BUILTIN_ROLES, RigError, chain_overlaps, roles_from_mapping
 from minifilm.rigs import load_rig, read_source, retarget_motion
 from minifilm.rigs.pose import UP, canonical_pose, rest_positions
@@ -239,7 +239,7 @@ def test_a_rig_known_only_by_its_map_gets_the_unit_body_size_gives(tmp_path, syn
     1.4-2.1 m range, and the file would be rescaled to 1.7 m instead of read in centimetres."""
     from minifilm.motion import body_size
     from minifilm.motion.bvh_write import write_bvh
-    from minifilm.motion.humanoid import HumanoidError
+    from minifilm.body.humanoid import HumanoidError
     from minifilm.rigs import rig as rig_module
     m = body_size.scaled(synthetic_walk, 1.0)
     thigh_and_shin = body_size.leg_length(m, find_humanoid(m))

@@ -4,7 +4,7 @@ import pytest
 
 from humanoid_rigs import CMU_CONVERSION_FROM_MB, renamed_bvh, scrambled
 from minifilm.motion.body_size import read_in_metres
-from minifilm.motion.humanoid import HumanoidError
+from minifilm.body.humanoid import HumanoidError
 from minifilm.phases.contacts import humanoid_contacts
 
 LAYOUTS = ["bandai2/dataset-2_walk_normal_001.bvh", "bandai2/dataset-2_run_normal_001.bvh",

@@ -7,7 +7,7 @@ import pytest
 from humanoid_rigs import CMU_CONVERSION_FROM_XIA, quadruped, renamed_bvh, scrambled, without
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.bvh_write import write_bvh
-from minifilm.motion.humanoid import HumanoidError
+from minifilm.body.humanoid import HumanoidError
 from minifilm.motion.skeletons import builtin_skeleton
 from minifilm.phases.any_rig import HumanoidRig, humanoid_rig, load_for_phases
 from minifilm.phases.contacts import foot_contacts, humanoid_contacts
