@@ -8,7 +8,7 @@
 
 Each file is one character, titled with its name (shortened to fit its panel) and drawn from its
 own hierarchy at its true size: the unit comes from the skeleton, else from the body's height
-(minifilm/motion/body_size.py). On any humanoid skeleton, found by its joint names or its shape
+(minifilm/body/units.py). On any humanoid skeleton, found by its joint names or its shape
 (minifilm/body/humanoid.py), the foot contacts are highlighted. The HTML page opens offline from
 disk (three.js is inlined). Without --out, --gif, --mp4 or --html: --html view.html.
 """

@@ -15,7 +15,7 @@ finds (by names or by structure):
 
 ``load_for_phases(path)`` reads a file in metres with one of the two: the built-in skeleton its
 joint names fit (read with that skeleton's unit, exactly as before), else its humanoid parts
-(read with the unit of minifilm/motion/body_size.py). A file that is neither raises HumanoidError.
+(read with the unit of minifilm/body/units.py). A file that is neither raises HumanoidError.
 """
 from __future__ import annotations
 
@@ -25,7 +25,7 @@ from typing import Optional, Tuple, Union
 
 import numpy as np
 
-from minifilm.motion.body_size import BodyUnit, body_unit, scaled
+from minifilm.body.units import BodyUnit, body_unit, scaled
 from minifilm.motion.bvh import read_bvh
 from minifilm.body.humanoid import Humanoid, HumanoidError, find_humanoid
 from minifilm.motion.motion import Motion

@@ -15,7 +15,7 @@ toes rest), or a low percentile of the heights.
 
 Any humanoid file, not only the built-in skeletons: ``humanoid_contacts`` finds the toe tips from
 the skeleton's names or structure (minifilm/body/humanoid.py) and takes a motion in metres
-(read with the unit of minifilm/motion/body_size.py), so the thresholds above mean what they say.
+(read with the unit of minifilm/body/units.py), so the thresholds above mean what they say.
 """
 from __future__ import annotations
 
@@ -130,7 +130,7 @@ def humanoid_contacts(motion, humanoid: Optional[Humanoid] = None, speed_thresho
     """Foot contacts of any humanoid motion, from its toe tips found by name or structure.
 
     Args:
-        motion: a Motion in metres (e.g. ``read_in_metres(path)`` of minifilm/motion/body_size.py).
+        motion: a Motion in metres (e.g. ``read_in_metres(path)`` of minifilm/body/units.py).
         humanoid: its parts (default: ``find_humanoid(motion)``; HumanoidError when there are none).
         speed_threshold: m/s; default max(0.15, GAIT_SPEED_FRACTION x the hips' median ground speed).
         height_threshold: metres; default GAIT_HEIGHT_THRESHOLD.

@@ -24,7 +24,7 @@ from typing import Optional, Union
 import numpy as np
 
 from minifilm.files import note_input
-from minifilm.motion.body_size import scaled
+from minifilm.body.units import scaled
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.rigs.joint_map import RigError, Roles, sensor_positions
@@ -48,7 +48,7 @@ def read_source(path: Union[str, os.PathLike], map_path=None, scale: Optional[fl
         raw = read_bvh(path, scale=1.0)
         roles = find_roles(raw, map_path)
         scale = file_unit(raw, roles)             # the names' skeleton's unit if the body agrees
-        return scaled(raw, scale), roles          # read once, scaled (body_size.scaled)
+        return scaled(raw, scale), roles          # read once, scaled (units.scaled)
     m = read_bvh(path, scale=scale)
     return m, find_roles(m, map_path)
 

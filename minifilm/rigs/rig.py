@@ -21,7 +21,7 @@ from typing import Optional, Tuple, Union
 import numpy as np
 
 from minifilm.files import note_input, read_json
-from minifilm.motion.body_size import BodyUnit, body_unit, leg_bones, scaled, stature_from_legs, unit_for_stature
+from minifilm.body.units import BodyUnit, body_unit, leg_bones, scaled, stature_from_legs, unit_for_stature
 from minifilm.motion.bvh import parse_bvh, read_bvh
 from minifilm.body.humanoid import HumanoidError, find_humanoid
 from minifilm.motion.motion import Motion
@@ -99,7 +99,7 @@ def find_roles(motion: Motion, map_path: Union[str, os.PathLike, None] = None) -
 def file_unit(motion_in_file_units: Motion, roles: Roles) -> float:
     """Metres per unit of a file read with scale 1: a built-in skeleton's when its body is of human
     height in it, else the common unit that makes the body 1.4-2.1 m tall
-    (:func:`minifilm.motion.body_size.body_unit`, the one unit rule of every command)."""
+    (:func:`minifilm.body.units.body_unit`, the one unit rule of every command)."""
     try:
         h = find_humanoid(motion_in_file_units)
     except HumanoidError:       # roles from a map on a rig humanoid.py does not recognise: go by the legs
@@ -138,7 +138,7 @@ def load_rig(target: Union[str, os.PathLike], map_path: Union[str, os.PathLike, 
     roles = find_roles(raw, map_path)
     if scale is None:
         scale = file_unit(raw, roles)             # the names' skeleton's unit if the body agrees
-    m = scaled(raw, scale)                      # read once, scaled (body_size.scaled)
+    m = scaled(raw, scale)                      # read once, scaled (units.scaled)
     return Rig(path.stem, _rest(m, str(path)), roles, float(scale), skeleton, foot_shape_of(m, roles))
 
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import os
 from typing import List, Optional, Sequence, Tuple, Union
 
-from minifilm.motion.body_size import BodyUnit, read_in_metres
+from minifilm.body.units import BodyUnit, read_in_metres
 from minifilm.phases.contacts import humanoid_contacts
 from minifilm.runtime.rollout import Rollout
 from minifilm.viewer.tracks import Track, track_from_motion
@@ -49,7 +49,7 @@ def track_with_contacts(path: Union[str, os.PathLike], name: Optional[str] = Non
     """A BVH file as a Track at its true size, with its foot contacts marked.
 
     The unit comes from the skeleton or the body's height, and the feet from the joint names or
-    the hierarchy (minifilm/motion/body_size.py, humanoid.py); a skeleton that is not a humanoid
+    the hierarchy (minifilm/body/units.py, humanoid.py); a skeleton that is not a humanoid
     is drawn in centimetres without contacts."""
     return track_and_unit(path, name)[0]
 

@@ -15,7 +15,7 @@ from typing import List, Optional, Sequence, Union
 
 import numpy as np
 
-from minifilm.motion.body_size import read_in_metres
+from minifilm.body.units import read_in_metres
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.motion import Motion
 from minifilm.viewer.body import body_plan
@@ -252,7 +252,7 @@ def track_from_bvh(path: Union[str, os.PathLike], name: Optional[str] = None, sc
     """Read a BVH file in metres and build its ``Track``.
 
     ``scale``: metres per file unit; default: the skeleton's or the body's own
-    (minifilm/motion/body_size.py: a humanoid is drawn at its true size; other rigs in centimetres).
+    (minifilm/body/units.py: a humanoid is drawn at its true size; other rigs in centimetres).
 
     ``kwargs`` go to ``track_from_motion`` (``joints``, ``contacts``, ``contact_joints``, ``trail``).
     Raises OSError when the file cannot be read and ``BVHError`` (a ValueError naming the file and

@@ -19,7 +19,7 @@ from humanoid_rigs import (CMU_LAYOUT_FROM_100STYLE, NECK_NAMES, branching_human
                            reparented, scrambled)
 from minifilm.cli import main
 from minifilm.errors import InputError
-from minifilm.motion.body_size import read_in_metres
+from minifilm.body.units import read_in_metres
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.body.humanoid import find_humanoid, humanoid_by_structure

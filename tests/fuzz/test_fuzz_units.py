@@ -1,5 +1,5 @@
 """Fuzz family: a skeleton in any unit, wherever one comes in. ``view``, ``retarget`` (source and
-target), and ``generate --skeleton-bvh`` read it through one rule (body_size.body_unit): the unit
+target), and ``generate --skeleton-bvh`` read it through one rule (minifilm/body/units.py, body_unit): the unit
 that makes the body of human height, even when its joint names are those of a built-in skeleton
 usually written in another unit; all-zero offsets (no size at all) are refused in one line.
 
@@ -11,7 +11,7 @@ import pytest
 from harness import outcome
 from minifilm.cli import main
 from minifilm.errors import InputError
-from minifilm.motion.body_size import KNOWN_UNITS, STATURE_RANGE, read_in_metres, standing_height
+from minifilm.body.units import KNOWN_UNITS, STATURE_RANGE, read_in_metres, standing_height
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.motion.motion import Motion

@@ -1,11 +1,11 @@
-"""minifilm.motion.body_size: every real file (and renamed copies the built-ins do not know) at its
+"""minifilm.body.units: every real file (and renamed copies the built-ins do not know) at its
 true size; the unit inferred from the body's legs; non-humanoids in centimetres, saying so."""
 import numpy as np
 import pytest
 
 from humanoid_rigs import (CMU_CONVERSION_FROM_MB, CMU_CONVERSION_FROM_XIA, quadruped, renamed, renamed_bvh,
                            scrambled)
-from minifilm.motion.body_size import body_unit, read_in_metres, scaled, standing_height
+from minifilm.body.units import body_unit, read_in_metres, scaled, standing_height
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.body.humanoid import find_humanoid

@@ -237,7 +237,7 @@ def test_a_rig_known_only_by_its_map_gets_the_unit_body_size_gives(tmp_path, syn
     (thigh + shin = 0.49 of the stature). The body is made 2.0 m tall, in centimetres: the hips'
     standing height (12 % longer than thigh + shin) over 0.49 would make it 2.25 m, out of the
     1.4-2.1 m range, and the file would be rescaled to 1.7 m instead of read in centimetres."""
-    from minifilm.motion import body_size
+    from minifilm.body import units as body_size
     from minifilm.motion.bvh_write import write_bvh
     from minifilm.body.humanoid import HumanoidError
     from minifilm.rigs import rig as rig_module

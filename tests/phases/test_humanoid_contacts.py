@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from humanoid_rigs import CMU_CONVERSION_FROM_MB, renamed_bvh, scrambled
-from minifilm.motion.body_size import read_in_metres
+from minifilm.body.units import read_in_metres
 from minifilm.body.humanoid import HumanoidError
 from minifilm.phases.contacts import humanoid_contacts
 
