@@ -19,7 +19,7 @@ from typing import Dict, List, Tuple
 
 import numpy as np
 
-from minifilm.rigs.joint_map import SIDES, Roles, sensor_positions
+from minifilm.body.roles import SIDES, Roles, sensor_positions
 from minifilm.motion.motion import Motion
 from minifilm.rigs.feet import floor_height
 from minifilm.rigs.pose import rest_positions

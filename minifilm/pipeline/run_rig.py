@@ -12,7 +12,7 @@ from typing import Callable, Union
 
 from minifilm.pipeline.run_folder import RunFolder
 from minifilm.rigs.retarget_clip import read_source, retarget_motion
-from minifilm.rigs.joint_map import RigError
+from minifilm.body.roles import RigError
 from minifilm.rigs.rig import BUILTIN_RIGS, Rig, load_rig, rig_from_template
 
 __all__ = ["load_target", "retarget_onto_run"]

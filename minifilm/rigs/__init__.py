@@ -5,13 +5,12 @@
     motion, roles = read_source("walk_bandai.bvh")
     result = retarget_motion(motion, target, roles)
 
-Modules, in the order the data flows through them:
+The roles of a rig's joints (hips, spine, neck, limbs) come from minifilm/body/roles.py, found
+once per file; these modules take them as given. In the order the data flows through them:
 
-* joint_map.py   -- the roles of a rig's joints (hips, spine, neck, limbs), JSON maps, chain spreading
-* roles.py       -- roles from the humanoid parts minifilm/body/humanoid.py finds
 * builtin_rigs.py -- the Bandai and CMU hierarchies (100STYLE's is minifilm/synthetic/body.py)
 * rig.py         -- a target rig: hierarchy, roles, units (``load_rig``)
-* pose.py        -- canonical rest poses and the transfer of world bone directions
+* pose.py        -- canonical rest poses, the transfer of world bone directions, chain spreading
 * proportions.py -- how a rig's foot lies flat; its legs' length (the root's scale)
 * tips.py        -- where a toe tip goes near a contact: heights the contact test needs, no slide
 * feet.py        -- the floor, planted contacts, leg IK
@@ -21,7 +20,7 @@ Modules, in the order the data flows through them:
 A run folder as a target, finetune clips and ``view --on`` are in minifilm/pipeline/run_rig.py.
 """
 from minifilm.rigs.retarget_clip import read_source, retarget_file, retarget_motion
-from minifilm.rigs.joint_map import RigError, Roles
+from minifilm.body.roles import RigError, Roles
 from minifilm.rigs.rig import BUILTIN_RIGS, Rig, builtin_rig, find_roles, load_rig
 
 __all__ = ["BUILTIN_RIGS", "Rig", "RigError", "Roles", "builtin_rig", "find_roles", "load_rig", "read_source",

@@ -14,7 +14,7 @@ import numpy as np
 from minifilm.motion.motion import Motion
 from minifilm.phases.contacts import foot_contacts
 from minifilm.rigs.builtin_rigs import BANDAI_FOOT_SHAPE, builtin_skeleton_for
-from minifilm.rigs.joint_map import SIDES, RigError, Roles, sensor_positions
+from minifilm.body.roles import SIDES, RigError, Roles, sensor_positions
 from minifilm.rigs.pose import canonical_pose, foot_and_toe_directions, pitch_below_horizontal, rest_positions
 
 __all__ = ["foot_shape_of", "foot_pitch_of", "leg_length", "rest_foot_pitch", "motion_foot_pitch", "rest_toe_bend",

@@ -7,7 +7,7 @@
     motion = retarget_motion(read_source("walk_bandai.bvh"), target)
     write_bvh(motion, "walk_100style.bvh", scale=target.bvh_scale)
 
-The steps: roles of both rigs (:mod:`~minifilm.rigs.joint_map`), the pose transfer on world bone
+The steps: roles of both rigs (:mod:`~minifilm.body.roles`), the pose transfer on world bone
 directions from canonical rest poses (:mod:`~minifilm.rigs.pose`), the root's path
 scaled by the ratio of leg lengths, then the floor and the planted feet
 (:mod:`~minifilm.rigs.feet`) and the toes kept out of the floor in swing
@@ -27,7 +27,7 @@ from minifilm.files import note_input
 from minifilm.body.units import scaled
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.bvh_write import write_bvh
-from minifilm.rigs.joint_map import RigError, Roles, sensor_positions
+from minifilm.body.roles import RigError, Roles, sensor_positions
 from minifilm.rigs.proportions import foot_shape_of, leg_length
 from minifilm.motion.motion import Motion
 from minifilm.motion.retarget import world_to_local

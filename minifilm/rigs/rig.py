@@ -2,7 +2,7 @@
 
 A :class:`Rig` is everything :func:`minifilm.rigs.retarget_clip.retarget_motion` needs to know
 about a skeleton to put motion on it: one frame of it (hierarchy, rest offsets, channel order), the
-role of its joints (:class:`~minifilm.rigs.joint_map.Roles`) and the BVH length unit it is
+role of its joints (:class:`~minifilm.body.roles.Roles`) and the BVH length unit it is
 written in. A target can be
 
 * a built-in rig: ``100style`` (the 100STYLE header, in minifilm/synthetic/body.py), ``bandai``
@@ -28,9 +28,8 @@ from minifilm.motion.motion import Motion
 from minifilm.motion.skeletons import Skeleton, builtin_skeleton
 from minifilm.rigs import builtin_rigs
 from minifilm.rigs.builtin_rigs import BANDAI_FOOT_SHAPE, builtin_skeleton_for
-from minifilm.rigs.joint_map import BUILTIN_ROLES, SIDES, RigError, Roles, roles_from_mapping
+from minifilm.body.roles import BUILTIN_ROLES, SIDES, RigError, Roles, roles_from_humanoid, roles_from_mapping
 from minifilm.rigs.proportions import foot_shape_of
-from minifilm.rigs.roles import roles_from_humanoid
 from minifilm.synthetic.generator import rest_motion
 
 __all__ = ["Rig", "load_rig", "builtin_rig", "find_roles", "file_unit", "unit_from_legs", "rig_from_template",
@@ -93,7 +92,13 @@ def find_roles(motion: Motion, map_path: Union[str, os.PathLike, None] = None) -
     if map_path is not None:
         mapping = read_json(note_input(Path(map_path)), "joint map", error=RigError)
         return roles_from_mapping(mapping, motion, where=f"joint map {map_path} for {motion.source}")
-    return roles_from_humanoid(motion)
+    try:
+        h = find_humanoid(motion)
+    except HumanoidError as e:
+        raise RigError(f"{e}. A JSON map of its joints' roles makes it usable: `minifilm retarget FILE "
+                       f"--map MAP.json --to 100style` (docs/retargeting.md) puts it on a rig that every "
+                       f"command reads") from None
+    return roles_from_humanoid(motion, h)
 
 
 def file_unit(motion_in_file_units: Motion, roles: Roles) -> float:

@@ -24,7 +24,7 @@ from minifilm.motion.bvh import read_bvh
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.body.humanoid import find_humanoid, humanoid_by_structure
 from minifilm.rigs import load_rig, retarget_motion
-from minifilm.rigs.roles import roles_from_humanoid
+from minifilm.body.roles import roles_from_humanoid
 
 N_GENERATED = 300
 STYLE100 = "100style/Neutral_FR_first3frames.bvh"
@@ -58,7 +58,7 @@ def test_generated_rigs_by_names_and_by_structure():
         _agrees(_described(find_humanoid(m), m.names), expected, label)
         s = scrambled(m, seed=len(label))
         _agrees(_described(humanoid_by_structure(s), m.names), expected, label + " (structure)")
-        roles = roles_from_humanoid(m)
+        roles = roles_from_humanoid(m, find_humanoid(m))
         assert roles.chest == expected[max(k for k in expected if k.startswith("spine"))]
         assert roles.head == "Head"
 

@@ -11,9 +11,9 @@ from minifilm.evaluation.retargeting import (bone_direction_errors, contact_agre
                                              standing_height)
 from minifilm.motion.bvh import read_bvh
 from minifilm.body.humanoid import find_humanoid
-from minifilm.rigs.joint_map import BUILTIN_ROLES, RigError, chain_overlaps, roles_from_mapping
+from minifilm.body.roles import BUILTIN_ROLES, RigError, roles_from_mapping
 from minifilm.rigs import load_rig, read_source, retarget_motion
-from minifilm.rigs.pose import UP, canonical_pose, rest_positions
+from minifilm.rigs.pose import UP, canonical_pose, chain_overlaps, rest_positions
 from minifilm.motion.skeletons import STYLE100
 from minifilm.phases.label import label
 from minifilm.synthetic.generator import generate_style
