@@ -11,7 +11,8 @@ from pathlib import Path
 from typing import Callable, Union
 
 from minifilm.pipeline.run_folder import RunFolder
-from minifilm.rigs.retarget_clip import read_source, retarget_motion
+from minifilm.body.read import read_source
+from minifilm.rigs.retarget_clip import retarget_motion
 from minifilm.body.roles import RigError
 from minifilm.rigs.rig import BUILTIN_RIGS, Rig, load_rig, rig_from_template
 

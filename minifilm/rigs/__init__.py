@@ -19,9 +19,10 @@ once per file; these modules take them as given. In the order the data flows thr
 
 A run folder as a target, finetune clips and ``view --on`` are in minifilm/pipeline/run_rig.py.
 """
-from minifilm.rigs.retarget_clip import read_source, retarget_file, retarget_motion
+from minifilm.body.read import read_source
 from minifilm.body.roles import RigError, Roles
-from minifilm.rigs.rig import BUILTIN_RIGS, Rig, builtin_rig, find_roles, load_rig
+from minifilm.rigs.retarget_clip import retarget_file, retarget_motion
+from minifilm.rigs.rig import BUILTIN_RIGS, Rig, builtin_rig, load_rig
 
-__all__ = ["BUILTIN_RIGS", "Rig", "RigError", "Roles", "builtin_rig", "find_roles", "load_rig", "read_source",
-           "retarget_file", "retarget_motion"]
+__all__ = ["BUILTIN_RIGS", "Rig", "RigError", "Roles", "builtin_rig", "load_rig", "read_source", "retarget_file",
+           "retarget_motion"]

@@ -14,7 +14,8 @@ from typing import Callable, List, Sequence
 
 from minifilm.files import file_names
 from minifilm.motion.bvh_write import write_bvh
-from minifilm.rigs.retarget_clip import read_source, retarget_motion
+from minifilm.body.read import read_source
+from minifilm.rigs.retarget_clip import retarget_motion
 from minifilm.rigs.rig import Rig
 
 __all__ = ["retarget_files"]

@@ -11,7 +11,8 @@ import pytest
 from harness import outcome
 from minifilm.cli import main
 from minifilm.errors import InputError
-from minifilm.body.units import KNOWN_UNITS, STATURE_RANGE, read_in_metres, standing_height
+from minifilm.body.read import read_in_metres
+from minifilm.body.units import KNOWN_UNITS, STATURE_RANGE, standing_height
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.motion.motion import Motion
