@@ -24,8 +24,7 @@ from typing import Optional, Sequence, Tuple
 
 import numpy as np
 
-from minifilm.body.parts import Humanoid
-from minifilm.body.rig import HumanoidRig, humanoid_rig
+from minifilm.body.rig import HumanoidRig
 from minifilm.motion.motion import Motion
 from minifilm.phases.contacts import foot_contacts, humanoid_contacts
 from minifilm.phases.local_phases import DEFAULT_SOURCES, LocalPhases, default_sources, extract_local_phases
@@ -61,14 +60,12 @@ def label(motion: Motion, skeleton, style: Optional[str] = None,
           sources: Optional[Sequence[str]] = None, **fit_options) -> Labels:
     """Contacts and local phases of ``motion`` on ``skeleton``.
 
-    ``skeleton``: a built-in Skeleton, a HumanoidRig, or the Humanoid parts found on ``motion``
-    (taken as given: nothing is looked for here). ``style`` picks the phase sources (see
+    ``skeleton``: a built-in Skeleton, or the HumanoidRig of the parts its reader found on
+    ``motion`` (minifilm/body/read.py; taken as given: nothing is looked for here). ``style`` picks the phase sources (see
     ``default_sources``) unless ``sources`` names them; ``fit_options`` go to the sinusoid fit.
     Contacts use the skeleton's two toe-tip sensors with the floor height estimated from the file:
     the paper's thresholds on a built-in Skeleton, ``humanoid_contacts``' on a HumanoidRig.
     """
-    if isinstance(skeleton, Humanoid):
-        skeleton = humanoid_rig(motion, skeleton)
     if isinstance(skeleton, HumanoidRig):
         contacts, _ = humanoid_contacts(motion, skeleton.humanoid)
     else:

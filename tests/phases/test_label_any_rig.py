@@ -92,10 +92,11 @@ def test_a_scrambled_rig_is_labelled_from_its_structure(shared_data, rel):
     rig_s = humanoid_rig(scrambled_motion, find_humanoid(scrambled_motion))
     assert rig_s.humanoid.method == "structure"
     assert rig_s.phase_indices().tolist() == rig.phase_indices().tolist()
-    got = label(scrambled_motion, find_humanoid(scrambled_motion))     # the parts found in the motion
+    got = label(scrambled_motion, rig_s)                      # the parts found in the motion
     np.testing.assert_array_equal(got.contacts, labels.contacts)
     np.testing.assert_array_equal(got.vectors, labels.vectors)
-    np.testing.assert_array_equal(label(scrambled_motion, rig_s.humanoid).vectors, labels.vectors)
+    np.testing.assert_array_equal(label(scrambled_motion, humanoid_rig(scrambled_motion, rig_s.humanoid)).vectors,
+                                  labels.vectors)
 
 
 def test_the_cmu_conversion_layout(shared_data, tmp_path):
@@ -118,7 +119,7 @@ def test_a_quadruped_is_one_error(tmp_path):
         load_for_phases(path)
     dog = quadruped()
     with pytest.raises(HumanoidError):
-        label(dog, find_humanoid(dog))
+        label(dog, humanoid_rig(dog, find_humanoid(dog)))
 
 
 def test_a_rig_without_feet_is_one_error(shared_data, tmp_path):
@@ -130,4 +131,4 @@ def test_a_rig_without_feet_is_one_error(shared_data, tmp_path):
         load_for_phases(path)
     feetless = scrambled(feetless)
     with pytest.raises(HumanoidError):
-        label(feetless, find_humanoid(feetless))
+        label(feetless, humanoid_rig(feetless, find_humanoid(feetless)))
