@@ -7,10 +7,9 @@ leg, knee, ankle, toe, toe end). Collars, toes and ends are optional: a rig with
 foot as one bone.
 
 Roles come from (in this order): a user's JSON map (``--map``), the built-in rigs' name maps
-below, or the structure and naming conventions that :mod:`minifilm.body.humanoid` recognises.
-
-Chains of different lengths (a 2-joint spine onto 4) meet by normalised arc length:
-:func:`chain_overlaps` gives, for each target bone, how much of it each source bone covers.
+below, or the humanoid parts that minifilm/body/humanoid.py finds (:func:`roles_from_humanoid`:
+its joint indices as names, the neck as the chain from the chest up to the head, the hand's end
+where the wrist has a single child). A file's reader (minifilm/body/read.py) finds them once.
 """
 from __future__ import annotations
 
