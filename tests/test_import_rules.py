@@ -3,9 +3,10 @@ data flow, and sit at the top of their file unless a comment says why not.
 
     errors, files, processes   shared by every layer: input errors, the file system, worker processes
     nn, motion           the bottom: the kit and the motion data know nothing of each other
-    body                 -> motion: which joint is the hips, a foot, a hand, decided once per file
-    phases, features, synthetic, dataset     -> body, motion (and each other, downwards)
-    rigs                 -> body, phases, synthetic: retargeting onto a rig, with the roles the body found
+    phases, features, synthetic     -> motion (and each other, downwards)
+    body                 -> phases, synthetic, motion: which joint is the hips, a foot, a hand, found
+                            once per file (roles, rig, unit), and retargeting onto a rig with them
+    dataset              -> body, phases, features, motion
     model                -> nn
     train                -> model, dataset
     runtime, viewer      -> model, features, motion, dataset
@@ -31,10 +32,9 @@ ALLOWED = {
     "processes": set(),
     "nn": set(),
     "motion": {"errors", "files"},
-    "body": {"errors", "motion", "files"},
-    "phases": {"errors", "body", "motion", "files"},
+    "phases": {"errors", "motion", "files"},
     "features": {"errors", "motion", "files"},
-    "rigs": {"errors", "body", "motion", "phases", "synthetic", "files"},
+    "body": {"errors", "motion", "phases", "synthetic", "files"},
     "synthetic": {"errors", "motion", "files"},
     "dataset": {"errors", "body", "motion", "phases", "features", "files", "processes"},
     "model": {"nn"},
@@ -43,15 +43,15 @@ ALLOWED = {
     "viewer": {"errors", "body", "motion", "phases", "features", "runtime", "dataset", "files"},
     "baselines": {"errors", "model", "nn", "dataset", "features", "runtime", "files"},
     "evaluation": {"errors", "baselines", "model", "nn", "dataset", "features", "body", "motion", "phases", "synthetic",
-                   "train", "runtime", "viewer", "files", "rigs", "processes"},
+                   "train", "runtime", "viewer", "files", "processes"},
     "pipeline": {"errors", "evaluation", "baselines", "model", "nn", "dataset", "features", "body", "motion", "phases",
-                 "synthetic", "train", "runtime", "viewer", "files", "rigs", "processes"},
+                 "synthetic", "train", "runtime", "viewer", "files", "processes"},
     "demo": {"errors", "cli", "pipeline", "runtime", "viewer", "motion", "features", "dataset", "synthetic", "files"},
     "cli": {"errors", "demo", "pipeline", "evaluation", "baselines", "model", "nn", "dataset", "features", "body", "motion",
-            "phases", "synthetic", "train", "runtime", "viewer", "files", "rigs", "processes"},
+            "phases", "synthetic", "train", "runtime", "viewer", "files", "processes"},
     "__main__": {"cli"},
 }
-CORE = {"errors", "files", "processes", "nn", "motion", "body", "phases", "features", "synthetic", "rigs", "dataset", "model",
+CORE = {"errors", "files", "processes", "nn", "motion", "body", "phases", "features", "synthetic", "dataset", "model",
         "train", "runtime", "viewer"}
 COMPARISON = {"baselines", "evaluation"}
 

@@ -9,7 +9,7 @@ nothing after them asks again:
 
     read_in_metres(path)   -> motion, humanoid, unit   the viewer, ``generate --skeleton-bvh``
     load_for_phases(path)  -> motion, rig, unit        the phase recipe (``minifilm phases``)
-    read_source(path)      -> motion, roles            retargeting's source (minifilm/rigs/)
+    read_source(path)      -> motion, roles            retargeting's source (retarget_clip.py)
 """
 from __future__ import annotations
 

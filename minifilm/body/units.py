@@ -99,7 +99,7 @@ def body_unit(motion: Motion, h: Humanoid, skeleton: Optional[Skeleton]) -> Body
 def unit_from_legs(motion: Motion, roles: Roles) -> BodyUnit:
     """The unit of a rig known by its roles alone (a JSON map of a rig the humanoid finder does not
     recognise), as for a humanoid: the stature from the roles' thigh + shin, then the common unit
-    that makes it 1.4-2.1 m. (The hips' standing height, ``rigs/proportions.leg_length``, is longer
+    that makes it 1.4-2.1 m. (The hips' standing height, ``body/proportions.leg_length``, is longer
     than thigh + shin by the pelvis and the ankle's height, so it does not fit that fraction.)"""
     idx = {n: i for i, n in enumerate(motion.names)}
     legs = [(idx[roles.limb(s).upleg], idx[roles.limb(s).knee], idx[roles.limb(s).ankle]) for s in SIDES]

@@ -26,7 +26,7 @@ from minifilm.files import check_writable
 from minifilm.motion.bvh import bvh_header
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.pipeline.run_rig import load_target
-from minifilm.rigs import read_source, retarget_motion
+from minifilm.body import read_source, retarget_motion
 from minifilm.viewer.builders import track_and_unit, track_with_contacts
 from minifilm.viewer.deps import check_output_tools
 from minifilm.viewer.gif import write_gif

@@ -23,7 +23,6 @@ from typing import Optional, Tuple
 
 import numpy as np
 
-from minifilm.body.parts import Humanoid
 
 __all__ = ["estimate_floor_height", "foot_contacts", "majority_filter", "humanoid_contacts"]
 
@@ -125,13 +124,14 @@ GAIT_SPEED_FRACTION = 0.3
 GAIT_HEIGHT_THRESHOLD = 0.03
 
 
-def humanoid_contacts(motion, humanoid: Humanoid, speed_threshold: Optional[float] = None,
+def humanoid_contacts(motion, humanoid, speed_threshold: Optional[float] = None,
                       height_threshold: Optional[float] = None, **kwargs) -> Tuple[np.ndarray, np.ndarray]:
     """Foot contacts of any humanoid motion, from the toe tips of its parts.
 
     Args:
         motion: a Motion in metres (e.g. ``read_in_metres(path)`` of minifilm/body/read.py).
-        humanoid: its parts, found once by its reader (e.g. ``read_in_metres``).
+        humanoid: its parts (a ``minifilm.body.parts.Humanoid``), found once by its reader (e.g.
+            ``read_in_metres``): its ``contact_sensors`` and ``hips`` are read.
         speed_threshold: m/s; default max(0.15, GAIT_SPEED_FRACTION x the hips' median ground speed).
         height_threshold: metres; default GAIT_HEIGHT_THRESHOLD.
         kwargs: ``floor_height``, ``filter_seconds`` for :func:`foot_contacts`.

@@ -24,7 +24,6 @@ from typing import Optional, Sequence, Tuple
 
 import numpy as np
 
-from minifilm.body.rig import HumanoidRig
 from minifilm.motion.motion import Motion
 from minifilm.phases.contacts import foot_contacts, humanoid_contacts
 from minifilm.phases.local_phases import DEFAULT_SOURCES, LocalPhases, default_sources, extract_local_phases
@@ -66,8 +65,9 @@ def label(motion: Motion, skeleton, style: Optional[str] = None,
     Contacts use the skeleton's two toe-tip sensors with the floor height estimated from the file:
     the paper's thresholds on a built-in Skeleton, ``humanoid_contacts``' on a HumanoidRig.
     """
-    if isinstance(skeleton, HumanoidRig):
-        contacts, _ = humanoid_contacts(motion, skeleton.humanoid)
+    humanoid = getattr(skeleton, "humanoid", None)        # a HumanoidRig carries the parts it was made of
+    if humanoid is not None:
+        contacts, _ = humanoid_contacts(motion, humanoid)
     else:
         positions, _ = motion.world()
         contacts = foot_contacts(positions[:, skeleton.contact_indices(motion)], motion.fps)

@@ -7,7 +7,7 @@ from minifilm.body import read as read_module
 from minifilm.body.parts import HumanoidError
 from minifilm.body.rig import HumanoidRig
 from minifilm.motion.bvh_write import write_bvh
-from minifilm.rigs import load_rig
+from minifilm.body import load_rig
 
 
 @pytest.fixture

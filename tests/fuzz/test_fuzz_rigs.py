@@ -23,7 +23,7 @@ from minifilm.body.read import read_in_metres
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.body.humanoid import find_humanoid, humanoid_by_structure
-from minifilm.rigs import load_rig, retarget_motion
+from minifilm.body import load_rig, retarget_motion
 from minifilm.body.roles import roles_from_humanoid
 
 N_GENERATED = 300

@@ -16,7 +16,7 @@ from minifilm.body.units import KNOWN_UNITS, STATURE_RANGE, standing_height
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.motion.motion import Motion
-from minifilm.rigs import load_rig, read_source
+from minifilm.body import load_rig, read_source
 
 LAYOUTS = ("100style/Neutral_FR_first3frames.bvh", "bandai2/dataset-2_walk_normal_001.bvh",
            "bvh/bandai1/dataset-1_walk_normal_001.bvh", "bvh/xia/neutral_01_000.bvh", "bvh/cmu/08_01_trimmed.bvh")

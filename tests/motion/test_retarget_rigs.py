@@ -12,8 +12,8 @@ from minifilm.evaluation.retargeting import (bone_direction_errors, contact_agre
 from minifilm.motion.bvh import read_bvh
 from minifilm.body.humanoid import find_humanoid
 from minifilm.body.roles import BUILTIN_ROLES, RigError, roles_from_mapping
-from minifilm.rigs import load_rig, read_source, retarget_motion
-from minifilm.rigs.pose import UP, canonical_pose, chain_overlaps, rest_positions
+from minifilm.body import load_rig, read_source, retarget_motion
+from minifilm.body.pose import UP, canonical_pose, chain_overlaps, rest_positions
 from minifilm.motion.skeletons import STYLE100
 from minifilm.phases.label import label
 from minifilm.synthetic.generator import generate_style

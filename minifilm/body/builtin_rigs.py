@@ -8,7 +8,7 @@ minifilm/synthetic/body.py), so that ``minifilm retarget --to bandai`` or ``--to
   deep-motion-editing (CMU data: free for research and commercial use, with acknowledgement), in
   the CMU ASF length unit (``skeletons.CMU.bvh_scale`` turns it into metres).
 
-Each is one BVH HIERARCHY; :func:`minifilm.rigs.rig.builtin_rig` adds one frame at rest. Also here:
+Each is one BVH HIERARCHY; :func:`minifilm.body.target.builtin_rig` adds one frame at rest. Also here:
 the Bandai foot's measured shape.
 """
 import numpy as np

@@ -1,6 +1,6 @@
 """Retarget a clip from one humanoid rig onto another (docs/retargeting.md).
 
-    from minifilm.rigs import load_rig, read_source, retarget_motion
+    from minifilm.body import load_rig, read_source, retarget_motion
     from minifilm.motion.bvh_write import write_bvh
 
     target = load_rig("100style")
@@ -8,10 +8,10 @@
     write_bvh(retarget_motion(motion, target, roles), "walk_100style.bvh", scale=target.bvh_scale)
 
 The steps, on the roles of both rigs as given (minifilm/body/roles.py): the pose transfer on world bone
-directions from canonical rest poses (:mod:`~minifilm.rigs.pose`), the root's path
+directions from canonical rest poses (:mod:`~minifilm.body.pose`), the root's path
 scaled by the ratio of leg lengths, then the floor and the planted feet
-(:mod:`~minifilm.rigs.feet`) and the toes kept out of the floor in swing
-(:mod:`~minifilm.rigs.clearance`). The result is a Motion on the target's hierarchy with its
+(:mod:`~minifilm.body.feet`) and the toes kept out of the floor in swing
+(:mod:`~minifilm.body.clearance`). The result is a Motion on the target's hierarchy with its
 channels (so ``write_bvh`` writes it in the target's channel order; pass the rig's ``bvh_scale``
 for its units), at the source's frame rate.
 """
@@ -25,13 +25,13 @@ import numpy as np
 from minifilm.body.read import read_source
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.body.roles import RigError, Roles, sensor_positions
-from minifilm.rigs.proportions import foot_shape_of, leg_length
+from minifilm.body.proportions import foot_shape_of, leg_length
 from minifilm.motion.motion import Motion
 from minifilm.motion.retarget import world_to_local
-from minifilm.rigs.clearance import FLOOR_SLACK, clear_floor_keeping_contacts
-from minifilm.rigs.feet import floor_height, plant_feet
-from minifilm.rigs.pose import canonical_pose, match_chords, place_feet, rest_positions, transfer_rotations
-from minifilm.rigs.rig import Rig
+from minifilm.body.clearance import FLOOR_SLACK, clear_floor_keeping_contacts
+from minifilm.body.feet import floor_height, plant_feet
+from minifilm.body.pose import canonical_pose, match_chords, place_feet, rest_positions, transfer_rotations
+from minifilm.body.target import Rig
 from minifilm.phases.contacts import DEFAULT_FILTER_SECONDS, foot_contacts
 
 __all__ = ["retarget_motion", "retarget_file"]
@@ -43,7 +43,7 @@ def retarget_motion(source: Motion, target: Rig, source_roles: Roles, plant: boo
 
     Args:
         source:        a Motion of any humanoid rig, metres.
-        target:        the rig to put it on (:func:`minifilm.rigs.rig.load_rig`).
+        target:        the rig to put it on (:func:`minifilm.body.target.load_rig`).
         source_roles:  the source's roles, found once by its reader (``read_source``).
         plant:         pin the feet during the source's contacts (off: only the floor is fixed).
         blend_seconds: how long a pin fades in and out.
@@ -88,7 +88,7 @@ def retarget_motion(source: Motion, target: Rig, source_roles: Roles, plant: boo
         guides = sensor_positions(Ps, source, s_roles) - np.array([0.0, s_floor, 0.0])
         P, world = plant_feet(P, world, tm.parents, legs, contacts, guides, source.fps, body, blend_seconds)
         # the toes out of the floor in swing, where this foot reaches further than the source's
-        # (rigs/clearance.py): no lower than the source's tip, nor than 0.7 cm under the floor
+        # (clearance.py): no lower than the source's tip, nor than 0.7 cm under the floor
         if _foot_reach(tm, t_roles, t_shape[0]) > _foot_reach(source, s_roles, s_shape[0]):
             feet = [[tm.names.index(limb.ankle), tm.names.index(limb.toe) if limb.toe else None,
                      tm.names.index(limb.sensor)] for limb in (t_roles.right, t_roles.left)]

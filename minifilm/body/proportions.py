@@ -15,8 +15,8 @@ from minifilm.body.rig import builtin_skeleton_of
 from minifilm.body.roles import SIDES, RigError, Roles, sensor_positions
 from minifilm.motion.motion import Motion
 from minifilm.phases.contacts import foot_contacts
-from minifilm.rigs.builtin_rigs import BANDAI_FOOT_SHAPE
-from minifilm.rigs.pose import canonical_pose, foot_and_toe_directions, pitch_below_horizontal, rest_positions
+from minifilm.body.builtin_rigs import BANDAI_FOOT_SHAPE
+from minifilm.body.pose import canonical_pose, foot_and_toe_directions, pitch_below_horizontal, rest_positions
 
 __all__ = ["foot_shape_of", "foot_pitch_of", "leg_length", "rest_foot_pitch", "motion_foot_pitch", "rest_toe_bend",
            "motion_toe_bend", "DEFAULT_FOOT_PITCH"]

@@ -1,12 +1,12 @@
 """A retargeting target: a rig's hierarchy, its roles, its units. ``load_rig`` reads one from a name.
 
-A :class:`Rig` is everything :func:`minifilm.rigs.retarget_clip.retarget_motion` needs to know
+A :class:`Rig` is everything :func:`minifilm.body.retarget_clip.retarget_motion` needs to know
 about a skeleton to put motion on it: one frame of it (hierarchy, rest offsets, channel order), the
 role of its joints (:class:`~minifilm.body.roles.Roles`) and the BVH length unit it is
 written in, read and found once (:class:`minifilm.body.read.Body`). A target can be
 
 * a built-in rig: ``100style`` (the 100STYLE header, in minifilm/synthetic/body.py), ``bandai``
-  or ``cmu`` (minifilm/rigs/builtin_rigs.py);
+  or ``cmu`` (minifilm/body/builtin_rigs.py);
 * a run folder written by ``minifilm train``: its ``skeleton.bvh`` and ``bvh_scale``, through
   :func:`rig_from_template` (minifilm/pipeline/run_rig.py reads the folder);
 * any BVH file: its hierarchy; its first frame is not used (the rest pose is the zero pose).
@@ -27,9 +27,9 @@ from minifilm.files import note_input
 from minifilm.motion.bvh import parse_bvh, read_bvh
 from minifilm.motion.motion import Motion
 from minifilm.motion.skeletons import Skeleton, builtin_skeleton
-from minifilm.rigs import builtin_rigs
-from minifilm.rigs.builtin_rigs import BANDAI_FOOT_SHAPE
-from minifilm.rigs.proportions import foot_shape_of
+from minifilm.body import builtin_rigs
+from minifilm.body.builtin_rigs import BANDAI_FOOT_SHAPE
+from minifilm.body.proportions import foot_shape_of
 from minifilm.synthetic.generator import rest_motion
 
 __all__ = ["Rig", "load_rig", "builtin_rig", "rig_from_template", "BUILTIN_RIGS"]
@@ -48,7 +48,7 @@ class Rig:
         bvh_scale: BVH units -> metres of the rig's files (0.01 for centimetres).
         skeleton:  the built-in Skeleton description whose joints the rig has (None if none fits).
         foot_shape: (pitch, toe bend) of its foot flat on the floor, radians (None: from its rest
-                   pose, see :func:`minifilm.rigs.proportions.foot_shape_of`).
+                   pose, see :func:`minifilm.body.proportions.foot_shape_of`).
     """
     name: str
     template: Motion

@@ -291,7 +291,7 @@ def place_feet(world: np.ndarray, target: Motion, t_roles: Roles, t_shape: Tuple
     the canonical frames can come out sideways or upside down. The feet are therefore aimed here:
     the foot (ankle -> toe) keeps the source foot's heading and its pitch shifted by the rigs'
     flat-foot difference (``*_shape`` = (flat-foot pitch, toe bend),
-    :func:`minifilm.rigs.proportions.foot_shape_of`: a flat foot stays flat), and the toe (toe -> tip) is bent relative to the foot as much more than its
+    :func:`minifilm.body.proportions.foot_shape_of`: a flat foot stays flat), and the toe (toe -> tip) is bent relative to the foot as much more than its
     flat-foot bend as the source's toe is. Each is turned by the smallest rotation, so its twist
     stays as the transfer set it."""
     world = world.copy()
