@@ -37,9 +37,9 @@ import numpy as np
 
 from minifilm.evaluation.retargeting import (bone_direction_errors, contact_agreement, round_trip_errors, skating,
                                              standing_height)
-from minifilm.rigs import read_source, retarget_motion
-from minifilm.rigs.feet import floor_height
-from minifilm.rigs.joint_map import sensor_positions
+from minifilm.body import read_source, retarget_motion
+from minifilm.body.feet import floor_height
+from minifilm.body.roles import sensor_positions
 from minifilm.pipeline.run_rig import load_target as load_rig
 from minifilm.motion.skeletons import STYLE100
 from minifilm.phases.label import label

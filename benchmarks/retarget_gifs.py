@@ -21,7 +21,7 @@ import tempfile
 from pathlib import Path
 
 from minifilm.motion.bvh_write import write_bvh
-from minifilm.rigs import load_rig, read_source, retarget_motion
+from minifilm.body import load_rig, read_source, retarget_motion
 from minifilm.viewer.builders import track_with_contacts
 from minifilm.viewer.gif import write_gif
 

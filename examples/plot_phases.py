@@ -13,7 +13,7 @@ from minifilm.cli import report_errors
 from minifilm.cli.args import png_path
 from minifilm.files import check_writable
 from minifilm.motion.bvh import read_bvh
-from minifilm.motion.skeletons import detect_skeleton
+from minifilm.body.rig import detect_skeleton
 from minifilm.phases.label import label
 from minifilm.viewer.phase_plot import plot_phases
 

@@ -20,7 +20,7 @@ import numpy as np
 
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.motion import Motion
-from minifilm.motion.skeletons import detect_skeleton
+from minifilm.body.rig import detect_skeleton
 from minifilm.phases.contacts import estimate_floor_height, foot_contacts
 from minifilm.phases.label import label
 from minifilm.phases.local_phases import LocalPhases, fit_sinusoids, phase_and_amplitude

@@ -39,8 +39,8 @@ from pathlib import Path
 
 from minifilm.dataset.manifest import MotionFile, read_manifest, write_manifest
 from minifilm.motion.bvh import bvh_duration
-from minifilm.rigs.retarget_clip import retarget_file
-from minifilm.rigs.rig import builtin_rig
+from minifilm.body.retarget_clip import retarget_file
+from minifilm.body.target import builtin_rig
 
 SHARED_DATA = Path(os.environ.get("MINIFILM_SHARED_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
 

@@ -19,7 +19,7 @@ from minifilm.model.config import ModelConfig
 from minifilm.model.losses import bone_length_loss, mse_loss
 from minifilm.model.style_model import StyleModel
 from minifilm.motion.bvh import read_bvh
-from minifilm.motion.skeletons import detect_skeleton
+from minifilm.body.rig import detect_skeleton
 from minifilm.nn.optim import Adam
 from minifilm.nn.params import Parameters
 from minifilm.phases.label import label

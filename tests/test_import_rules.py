@@ -3,7 +3,10 @@ data flow, and sit at the top of their file unless a comment says why not.
 
     errors, files, processes   shared by every layer: input errors, the file system, worker processes
     nn, motion           the bottom: the kit and the motion data know nothing of each other
-    phases, features, synthetic, dataset     -> motion (and each other, downwards)
+    phases, features, synthetic     -> motion (and each other, downwards)
+    body                 -> phases, synthetic, motion: which joint is the hips, a foot, a hand, found
+                            once per file (roles, rig, unit), and retargeting onto a rig with them
+    dataset              -> body, phases, features, motion
     model                -> nn
     train                -> model, dataset
     runtime, viewer      -> model, features, motion, dataset
@@ -31,24 +34,24 @@ ALLOWED = {
     "motion": {"errors", "files"},
     "phases": {"errors", "motion", "files"},
     "features": {"errors", "motion", "files"},
-    "rigs": {"errors", "motion", "phases", "synthetic", "files"},
+    "body": {"errors", "motion", "phases", "synthetic", "files"},
     "synthetic": {"errors", "motion", "files"},
-    "dataset": {"errors", "motion", "phases", "features", "files", "processes"},
+    "dataset": {"errors", "body", "motion", "phases", "features", "files", "processes"},
     "model": {"nn"},
     "train": {"errors", "model", "nn", "dataset", "files", "processes"},
     "runtime": {"errors", "model", "nn", "features", "motion", "dataset", "files"},
-    "viewer": {"errors", "motion", "phases", "features", "runtime", "dataset", "files"},
+    "viewer": {"errors", "body", "motion", "phases", "features", "runtime", "dataset", "files"},
     "baselines": {"errors", "model", "nn", "dataset", "features", "runtime", "files"},
-    "evaluation": {"errors", "baselines", "model", "nn", "dataset", "features", "motion", "phases", "synthetic", "train",
-                   "runtime", "viewer", "files", "rigs", "processes"},
-    "pipeline": {"errors", "evaluation", "baselines", "model", "nn", "dataset", "features", "motion", "phases", "synthetic",
-                 "train", "runtime", "viewer", "files", "rigs", "processes"},
+    "evaluation": {"errors", "baselines", "model", "nn", "dataset", "features", "body", "motion", "phases", "synthetic",
+                   "train", "runtime", "viewer", "files", "processes"},
+    "pipeline": {"errors", "evaluation", "baselines", "model", "nn", "dataset", "features", "body", "motion", "phases",
+                 "synthetic", "train", "runtime", "viewer", "files", "processes"},
     "demo": {"errors", "cli", "pipeline", "runtime", "viewer", "motion", "features", "dataset", "synthetic", "files"},
-    "cli": {"errors", "demo", "pipeline", "evaluation", "baselines", "model", "nn", "dataset", "features", "motion",
-            "phases", "synthetic", "train", "runtime", "viewer", "files", "rigs", "processes"},
+    "cli": {"errors", "demo", "pipeline", "evaluation", "baselines", "model", "nn", "dataset", "features", "body", "motion",
+            "phases", "synthetic", "train", "runtime", "viewer", "files", "processes"},
     "__main__": {"cli"},
 }
-CORE = {"errors", "files", "processes", "nn", "motion", "phases", "features", "synthetic", "rigs", "dataset", "model",
+CORE = {"errors", "files", "processes", "nn", "motion", "body", "phases", "features", "synthetic", "dataset", "model",
         "train", "runtime", "viewer"}
 COMPARISON = {"baselines", "evaluation"}
 

@@ -31,7 +31,7 @@ from minifilm.cli.memory import GENERATE_BYTES_PER_JOINT_FRAME, VIEW_BYTES_PER_J
 from minifilm.errors import InputError
 from minifilm.features.layout import FeatureLayout
 from minifilm.files import check_writable
-from minifilm.motion.body_size import read_in_metres
+from minifilm.body.read import read_in_metres
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.motion.foot_ik import FootLocker
 from minifilm.motion.measures import bone_length_cv, foot_sliding
@@ -140,7 +140,7 @@ class Source:
 
 def skeleton_in_metres(path, run_unit: float):
     """The ``--skeleton-bvh`` file in metres, its unit found as ``view`` and ``retarget`` find it
-    (minifilm.motion.body_size.read_in_metres): a skeleton in millimetres or metres is converted
+    (minifilm.body.read.read_in_metres): a skeleton in millimetres or metres is converted
     (and said so), one that is not a humanoid or has no size (all-zero offsets) is refused."""
     skeleton, humanoid, unit = read_in_metres(path)
     if humanoid is None:

@@ -6,7 +6,7 @@
 Any humanoid BVH file: a built-in skeleton (100style, bandai, cmu, cmu-mb) is detected from the
 joint names (or named with ``--skeleton``) and labelled as always; any other humanoid is labelled
 on its hips, wrists and toes found by names or structure, in the unit its legs give
-(minifilm/phases/any_rig.py). ``--style LeftHop`` / ``RightHop`` switches the lifted foot to the
+(minifilm/body/read.py). ``--style LeftHop`` / ``RightHop`` switches the lifted foot to the
 contact-free source; every other style is labelled the same way, so other names are refused.
 """
 from __future__ import annotations
@@ -18,7 +18,8 @@ import numpy as np
 
 from minifilm.cli.args import gif_path, input_path, png_path, seconds_at_least
 from minifilm.files import check_writable
-from minifilm.phases.any_rig import HumanoidRig, load_for_phases
+from minifilm.body.read import load_for_phases
+from minifilm.body.rig import HumanoidRig
 from minifilm.phases.label import label
 from minifilm.phases.local_phases import LocalPhases
 from minifilm.viewer.deps import check_output_tools
@@ -101,7 +102,8 @@ def run(args) -> int:
         clip = motion.slice(int(frames[0]), int(frames[-1]) + 1)
         sensors = skeleton.contact_indices(motion)
         track = track_from_motion(clip, name=Path(args.bvh).stem, contacts=labels.contacts[keep],
-                                  contact_joints=list(sensors))
+                                  contact_joints=list(sensors),
+                                  humanoid=skeleton.humanoid if isinstance(skeleton, HumanoidRig) else None)
         write_gif(track, args.animation)
         print(f"wrote {args.animation}")
     return 0

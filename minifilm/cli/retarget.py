@@ -20,7 +20,7 @@ from minifilm.errors import InputError
 from minifilm.files import check_writable, child_path, shared_file_names
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.pipeline.run_rig import load_target
-from minifilm.rigs import read_source, retarget_motion
+from minifilm.body import read_source, retarget_motion
 
 HELP = "put motion of any humanoid rig onto another rig (100style, bandai, cmu, a run, a BVH)"
 

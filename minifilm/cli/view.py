@@ -8,8 +8,8 @@
 
 Each file is one character, titled with its name (shortened to fit its panel) and drawn from its
 own hierarchy at its true size: the unit comes from the skeleton, else from the body's height
-(minifilm/motion/body_size.py). On any humanoid skeleton, found by its joint names or its shape
-(minifilm/motion/humanoid.py), the foot contacts are highlighted. The HTML page opens offline from
+(minifilm/body/units.py). On any humanoid skeleton, found by its joint names or its shape
+(minifilm/body/humanoid.py), the foot contacts are highlighted. The HTML page opens offline from
 disk (three.js is inlined). Without --out, --gif, --mp4 or --html: --html view.html.
 """
 from __future__ import annotations
@@ -26,7 +26,7 @@ from minifilm.files import check_writable
 from minifilm.motion.bvh import bvh_header
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.pipeline.run_rig import load_target
-from minifilm.rigs import read_source, retarget_motion
+from minifilm.body import read_source, retarget_motion
 from minifilm.viewer.builders import track_and_unit, track_with_contacts
 from minifilm.viewer.deps import check_output_tools
 from minifilm.viewer.gif import write_gif

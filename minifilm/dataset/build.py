@@ -41,7 +41,8 @@ from minifilm.dataset.validate import check_every_style_trains
 from minifilm.errors import DataError
 from minifilm.files import check_name, note_input, owned_writes
 from minifilm.features.layout import FeatureLayout
-from minifilm.motion.skeletons import builtin_skeleton, detect_skeleton
+from minifilm.body.rig import detect_skeleton
+from minifilm.motion.skeletons import builtin_skeleton
 from minifilm.processes import check_workers, default_workers
 
 

@@ -76,7 +76,7 @@ def survey(files: Sequence[MotionFile], fps: Optional[float]) -> Dict[Path, File
 
 def most_common_rig(surveyed: Dict[Path, FileSurvey]) -> SimpleNamespace:
     """The joint names most files share, as a stand-in motion (``names``, ``source``) for
-    :func:`~minifilm.motion.skeletons.detect_skeleton`: the data set's skeleton is the majority's,
+    :func:`~minifilm.body.rig.detect_skeleton`: the data set's skeleton is the majority's,
     not whichever file comes first."""
     layouts = Counter(s.names for s in surveyed.values())
     names, count = layouts.most_common(1)[0]

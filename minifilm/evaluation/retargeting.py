@@ -19,10 +19,10 @@ from typing import Dict, List, Tuple
 
 import numpy as np
 
-from minifilm.rigs.joint_map import SIDES, Roles, sensor_positions
+from minifilm.body.roles import SIDES, Roles, sensor_positions
 from minifilm.motion.motion import Motion
-from minifilm.rigs.feet import floor_height
-from minifilm.rigs.pose import rest_positions
+from minifilm.body.feet import floor_height
+from minifilm.body.pose import rest_positions
 from minifilm.phases.contacts import foot_contacts
 
 __all__ = ["mapped_bones", "mapped_joints", "bone_direction_errors", "contact_agreement", "skating",

@@ -14,7 +14,7 @@ Blender we need the local rotation of every joint of the *source* skeleton, in i
    position, every other joint keeps its rest offset (so bone lengths are exactly the skeleton's).
 
 Joints of the source skeleton that were not exported (End Sites, dropped bones) keep their rest
-offset and the identity local rotation. Retargeting between different rigs is minifilm/rigs/.
+offset and the identity local rotation. Retargeting between different rigs is in minifilm/body/.
 """
 from __future__ import annotations
 

@@ -236,22 +236,6 @@ def builtin_skeleton(name: str) -> Skeleton:
     return known[name]
 
 
-def detect_skeleton(motion, candidates: Sequence[Skeleton] = BUILTIN_SKELETONS) -> Skeleton:
-    """The candidate whose required joints are all present in ``motion`` (the one with most exported
-    joints if several fit). ValueError listing every candidate and what it misses otherwise."""
-    fitting = [s for s in candidates if not s.missing_joints(motion)]
-    if fitting:
-        return max(fitting, key=lambda s: s.n_joints)
-    lines = []
-    for s in candidates:
-        missing = s.missing_joints(motion)
-        shown = ", ".join(missing[:6]) + (f", ... ({len(missing)} in all)" if len(missing) > 6 else "")
-        lines.append(f"  {s.name}: missing {shown}")
-    raise ValueError(f"detect_skeleton: no known skeleton fits {motion.source} (joints "
-                     f"{list(motion.names)[:8]}...):\n" + "\n".join(lines) +
-                     "\nDescribe your own with minifilm.motion.skeletons.Skeleton.")
-
-
 def facing_directions(motion, skeleton: Skeleton) -> np.ndarray:
     """(F, 3) unit horizontal facing: the hips' ``facing_axis`` in world space, y zeroed, normalised
     (docs/original-code.md §5). A facing with no horizontal part falls back to +Z."""

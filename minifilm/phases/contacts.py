@@ -13,9 +13,9 @@ stands on y = 0 (and a retargeted skeleton may float or sink a few centimetres),
 is a parameter, estimated by default as the median height of the slow sensor samples (where the
 toes rest), or a low percentile of the heights.
 
-Any humanoid file, not only the built-in skeletons: ``humanoid_contacts`` finds the toe tips from
-the skeleton's names or structure (minifilm/motion/humanoid.py) and takes a motion in metres
-(read with the unit of minifilm/motion/body_size.py), so the thresholds above mean what they say.
+Any humanoid file, not only the built-in skeletons: ``humanoid_contacts`` takes the toe tips and
+hips of the humanoid parts its reader found (minifilm/body/read.py, once per file) and a motion in
+metres (read with the unit of minifilm/body/units.py), so the thresholds above mean what they say.
 """
 from __future__ import annotations
 
@@ -23,7 +23,6 @@ from typing import Optional, Tuple
 
 import numpy as np
 
-from minifilm.motion.humanoid import Humanoid, find_humanoid
 
 __all__ = ["estimate_floor_height", "foot_contacts", "majority_filter", "humanoid_contacts"]
 
@@ -125,13 +124,14 @@ GAIT_SPEED_FRACTION = 0.3
 GAIT_HEIGHT_THRESHOLD = 0.03
 
 
-def humanoid_contacts(motion, humanoid: Optional[Humanoid] = None, speed_threshold: Optional[float] = None,
+def humanoid_contacts(motion, humanoid, speed_threshold: Optional[float] = None,
                       height_threshold: Optional[float] = None, **kwargs) -> Tuple[np.ndarray, np.ndarray]:
-    """Foot contacts of any humanoid motion, from its toe tips found by name or structure.
+    """Foot contacts of any humanoid motion, from the toe tips of its parts.
 
     Args:
-        motion: a Motion in metres (e.g. ``read_in_metres(path)`` of minifilm/motion/body_size.py).
-        humanoid: its parts (default: ``find_humanoid(motion)``; HumanoidError when there are none).
+        motion: a Motion in metres (e.g. ``read_in_metres(path)`` of minifilm/body/read.py).
+        humanoid: its parts (a ``minifilm.body.parts.Humanoid``), found once by its reader (e.g.
+            ``read_in_metres``): its ``contact_sensors`` and ``hips`` are read.
         speed_threshold: m/s; default max(0.15, GAIT_SPEED_FRACTION x the hips' median ground speed).
         height_threshold: metres; default GAIT_HEIGHT_THRESHOLD.
         kwargs: ``floor_height``, ``filter_seconds`` for :func:`foot_contacts`.
@@ -142,11 +142,10 @@ def humanoid_contacts(motion, humanoid: Optional[Humanoid] = None, speed_thresho
     y = 0) and find no contact at all in CMU 08_01 (120 fps; its toe tips slide at about 0.2 m/s
     and rest 1.6-7 cm up through a stance) nor in Bandai runs. Pass the paper's values to get them.
     """
-    h = humanoid if humanoid is not None else find_humanoid(motion)
-    sensors = np.array(h.contact_sensors, dtype=np.int64)
+    sensors = np.array(humanoid.contact_sensors, dtype=np.int64)
     positions, _ = motion.world()
     if speed_threshold is None:
-        ground = positions[:, h.hips, ::2]                                     # (F, 2) x, z
+        ground = positions[:, humanoid.hips, ::2]                                     # (F, 2) x, z
         speed = np.linalg.norm(np.diff(ground, axis=0), axis=-1) * motion.fps if len(ground) > 1 else np.zeros(1)
         speed_threshold = max(0.15, GAIT_SPEED_FRACTION * float(np.median(speed)))
     if height_threshold is None:

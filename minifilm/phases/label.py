@@ -10,12 +10,12 @@ the same way:
 with the phase sources of the style (a hopping style's lifted foot gets the contact-free PCA
 source, :func:`~minifilm.phases.local_phases.default_sources`).
 
-Any humanoid rig, not only the built-in skeletons: pass a
-:class:`~minifilm.phases.any_rig.HumanoidRig` (or ``skeleton=None`` to find the humanoid in
-``motion``, which must then be in metres: ``load_for_phases`` in minifilm/phases/any_rig.py reads a
-file so). Its contacts come from ``humanoid_contacts`` (contacts.py: the toe tips found by name or
-structure, with thresholds that hold on motion capture of any source); the phases are the same
-recipe on its hips, wrists and toes. A built-in Skeleton gives exactly what it always gave.
+Any humanoid rig, not only the built-in skeletons: pass the
+:class:`~minifilm.body.rig.HumanoidRig` its reader made (``load_for_phases`` in
+minifilm/body/read.py reads a file in metres and finds its body once). Its contacts come from
+``humanoid_contacts`` (contacts.py: its toe tips, with thresholds that hold on motion capture of
+any source); the phases are the same recipe on its hips, wrists and toes. A built-in Skeleton
+gives exactly what it always gave.
 """
 from __future__ import annotations
 
@@ -24,9 +24,7 @@ from typing import Optional, Sequence, Tuple
 
 import numpy as np
 
-from minifilm.motion.humanoid import Humanoid
 from minifilm.motion.motion import Motion
-from minifilm.phases.any_rig import HumanoidRig, humanoid_rig
 from minifilm.phases.contacts import foot_contacts, humanoid_contacts
 from minifilm.phases.local_phases import DEFAULT_SOURCES, LocalPhases, default_sources, extract_local_phases
 
@@ -57,21 +55,19 @@ class Labels:
                       tuple(self.sources[i] for i in (1, 0, 3, 2)))
 
 
-def label(motion: Motion, skeleton=None, style: Optional[str] = None,
+def label(motion: Motion, skeleton, style: Optional[str] = None,
           sources: Optional[Sequence[str]] = None, **fit_options) -> Labels:
     """Contacts and local phases of ``motion`` on ``skeleton``.
 
-    ``skeleton``: a built-in Skeleton, a HumanoidRig, a Humanoid found on ``motion``, or None for
-    ``humanoid_rig(motion)`` (HumanoidError when ``motion`` is not a humanoid). ``style`` picks the
-    phase sources (see ``default_sources``) unless ``sources`` names them; ``fit_options`` go to
-    the sinusoid fit.
+    ``skeleton``: a built-in Skeleton, or the HumanoidRig of the parts its reader found on
+    ``motion`` (minifilm/body/read.py; taken as given: nothing is looked for here). ``style`` picks the phase sources (see
+    ``default_sources``) unless ``sources`` names them; ``fit_options`` go to the sinusoid fit.
     Contacts use the skeleton's two toe-tip sensors with the floor height estimated from the file:
     the paper's thresholds on a built-in Skeleton, ``humanoid_contacts``' on a HumanoidRig.
     """
-    if skeleton is None or isinstance(skeleton, Humanoid):
-        skeleton = humanoid_rig(motion, skeleton)
-    if isinstance(skeleton, HumanoidRig):
-        contacts, _ = humanoid_contacts(motion, skeleton.humanoid)
+    humanoid = getattr(skeleton, "humanoid", None)        # a HumanoidRig carries the parts it was made of
+    if humanoid is not None:
+        contacts, _ = humanoid_contacts(motion, humanoid)
     else:
         positions, _ = motion.world()
         contacts = foot_contacts(positions[:, skeleton.contact_indices(motion)], motion.fps)

@@ -87,7 +87,7 @@ def read_clip(path, run: RunFolder, log: Callable[[str], None]) -> Motion:
     """One file on the run's skeleton, at the run's frame rate (resampled, and said so)."""
     motion = read_bvh(path, scale=run.bvh_scale)
     missing = [n for n in run.layout.joint_names if n not in motion.names]
-    if missing:      # another rig: retargeted onto the run's skeleton (minifilm/rigs/batch.py)
+    if missing:      # another rig: retargeted onto the run's skeleton (minifilm/body/retarget_batch.py)
         motion = retarget_onto_run(path, run.path, log)
     if abs(motion.fps - run.fps) > 1e-3 * run.fps:
         log(f"    {Path(path).name}: {motion.fps:g} fps resampled to the run's {run.fps:g} fps")

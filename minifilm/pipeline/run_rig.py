@@ -1,7 +1,7 @@
 """Retargeting where a run folder is involved: a run's skeleton as a target rig, a clip of another
 rig put on a run's skeleton (``minifilm finetune``).
 
-minifilm/rigs/ knows rigs from names and BVH files; a run folder is the pipeline's, so it is read
+minifilm/body/ knows rigs from names and BVH files; a run folder is the pipeline's, so it is read
 here (:class:`~minifilm.pipeline.run_folder.RunFolder`) and handed over as a template.
 """
 from __future__ import annotations
@@ -11,15 +11,16 @@ from pathlib import Path
 from typing import Callable, Union
 
 from minifilm.pipeline.run_folder import RunFolder
-from minifilm.rigs.retarget_clip import read_source, retarget_motion
-from minifilm.rigs.joint_map import RigError
-from minifilm.rigs.rig import BUILTIN_RIGS, Rig, load_rig, rig_from_template
+from minifilm.body.read import read_source
+from minifilm.body.retarget_clip import retarget_motion
+from minifilm.body.roles import RigError
+from minifilm.body.target import BUILTIN_RIGS, Rig, load_rig, rig_from_template
 
 __all__ = ["load_target", "retarget_onto_run"]
 
 
 def load_target(target: Union[str, os.PathLike], map_path=None, scale=None) -> Rig:
-    """A target rig from a built-in name, a run folder or a BVH file (:func:`minifilm.rigs.rig.load_rig`
+    """A target rig from a built-in name, a run folder or a BVH file (:func:`minifilm.body.target.load_rig`
     for names and files; a run folder's skeleton.bvh and bvh_scale here)."""
     path = Path(os.fspath(target))
     if path.is_dir():

@@ -28,8 +28,9 @@ from minifilm.motion.editing import resample
 from minifilm.motion.motion import Motion
 from minifilm.motion.skeletons import STYLE100
 from minifilm.phases.label import label
-from minifilm.rigs.retarget_clip import read_source, retarget_motion
-from minifilm.rigs.rig import load_rig
+from minifilm.body.read import read_source
+from minifilm.body.retarget_clip import retarget_motion
+from minifilm.body.target import load_rig
 from minifilm.runtime.start_state import root_joint_indices
 from minifilm.runtime.released import load_released
 from minifilm.runtime.style_pack import load_pack_or_empty

@@ -44,7 +44,7 @@ from minifilm.model.style_model import StyleModel
 from minifilm.motion.bvh import bvh_duration, read_bvh
 from minifilm.motion.skeletons import STYLE100, builtin_skeleton
 from minifilm.phases.label import label
-from minifilm.rigs.batch import retarget_files
+from minifilm.body.retarget_batch import retarget_files
 from minifilm.pipeline.run_folder import RunFolder, is_run_entry
 from minifilm.pipeline.run_rig import load_target
 from minifilm.pipeline.results import (generate_per_style, save_loss_curve, show_styles,  # noqa: F401

@@ -1,9 +1,10 @@
 """Which bone of a drawn skeleton is torso, neck, head, arm or leg: the mannequin's body plan.
 
 The shaded body of the player and the demo (``assets/mannequin.js``) gives each bone a thickness by
-its part. The parts are the ones :func:`minifilm.motion.humanoid.find_humanoid` finds (by names,
-checked against the hierarchy, else by structure), so the page never guesses them itself and
-every command that knows a rig agrees with what is drawn. :func:`body_plan` returns, for the page:
+its part. The parts are the ones :func:`minifilm.body.humanoid.find_humanoid` finds (by names,
+checked against the hierarchy, else by structure), taken as its reader found them
+(minifilm/body/read.py), so the page never guesses them itself and every command that knows a rig
+agrees with what is drawn. :func:`body_plan` returns, for the page:
 
     {"parts": [part of the bone ending at joint j, for each drawn joint j],
      "head": the head joint, "neck": the joint below it (the head sits along neck -> head),
@@ -21,7 +22,8 @@ from typing import Dict, List, Optional, Sequence
 
 import numpy as np
 
-from minifilm.motion.humanoid import HumanoidError, find_humanoid
+from minifilm.body.humanoid import find_humanoid
+from minifilm.body.parts import Humanoid, HumanoidError
 from minifilm.motion.motion import Motion
 
 __all__ = ["body_plan", "body_plan_of_positions", "joint_parts"]
@@ -67,13 +69,14 @@ def joint_parts(motion: Motion, h) -> List[Optional[str]]:
     return parts
 
 
-def body_plan(motion: Motion, keep: Optional[Sequence[int]] = None) -> Dict:
+def body_plan(motion: Motion, keep: Optional[Sequence[int]] = None, humanoid: Optional[Humanoid] = None) -> Dict:
     """The page's body plan (module docstring) for ``motion``, indexed by the drawn joints ``keep``
     (ascending joint indices of ``motion``; default: all). A dropped joint (one that sits on its
     parent) hands its role to the nearest drawn joint above it (the head, the toes) and its part to
-    the drawn bone that spans it."""
+    the drawn bone that spans it. ``humanoid``: its parts as its reader found them; None for a
+    motion no reader looked at (a network's output): they are found here."""
     try:
-        h = find_humanoid(motion)
+        h = humanoid if humanoid is not None else find_humanoid(motion)
     except HumanoidError:
         return {"parts": None}
     keep = list(range(motion.n_joints)) if keep is None else [int(j) for j in keep]

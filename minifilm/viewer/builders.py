@@ -9,7 +9,8 @@ from __future__ import annotations
 import os
 from typing import List, Optional, Sequence, Tuple, Union
 
-from minifilm.motion.body_size import BodyUnit, read_in_metres
+from minifilm.body.read import read_in_metres
+from minifilm.body.units import BodyUnit
 from minifilm.phases.contacts import humanoid_contacts
 from minifilm.runtime.rollout import Rollout
 from minifilm.viewer.tracks import Track, track_from_motion
@@ -49,7 +50,7 @@ def track_with_contacts(path: Union[str, os.PathLike], name: Optional[str] = Non
     """A BVH file as a Track at its true size, with its foot contacts marked.
 
     The unit comes from the skeleton or the body's height, and the feet from the joint names or
-    the hierarchy (minifilm/motion/body_size.py, humanoid.py); a skeleton that is not a humanoid
+    the hierarchy, found once by its reader (minifilm/body/read.py); a skeleton that is not a humanoid
     is drawn in centimetres without contacts."""
     return track_and_unit(path, name)[0]
 
@@ -58,6 +59,7 @@ def track_and_unit(path: Union[str, os.PathLike], name: Optional[str] = None) ->
     """``track_with_contacts(path, name)`` and the unit it was read in (``BodyUnit.how`` says why)."""
     motion, humanoid, unit = read_in_metres(path)
     if humanoid is None or motion.n_frames < 2:
-        return track_from_motion(motion, name=name), unit
+        return track_from_motion(motion, name=name, humanoid=humanoid), unit
     contacts, sensors = humanoid_contacts(motion, humanoid)
-    return track_from_motion(motion, name=name, contacts=contacts, contact_joints=list(sensors)), unit
+    return track_from_motion(motion, name=name, contacts=contacts, contact_joints=list(sensors),
+                             humanoid=humanoid), unit

@@ -15,7 +15,7 @@ from typing import List, Optional, Sequence, Union
 
 import numpy as np
 
-from minifilm.motion.body_size import read_in_metres
+from minifilm.body.read import read_in_metres
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.motion import Motion
 from minifilm.viewer.body import body_plan
@@ -191,7 +191,7 @@ def track_from_motion(motion: Motion, name: Optional[str] = None,
                       joints: Optional[Sequence[JointRef]] = None,
                       contacts: Optional[np.ndarray] = None,
                       contact_joints: Optional[Sequence[JointRef]] = None,
-                      trail: Optional[np.ndarray] = None) -> Track:
+                      trail: Optional[np.ndarray] = None, humanoid=None) -> Track:
     """A ``Track`` of ``motion`` drawn with the file's own hierarchy.
 
     Args:
@@ -206,6 +206,8 @@ def track_from_motion(motion: Motion, name: Optional[str] = None,
         contact_joints: (C,) joints (names or indices of ``motion``) that ``contacts`` refers to. A
                         dropped zero-length joint maps to the joint it coincides with.
         trail:          optional (F, 3) floor path; default: the followed root on the floor.
+        humanoid:       its humanoid parts as its reader found them (minifilm/body/read.py), for the
+                        shaded body; None: found for the page (:func:`minifilm.viewer.body.body_plan`).
 
     A link from a hierarchy root to a child with a changing local translation is that child's
     translation, not a bone (Bandai's ``joint_Root`` on the floor, static or moving, above the
@@ -244,7 +246,7 @@ def track_from_motion(motion: Motion, name: Optional[str] = None,
             c_idx.append(position_in_track[j])
     return Track(name=name, positions=P[:, keep], parents=np.array(track_parents, dtype=np.int64),
                  fps=motion.fps, contacts=contacts, contact_joints=c_idx, trail=trail,
-                 joint_names=[names[j] for j in keep], body=body_plan(motion, keep))
+                 joint_names=[names[j] for j in keep], body=body_plan(motion, keep, humanoid))
 
 
 def track_from_bvh(path: Union[str, os.PathLike], name: Optional[str] = None, scale: Optional[float] = None,
@@ -252,14 +254,16 @@ def track_from_bvh(path: Union[str, os.PathLike], name: Optional[str] = None, sc
     """Read a BVH file in metres and build its ``Track``.
 
     ``scale``: metres per file unit; default: the skeleton's or the body's own
-    (minifilm/motion/body_size.py: a humanoid is drawn at its true size; other rigs in centimetres).
+    (minifilm/body/units.py: a humanoid is drawn at its true size; other rigs in centimetres).
 
     ``kwargs`` go to ``track_from_motion`` (``joints``, ``contacts``, ``contact_joints``, ``trail``).
     Raises OSError when the file cannot be read and ``BVHError`` (a ValueError naming the file and
     line) when it is not a valid BVH file.
     """
-    motion = read_in_metres(path)[0] if scale is None else read_bvh(path, scale=scale)
-    return track_from_motion(motion, name=name, **kwargs)
+    if scale is not None:
+        return track_from_motion(read_bvh(path, scale=scale), name=name, **kwargs)
+    motion, humanoid, _ = read_in_metres(path)
+    return track_from_motion(motion, name=name, humanoid=humanoid, **kwargs)
 
 
 def as_tracks(items) -> List[Track]:

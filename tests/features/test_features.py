@@ -251,7 +251,7 @@ REAL_FILES = [  # (path under shared data, expected fps)
 
 def _load(shared_data, rel):
     from minifilm.motion.bvh import read_bvh
-    from minifilm.motion.skeletons import detect_skeleton
+    from minifilm.body.rig import detect_skeleton
 
     skeleton = detect_skeleton(read_bvh(shared_data / rel))
     return read_bvh(shared_data / rel, scale=skeleton.bvh_scale), skeleton

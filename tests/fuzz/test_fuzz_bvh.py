@@ -14,7 +14,7 @@ from harness import outcome
 from minifilm.errors import MAX_FPS, MIN_FPS, InputError
 from minifilm.features.compute import frame_features
 from minifilm.motion.bvh import read_bvh
-from minifilm.motion.skeletons import detect_skeleton
+from minifilm.body.rig import detect_skeleton
 from minifilm.phases.label import label
 
 SOURCES = {

@@ -19,12 +19,12 @@ from humanoid_rigs import (CMU_LAYOUT_FROM_100STYLE, NECK_NAMES, branching_human
                            reparented, scrambled)
 from minifilm.cli import main
 from minifilm.errors import InputError
-from minifilm.motion.body_size import read_in_metres
+from minifilm.body.read import read_in_metres
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.bvh_write import write_bvh
-from minifilm.motion.humanoid import find_humanoid, humanoid_by_structure
-from minifilm.rigs import load_rig, retarget_motion
-from minifilm.rigs.roles import roles_from_humanoid
+from minifilm.body.humanoid import find_humanoid, humanoid_by_structure
+from minifilm.body import load_rig, retarget_motion
+from minifilm.body.roles import roles_from_humanoid
 
 N_GENERATED = 300
 STYLE100 = "100style/Neutral_FR_first3frames.bvh"
@@ -58,14 +58,14 @@ def test_generated_rigs_by_names_and_by_structure():
         _agrees(_described(find_humanoid(m), m.names), expected, label)
         s = scrambled(m, seed=len(label))
         _agrees(_described(humanoid_by_structure(s), m.names), expected, label + " (structure)")
-        roles = roles_from_humanoid(m)
+        roles = roles_from_humanoid(m, find_humanoid(m))
         assert roles.chest == expected[max(k for k in expected if k.startswith("spine"))]
         assert roles.head == "Head"
 
 
 def test_generated_rigs_retarget_onto_100style_without_a_map(target):
     for label, m, _ in branching_humans(40, seed=12):
-        out = retarget_motion(m, target, plant=False)
+        out = retarget_motion(m, target, roles_from_humanoid(m, find_humanoid(m)), plant=False)
         P = out.world()[0]
         assert np.isfinite(P).all(), label
         head, hips = out.names.index("Head"), out.names.index("Hips")
@@ -81,7 +81,7 @@ def test_every_real_layout_with_its_neck_renamed(shared_data, target, rel):
         r = renamed(m, {neck: new})
         h = find_humanoid(r)
         assert (r.names[h.chest], r.names[h.head]) == (chest, head), new
-        assert retarget_motion(r, target, plant=False).n_frames == r.n_frames
+        assert retarget_motion(r, target, roles_from_humanoid(r, h), plant=False).n_frames == r.n_frames
 
 
 @pytest.mark.parametrize("collar_parent", ["Chest", "Chest2", "Chest3", "Chest4"])
@@ -96,7 +96,7 @@ def test_100style_with_its_collars_on_any_spine_joint(shared_data, target, colla
     assert [r.names[j] for j in h.spine] == chain[:chain.index(collar_parent) + 1]
     assert r.names[h.neck] == names.get(above[0], above[0]) if above else r.names[h.neck] == "Neck"
     assert (r.names[h.left_collar], r.names[h.right_collar]) == ("LeftCollar", "RightCollar")
-    assert retarget_motion(r, target, plant=False).n_frames == 3
+    assert retarget_motion(r, target, roles_from_humanoid(r, h), plant=False).n_frames == 3
 
 
 def test_spines_of_meaningless_names(shared_data, target):
@@ -105,7 +105,7 @@ def test_spines_of_meaningless_names(shared_data, target):
         r = renamed(m, {"Chest": name, "Chest2": f"{name}_2", "Chest3": f"{name}_3"})
         h = find_humanoid(r)
         assert r.names[h.chest] == "Chest4" and r.names[h.neck] == "Neck", name
-        retarget_motion(r, target, plant=False)
+        retarget_motion(r, target, roles_from_humanoid(r, h), plant=False)
 
 
 def _cli(argv, capsys):

@@ -1,5 +1,5 @@
 """Fuzz family: a skeleton in any unit, wherever one comes in. ``view``, ``retarget`` (source and
-target), and ``generate --skeleton-bvh`` read it through one rule (body_size.body_unit): the unit
+target), and ``generate --skeleton-bvh`` read it through one rule (minifilm/body/units.py, body_unit): the unit
 that makes the body of human height, even when its joint names are those of a built-in skeleton
 usually written in another unit; all-zero offsets (no size at all) are refused in one line.
 
@@ -11,11 +11,12 @@ import pytest
 from harness import outcome
 from minifilm.cli import main
 from minifilm.errors import InputError
-from minifilm.motion.body_size import KNOWN_UNITS, STATURE_RANGE, read_in_metres, standing_height
+from minifilm.body.read import read_in_metres
+from minifilm.body.units import KNOWN_UNITS, STATURE_RANGE, standing_height
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.motion.motion import Motion
-from minifilm.rigs import load_rig, read_source
+from minifilm.body import load_rig, read_source
 
 LAYOUTS = ("100style/Neutral_FR_first3frames.bvh", "bandai2/dataset-2_walk_normal_001.bvh",
            "bvh/bandai1/dataset-1_walk_normal_001.bvh", "bvh/xia/neutral_01_000.bvh", "bvh/cmu/08_01_trimmed.bvh")

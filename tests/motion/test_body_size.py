@@ -1,14 +1,15 @@
-"""minifilm.motion.body_size: every real file (and renamed copies the built-ins do not know) at its
+"""minifilm.body.units: every real file (and renamed copies the built-ins do not know) at its
 true size; the unit inferred from the body's legs; non-humanoids in centimetres, saying so."""
 import numpy as np
 import pytest
 
 from humanoid_rigs import (CMU_CONVERSION_FROM_MB, CMU_CONVERSION_FROM_XIA, quadruped, renamed, renamed_bvh,
                            scrambled)
-from minifilm.motion.body_size import body_unit, read_in_metres, scaled, standing_height
+from minifilm.body.read import Body, read_in_metres
+from minifilm.body.units import scaled, standing_height
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.bvh_write import write_bvh
-from minifilm.motion.humanoid import find_humanoid
+from minifilm.body.humanoid import find_humanoid
 
 REAL = ["100style/Neutral_FR_first3frames.bvh", "bandai2/dataset-2_walk_normal_001.bvh",
         "bandai2/dataset-2_run_active_002.bvh", "bvh/bandai1/dataset-1_walk_normal_001.bvh",
@@ -46,14 +47,14 @@ def test_the_unit_is_inferred_from_the_legs(shared_data, factor, unit):
     # built-in skeleton has
     cm = read_bvh(shared_data / "100style/Neutral_FR_first3frames.bvh", scale=1.0)
     other = scaled(scrambled(cm), factor)
-    found = body_unit(other)
+    found = Body(other).unit
     assert found.metres_per_unit == pytest.approx(unit)
-    assert found.stature == pytest.approx(body_unit(cm).stature, rel=1e-9)
+    assert found.stature == pytest.approx(Body(cm).unit.stature, rel=1e-9)
 
 
 def test_a_body_of_no_common_unit_is_scaled_to_a_typical_height(shared_data):
     cm = read_bvh(shared_data / "100style/Neutral_FR_first3frames.bvh", scale=1.0)
-    found = body_unit(scaled(scrambled(cm), 4.0))           # 7 m tall in cm, 0.7 m in mm
+    found = Body(scaled(scrambled(cm), 4.0)).unit           # 7 m tall in cm, 0.7 m in mm
     assert found.stature == pytest.approx(1.7) and "scaled to 1.7 m" in found.how
     m = scaled(scaled(scrambled(cm), 4.0), found.metres_per_unit)
     assert 1.4 <= standing_height(m.world()[0], find_humanoid(m), m.fps) <= 2.1

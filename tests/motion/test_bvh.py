@@ -9,7 +9,7 @@ from scipy.spatial.transform import Rotation
 from minifilm.motion.bvh import BVHError, parse_bvh, read_bvh
 from minifilm.motion.bvh_write import format_bvh, write_bvh
 from minifilm.motion.motion import Motion
-from minifilm.motion.skeletons import detect_skeleton
+from minifilm.body.rig import detect_skeleton
 
 # Line numbers matter: the error tests below refer to them.
 TINY = """HIERARCHY

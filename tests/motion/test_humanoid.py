@@ -1,4 +1,4 @@
-"""minifilm.motion.humanoid: the parts of every real layout, by names and by structure alone, and
+"""minifilm.body.humanoid: the parts of every real layout, by names and by structure alone, and
 one clear error for what is not a humanoid."""
 from functools import lru_cache
 
@@ -9,7 +9,7 @@ from humanoid_rigs import (CMU_CONVERSION_FROM_MB, CMU_CONVERSION_FROM_XIA, pose
                            renamed_bvh, scrambled, single_chain, without)
 from minifilm.errors import InputError
 from minifilm.motion.bvh import read_bvh
-from minifilm.motion.humanoid import (HumanoidError, find_humanoid, humanoid_by_names, humanoid_by_structure,
+from minifilm.body.humanoid import (HumanoidError, find_humanoid, humanoid_by_names, humanoid_by_structure,
                                       split_name)
 
 # What a person reading each file's header calls each part (written by hand, not by the code).

@@ -1,10 +1,10 @@
-"""Toes kept out of the floor in swing (rigs/clearance.py): the 100STYLE foot, twice as long as
+"""Toes kept out of the floor in swing (minifilm/body/clearance.py): the 100STYLE foot, twice as long as
 Bandai's, sank its toe tip 5-7 cm below the floor just after toe-off."""
 import numpy as np
 
 from minifilm.evaluation.retargeting import contact_agreement
-from minifilm.rigs import load_rig, read_source, retarget_motion
-from minifilm.rigs.clearance import away_from, needed_lift, turn_up, upper_envelope
+from minifilm.body import load_rig, read_source, retarget_motion
+from minifilm.body.clearance import away_from, needed_lift, turn_up, upper_envelope
 
 
 def test_upper_envelope_is_never_below_the_series_and_has_no_jumps():
@@ -59,7 +59,7 @@ def test_bandai_walk_on_100style_keeps_its_toes_out_of_the_floor(shared_data):
 def test_a_shorter_target_foot_is_not_turned(shared_data):
     """Only a target foot reaching further (in leg lengths) than the source's is turned: the
     100STYLE -> Bandai pass of a round trip is left as the planting put it."""
-    import minifilm.rigs.retarget_clip as clip
+    import minifilm.body.retarget_clip as clip
     bandai, style = load_rig("bandai"), load_rig("100style")
     m, roles = read_source(shared_data / "bvh" / "bandai1" / "dataset-1_walk_proud_001.bvh")
     there = retarget_motion(m, style, roles)

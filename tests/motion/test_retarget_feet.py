@@ -1,4 +1,4 @@
-"""Planted feet of a retargeted clip (rigs/feet.py, rigs/tips.py): contacts as the source's, planted
+"""Planted feet of a retargeted clip (minifilm/body/feet.py, tips.py): contacts as the source's, planted
 tips that stay put, and round trips that come back with the feet planted on both passes."""
 import glob
 
@@ -7,8 +7,8 @@ import pytest
 
 from minifilm.evaluation.retargeting import bone_direction_errors, contact_agreement, round_trip_errors
 from minifilm.phases.contacts import foot_contacts
-from minifilm.rigs import load_rig, read_source, retarget_motion
-from minifilm.rigs.tips import HEIGHT_BAND, band_heights, pin_targets, slide_correction
+from minifilm.body import load_rig, read_source, retarget_motion
+from minifilm.body.tips import HEIGHT_BAND, band_heights, pin_targets, slide_correction
 from minifilm.synthetic.generator import generate_style
 
 

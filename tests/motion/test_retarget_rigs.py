@@ -10,10 +10,10 @@ import pytest
 from minifilm.evaluation.retargeting import (bone_direction_errors, contact_agreement, round_trip_errors, skating,
                                              standing_height)
 from minifilm.motion.bvh import read_bvh
-from minifilm.motion.humanoid import find_humanoid
-from minifilm.rigs.joint_map import BUILTIN_ROLES, RigError, chain_overlaps, roles_from_mapping
-from minifilm.rigs import load_rig, read_source, retarget_motion
-from minifilm.rigs.pose import UP, canonical_pose, rest_positions
+from minifilm.body.humanoid import find_humanoid
+from minifilm.body.roles import BUILTIN_ROLES, RigError, roles_from_mapping
+from minifilm.body import load_rig, read_source, retarget_motion
+from minifilm.body.pose import UP, canonical_pose, chain_overlaps, rest_positions
 from minifilm.motion.skeletons import STYLE100
 from minifilm.phases.label import label
 from minifilm.synthetic.generator import generate_style
@@ -237,10 +237,10 @@ def test_a_rig_known_only_by_its_map_gets_the_unit_body_size_gives(tmp_path, syn
     (thigh + shin = 0.49 of the stature). The body is made 2.0 m tall, in centimetres: the hips'
     standing height (12 % longer than thigh + shin) over 0.49 would make it 2.25 m, out of the
     1.4-2.1 m range, and the file would be rescaled to 1.7 m instead of read in centimetres."""
-    from minifilm.motion import body_size
+    from minifilm.body import units as body_size
     from minifilm.motion.bvh_write import write_bvh
-    from minifilm.motion.humanoid import HumanoidError
-    from minifilm.rigs import rig as rig_module
+    from minifilm.body.humanoid import HumanoidError
+    from minifilm.body import read as read_module
     m = body_size.scaled(synthetic_walk, 1.0)
     thigh_and_shin = body_size.leg_length(m, find_humanoid(m))
     m = body_size.scaled(m, 2.0 * body_size.LEG_FRACTION / thigh_and_shin)      # a 2.0 m body, metres
@@ -249,15 +249,15 @@ def test_a_rig_known_only_by_its_map_gets_the_unit_body_size_gives(tmp_path, syn
     path = tmp_path / "renamed.bvh"
     write_bvh(renamed, path, scale=0.01)                                         # centimetres
     raw = read_bvh(path, scale=1.0)
-    expected = body_size.body_unit(raw)                 # humanoid.py finds it by structure: the reference
+    expected = read_module.Body(raw).unit               # humanoid.py finds it by structure: the reference
     assert expected.metres_per_unit == 0.01 and expected.stature == pytest.approx(2.0)
 
     def unrecognised(motion):
         raise HumanoidError(f"{motion.source}: not a humanoid skeleton that minifilm recognises")
-    monkeypatch.setattr(rig_module, "find_humanoid", unrecognised)      # only the map knows this rig
+    monkeypatch.setattr(read_module, "find_humanoid", unrecognised)     # only the map knows this rig
     roles = roles_from_mapping(mapping, raw)
-    assert rig_module.unit_from_legs(raw, roles).stature == pytest.approx(expected.stature, rel=1e-9)
-    assert rig_module.file_unit(raw, roles) == expected.metres_per_unit
+    assert body_size.unit_from_legs(raw, roles).stature == pytest.approx(expected.stature, rel=1e-9)
+    assert read_module.Body(raw).metres_per_unit(roles) == expected.metres_per_unit
     motion, _ = read_source(path, map_path)
     np.testing.assert_allclose(motion.offsets, raw.offsets * 0.01)
 

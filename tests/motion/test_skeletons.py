@@ -5,6 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from minifilm.body.rig import detect_skeleton
 from minifilm.motion import skeletons as S
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.kinematics import euler_to_matrix
@@ -30,7 +31,7 @@ def files_of(root: Path, name: str):
 def summary(path: str, scale: float):
     """Per-file numbers the tests need (read once): hips height, sensor heights, facing vs travel."""
     m = read_bvh(path, scale=scale)
-    sk = S.detect_skeleton(m)
+    sk = detect_skeleton(m)
     P, _ = m.world()
     root_pos, root_rot = S.root_transforms(m, sk)
     travel = np.diff(root_pos, axis=0) * m.fps                     # (F-1, 3), y = 0
@@ -62,7 +63,7 @@ def test_builtin_parents_agree_with_the_file_hierarchy(shared_data, name):
     sk = BY_NAME[name]
     m = read_bvh(files_of(shared_data, name)[0], scale=sk.bvh_scale)
     assert S.parents_from_motion(m, sk.joints) == sk.parents
-    assert S.detect_skeleton(m) is sk
+    assert detect_skeleton(m) is sk
     # phase bones and hips are exported joints, so features and phases see the same bones
     assert set(sk.phase_bones) <= set(sk.joints) and sk.hips == sk.joints[0]
 
@@ -98,7 +99,7 @@ def _tiny_motion(names, hips_rot, hips_pos):
 def test_detect_skeleton_error_lists_candidates():
     m = _tiny_motion(["Pelvis", "Foot"], np.eye(3)[None], [[0, 1, 0]])
     with pytest.raises(ValueError) as err:
-        S.detect_skeleton(m)
+        detect_skeleton(m)
     for sk in S.BUILTIN_SKELETONS:
         assert sk.name in str(err.value)
     with pytest.raises(KeyError, match="Hips"):

@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 
 from humanoid_rigs import CMU_CONVERSION_FROM_MB, renamed_bvh, scrambled
-from minifilm.motion.body_size import read_in_metres
-from minifilm.motion.humanoid import HumanoidError
+from minifilm.body.read import read_in_metres
+from minifilm.body.humanoid import HumanoidError, find_humanoid
 from minifilm.phases.contacts import humanoid_contacts
 
 LAYOUTS = ["bandai2/dataset-2_walk_normal_001.bvh", "bandai2/dataset-2_run_normal_001.bvh",
@@ -26,14 +26,15 @@ def test_both_feet_touch_down_and_lift_off(shared_data, rel):
     assert np.all(share >= 0.1) and np.all(share <= 0.8), share        # a walk or run, not frozen or flying
     assert all(_changes(contacts[:, k]) >= 2 for k in range(2))        # at least one step per foot
     # the same from the structure alone
-    same, _ = humanoid_contacts(scrambled(m))
+    s = scrambled(m)
+    same, _ = humanoid_contacts(s, find_humanoid(s))
     np.testing.assert_array_equal(same, contacts)
 
 
 def test_the_cmu_conversion_layout_gets_contacts(shared_data, tmp_path):
     path = renamed_bvh(shared_data / "bvh/cmu/08_01_trimmed.bvh", tmp_path / "c.bvh", CMU_CONVERSION_FROM_MB)
     m, h, _ = read_in_metres(path)
-    original, _ = humanoid_contacts(read_in_metres(shared_data / "bvh/cmu/08_01_trimmed.bvh")[0])
+    original, _ = humanoid_contacts(*read_in_metres(shared_data / "bvh/cmu/08_01_trimmed.bvh")[:2])
     contacts, sensors = humanoid_contacts(m, h)
     assert [m.names[j] for j in sensors] == ["RightAnkleSite", "LeftAnkleSite"]
     np.testing.assert_array_equal(contacts, original)
@@ -50,5 +51,6 @@ def test_the_papers_thresholds_when_asked(shared_data):
 
 def test_a_motion_without_a_humanoid_is_one_error():
     from humanoid_rigs import quadruped
+    dog = quadruped()
     with pytest.raises(HumanoidError, match="on the floor like a foot"):
-        humanoid_contacts(quadruped())
+        humanoid_contacts(dog, find_humanoid(dog))

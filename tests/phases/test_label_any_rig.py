@@ -1,4 +1,4 @@
-"""The labelling recipe on any humanoid rig (minifilm/phases/any_rig.py, label.py): built-in
+"""The labelling recipe on any humanoid rig (minifilm/body/rig.py, read.py; minifilm/phases/label.py): built-in
 skeletons label exactly as the plain recipe does; renamed (CMU conversion) and scrambled rigs get
 contacts and local phases that follow the steps; non-humanoid and feetless rigs are one error."""
 import numpy as np
@@ -7,9 +7,10 @@ import pytest
 from humanoid_rigs import CMU_CONVERSION_FROM_XIA, quadruped, renamed_bvh, scrambled, without
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.bvh_write import write_bvh
-from minifilm.motion.humanoid import HumanoidError
+from minifilm.body.humanoid import HumanoidError, find_humanoid
 from minifilm.motion.skeletons import builtin_skeleton
-from minifilm.phases.any_rig import HumanoidRig, humanoid_rig, load_for_phases
+from minifilm.body.read import load_for_phases
+from minifilm.body.rig import HumanoidRig, humanoid_rig
 from minifilm.phases.contacts import foot_contacts, humanoid_contacts
 from minifilm.phases.label import label
 from minifilm.phases.local_phases import extract_local_phases
@@ -28,7 +29,7 @@ def _rig_labels(path):
     """(motion, rig, labels on the humanoid rig) of a real file, computed once per file."""
     if path not in _cache:
         motion, _, _ = load_for_phases(path)
-        rig = humanoid_rig(motion)
+        rig = humanoid_rig(motion, find_humanoid(motion))
         _cache[path] = motion, rig, label(motion, rig)
     return _cache[path]
 
@@ -62,7 +63,7 @@ def test_builtin_skeletons_label_as_the_plain_recipe(shared_data, rel, name):
 @pytest.mark.parametrize("rel,name", BUILTIN)
 def test_the_estimated_front_agrees_with_the_builtin_axis(shared_data, rel, name):
     motion, _, _ = load_for_phases(shared_data / rel)
-    axis = np.array(humanoid_rig(motion).facing_axis)
+    axis = np.array(humanoid_rig(motion, find_humanoid(motion)).facing_axis)
     assert abs(np.linalg.norm(axis) - 1) < 1e-12
     assert axis @ np.array(builtin_skeleton(name).facing_axis) > 0.95, axis      # within 18 degrees
 
@@ -88,13 +89,14 @@ def test_phases_on_the_humanoid_parts_follow_the_steps(shared_data, rel):
 def test_a_scrambled_rig_is_labelled_from_its_structure(shared_data, rel):
     motion, rig, labels = _rig_labels(shared_data / rel)
     scrambled_motion = scrambled(motion)
-    rig_s = humanoid_rig(scrambled_motion)
+    rig_s = humanoid_rig(scrambled_motion, find_humanoid(scrambled_motion))
     assert rig_s.humanoid.method == "structure"
     assert rig_s.phase_indices().tolist() == rig.phase_indices().tolist()
-    got = label(scrambled_motion)                             # skeleton=None: found in the motion
+    got = label(scrambled_motion, rig_s)                      # the parts found in the motion
     np.testing.assert_array_equal(got.contacts, labels.contacts)
     np.testing.assert_array_equal(got.vectors, labels.vectors)
-    np.testing.assert_array_equal(label(scrambled_motion, rig_s.humanoid).vectors, labels.vectors)
+    np.testing.assert_array_equal(label(scrambled_motion, humanoid_rig(scrambled_motion, rig_s.humanoid)).vectors,
+                                  labels.vectors)
 
 
 def test_the_cmu_conversion_layout(shared_data, tmp_path):
@@ -115,8 +117,9 @@ def test_a_quadruped_is_one_error(tmp_path):
     write_bvh(quadruped(human_names=True), path)
     with pytest.raises(HumanoidError, match="dog.bvh"):
         load_for_phases(path)
+    dog = quadruped()
     with pytest.raises(HumanoidError):
-        label(quadruped())
+        label(dog, humanoid_rig(dog, find_humanoid(dog)))
 
 
 def test_a_rig_without_feet_is_one_error(shared_data, tmp_path):
@@ -126,5 +129,6 @@ def test_a_rig_without_feet_is_one_error(shared_data, tmp_path):
     write_bvh(feetless, path, scale=0.0254 / 0.45)
     with pytest.raises(HumanoidError, match="feetless.bvh"):
         load_for_phases(path)
+    feetless = scrambled(feetless)
     with pytest.raises(HumanoidError):
-        label(scrambled(feetless))
+        label(feetless, humanoid_rig(feetless, find_humanoid(feetless)))

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from minifilm.motion.bvh import read_bvh
-from minifilm.motion.skeletons import detect_skeleton
+from minifilm.body.rig import detect_skeleton
 from minifilm.phases.label import label
 from minifilm.phases.sinusoid_fit import fit_sinusoids
 from minifilm.phases.sinusoid_fit_plain import (Window, apply_bounds, fit_sinusoids_plain, frame_window,

@@ -34,7 +34,7 @@ def test_bandai_drops_zero_sites_and_the_static_root(bandai_walk):
     assert not any(n.endswith("Site") for n in track.joint_names)  # all zero-length in Bandai files
     assert track.joint_names[0] == "Hips" and track.root == 0
     idx = [motion.names.index(n) for n in track.joint_names]
-    # the viewer scales positions computed in the file's unit (body_size.scaled): equal up to rounding
+    # the viewer scales positions computed in the file's unit (units.scaled): equal up to rounding
     np.testing.assert_allclose(track.positions, P[:, idx], rtol=1e-12, atol=1e-12)
     # Every drawn bone keeps its length: no translation link is drawn as a bone.
     lengths = np.linalg.norm(track.positions[:, track.bones[:, 0]] - track.positions[:, track.bones[:, 1]], axis=2)

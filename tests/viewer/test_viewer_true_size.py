@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from humanoid_rigs import CMU_CONVERSION_FROM_MB, CMU_CONVERSION_FROM_XIA, renamed_bvh
-from minifilm.motion.body_size import read_in_metres, standing_height
+from minifilm.body.read import read_in_metres
+from minifilm.body.units import standing_height
 from minifilm.viewer import track_from_motion, track_with_contacts, write_gif
 from viewer_helpers import synthetic_walker
 

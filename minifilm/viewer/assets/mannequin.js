@@ -9,7 +9,7 @@
 //                                      ``contacts``: joint indices to draw in the contact colour
 //
 // Which bone is torso, neck, head, arm or leg is not worked out here: ``plan`` is the body plan
-// the page was given (minifilm/viewer/body.py, from the parts minifilm/motion/humanoid.py finds):
+// the page was given (minifilm/viewer/body.py, from the parts minifilm/body/humanoid.py finds):
 // ``parts`` (per joint: the part of the bone ending there), ``head``, ``neck`` (the joint below the
 // head) and ``toes``. A skeleton without a plan (not a humanoid) gets no body: its sticks are drawn.
 // A limb's segments get thinner away from the body. Limbs are a little thinner than the balls at

@@ -1,13 +1,13 @@
 """Humanoid parts from the hierarchy and the pose alone, names unused (the rules are in
-minifilm/motion/humanoid.py's docstring)."""
+minifilm/body/humanoid.py's docstring)."""
 from __future__ import annotations
 
 from typing import List, Tuple
 
 import numpy as np
 
-from minifilm.motion.humanoid_parts import Humanoid, HumanoidError
-from minifilm.motion.humanoid_tree import PosedTree, arm_from_chain, assemble, farthest_leaf, leg_from_chain
+from minifilm.body.parts import Humanoid, HumanoidError
+from minifilm.body.tree import PosedTree, arm_from_chain, assemble, farthest_leaf, leg_from_chain
 
 __all__ = ["humanoid_by_structure"]
 

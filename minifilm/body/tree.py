@@ -1,12 +1,12 @@
 """A skeleton's hierarchy with its pose, and reading arms and legs off its chains (for
-minifilm.motion.humanoid: the name and structure finders share these)."""
+minifilm.body.humanoid: the name and structure finders share these)."""
 from __future__ import annotations
 
 from typing import Dict, List, Optional
 
 import numpy as np
 
-from minifilm.motion.humanoid_parts import ARM_ROLES, LEG_ROLES, Humanoid, HumanoidError
+from minifilm.body.parts import ARM_ROLES, LEG_ROLES, Humanoid, HumanoidError
 
 __all__ = ["PosedTree", "leg_from_chain", "arm_from_chain", "farthest_leaf", "assemble"]
 

@@ -8,14 +8,10 @@ minifilm/synthetic/body.py), so that ``minifilm retarget --to bandai`` or ``--to
   deep-motion-editing (CMU data: free for research and commercial use, with acknowledgement), in
   the CMU ASF length unit (``skeletons.CMU.bvh_scale`` turns it into metres).
 
-Each is one BVH HIERARCHY; :func:`minifilm.rigs.rig.builtin_rig` adds one frame at rest. Also here:
-the Bandai foot's measured shape and which built-in skeleton a motion is on.
+Each is one BVH HIERARCHY; :func:`minifilm.body.target.builtin_rig` adds one frame at rest. Also here:
+the Bandai foot's measured shape.
 """
-from typing import Optional
-
 import numpy as np
-
-from minifilm.motion.skeletons import BUILTIN_SKELETONS, Skeleton
 
 
 BANDAI_HIERARCHY = """\
@@ -345,9 +341,3 @@ ROOT Hips
 #: degrees in every shared Bandai walk (proportions.motion_foot_pitch); its toe tip has no
 #: length, so no toe bend is aimed on it.
 BANDAI_FOOT_SHAPE = (float(np.radians(39.6)), 0.0)
-
-
-def builtin_skeleton_for(motion) -> Optional[Skeleton]:
-    """The largest built-in skeleton whose joints ``motion`` has (None if none)."""
-    fitting = [s for s in BUILTIN_SKELETONS if not s.missing_joints(motion)]
-    return max(fitting, key=lambda s: s.n_joints) if fitting else None

@@ -1,11 +1,11 @@
-"""The phase recipe on any humanoid rig, not only the built-in skeletons (Sec. 4.1).
+"""Which rig a file is: a built-in skeleton its joint names fit, else the humanoid its parts make.
 
-The local phases need four things from a skeleton: the hips (whose frame the hand and foot
-positions are taken in, §3.4), the four end effectors [left hand, right hand, left foot, right
-foot] (§3.1), the two toe-tip contact sensors [right, left] (§2), and the hips-local axis pointing
+The phase recipe (Sec. 4.1) reads a rig; the local phases need four things from a skeleton: the
+hips (whose frame the hand and foot positions are taken in, §3.4), the four end effectors [left
+hand, right hand, left foot, right foot] (§3.1), the two toe-tip contact sensors [right, left] (§2), and the hips-local axis pointing
 to the character's front (which signs the hands' principal component, Sec. 4.1.3). A built-in
 :class:`~minifilm.motion.skeletons.Skeleton` names them; for any other humanoid file
-:class:`HumanoidRig` takes them from the parts :func:`~minifilm.motion.humanoid.find_humanoid`
+:class:`HumanoidRig` takes them from the parts :func:`~minifilm.body.humanoid.find_humanoid`
 finds (by names or by structure):
 
     hips           Humanoid.hips
@@ -13,25 +13,43 @@ finds (by names or by structure):
     contact bones  Humanoid.contact_sensors  (right toe tip, left toe tip)
     facing axis    estimated: the body's forward (left hip -> right hip line x up) in the hips' frame
 
-``load_for_phases(path)`` reads a file in metres with one of the two: the built-in skeleton its
-joint names fit (read with that skeleton's unit, exactly as before), else its humanoid parts
-(read with the unit of minifilm/motion/body_size.py). A file that is neither raises HumanoidError.
+:func:`detect_skeleton` is the one test of a file's joint names against the built-in skeletons;
+minifilm/body/read.py reads a file once and takes its rig from here.
 """
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
-from typing import Optional, Tuple, Union
+from typing import Optional, Sequence, Tuple
 
 import numpy as np
 
-from minifilm.motion.body_size import BodyUnit, body_unit, scaled
-from minifilm.motion.bvh import read_bvh
-from minifilm.motion.humanoid import Humanoid, HumanoidError, find_humanoid
+from minifilm.body.parts import Humanoid, HumanoidError
 from minifilm.motion.motion import Motion
-from minifilm.motion.skeletons import Skeleton, builtin_skeleton, detect_skeleton
+from minifilm.motion.skeletons import BUILTIN_SKELETONS, Skeleton
 
-__all__ = ["HumanoidRig", "humanoid_rig", "facing_axis_of", "load_for_phases"]
+__all__ = ["detect_skeleton", "builtin_skeleton_of", "HumanoidRig", "humanoid_rig", "facing_axis_of"]
+
+
+def builtin_skeleton_of(motion, candidates: Sequence[Skeleton] = BUILTIN_SKELETONS) -> Optional[Skeleton]:
+    """The candidate whose required joints are all present in ``motion`` (the one with most exported
+    joints if several fit), None if none does."""
+    fitting = [s for s in candidates if not s.missing_joints(motion)]
+    return max(fitting, key=lambda s: s.n_joints) if fitting else None
+
+
+def detect_skeleton(motion, candidates: Sequence[Skeleton] = BUILTIN_SKELETONS) -> Skeleton:
+    """:func:`builtin_skeleton_of`, or ValueError listing every candidate and what it misses."""
+    skeleton = builtin_skeleton_of(motion, candidates)
+    if skeleton is not None:
+        return skeleton
+    lines = []
+    for s in candidates:
+        missing = s.missing_joints(motion)
+        shown = ", ".join(missing[:6]) + (f", ... ({len(missing)} in all)" if len(missing) > 6 else "")
+        lines.append(f"  {s.name}: missing {shown}")
+    raise ValueError(f"detect_skeleton: no known skeleton fits {motion.source} (joints "
+                     f"{list(motion.names)[:8]}...):\n" + "\n".join(lines) +
+                     "\nDescribe your own with minifilm.motion.skeletons.Skeleton.")
 
 
 @dataclass(frozen=True)
@@ -81,31 +99,6 @@ def facing_axis_of(motion: Motion, h: Humanoid) -> Tuple[float, float, float]:
     return tuple(float(a) for a in axis / n)
 
 
-def humanoid_rig(motion: Motion, humanoid: Optional[Humanoid] = None) -> HumanoidRig:
-    """The phase recipe's rig of any humanoid ``motion`` (HumanoidError when it is none)."""
-    h = humanoid if humanoid is not None else find_humanoid(motion)
+def humanoid_rig(motion: Motion, h: Humanoid) -> HumanoidRig:
+    """The phase recipe's rig of a humanoid ``motion`` from its parts ``h`` (found on it once)."""
     return HumanoidRig(h, facing_axis_of(motion, h), f"any humanoid (parts found by {h.method})")
-
-
-def load_for_phases(path: Union[str, os.PathLike], skeleton_name: Optional[str] = None
-                    ) -> Tuple[Motion, Union[Skeleton, HumanoidRig], Optional[BodyUnit]]:
-    """Read ``path`` in metres with the rig to label it with: (motion, rig, unit).
-
-    ``skeleton_name`` picks a built-in skeleton; without it the built-in skeleton whose joints the
-    file has is used (its ``bvh_scale``, unit None), else the file's humanoid parts and the unit
-    from its legs (``body_unit``). HumanoidError when the file is not a humanoid; BVHError /
-    OSError as ``read_bvh``."""
-    if skeleton_name:
-        skeleton = builtin_skeleton(skeleton_name)
-        return read_bvh(path, scale=skeleton.bvh_scale), skeleton, None
-    raw = read_bvh(path, scale=1.0)
-    try:
-        skeleton = detect_skeleton(raw)
-    except ValueError:
-        skeleton = None
-    if skeleton is not None:            # the file is read once; scaling it gives the same numbers
-        return scaled(raw, skeleton.bvh_scale), skeleton, None
-    h = find_humanoid(raw)
-    unit = body_unit(raw, h)
-    motion = scaled(raw, unit.metres_per_unit)
-    return motion, humanoid_rig(motion, h), unit

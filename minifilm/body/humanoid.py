@@ -27,9 +27,9 @@ not be found, by names and by structure.
 """
 from __future__ import annotations
 
-from minifilm.motion.humanoid_names import humanoid_by_names, split_name
-from minifilm.motion.humanoid_parts import ARM_ROLES, LEG_ROLES, LIMB_ROLES, Humanoid, HumanoidError
-from minifilm.motion.humanoid_structure import humanoid_by_structure
+from minifilm.body.by_names import humanoid_by_names, split_name
+from minifilm.body.parts import ARM_ROLES, LEG_ROLES, LIMB_ROLES, Humanoid, HumanoidError
+from minifilm.body.by_structure import humanoid_by_structure
 
 __all__ = ["Humanoid", "HumanoidError", "find_humanoid", "humanoid_by_names", "humanoid_by_structure",
            "split_name", "ARM_ROLES", "LEG_ROLES", "LIMB_ROLES"]

@@ -1,72 +1,56 @@
 """Retarget a clip from one humanoid rig onto another (docs/retargeting.md).
 
-    from minifilm.rigs import load_rig, read_source, retarget_motion
+    from minifilm.body import load_rig, read_source, retarget_motion
     from minifilm.motion.bvh_write import write_bvh
 
     target = load_rig("100style")
-    motion = retarget_motion(read_source("walk_bandai.bvh"), target)
-    write_bvh(motion, "walk_100style.bvh", scale=target.bvh_scale)
+    motion, roles = read_source("walk_bandai.bvh")     # minifilm/body/read.py: read once, roles found once
+    write_bvh(retarget_motion(motion, target, roles), "walk_100style.bvh", scale=target.bvh_scale)
 
-The steps: roles of both rigs (:mod:`~minifilm.rigs.joint_map`), the pose transfer on world bone
-directions from canonical rest poses (:mod:`~minifilm.rigs.pose`), the root's path
+The steps, on the roles of both rigs as given (minifilm/body/roles.py): the pose transfer on world bone
+directions from canonical rest poses (:mod:`~minifilm.body.pose`), the root's path
 scaled by the ratio of leg lengths, then the floor and the planted feet
-(:mod:`~minifilm.rigs.feet`) and the toes kept out of the floor in swing
-(:mod:`~minifilm.rigs.clearance`). The result is a Motion on the target's hierarchy with its
+(:mod:`~minifilm.body.feet`) and the toes kept out of the floor in swing
+(:mod:`~minifilm.body.clearance`). The result is a Motion on the target's hierarchy with its
 channels (so ``write_bvh`` writes it in the target's channel order; pass the rig's ``bvh_scale``
 for its units), at the source's frame rate.
 """
 from __future__ import annotations
 
 import os
-from pathlib import Path
 from typing import Optional, Union
 
 import numpy as np
 
-from minifilm.files import note_input
-from minifilm.motion.body_size import scaled
-from minifilm.motion.bvh import read_bvh
+from minifilm.body.read import read_source
 from minifilm.motion.bvh_write import write_bvh
-from minifilm.rigs.joint_map import RigError, Roles, sensor_positions
-from minifilm.rigs.proportions import foot_shape_of, leg_length
+from minifilm.body.roles import RigError, Roles, sensor_positions
+from minifilm.body.proportions import foot_shape_of, leg_length
 from minifilm.motion.motion import Motion
 from minifilm.motion.retarget import world_to_local
-from minifilm.rigs.clearance import FLOOR_SLACK, clear_floor_keeping_contacts
-from minifilm.rigs.feet import floor_height, plant_feet
-from minifilm.rigs.pose import canonical_pose, match_chords, place_feet, rest_positions, transfer_rotations
-from minifilm.rigs.rig import Rig, file_unit, find_roles
+from minifilm.body.clearance import FLOOR_SLACK, clear_floor_keeping_contacts
+from minifilm.body.feet import floor_height, plant_feet
+from minifilm.body.pose import canonical_pose, match_chords, place_feet, rest_positions, transfer_rotations
+from minifilm.body.target import Rig
 from minifilm.phases.contacts import DEFAULT_FILTER_SECONDS, foot_contacts
 
-__all__ = ["read_source", "retarget_motion", "retarget_file"]
+__all__ = ["retarget_motion", "retarget_file"]
 
 
-def read_source(path: Union[str, os.PathLike], map_path=None, scale: Optional[float] = None):
-    """(motion in metres, roles) of a BVH file of any humanoid rig: the unit is a built-in
-    skeleton's, else ``scale``, else found from the legs (:func:`~minifilm.rigs.rig.file_unit`)."""
-    path = note_input(Path(path))
-    if scale is None:
-        raw = read_bvh(path, scale=1.0)
-        roles = find_roles(raw, map_path)
-        scale = file_unit(raw, roles)             # the names' skeleton's unit if the body agrees
-        return scaled(raw, scale), roles          # read once, scaled (body_size.scaled)
-    m = read_bvh(path, scale=scale)
-    return m, find_roles(m, map_path)
-
-
-def retarget_motion(source: Motion, target: Rig, source_roles: Optional[Roles] = None, plant: bool = True,
+def retarget_motion(source: Motion, target: Rig, source_roles: Roles, plant: bool = True,
                     blend_seconds: float = 0.1, contact_filter_seconds: float = DEFAULT_FILTER_SECONDS) -> Motion:
     """``source`` (metres) on the ``target`` rig (see the module doc).
 
     Args:
         source:        a Motion of any humanoid rig, metres.
-        target:        the rig to put it on (:func:`minifilm.rigs.rig.load_rig`).
-        source_roles:  the source's roles (default: :func:`~minifilm.rigs.rig.find_roles`).
+        target:        the rig to put it on (:func:`minifilm.body.target.load_rig`).
+        source_roles:  the source's roles, found once by its reader (``read_source``).
         plant:         pin the feet during the source's contacts (off: only the floor is fixed).
         blend_seconds: how long a pin fades in and out.
     Returns:
         a Motion on the target's hierarchy, channels and frame rate of the source, with the floor at y = 0.
     """
-    s_roles = (source_roles or find_roles(source)).check(source)
+    s_roles = source_roles.check(source)
     t_roles = target.roles.check(target.template)
     tm = target.template
     F, J = source.n_frames, tm.n_joints
@@ -104,7 +88,7 @@ def retarget_motion(source: Motion, target: Rig, source_roles: Optional[Roles] =
         guides = sensor_positions(Ps, source, s_roles) - np.array([0.0, s_floor, 0.0])
         P, world = plant_feet(P, world, tm.parents, legs, contacts, guides, source.fps, body, blend_seconds)
         # the toes out of the floor in swing, where this foot reaches further than the source's
-        # (rigs/clearance.py): no lower than the source's tip, nor than 0.7 cm under the floor
+        # (clearance.py): no lower than the source's tip, nor than 0.7 cm under the floor
         if _foot_reach(tm, t_roles, t_shape[0]) > _foot_reach(source, s_roles, s_shape[0]):
             feet = [[tm.names.index(limb.ankle), tm.names.index(limb.toe) if limb.toe else None,
                      tm.names.index(limb.sensor)] for limb in (t_roles.right, t_roles.left)]

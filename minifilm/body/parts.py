@@ -1,5 +1,5 @@
-"""The parts of a humanoid skeleton found by minifilm.motion.humanoid: the ``Humanoid`` record of
-joint indices per role, and ``HumanoidError``. (How they are found: humanoid.py's docstring.)"""
+"""The parts of a humanoid skeleton that minifilm/body/humanoid.py finds: the ``Humanoid`` record of
+joint indices per role, and ``HumanoidError``. (How they are found: minifilm/body/humanoid.py.)"""
 from __future__ import annotations
 
 from dataclasses import dataclass, fields

@@ -1,11 +1,11 @@
-"""Humanoid parts from joint names (the conventions are listed in minifilm/motion/humanoid.py)."""
+"""Humanoid parts from joint names (the conventions are listed in minifilm/body/humanoid.py)."""
 from __future__ import annotations
 
 import re
 from typing import Dict, List, Optional, Sequence, Tuple
 
-from minifilm.motion.humanoid_parts import Humanoid, HumanoidError
-from minifilm.motion.humanoid_tree import PosedTree, assemble
+from minifilm.body.parts import Humanoid, HumanoidError
+from minifilm.body.tree import PosedTree, assemble
 
 __all__ = ["split_name", "humanoid_by_names"]
 

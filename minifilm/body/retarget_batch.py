@@ -2,7 +2,7 @@
 
 Files recorded on different rigs (Bandai Namco, Xia's CMU skeleton, CMU's MotionBuilder export,
 100STYLE) cannot share a data set: features are read from one skeleton's joints. In the data
-set step each file is put on the target rig (:func:`minifilm.rigs.retarget_clip.retarget_motion`)
+set step each file is put on the target rig (:func:`minifilm.body.retarget_clip.retarget_motion`)
 and written into a folder of the run; the data set is then built from those files with the
 original labels and frame ranges (retargeting keeps every frame and the frame rate).
 """
@@ -14,8 +14,9 @@ from typing import Callable, List, Sequence
 
 from minifilm.files import file_names
 from minifilm.motion.bvh_write import write_bvh
-from minifilm.rigs.retarget_clip import read_source, retarget_motion
-from minifilm.rigs.rig import Rig
+from minifilm.body.read import read_source
+from minifilm.body.retarget_clip import retarget_motion
+from minifilm.body.target import Rig
 
 __all__ = ["retarget_files"]
 

@@ -1,4 +1,4 @@
-"""Which joint of a humanoid rig plays which part: roles, and how chains of different lengths meet.
+"""Which joint of a humanoid rig plays which part, by name: the roles that retargeting reads.
 
 Retargeting (docs/retargeting.md) maps joints by *role*, not by name. A :class:`Roles` names, for
 one rig, its hips, its spine chain up to the chest (where arms and neck branch), its neck chain up
@@ -7,22 +7,23 @@ leg, knee, ankle, toe, toe end). Collars, toes and ends are optional: a rig with
 foot as one bone.
 
 Roles come from (in this order): a user's JSON map (``--map``), the built-in rigs' name maps
-below, or the structure and naming conventions that :mod:`minifilm.motion.humanoid` recognises.
-
-Chains of different lengths (a 2-joint spine onto 4) meet by normalised arc length:
-:func:`chain_overlaps` gives, for each target bone, how much of it each source bone covers.
+below, or the humanoid parts that minifilm/body/humanoid.py finds (:func:`roles_from_humanoid`:
+its joint indices as names, the neck as the chain from the chest up to the head, the hand's end
+where the wrist has a single child). A file's reader (minifilm/body/read.py) finds them once.
 """
 from __future__ import annotations
 
 from collections import Counter
 from dataclasses import dataclass, field
-from typing import Dict, Optional, Sequence, Tuple
+from typing import Dict, Optional, Tuple
 
 import numpy as np
 
+from minifilm.body.parts import Humanoid
 from minifilm.errors import InputError
 
-__all__ = ["RigError", "Limb", "Roles", "BUILTIN_ROLES", "roles_from_mapping", "chain_overlaps", "SIDES"]
+__all__ = ["RigError", "Limb", "Roles", "BUILTIN_ROLES", "roles_from_mapping", "roles_from_humanoid", "sensor_positions",
+           "SIDES"]
 
 SIDES = ("left", "right")
 
@@ -228,40 +229,47 @@ def roles_from_mapping(mapping, motion, where: str = "joint map") -> Roles:
     return roles.check(motion, where)
 
 
-def chain_overlaps(source_lengths: Sequence[float], target_lengths: Sequence[float]) -> np.ndarray:
-    """How much of each target bone each source bone covers, along normalised arc length.
-
-    Both chains run from 0 to 1 (bone lengths divided by the chain's length). Entry [t, s] is the
-    fraction of target bone t's span covered by source bone s; each row sums to 1. A zero-length
-    target bone takes the source bone at its position; a chain of zero length is spread evenly.
-
-    Args:
-        source_lengths: (S,) bone lengths of the source chain.
-        target_lengths: (T,) bone lengths of the target chain.
-    Returns:
-        (T, S) weights.
-    """
-    def edges(lengths):
-        L = np.maximum(np.asarray(lengths, dtype=np.float64), 0.0)
-        total = L.sum()
-        L = L / total if total > 1e-12 else np.full(len(L), 1.0 / len(L))
-        return np.concatenate([[0.0], np.cumsum(L)])
-
-    es, et = edges(source_lengths), edges(target_lengths)
-    es[-1] = et[-1] = 1.0
-    W = np.zeros((len(et) - 1, len(es) - 1))
-    for t in range(len(et) - 1):
-        a, b = et[t], et[t + 1]
-        if b - a <= 1e-12:             # a point: the source bone containing it
-            s = int(np.clip(np.searchsorted(es, a, side="right") - 1, 0, len(es) - 2))
-            W[t, s] = 1.0
-            continue
-        for s in range(len(es) - 1):
-            W[t, s] = max(0.0, min(b, es[s + 1]) - max(a, es[s])) / (b - a)
-        W[t] /= W[t].sum()
-    return W
-
-
 def sensor_positions(positions: np.ndarray, motion, roles: Roles) -> np.ndarray:
     """(F, 2, 3) world positions of the toe-tip contact sensors, [right, left] (as Skeleton.contact_bones)."""
     return positions[:, [motion.names.index(roles.right.sensor), motion.names.index(roles.left.sensor)]]
+
+
+def roles_from_humanoid(motion, h: Humanoid) -> Roles:
+    """The roles of ``motion`` from its humanoid parts ``h`` (found on it once, by its reader):
+    RigError when it has no spine joint between the hips and the chest."""
+    n = motion.names
+    if not h.spine:
+        raise RigError(f"{motion.source}: no spine joint between the hips {n[h.hips]!r} and the arms; "
+                       "retargeting needs at least a chest")
+    neck = tuple(n[j] for j in _path(motion, h.chest, h.head))       # the whole chain, chest to head
+    roles = Roles(n[h.hips], tuple(n[j] for j in h.spine), neck, _limb_of(motion, h, "left"),
+                  _limb_of(motion, h, "right"), head_end=None if h.head_top is None else n[h.head_top],
+                  source=motion.source)
+    return roles.check(motion)
+
+
+def _limb_of(motion, h: Humanoid, side: str) -> Limb:
+    n = motion.names
+    part = {r: getattr(h, f"{side}_{r}") for r in ("collar", "shoulder", "elbow", "wrist", "hip", "knee", "ankle",
+                                                     "toe", "toe_tip")}
+    toe, tip = part["toe"], part["toe_tip"]
+    toe_is_site = not any(int(p) == toe for p in motion.parents)       # the foot's End Site, not a joint
+    return Limb(shoulder=n[part["shoulder"]], elbow=n[part["elbow"]], wrist=n[part["wrist"]],
+                upleg=n[part["hip"]], knee=n[part["knee"]], ankle=n[part["ankle"]],
+                collar=None if part["collar"] is None else n[part["collar"]],
+                hand_end=_only_child(motion, part["wrist"]),
+                toe=None if toe_is_site else n[toe],
+                toe_end=n[tip] if (toe_is_site or tip != toe) else None)
+
+
+def _only_child(motion, j: int):
+    kids = [c for c in range(motion.n_joints) if int(motion.parents[c]) == j]
+    return motion.names[kids[0]] if len(kids) == 1 else None
+
+
+def _path(motion, top: int, bottom: int):
+    """Joints below ``top`` down to ``bottom`` (inclusive), top first."""
+    out = [bottom]
+    while int(motion.parents[out[-1]]) != top:
+        out.append(int(motion.parents[out[-1]]))
+    return out[::-1]

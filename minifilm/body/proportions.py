@@ -11,11 +11,12 @@ from typing import Optional, Tuple
 
 import numpy as np
 
+from minifilm.body.rig import builtin_skeleton_of
+from minifilm.body.roles import SIDES, RigError, Roles, sensor_positions
 from minifilm.motion.motion import Motion
 from minifilm.phases.contacts import foot_contacts
-from minifilm.rigs.builtin_rigs import BANDAI_FOOT_SHAPE, builtin_skeleton_for
-from minifilm.rigs.joint_map import SIDES, RigError, Roles, sensor_positions
-from minifilm.rigs.pose import canonical_pose, foot_and_toe_directions, pitch_below_horizontal, rest_positions
+from minifilm.body.builtin_rigs import BANDAI_FOOT_SHAPE
+from minifilm.body.pose import canonical_pose, foot_and_toe_directions, pitch_below_horizontal, rest_positions
 
 __all__ = ["foot_shape_of", "foot_pitch_of", "leg_length", "rest_foot_pitch", "motion_foot_pitch", "rest_toe_bend",
            "motion_toe_bend", "DEFAULT_FOOT_PITCH"]
@@ -81,7 +82,7 @@ def foot_shape_of(motion: Motion, roles: Roles) -> Tuple[float, float]:
     pitch = rest_foot_pitch(motion, roles)
     if pitch is not None:
         return pitch, rest_toe_bend(motion, roles)
-    skeleton = builtin_skeleton_for(motion)
+    skeleton = builtin_skeleton_of(motion)
     if skeleton is not None and skeleton.name == "bandai":     # the same value for every Bandai clip
         return BANDAI_FOOT_SHAPE
     if motion.n_frames > 1:

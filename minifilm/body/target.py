@@ -1,12 +1,12 @@
 """A retargeting target: a rig's hierarchy, its roles, its units. ``load_rig`` reads one from a name.
 
-A :class:`Rig` is everything :func:`minifilm.rigs.retarget_clip.retarget_motion` needs to know
+A :class:`Rig` is everything :func:`minifilm.body.retarget_clip.retarget_motion` needs to know
 about a skeleton to put motion on it: one frame of it (hierarchy, rest offsets, channel order), the
-role of its joints (:class:`~minifilm.rigs.joint_map.Roles`) and the BVH length unit it is
-written in. A target can be
+role of its joints (:class:`~minifilm.body.roles.Roles`) and the BVH length unit it is
+written in, read and found once (:class:`minifilm.body.read.Body`). A target can be
 
 * a built-in rig: ``100style`` (the 100STYLE header, in minifilm/synthetic/body.py), ``bandai``
-  or ``cmu`` (minifilm/rigs/builtin_rigs.py);
+  or ``cmu`` (minifilm/body/builtin_rigs.py);
 * a run folder written by ``minifilm train``: its ``skeleton.bvh`` and ``bvh_scale``, through
   :func:`rig_from_template` (minifilm/pipeline/run_rig.py reads the folder);
 * any BVH file: its hierarchy; its first frame is not used (the rest pose is the zero pose).
@@ -20,21 +20,19 @@ from typing import Optional, Tuple, Union
 
 import numpy as np
 
-from minifilm.files import note_input, read_json
-from minifilm.motion.body_size import BodyUnit, body_unit, leg_bones, scaled, stature_from_legs, unit_for_stature
+from minifilm.body.read import Body
+from minifilm.body.roles import BUILTIN_ROLES, RigError, Roles
+from minifilm.body.units import scaled
+from minifilm.files import note_input
 from minifilm.motion.bvh import parse_bvh, read_bvh
-from minifilm.motion.humanoid import HumanoidError, find_humanoid
 from minifilm.motion.motion import Motion
 from minifilm.motion.skeletons import Skeleton, builtin_skeleton
-from minifilm.rigs import builtin_rigs
-from minifilm.rigs.builtin_rigs import BANDAI_FOOT_SHAPE, builtin_skeleton_for
-from minifilm.rigs.joint_map import BUILTIN_ROLES, SIDES, RigError, Roles, roles_from_mapping
-from minifilm.rigs.proportions import foot_shape_of
-from minifilm.rigs.roles import roles_from_humanoid
+from minifilm.body import builtin_rigs
+from minifilm.body.builtin_rigs import BANDAI_FOOT_SHAPE
+from minifilm.body.proportions import foot_shape_of
 from minifilm.synthetic.generator import rest_motion
 
-__all__ = ["Rig", "load_rig", "builtin_rig", "find_roles", "file_unit", "unit_from_legs", "rig_from_template",
-           "BUILTIN_RIGS"]
+__all__ = ["Rig", "load_rig", "builtin_rig", "rig_from_template", "BUILTIN_RIGS"]
 
 BUILTIN_RIGS = ("100style", "bandai", "cmu")
 
@@ -50,7 +48,7 @@ class Rig:
         bvh_scale: BVH units -> metres of the rig's files (0.01 for centimetres).
         skeleton:  the built-in Skeleton description whose joints the rig has (None if none fits).
         foot_shape: (pitch, toe bend) of its foot flat on the floor, radians (None: from its rest
-                   pose, see :func:`minifilm.rigs.proportions.foot_shape_of`).
+                   pose, see :func:`minifilm.body.proportions.foot_shape_of`).
     """
     name: str
     template: Motion
@@ -86,37 +84,6 @@ def builtin_rig(name: str) -> Rig:
     return Rig(name, _rest(template, name), BUILTIN_ROLES[name], scale, builtin_skeleton(name), shape)
 
 
-def find_roles(motion: Motion, map_path: Union[str, os.PathLike, None] = None) -> Roles:
-    """The roles of ``motion``'s joints: from the JSON map at ``map_path`` if given, else from the
-    humanoid parts :mod:`minifilm.motion.humanoid` finds by name and structure (on the motion's
-    first frame). RigError naming what could not be found."""
-    if map_path is not None:
-        mapping = read_json(note_input(Path(map_path)), "joint map", error=RigError)
-        return roles_from_mapping(mapping, motion, where=f"joint map {map_path} for {motion.source}")
-    return roles_from_humanoid(motion)
-
-
-def file_unit(motion_in_file_units: Motion, roles: Roles) -> float:
-    """Metres per unit of a file read with scale 1: a built-in skeleton's when its body is of human
-    height in it, else the common unit that makes the body 1.4-2.1 m tall
-    (:func:`minifilm.motion.body_size.body_unit`, the one unit rule of every command)."""
-    try:
-        h = find_humanoid(motion_in_file_units)
-    except HumanoidError:       # roles from a map on a rig humanoid.py does not recognise: go by the legs
-        return unit_from_legs(motion_in_file_units, roles).metres_per_unit
-    return body_unit(motion_in_file_units, h).metres_per_unit
-
-
-def unit_from_legs(motion: Motion, roles: Roles) -> BodyUnit:
-    """The unit of a rig known by its roles alone, as body_size guesses it for a humanoid it finds:
-    the stature from the roles' thigh + shin (``body_size.stature_from_legs``), then the common unit
-    that makes it 1.4-2.1 m. (The hips' standing height, ``proportions.leg_length``, is longer than
-    thigh + shin by the pelvis and the ankle's height, so it does not fit that fraction.)"""
-    idx = {n: i for i, n in enumerate(motion.names)}
-    legs = [(idx[roles.limb(s).upleg], idx[roles.limb(s).knee], idx[roles.limb(s).ankle]) for s in SIDES]
-    return unit_for_stature(stature_from_legs(leg_bones(motion, legs)))
-
-
 def load_rig(target: Union[str, os.PathLike], map_path: Union[str, os.PathLike, None] = None,
              scale: Optional[float] = None) -> Rig:
     """A target rig from a built-in name, a run folder or a BVH file (see the module doc).
@@ -133,19 +100,18 @@ def load_rig(target: Union[str, os.PathLike], map_path: Union[str, os.PathLike, 
     if not path.exists():
         raise RigError(f"{text}: no such rig; give a built-in rig ({', '.join(BUILTIN_RIGS)}), a run folder "
                        "or a BVH file")
-    raw = read_bvh(note_input(path), scale=1.0)
-    skeleton = builtin_skeleton_for(raw)
-    roles = find_roles(raw, map_path)
+    body = Body(read_bvh(note_input(path), scale=1.0))
+    roles = body.roles(map_path)
     if scale is None:
-        scale = file_unit(raw, roles)             # the names' skeleton's unit if the body agrees
-    m = scaled(raw, scale)                      # read once, scaled (body_size.scaled)
-    return Rig(path.stem, _rest(m, str(path)), roles, float(scale), skeleton, foot_shape_of(m, roles))
+        scale = body.metres_per_unit(roles)     # the names' skeleton's unit if the body agrees
+    m = scaled(body.motion, scale)              # read once, scaled (units.scaled)
+    return Rig(path.stem, _rest(m, str(path)), roles, float(scale), body.skeleton, foot_shape_of(m, roles))
 
 
 def rig_from_template(template: Motion, name: str, bvh_scale: float, map_path=None) -> Rig:
     """A rig from one frame of a skeleton in metres (e.g. a run folder's skeleton.bvh), its roles
-    found as :func:`find_roles` does."""
-    roles = find_roles(template, map_path)
-    skeleton = builtin_skeleton_for(template)
+    found as for a file (:meth:`minifilm.body.read.Body.roles`)."""
+    body = Body(template)
+    roles, skeleton = body.roles(map_path), body.skeleton
     shape = BANDAI_FOOT_SHAPE if skeleton is not None and skeleton.name == "bandai" else None
     return Rig(name, _rest(template, name), roles, float(bvh_scale), skeleton, shape)

@@ -19,7 +19,7 @@ chains differ:
 
 * spine and neck chains of different lengths: the target joints between hips and chest (and
   between chest and head) take the source bones' D averaged over the part of the chain they
-  cover, by normalised arc length (:func:`~minifilm.rigs.joint_map.chain_overlaps`);
+  cover, by normalised arc length (:func:`chain_overlaps`);
 * the feet are not flattened: each rig's canonical foot points down by the pitch its foot has
   when flat on the floor (its rest pose's, or measured from its motion when the rest pose is not
   a standing pose), and the toes keep their rest bend;
@@ -31,11 +31,11 @@ Last, the chains' chords (hips -> chest, chest -> head) are turned onto the sour
 """
 from __future__ import annotations
 
-from typing import Dict, List, Optional, Tuple
+from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from minifilm.rigs.joint_map import SIDES, RigError, Roles, chain_overlaps
+from minifilm.body.roles import SIDES, RigError, Roles
 from minifilm.motion.kinematics import forward_kinematics, matrix_to_quat, quat_to_matrix
 from minifilm.motion.motion import Motion
 from minifilm.motion.skeleton_fit import rotation_between
@@ -291,7 +291,7 @@ def place_feet(world: np.ndarray, target: Motion, t_roles: Roles, t_shape: Tuple
     the canonical frames can come out sideways or upside down. The feet are therefore aimed here:
     the foot (ankle -> toe) keeps the source foot's heading and its pitch shifted by the rigs'
     flat-foot difference (``*_shape`` = (flat-foot pitch, toe bend),
-    :func:`minifilm.rigs.proportions.foot_shape_of`: a flat foot stays flat), and the toe (toe -> tip) is bent relative to the foot as much more than its
+    :func:`minifilm.body.proportions.foot_shape_of`: a flat foot stays flat), and the toe (toe -> tip) is bent relative to the foot as much more than its
     flat-foot bend as the source's toe is. Each is turned by the smallest rotation, so its twist
     stays as the transfer set it."""
     world = world.copy()
@@ -335,3 +335,37 @@ def _local_offset(motion: Motion, end: int, joint: int) -> np.ndarray:
         v = motion.offsets[j] + v
         j = int(motion.parents[j])
     return v
+
+
+def chain_overlaps(source_lengths: Sequence[float], target_lengths: Sequence[float]) -> np.ndarray:
+    """How much of each target bone each source bone covers, along normalised arc length.
+
+    Both chains run from 0 to 1 (bone lengths divided by the chain's length). Entry [t, s] is the
+    fraction of target bone t's span covered by source bone s; each row sums to 1. A zero-length
+    target bone takes the source bone at its position; a chain of zero length is spread evenly.
+
+    Args:
+        source_lengths: (S,) bone lengths of the source chain.
+        target_lengths: (T,) bone lengths of the target chain.
+    Returns:
+        (T, S) weights.
+    """
+    def edges(lengths):
+        L = np.maximum(np.asarray(lengths, dtype=np.float64), 0.0)
+        total = L.sum()
+        L = L / total if total > 1e-12 else np.full(len(L), 1.0 / len(L))
+        return np.concatenate([[0.0], np.cumsum(L)])
+
+    es, et = edges(source_lengths), edges(target_lengths)
+    es[-1] = et[-1] = 1.0
+    W = np.zeros((len(et) - 1, len(es) - 1))
+    for t in range(len(et) - 1):
+        a, b = et[t], et[t + 1]
+        if b - a <= 1e-12:             # a point: the source bone containing it
+            s = int(np.clip(np.searchsorted(es, a, side="right") - 1, 0, len(es) - 2))
+            W[t, s] = 1.0
+            continue
+        for s in range(len(es) - 1):
+            W[t, s] = max(0.0, min(b, es[s + 1]) - max(a, es[s])) / (b - a)
+        W[t] /= W[t].sum()
+    return W

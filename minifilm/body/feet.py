@@ -10,7 +10,7 @@ so they float, sink and slide by a few centimetres. Here:
    During each contact the target's toe tip stays at one point; the heights of the tips are
    changed only where the contact test would otherwise disagree with the source's, and near a
    contact the tip comes down towards the source tip's height. How, in order
-   (:mod:`minifilm.rigs.tips`):
+   (:mod:`minifilm.body.tips`):
 
    * each foot is turned about its ankle by up to ``max_pitch`` towards its tip's height;
    * the body (hips and everything below) is shifted horizontally so the planted tips stay put;
@@ -33,7 +33,7 @@ import numpy as np
 from minifilm.motion.foot_ik import two_bone_ik
 from minifilm.motion.skeleton_fit import rotation_between
 from minifilm.phases.contacts import estimate_floor_height
-from minifilm.rigs.tips import (HEIGHT_BAND, SPEED_THRESHOLD, band_heights, pin_targets, pitch_foot,
+from minifilm.body.tips import (HEIGHT_BAND, SPEED_THRESHOLD, band_heights, pin_targets, pitch_foot,
                                 slide_correction, speeds)
 
 __all__ = ["floor_height", "plant_feet"]

@@ -18,20 +18,18 @@ second (tests check it is 1.4-2.1 m on every real file).
 """
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
-from typing import Optional, Sequence, Tuple, Union
+from typing import Optional, Sequence, Tuple
 
 import numpy as np
 
-from minifilm.motion.bvh import read_bvh
-from minifilm.motion.humanoid import Humanoid, HumanoidError, find_humanoid
+from minifilm.body.parts import Humanoid, HumanoidError
+from minifilm.body.roles import SIDES, Roles
 from minifilm.motion.motion import Motion
-from minifilm.motion.skeletons import detect_skeleton
+from minifilm.motion.skeletons import Skeleton
 
-__all__ = ["BodyUnit", "KNOWN_UNITS", "STATURE_RANGE", "LEG_FRACTION", "body_unit", "unit_for_stature", "leg_length",
-           "leg_bones", "stature_from_legs",
-           "scaled", "standing_height", "read_in_metres"]
+__all__ = ["BodyUnit", "KNOWN_UNITS", "STATURE_RANGE", "LEG_FRACTION", "body_unit", "unit_from_legs",
+           "unit_for_stature", "leg_length", "leg_bones", "stature_from_legs", "scaled", "standing_height"]
 
 #: (name, metres per unit) of the units motion capture files are written in
 KNOWN_UNITS: Tuple[Tuple[str, float], ...] = (
@@ -60,8 +58,8 @@ class BodyUnit:
 def leg_bones(motion: Motion, legs: Sequence[Tuple[int, int, int]]) -> float:
     """Thigh + shin (hip to knee to ankle), averaged over ``legs``, in the motion's units.
 
-    legs: (hip, knee, ankle) joint indices per leg, however they were found (humanoid.py's parts,
-    or a retargeting rig's roles, minifilm/rigs/rig.py). Bone lengths do not change with the pose,
+    legs: (hip, knee, ankle) joint indices per leg, however they were found (a humanoid's parts,
+    or a rig's roles). Bone lengths do not change with the pose,
     so the first frame serves."""
     P = np.asarray(motion.world()[0][0])                                         # (J, 3) first frame
     total = sum(np.linalg.norm(P[knee] - P[hip]) + np.linalg.norm(P[ankle] - P[knee]) for hip, knee, ankle in legs)
@@ -80,15 +78,12 @@ def stature_from_legs(thigh_and_shin: float) -> float:
     return thigh_and_shin / LEG_FRACTION
 
 
-def body_unit(motion: Motion, humanoid: Optional[Humanoid] = None) -> BodyUnit:
-    """The unit of ``motion`` (read with scale 1: file units). From the built-in skeleton its names
-    fit, else from its height (module docstring). HumanoidError when it is not a humanoid."""
-    h = humanoid if humanoid is not None else find_humanoid(motion)
+def body_unit(motion: Motion, h: Humanoid, skeleton: Optional[Skeleton]) -> BodyUnit:
+    """The unit of ``motion`` (read with scale 1: file units) from its humanoid parts ``h`` and the
+    built-in ``skeleton`` its names fit (None if none), both found once by its reader
+    (minifilm/body/read.py): the skeleton's unit while the body is of human height in it, else
+    from its height (module docstring)."""
     stature_units = stature_from_legs(leg_length(motion, h))
-    try:
-        skeleton = detect_skeleton(motion)
-    except ValueError:
-        skeleton = None
     lo, hi = STATURE_RANGE
     if skeleton is not None and lo <= stature_units * skeleton.bvh_scale <= hi:
         s = skeleton.bvh_scale
@@ -99,6 +94,16 @@ def body_unit(motion: Motion, humanoid: Optional[Humanoid] = None) -> BodyUnit:
                         f"{unit.how}, not the {skeleton.name!r} skeleton's usual {skeleton.bvh_scale:g} m "
                         f"(that would make it {stature_units * skeleton.bvh_scale:.3g} m tall)")
     return unit
+
+
+def unit_from_legs(motion: Motion, roles: Roles) -> BodyUnit:
+    """The unit of a rig known by its roles alone (a JSON map of a rig the humanoid finder does not
+    recognise), as for a humanoid: the stature from the roles' thigh + shin, then the common unit
+    that makes it 1.4-2.1 m. (The hips' standing height, ``body/proportions.leg_length``, is longer
+    than thigh + shin by the pelvis and the ankle's height, so it does not fit that fraction.)"""
+    idx = {n: i for i, n in enumerate(motion.names)}
+    legs = [(idx[roles.limb(s).upleg], idx[roles.limb(s).knee], idx[roles.limb(s).ankle]) for s in SIDES]
+    return unit_for_stature(stature_from_legs(leg_bones(motion, legs)))
 
 
 def unit_for_stature(stature_units: float) -> BodyUnit:
@@ -114,21 +119,6 @@ def unit_for_stature(stature_units: float) -> BodyUnit:
                             f"{name}: a {stature_units * s:.2f} m tall body (from its legs)")
     s = TYPICAL_STATURE / max(stature_units, 1e-12)
     return BodyUnit(s, TYPICAL_STATURE, f"no common unit gives a {lo}-{hi} m body; scaled to {TYPICAL_STATURE} m")
-
-
-def read_in_metres(path: Union[str, os.PathLike]) -> Tuple[Motion, Optional[Humanoid], BodyUnit]:
-    """Read a BVH file in metres: (motion, its humanoid parts or None, the unit used).
-
-    The unit is :func:`body_unit`'s for a humanoid. A skeleton that is not a humanoid (no height
-    to go by) is read in centimetres, the commonest unit, and ``BodyUnit.how`` says why.
-    BVHError / OSError as ``read_bvh``."""
-    raw = read_bvh(path, scale=1.0)
-    try:
-        h = find_humanoid(raw)
-    except HumanoidError as e:
-        return scaled(raw, 0.01), None, BodyUnit(0.01, float("nan"), f"centimetres assumed: {e}")
-    unit = body_unit(raw, h)
-    return scaled(raw, unit.metres_per_unit), h, unit
 
 
 def scaled(motion: Motion, metres_per_unit: float) -> Motion:
