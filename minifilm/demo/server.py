@@ -16,15 +16,14 @@ disconnected; one sender task sends the page its messages in order, and of the
 frames only the newest, so a slow page skips frames instead of slowing the loop.
 
 Every WebSocket frame a page sends, control frames included, takes from its budget before the
-transport answers it (``budget.py``).
-
-HTTP: every connection is read by the front (``http_front.py``) first: only GET of the site's
+transport answers it (``budget.py``). HTTP: every connection is read by the front (``http_front.py``) first: only GET of the site's
 exact paths (``page_files.py``), HEAD of them without the body, 405 for other methods, pipelined
 and kept-alive requests answered in order; only ``GET /ws`` reaches ``websockets``. Opening a
 connection and each request take from the client address's budget (``budget.py``). On every bind
-address, requests must name this server in their ``Host`` header (``hosts.py``: a web page elsewhere cannot reach the server by
-a DNS name that points here), and a WebSocket opened by a browser must come from this server's own
-page (its ``Origin``), so another site open in the same browser cannot drive the character. A
+address, requests must name this server in their ``Host`` header (``hosts.py``: a web page elsewhere
+cannot reach the server by a DNS name that points here), and a WebSocket opened by a browser must
+come from this server's own page (its ``Origin``), so another site open in the same browser cannot
+drive the character. A
 request with no Host, two Host or two Origin headers is answered 400.
 """
 from __future__ import annotations

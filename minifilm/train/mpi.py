@@ -87,7 +87,9 @@ class Ranks:
             raise failed
         if code is not None:
             raise StoppedOnRank0(code if isinstance(code, int) else 2)
-        result = self.comm.bcast(result, root=0)
+        # pkl5: arrays travel as their own buffers, and a data set over 2 GB in one message is fine
+        from mpi4py.util import pkl5    # here: an optional extra (see above)
+        result = pkl5.Intracomm(self.comm).bcast(result, root=0)
         self.together = True
         return result
 
