@@ -89,6 +89,9 @@ class Settings:
     # cuts every file 80/10/10; "auto" picks files when the median file is under 20 s (a 10 %
     # window of a short file is shorter than the 2 s trajectory window of the features)
     split: str = "auto"
+    # PAPER: Sec. 3.2 adds the mirrors of the symmetric styles. Nothing is mirrored by default: the
+    # synthetic set can simply be made longer; --mirror mirrors every file of your own data (a
+    # manifest's mirror column chooses file by file)
     mirror: bool = False                 # also train on the left/right mirror of every file
     fps: Optional[float] = None          # your own data: resample every file to this rate (None: as recorded)
     rig: Optional[str] = None            # your own data: retarget every file onto this rig first (docs/retargeting.md)
