@@ -49,7 +49,7 @@ def add_arguments(parser) -> None:
                              "folder or a BVH file), so files of different skeletons make one data set")
     parser.add_argument("--clips-per-batch", type=in_range(1, 4096, int), default=d.clips_per_batch,
                         help="style clips per minibatch, shared by its samples (default "
-                             f"{d.clips_per_batch}; 32 = one clip per sample, as the paper)")
+                             f"{d.clips_per_batch}; 32 = one clip per sample, as the original)")
     parser.add_argument("--workers", type=in_range(1, 1024, int), default=None,
                         help="processes computing each minibatch's gradients, one BLAS thread each (1: the "
                              "data set is labelled in this process too; default: "
