@@ -628,8 +628,9 @@ def gradient_check(seed=0, limit=1e-7):         # prints one row per check; True
     return all(err < limit for err in rows.values())
 
 # ==== 7. Runtime (Sec. 4.4): frame after frame, the network's z becomes the next x ============
-# One character, as the package's Controller with stand=None (the paper's loop). 2-vectors are
-# floor (x, z) pairs. The root's frame R has the columns [right, up, facing]: world = R local.
+# One character, as the package's Controller with stand=None (the paper's loop). PAPER: no foot
+# IK on the predicted contacts (Sec. 4.4; the package's is minifilm/motion/foot_ik.py). 2-vectors
+# are floor (x, z) pairs. The root's frame R has the columns [right, up, facing]: world = R local.
 def yaw(facing):                                # (2,) unit facing -> R (3, 3)
     return np.array([[facing[1], 0, facing[0]], [0, 1, 0], [-facing[0], 0, facing[1]]])
 def turn(v, R):                                 # floor vectors (..., 2) -> R v (R.T: to local)
@@ -656,8 +657,7 @@ def runtime_step(params, stats, s, facing, velocity, film, fps):
     (1, 4H) (Sec. 4.4); stats: the (mean, std) of x, p and z. Advances the state s; -> z."""
     # 1. The user's trajectory blended into the future (Zhang et al. 2018): future sample k of 6
     #    moves 1 - (1 - k/5)^0.75 of the way to the user's, its direction 1 - (1 - k/5)^1.25.
-    dt = np.mean(np.diff(TRAJECTORY_SECONDS[FUTURE:]))           # 0.2 s between the samples
-    w = np.arange(6)[:, None] / 5
+    dt, w = np.mean(np.diff(TRAJECTORY_SECONDS[FUTURE:])), np.arange(6)[:, None] / 5   # dt 0.2 s
     to_user, turn_to_user = 1 - (1 - w) ** 0.75, 1 - (1 - w) ** 1.25
     steps = (1 - to_user[1:]) * np.diff(s["future"], axis=0) + to_user[1:] * velocity * dt
     s["future"] = s["future"][0] + np.concatenate([np.zeros((1, 2)), np.cumsum(steps, 0)])
@@ -675,8 +675,7 @@ def runtime_step(params, stats, s, facing, velocity, film, fps):
     # 3. Eq. (4) with the style's FiLM vector, on normalised numbers
     (x_mean, x_std), (p_mean, p_std), (z_mean, z_std) = stats
     alpha = omega_forward(params, ((s["p"] - p_mean) / p_std)[None], None)[0]
-    z = phi_forward(params, ((x - x_mean) / x_std)[None], alpha, film, None)[0][0]
-    z = z * z_std + z_mean
+    z = phi_forward(params, ((x - x_mean) / x_std)[None], alpha, film, None)[0][0] * z_std + z_mean
     # 4. z, read in the current root's frame: the next root and future, the next pose, the phases
     J, future = len(s["pos"]), z[:24].reshape(6, 4)
     new, new_dir = turn(future[:, :2], R) + s["root"], unit(turn(future[:, 2:], R), s["future_dir"])
@@ -687,8 +686,7 @@ def runtime_step(params, stats, s, facing, velocity, film, fps):
     s["p"] = 0.5 * phase + 0.5 * (s["p"] + update)    # the predicted phases and the advanced ones
     s["past"] = np.concatenate([s["past"][1:], s["root"][None]])
     s["past_dir"] = np.concatenate([s["past_dir"][1:], s["facing"][None]])
-    # as the demo, the future keeps 15 % of the blended one (sample 0: the next root, unmixed)
-    kept = 0.15
+    kept = 0.15         # as the demo, the new future keeps 15 % of the blended one (not sample 0)
     s["future"] = np.concatenate([new[:1], (1 - kept) * new[1:] + kept * s["future"][1:]])
     mixed = (1 - kept) * new_dir[1:] + kept * s["future_dir"][1:]
     s["future_dir"] = np.concatenate([new_dir[:1], unit(mixed, new_dir[1:])])
