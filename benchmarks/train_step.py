@@ -17,7 +17,7 @@ so that both see the same background load.
 
 ``--config small`` is the model of examples/train_small.py (K = 4, hidden 128, Ψ with 32 filters
 of width 9 and a dense layer of 128, clips 120 x 300, x 348, z 342: 707,420 parameters), one clip
-per sample as in the paper.
+per sample as in the original code.
 """
 import common  # noqa: F401  (sets the BLAS thread count before numpy is imported)
 

@@ -2,7 +2,8 @@
 Locomotion via Feature-Wise Transformations and Local Motion Phases*, in NumPy + SciPy.
  1 layers; 2 the networks Ω (gating), Ψ (FiLM generator, Eq. 2), Φ (Eq. 3), ẑ = Φ(x; Ω(p), Ψ(y))
  (Eq. 4); 3 the losses (Eq. 5-7), Adam; 4 local phases (Sec. 4.1, Eq. 1); 5 a BVH reader, the
- x / z / clip features (Sec. 3.2); 6 gradient checks; 7 main: label, featurise, train (Sec. 4.3).
+ x / z / clip features (Sec. 3.2); 6 gradient checks; 7 the runtime (Sec. 4.4); 8 main: label,
+ featurise, train (Sec. 4.3), then walk the trained model frame by frame.
 
     python examples/minifilm_in_one_file.py             # synthetic data, made by the package
     python examples/minifilm_in_one_file.py --data DIR  # <Style>_<Gait>.bvh, 100STYLE skeleton
@@ -129,12 +130,12 @@ SMALL = dict(n_experts=4, hidden=128, gating_hidden=32, conv_filters=32, conv_ke
              film_dense=128, phase_dim=8,
              dropout=0.2,   # PAPER: 0.3; 0.2 keeps a 4x narrower network stepping (as the package)
              lr=5e-4,       # PAPER: 1e-4; a higher rate so that a few minutes train something
-             epochs=12)     # PAPER: 90; a few minutes on synthetic data
+             epochs=30)     # PAPER: 90; at 12 (seed 0) Neutral's walk froze after a stride
 PAPER = dict(n_experts=8, hidden=512, gating_hidden=32,          # Sec. 4.3: Φ and Ω
              conv_filters=256, conv_kernel=25, film_dense=2048,  # Sec. 4.3: Ψ
              dropout=0.3, lr=1e-4, epochs=90,                    # Sec. 4.3: training
              phase_dim=8, x_dim=348, z_dim=342, clip_channels=300,   # Sec. 4.1.4, Sec. 3.2
-             clip_frames=240)      # not in the paper: the released network's 4 s at 60 fps
+             clip_frames=240)      # Sec. 3.2: y ∈ R^{240×300}, 4 s of 60 fps capture
 TABLE_2 = {"Φ + Ω (A.S.N.)": 4_935_928, "Ψ (S.M.N.)": 35_668_530}   # Sec. 5.2.1, LPN FiLM
 def param_shapes(cfg):                          # {name: (shape, fan_in, fan_out)}; a bias: 0, 0
     K, H, n_filters = cfg["n_experts"], cfg["hidden"], cfg["conv_filters"]
@@ -187,8 +188,9 @@ def omega_backward(d, caches, grads):           # d: dα -> dp
     return d
 def psi_forward(params, clip, drop):
     """Ψ, the FiLM generator (Eq. 2): style clips (M, T, C) -> [γ1, β1, γ2, β2] (M, 4H). Two blocks
-    conv1d -> ReLU -> max-pool, flatten (time-major), dense -> ReLU, dense. As the package and the
-    original code, its one dropout is before the last dense layer."""
+    conv1d -> ReLU -> max-pool, flatten (time-major), dense -> ReLU, dense. PAPER: dropout 0.3
+    "everywhere" (Sec. 4.3); Ψ's one dropout is before its last dense layer, as in the package and
+    the original code (Ω and Φ have one before every layer)."""
     h, blocks = clip, []
     for layer in (0, 1):
         h, c_conv = conv1d_forward(h, params[f"psi.conv{layer}_W"], params[f"psi.conv{layer}_b"])
@@ -258,8 +260,9 @@ def model_backward(dz, cache):                  # -> ({name: gradient}, dx, dp, 
 
 # ==== 3. Training: L = L_mse + L_bll (Eq. 5-7) on one-style minibatches, and Adam ==============
 def mse_loss(pred, target):
-    """Eq. (5) on one minibatch (one style): the mean of (z - ẑ)² over the samples and, as the
-    package and the original code, over the features (the paper sums them). -> loss, d_pred."""
+    """Eq. (5) on one minibatch (one style): the mean of (z - ẑ)² over the samples and the features.
+    PAPER: Eq. (5) sums over the features; the mean, as the package and the original code, weighs
+    L_mse z_dim times less against L_bll (a mean over bones). -> loss, d_pred."""
     diff = pred - target
     return float(np.mean(diff * diff)), (2.0 / diff.size) * diff
 def bone_length_loss(pred, target, pos_cols, parents, z_mean, z_std):
@@ -294,8 +297,9 @@ def adam_step(params, grads, state, lr, beta1=0.9, beta2=0.999, eps=1e-8):
 # ==== 4. Local phases (Sec. 4.1): contacts, sources, a per-frame sinusoid fit, Eq. (1) =========
 def foot_contacts(toes, fps):
     """Sec. 4.1.2: toes (T, 2, 3) [right, left] -> (T, 2) 1 when slow (|v| ≤ 0.15 m/s) AND near
-    the floor (≤ 0.01 m). As the package: the floor is the slow samples' median height, and an
-    11-frame (at 60 fps) majority vote smooths."""
+    the floor (≤ 0.01 m). PAPER: the paper does not say where the floor is (the original: y = 0);
+    here, as the package, the slow samples' median height. PAPER: the paper does not smooth the
+    labels; as the original and the package, a majority vote over 11 frames (at 60 fps) does."""
     vel = np.diff(toes, axis=0, prepend=toes[:1]) * fps
     vel[0] = vel[1]                             # backward differences; frame 0 copies frame 1
     height = toes[..., 1]
@@ -412,8 +416,10 @@ def fit_sinusoids(v, fps, sweeps=3):
     amp = np.hypot(coef[:, 0], coef[:, 1])
     phase = np.mod(np.arctan2(coef[:, 1], coef[:, 0]) / (2 * np.pi), 1.0)
     phase[(amp == 0) | (phase >= 1.0)] = 0.0
-    # As the package: 0.5 s pins the phase down better than the frequency, so freq is re-read as
-    # the slope of the unwrapped phase over the second around each frame (all of it fitted).
+    # PAPER: f_i is the fit's own (Sec. 4.1.4), as in the original code. 0.5 s pins the phase down
+    # better than the frequency, so here (as the package) freq is re-read as the slope of the
+    # unwrapped phase over the second around each frame (all of it fitted). Only the amplitude's
+    # window (local_phases) reads it; the phase is the fit's.
     second = int(round(fps / 2))
     cycles, t = np.unwrap(2 * np.pi * phase) / (2 * np.pi), np.arange(n_frames) / fps
     for k in range(second, n_frames - second if second >= 1 else 0):
@@ -428,7 +434,8 @@ def local_phases(pos, rot, fps, hips, bones, contacts, sources=("pca", "pca", "c
                  facing=(0.0, 0.0, 1.0)):
     """Sec. 4.1: pos (T, J, 3), rot (T, J, 3, 3) world; hips, bones (4) joints; a 'pca' or
     'contact' source per slot. -> phase (T, 4) cycles, amplitude (T, 4): Eq. (1)'s ‖v_w‖·a, the
-    fitted amp times the bone's largest hips-relative speed; as the package, both smoothed."""
+    fitted amp times the bone's largest hips-relative speed. PAPER: the paper does not smooth
+    them; the original code low-passes both (4 Hz Butterworth, phase as (sin, cos)), as here."""
     local = np.einsum("tji,tbj->tbi", rot[:, hips], pos[:, bones] - pos[:, hips, None])   # hips'
     speed = np.linalg.norm(np.diff(local, axis=0, prepend=local[:1]), axis=-1) * fps
     speed[0] = speed[1]
@@ -545,30 +552,40 @@ def features(pos, rot, fps, hips, joints, p, contacts):
                         p[now + 1], p[now + 1] - p[now], contacts[now + 1]], 1)
     return x, p[now], z, joint_block(every, every)
 
-# ==== 6. Gradient check: every backward pass against two-sided differences, in float64 =========
-def numerical_gradient(f, x, step=1e-5):        # (f(x + step e_i) - f(x - step e_i)) / 2 step
+# ==== 6. Gradient check: every backward pass against centred differences, in float64 ===========
+def numerical_gradient(f, x, h=3e-4):
+    """(8 (f(x + h) - f(x - h)) - (f(x + 2h) - f(x - 2h))) / 12h for every entry of x: four points,
+    error ~h⁴ (two points: ~h², which cannot reach 1e-7 on the model; as the package's
+    minifilm/nn/gradcheck.py, which says how h was chosen)."""
     grad = np.zeros_like(x)
     for i in np.ndindex(x.shape):
-        old = x[i]
-        x[i] = old + step
-        f_plus = f()
-        x[i] = old - step
-        grad[i] = (f_plus - f()) / (2 * step)
+        old, f_at = x[i], []
+        for step in (h, -h, 2 * h, -2 * h):
+            x[i] = old + step
+            f_at.append(f())
         x[i] = old
+        grad[i] = (8 * (f_at[0] - f_at[1]) - (f_at[2] - f_at[3])) / (12 * h)
     return grad
-def rel_error(a, b):                            # the worst entry against the largest gradient
-    return float(np.max(np.abs(a - b)) / max(1e-12, np.max(np.abs(a) + np.abs(b))))
+def rel_error(a, b):                            # per entry |a - b| / (|a| + |b|) (as CS231n), the
+    return float(np.max(np.abs(a - b) / np.maximum(1e-8, np.abs(a) + np.abs(b))))   # worst one
+def spread(shape, rng):                         # distinct values, none near 0: the stencil never
+    n = int(np.prod(shape))                     # crosses ReLU's kink or a max-pool tie
+    return ((rng.permutation(n) - n / 2 + 0.25) * 4 / n).reshape(shape)
 def check_layer(forward, backward, shapes, rng):
-    inputs = [a + 0.1 * np.sign(a) for a in map(rng.standard_normal, shapes)]   # off ReLU's kink
+    inputs = [spread(shape, rng) for shape in shapes]
     out, cache = forward(*inputs)
     cotangent = rng.standard_normal(out.shape)  # L = Σ out ∘ cotangent, so d_out = cotangent
     grads = backward(cotangent, cache)
     grads = grads if isinstance(grads, tuple) else (grads,)
     loss = lambda: np.sum(forward(*inputs)[0] * cotangent)      # noqa: E731
     return max(rel_error(g, numerical_gradient(loss, x)) for x, g in zip(inputs, grads))
-def check_model(rng):
+def check_model(seed=0):
     """L_mse + L_bll of Ω + Φ + Ψ at toy sizes, with dropout (fixed masks) and one style clip for
-    the batch, as trained below: every parameter, x, p and the clip."""
+    the batch, as trained below: every parameter, x, p and the clip. One fixed draw: its ELU and
+    ReLU inputs, max-pool pairs and bone errors lie >= 5e-3 from their kinks, 8x the stencil's
+    reach; a draw within reach measures the kink, not the backward pass (the package's suite
+    moves its draws away from kinks: minifilm/evaluation/gradcheck_problem.py)."""
+    rng = np.random.default_rng(seed)
     cfg = dict(x_dim=7, z_dim=14, phase_dim=8, n_experts=3, hidden=6, gating_hidden=5,
                clip_frames=10, clip_channels=4, conv_filters=3, conv_kernel=3, film_dense=7)
     params = {name: a + 0.1 * rng.standard_normal(a.shape)
@@ -604,18 +621,85 @@ def gradient_check(seed=0, limit=1e-7):         # prints one row per check; True
               ("max-pool", max_pool_forward, max_pool_backward, [(2, 7, 3)])]
     rows = {name: check_layer(forward, backward, shapes, rng)
             for name, forward, backward, shapes in layers}
-    rows.update({f"model: {name}": err for name, err in check_model(rng).items()})
-    print(f"gradient check (float64, two-sided differences; passes under {limit:g}):")
+    rows.update({f"model: {name}": err for name, err in check_model(seed).items()})
+    print(f"gradient check (float64, four-point differences; every entry passes under {limit:g}):")
     for name, err in rows.items():
         print(f"  {name:<20} {err:9.2e}  {'ok' if err < limit else 'FAIL'}")
     return all(err < limit for err in rows.values())
 
-# ==== 7. Main: BVH files -> labels -> features -> one-style minibatches (Sec. 4.3) -> test MSE ==
+# ==== 7. Runtime (Sec. 4.4): frame after frame, the network's z becomes the next x ============
+# One character, as the package's Controller with stand=None (the paper's loop). PAPER: no foot
+# IK on the predicted contacts (Sec. 4.4; the package's is minifilm/motion/foot_ik.py). 2-vectors
+# are floor (x, z) pairs. The root's frame R has the columns [right, up, facing]: world = R local.
+def yaw(facing):                                # (2,) unit facing -> R (3, 3)
+    return np.array([[facing[1], 0, facing[0]], [0, 1, 0], [-facing[0], 0, facing[1]]])
+def turn(v, R):                                 # floor vectors (..., 2) -> R v (R.T: to local)
+    return (np.insert(v, 1, 0.0, axis=-1) @ R.T)[..., ::2]
+def unit(v, fallback):                          # v / |v| row by row; a zero row takes fallback's
+    length = np.linalg.norm(v, axis=-1, keepdims=True)
+    return np.where(length > 1e-8, v / np.maximum(length, 1e-8), fallback)
+def runtime_start(x, p, fps):
+    """A raw input frame x (x_dim,) and its phases p (8,) as a start: the root at the origin facing
+    +z (x's root frame is the world's), x's pose and future trajectory, and the root's past frame
+    by frame between x's past samples (as Controller.reset with start_x). -> the state, a dict."""
+    trajectory = x[:48].reshape(12, 4)          # [pos x, pos z, dir x, dir z] per sample
+    trajectory = np.concatenate([trajectory[:, :2], unit(trajectory[:, 2:], [0.0, 1])], 1)
+    known = np.round(TRAJECTORY_SECONDS[:FUTURE + 1] * fps)       # -60, -50, .., -10, 0 frames
+    past = np.stack([np.interp(np.arange(known[0], 0), known, trajectory[:FUTURE + 1, c])
+                     for c in range(4)], 1)     # the root 60, 59, .., 1 frames ago (at 60 fps)
+    pose = x[48:].reshape(-1, 4, 3)             # (J, [position, forward, up, velocity], 3)
+    return dict(root=np.zeros(2), facing=np.array([0.0, 1]), past=past[:, :2],
+                past_dir=unit(past[:, 2:], [0.0, 1]), future=trajectory[FUTURE:, :2],
+                future_dir=trajectory[FUTURE:, 2:], pos=pose[:, 0], fwd=pose[:, 1],
+                up=pose[:, 2], vel=pose[:, 3], p=np.array(p, float))
+def runtime_step(params, stats, s, facing, velocity, film, fps):
+    """One frame for the user's target facing (2,) and velocity (2,) m/s and a style's FiLM vector
+    (1, 4H) (Sec. 4.4); stats: the (mean, std) of x, p and z. Advances the state s; -> z."""
+    # 1. The user's trajectory blended into the future (Zhang et al. 2018): future sample k of 6
+    #    moves 1 - (1 - k/5)^0.75 of the way to the user's, its direction 1 - (1 - k/5)^1.25.
+    dt, w = np.mean(np.diff(TRAJECTORY_SECONDS[FUTURE:])), np.arange(6)[:, None] / 5   # dt 0.2 s
+    to_user, to_face = 1 - (1 - w) ** 0.75, 1 - (1 - w) ** 1.25
+    steps = (1 - to_user[1:]) * np.diff(s["future"], axis=0) + to_user[1:] * velocity * dt
+    s["future"] = s["future"][0] + np.concatenate([np.zeros((1, 2)), np.cumsum(steps, 0)])
+    s["future_dir"] = unit((1 - to_face) * s["future_dir"] + to_face * facing, s["future_dir"])
+    # 2. x (Sec. 3.2): the root's past every 1/6 s and that future, then the last pose, all in the
+    #    current root's frame
+    R, back = yaw(s["facing"]), -np.round(TRAJECTORY_SECONDS[:FUTURE] * fps).astype(int)
+    where = np.concatenate([s["past"][-back], s["future"]]) - s["root"]
+    heading = np.concatenate([s["past_dir"][-back], s["future_dir"]])
+    root = np.insert(s["root"], 1, 0.0)
+    pose = np.stack([s["pos"] - root, s["fwd"], s["up"], s["vel"]], 1) @ R      # R^T v
+    trajectory = np.concatenate([turn(where, R.T), turn(heading, R.T)], 1)     # (12, 4)
+    x = np.concatenate([trajectory.ravel(), pose.ravel()])
+    # 3. Eq. (4) with the style's FiLM vector, on normalised numbers
+    (x_mean, x_std), (p_mean, p_std), (z_mean, z_std) = stats
+    alpha = omega_forward(params, ((s["p"] - p_mean) / p_std)[None], None)[0]
+    z = phi_forward(params, ((x - x_mean) / x_std)[None], alpha, film, None)[0][0] * z_std + z_mean
+    # 4. z, read in the current root's frame: the next root and future, the next pose, the phases
+    J, future = len(s["pos"]), z[:24].reshape(6, 4)
+    new, new_dir = turn(future[:, :2], R) + s["root"], unit(turn(future[:, 2:], R), s["future_dir"])
+    pos, s["fwd"], s["up"], s["vel"] = np.moveaxis(z[24:24 + 12 * J].reshape(J, 4, 3) @ R.T, 1, 0)
+    # as the original demo: half the predicted position, half the last one moved by the velocity
+    s["pos"] = 0.5 * (pos + root) + 0.5 * (s["pos"] + s["vel"] / fps)
+    phase, update = z[24 + 12 * J:32 + 12 * J], z[32 + 12 * J:40 + 12 * J]
+    s["p"] = 0.5 * phase + 0.5 * (s["p"] + update)    # the predicted phases and the advanced ones
+    s["past"] = np.concatenate([s["past"][1:], s["root"][None]])
+    s["past_dir"] = np.concatenate([s["past_dir"][1:], s["facing"][None]])
+    kept = 0.15         # as the demo, the new future keeps 15 % of the blended one (not sample 0)
+    s["future"] = np.concatenate([new[:1], (1 - kept) * new[1:] + kept * s["future"][1:]])
+    mixed = (1 - kept) * new_dir[1:] + kept * s["future_dir"][1:]
+    s["future_dir"] = np.concatenate([new_dir[:1], unit(mixed, new_dir[1:])])
+    s["root"], s["facing"] = new[0], new_dir[0]
+    return z
+
+# ==== 8. Main: BVH files -> labels -> features -> one-style minibatches (Sec. 4.3) -> test MSE ==
 HOP_LIFTED_FOOT = {"LeftHop": 3, "RightHop": 2}   # the slot of the foot a hopping style lifts
 NEEDED = (HIPS, *TOE_TIPS, *PHASE_BONES)
 def load_folder(folder, clip_seconds=2.0):
     """Label and featurise every <Style>_<Gait>.bvh in folder; each file's first 80 % of rows
-    train, the rest test (PAPER: held-out files; a per-file split lets a few files do).
+    train, the rest test (the paper does not say; the original holds out a random 10 % window of
+    each file for validation and another for test). PAPER: Sec. 3.2 adds the mirror of every
+    symmetric style; nothing is mirrored here.
     -> {style: {"train": [x, p, z], "test": [x, p, z], "clips": (m, T, 12J)}}, joint parents."""
     data, errors = {}, []
     for path in sorted(Path(folder).glob("*.bvh")):
@@ -640,8 +724,8 @@ def load_folder(folder, clip_seconds=2.0):
         p = phase_vectors(phase, amplitude)
         x, p, z, frames = features(pos, rot, fps, at[HIPS], joints, p, contacts)
         cut = int(0.8 * len(x))
-        T = int(round(clip_seconds * fps))      # PAPER (released code): 4 s clips; 2 s here
-        style_data = data.setdefault(style, {"train": [], "test": [], "clips": []})
+        T = int(round(clip_seconds * fps))      # PAPER: 240 frames, 4 s (Sec. 3.2); 2 s here
+        style_data = data.setdefault(style, {"train": [], "test": [], "clips": [], "fps": fps})
         style_data["train"].append((x[:cut], p[:cut], z[:cut]))
         style_data["test"].append((x[cut:], p[cut:], z[cut:]))
         starts = range(0, cut - T + 1, T // 2)  # a clip every T / 2 frames
@@ -669,11 +753,11 @@ def main():
     settings = {"small": SMALL, "paper": PAPER}[args.config]
     epochs = settings["epochs"] if args.epochs is None else args.epochs
     lr = settings["lr"] if args.lr is None else args.lr
-    batch = 32                                  # not in the paper
+    batch = 32                  # the paper gives none; the original's (minifilm/train/batches.py)
     start = time.perf_counter()
     if args.data is not None and not any(args.data.glob("*.bvh")):
         sys.exit(f"no .bvh files in {args.data}")
-    if not gradient_check(args.seed):
+    if not gradient_check():
         sys.exit("the gradient check failed")
     # Ψ: no reading of the layers Sec. 4.3 describes gives Table 2's count (see the package's
     counts = dict.fromkeys(TABLE_2, 0)          # minifilm/model/film_generator.py)
@@ -682,7 +766,7 @@ def main():
     for part, count in counts.items():
         print(f"[model] PAPER {part}: {count:,} parameters; Table 2: {TABLE_2[part]:,}")
     with tempfile.TemporaryDirectory() as tmp:  # the synthetic files live only as long as this
-        if args.data is None:
+        if args.data is None:           # PAPER: 100STYLE is 60 fps (Sec. 3.1); 30 halves the work
             cmd = [sys.executable, str(Path(__file__).with_name("make_synthetic.py")), tmp,
                    "--seconds", str(args.seconds), "--fps", "30", "--gaits", "FW,FR,TR",
                    "--seed", str(args.seed)]
@@ -724,7 +808,8 @@ def main():
         for step in range(steps):
             for s in styles:                    # one style per minibatch, in a fixed order
                 x, p, z = (a[order[s][step * batch:(step + 1) * batch]] for a in data[s]["train"])
-                # the paper leaves open which clip: one random clip of the style per minibatch
+                # which clip: the paper does not say (minifilm/train/batches.py); one random
+                # clip of the style for the whole minibatch, the cheapest (the original: one each)
                 clip = data[s]["clips"][rng.integers(len(data[s]["clips"]))][None]
                 drop = {"rate": config["dropout"], "masks": {}, "rng": rng}
                 z_hat, cache = model_forward(params, x, p, clip, drop)
@@ -736,15 +821,28 @@ def main():
         print(f"[train] epoch {epoch:2d}: L_mse {l_mse:.4f}  L_bll {l_bll:.4f}  "
               f"({time.perf_counter() - t0:.1f} s)", flush=True)
 
-    errors = {}
+    errors, films = {}, {}
     for s in styles:                            # a style's FiLM vector: Ψ over its clips, averaged
         x, p, z = data[s]["test"]
-        film = psi_forward(params, data[s]["clips"], None)[0].mean(0, keepdims=True)   # Sec. 4.4
+        films[s] = psi_forward(params, data[s]["clips"], None)[0].mean(0, keepdims=True)  # Sec. 4.4
         alpha = omega_forward(params, p, None)[0]
-        errors[s] = mse_loss(phi_forward(params, x, alpha, film, None)[0], z)[0]
+        errors[s] = mse_loss(phi_forward(params, x, alpha, films[s], None)[0], z)[0]
     print("[test] MSE of the normalised z: " + ", ".join(f"{s} {e:.4f}" for s, e in errors.items()))
-    print(f"[test] MSE {np.mean(list(errors.values())):.4f} (predicting the mean scores about 1); "
-          f"{time.perf_counter() - start:.0f} s in all")
+    print(f"[test] MSE {np.mean(list(errors.values())):.4f} (predicting the mean scores about 1)")
+    for s in styles[:2]:                        # Sec. 4.4: the model on its own, frame by frame
+        x, p, _ = (a[0] * std + mean for a, (mean, std) in zip(data[s]["test"], stats))  # raw
+        fps, state = data[s]["fps"], runtime_start(x, p, data[s]["fps"])
+        print(f"[generate] {s}, asked to go on as its first test frame did "
+              f"({np.hypot(*x[44:46]):.1f} m/s): time, root (m), hips' height, contacts R L, "
+              "the feet's phases L R (cycles)")
+        for frame in range(1, int(2 * fps) + 1):
+            z = runtime_step(params, stats, state, unit(x[46:48], [0, 1]), x[44:46], films[s], fps)
+            feet = np.mod(np.arctan2(state["p"][4::2], state["p"][5::2]) / (2 * np.pi), 1)  # Eq. 1
+            (x_root, z_root), hips = state["root"], state["pos"][0, 1]
+            if frame % round(fps / 5) == 0:
+                print(f"  {frame / fps:.1f} s  ({x_root:5.2f}, {z_root:5.2f})  {hips:.2f}  "
+                      f"{z[-2]:4.1f} {z[-1]:4.1f}  {feet[0]:.2f} {feet[1]:.2f}")
+    print(f"{time.perf_counter() - start:.0f} s in all")
 
 if __name__ == "__main__":
     main()

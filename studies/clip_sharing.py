@@ -3,10 +3,10 @@
     python studies/clip_sharing.py                   # a short version (4 epochs each, ~4 min)
     python studies/clip_sharing.py --epochs 20       # the length the choice was made at (~20 min)
 
-The paper and the original code pair every sample of a minibatch with its own style clip, so Ψ
-runs on 32 clips per step; minibatches hold one style, so a few clips of it could serve the whole
-batch and Ψ would run on those only. For each setting (1, 4 clips per batch, and 32: one clip per
-sample, the paper) this trains the main job's model on the main job's synthetic data (one BLAS
+The original code pairs every sample of a minibatch with its own style clip, so Ψ runs on 32
+clips per step (the paper does not say); minibatches hold one style, so a few clips of it could
+serve the whole batch and Ψ would run on those only. For each setting (1, 4 clips per batch, and
+32: one clip per sample, the original) this trains the main job's model on the main job's synthetic data (one BLAS
 thread) and reports:
 
 * seconds per epoch and test MSE (normalised units, every style weighted equally);
@@ -83,7 +83,7 @@ def quality(trainer, ds, classifier, info):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--epochs", type=int, default=4, help="training epochs per model (the main job: 30)")
-    ap.add_argument("--clips", default="1,4,32", help="clips per batch to compare; 32 = one per sample (the paper)")
+    ap.add_argument("--clips", default="1,4,32", help="clips per batch to compare; 32 = one per sample (the original)")
     ap.add_argument("--holdout", default="Drunk", help="the style held out for the fine-tuning test")
     ap.add_argument("--finetune-steps", type=int, default=300)
     ap.add_argument("--work", type=Path, default=Path("runs/clip_sharing"))
@@ -109,7 +109,7 @@ def main():
     rows = []
     for text in a.clips.split(","):
         clips = int(text)
-        setting = None if clips >= s.batch_size else clips          # 32: one clip per sample, the paper
+        setting = None if clips >= s.batch_size else clips          # 32: one clip per sample, the original
         trainer = new_trainer(ds, tr, s, setting, a.seed, ds.styles, ds.stats)
         t0 = time.perf_counter()
         trainer.fit(tr)
@@ -139,7 +139,7 @@ def main():
           "FiLM silhouette | held-out style silhouette before -> after fine-tuning |")
     print("|---|---|---|---|---|---|---|---|")
     for clips, epoch_s, mse, q, sep, b, f in rows:
-        print(f"| {clips}{' (the paper)' if clips >= s.batch_size else ''} | {epoch_s:.1f} | {mse:.4f} | "
+        print(f"| {clips}{' (the original)' if clips >= s.batch_size else ''} | {epoch_s:.1f} | {mse:.4f} | "
               f"{q['recognition'].mean():.2f} / {q['recognition'].min():.2f} | {q['path']:.2f} | "
               f"{q['stepping']}/{len(ds.styles)} | {sep:.2f} | {b:.2f} -> {f:.2f} |")
 

@@ -2,10 +2,12 @@
 
 The companion imports nothing from minifilm, so these tests are the bridge: the same weights go
 into both, and the forward outputs, the losses and every gradient must agree (float64, relative
-error <= 1e-6; measured at most 4e-11); Adam's steps agree; and on real BVH files from
-../shared/data the companion's reader, foot contacts and per-frame local phases agree with the
-package's reader and its vectorised labelling (minifilm/phases/label.py::label). One test shows the
-comparison catches a one-detail difference (the layer norm's epsilon).
+error <= 1e-6; measured at most 4e-11); Adam's steps agree; its gradient check passes on a draw
+away from every kink; its runtime (Sec. 4.4) walks 60 frames as the package's Controller does;
+and on real BVH files from ../shared/data the companion's reader, foot contacts and per-frame
+local phases agree with the package's reader and its vectorised labelling
+(minifilm/phases/label.py::label). One test shows the comparison catches a one-detail difference
+(the layer norm's epsilon).
 """
 from __future__ import annotations
 
@@ -15,6 +17,8 @@ import importlib.util
 import numpy as np
 import pytest
 
+from minifilm.dataset.stats import NormStats
+from minifilm.features.layout import FeatureLayout
 from minifilm.model.config import ModelConfig
 from minifilm.model.losses import bone_length_loss, mse_loss
 from minifilm.model.style_model import StyleModel
@@ -24,6 +28,8 @@ from minifilm.nn.optim import Adam
 from minifilm.nn.params import Parameters
 from minifilm.phases.label import label
 from minifilm.phases.local_phases import fit_sinusoids
+from minifilm.runtime.controller import Controller
+from minifilm.runtime.network import RuntimeNetwork
 from repo_paths import REPO_ROOT, SHARED_DATA, need_data
 
 COMPANION = REPO_ROOT / "examples" / "minifilm_in_one_file.py"
@@ -149,6 +155,65 @@ def test_adam_steps_agree_with_the_package():
         one.adam_step(P, {name: g.copy() for name, g in ps.grads.items()}, state, lr=1e-2)
         adam.step()
     assert max(rel_error(P[name], ps.params[name]) for name in P) < 1e-10
+
+
+def test_the_gradient_check_passes_on_a_draw_away_from_every_kink(monkeypatch, capsys):
+    """Every row under 1e-7 (per entry), and the model's draw as check_model says: its ELU and ReLU
+    inputs, max-pool pairs of live units and bone errors >= 5e-3 from their kinks, 8x the reach
+    2h = 6e-4 of the four-point stencil (within it, a difference measures the kink)."""
+    assert one.gradient_check()
+    assert capsys.readouterr().out.count(" ok\n") == 34
+    near = {"ELU": [], "ReLU": [], "max-pool": [], "bone": []}
+    elu, relu, pool, bll = one.elu_forward, one.relu_forward, one.max_pool_forward, one.bone_length_loss
+
+    def pairs(h):
+        even, odd = h[:, 0:h.shape[1] // 2 * 2:2], h[:, 1:h.shape[1] // 2 * 2:2]
+        return np.abs(even - odd)[np.maximum(even, odd) > 0]
+
+    def bones(pred, target, cols, parents, mean, std):
+        child = np.flatnonzero(parents >= 0)
+        lengths = [np.linalg.norm(p[:, parents[child]] - p[:, child], axis=-1)
+                   for p in (z[:, cols] * std[cols] + mean[cols] for z in (pred, target))]
+        return lengths[0] - lengths[1]
+    watch = [("elu_forward", "ELU", elu, np.abs), ("relu_forward", "ReLU", relu, np.abs),
+             ("max_pool_forward", "max-pool", pool, pairs), ("bone_length_loss", "bone", bll, bones)]
+    for name, kink, f, distance in watch:
+        monkeypatch.setattr(one, name, lambda *a, f=f, kink=kink, d=distance: (near[kink].append(
+            np.min(np.abs(d(*a)))), f(*a))[1])
+    monkeypatch.setattr(one, "numerical_gradient", lambda f, x: (f(), np.zeros_like(x))[1])
+    one.check_model()
+    assert all(near.values()) and min(min(v) for v in near.values()) >= 5e-3, near
+
+
+def test_the_runtime_walks_as_the_package_s_controller_for_60_frames():
+    """Sec. 4.4, frame after frame: the companion's runtime_start / runtime_step against the
+    package's Controller without its standing logic (stand=None, the paper's loop), with the same
+    random network, statistics, FiLM vector, start frame and a turning command, at 30 fps."""
+    rng = np.random.default_rng(7)
+    layout = FeatureLayout.generic(5)
+    config = ModelConfig.tiny(x_dim=layout.x_dim, z_dim=layout.z_dim, clip_channels=layout.joint_dim)
+    model = random_model(rng, config)
+    stats = [(rng.standard_normal(n) * scale, (0.5 + rng.random(n)) * scale)
+             for n, scale in [(layout.x_dim, 0.3), (8, 1.0), (layout.z_dim, 0.1)]]   # x, p, z
+    (x_mean, x_std), (p_mean, p_std), (z_mean, z_std) = stats
+    network = RuntimeNetwork.from_model(model, NormStats(x_mean, x_std, z_mean, z_std, p_mean, p_std),
+                                        dtype=np.float64)
+    film = model.film_parameters(rng.standard_normal((1, config.clip_frames, config.clip_channels)))[0]
+    x0, p0 = x_mean + x_std * rng.standard_normal(layout.x_dim), p_mean + p_std * rng.standard_normal(8)
+    controller = Controller(network, layout, fps=30.0, stand=None)
+    controller.reset(np.zeros((1, 2)), np.array([[0.0, 1.0]]), phases=p0[None], start_x=x0[None])
+    state, P = one.runtime_start(x0, p0, 30.0), companion_params(model)
+    for k in range(60):
+        facing, velocity = np.array([np.sin(0.05 * k), np.cos(0.05 * k)]), np.array([0.5, 1.2])
+        frame = controller.step(facing[None], velocity[None], film)
+        z = one.runtime_step(P, stats, state, facing, velocity, film[None], 30.0)
+        ours = [state["pos"], state["root"], state["facing"], state["p"], z[-2:]]
+        theirs = [frame[key][0] for key in ("positions", "root", "facing", "phases", "contacts")]
+        # float64 round-off of differently ordered sums, fed back for 60 frames: measured at
+        # most 3e-14 (five seeds); one of the loop's blend weights changed by 0.05 differed by
+        # 3e-4 to 4e-3 within two frames
+        assert max(np.max(np.abs(a - b)) for a, b in zip(ours, theirs)) < 1e-10, k
+    assert np.linalg.norm(state["root"]) > 0.3 and np.max(np.abs(state["p"] - p0)) > 0.1   # it moved
 
 
 # ------------------------------------------------------------------------------ the phases

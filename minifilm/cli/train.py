@@ -52,11 +52,11 @@ def add_arguments(parser) -> None:
                              "folder or a BVH file), so files of different skeletons make one data set")
     parser.add_argument("--clips-per-batch", type=in_range(1, 4096, int), default=d.clips_per_batch,
                         help="style clips per minibatch, shared by its samples (default "
-                             f"{d.clips_per_batch}; 32 = one clip per sample, as the paper)")
+                             f"{d.clips_per_batch}; 32 = one clip per sample, as the original)")
     parser.add_argument("--batch-size", type=in_range(1, 4096, int), default=d.batch_size,
-                        help=f"samples per minibatch (default {d.batch_size})")
+                        help=f"samples per minibatch (default {d.batch_size}, the original's; the paper gives none)")
     parser.add_argument("--learning-rate", type=positive(float, 1.0), default=d.learning_rate,
-                        help=f"Adam's learning rate (default {d.learning_rate:g}; the paper's 1e-4 is for its 40x "
+                        help=f"Adam's learning rate (default {d.learning_rate:g}; the paper's 1e-4 is for its 62x "
                              "larger network)")
     parser.add_argument("--workers", type=in_range(1, 1024, int), default=None,
                         help="processes labelling the data set's files (default: every core this process may use; "

@@ -24,7 +24,7 @@ class TrainData:
     style_names                                    optional names, indexed by style id
 
     Every style that has frames must have at least one clip: each training sample is paired
-    with a clip of its own style drawn at random (the original draws clips per style).
+    with a clip of its own style drawn at random (minifilm/train/batches.py).
     """
 
     x: np.ndarray

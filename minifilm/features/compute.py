@@ -58,7 +58,7 @@ def seconds_to_frames(seconds, fps: float) -> np.ndarray:
     """Nearest whole frame of ``seconds * fps``; halves round away from zero so that past and
     future offsets of the same size are mirror images. Returns int64 of the input's shape."""
     v = np.asarray(seconds, dtype=np.float64) * float(fps)
-    # the 1e-9 guards against 0.2 * 60 = 11.999999999999998 style float error
+    # + 1e-9: a product that float error leaves just below a half still rounds away from zero
     return (np.sign(v) * np.floor(np.abs(v) + 0.5 + 1e-9)).astype(np.int64)
 
 

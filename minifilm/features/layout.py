@@ -37,6 +37,9 @@ import numpy as np
 
 #: Trajectory sample times in seconds relative to the current frame (docs/original-code.md §5).
 #: The past is spaced 1/6 s, the future 0.2 s: deliberately not uniform.
+#: PAPER: "every 10 frames for 1 second in the future and past" (Sec. 3.2), i.e. 1/6 s at 60 fps on
+#: both sides; the original code spaces the future 12 frames apart, and the released network was
+#: trained so.
 TRAJECTORY_SECONDS: Tuple[float, ...] = (-1.0, -5 / 6, -4 / 6, -3 / 6, -2 / 6, -1 / 6,
                                          0.0, 0.2, 0.4, 0.6, 0.8, 1.0)
 #: Index of the current frame among the trajectory samples.

@@ -33,7 +33,8 @@ class ModelConfig:
     conv_filters        filters of both conv1d layers of Ψ
     conv_kernel         temporal kernel size (odd: 'same' padding)
     film_dense          hidden dense width of Ψ
-    dropout             drop probability used before every layer in training (0.3 in the paper)
+    dropout             drop probability in training (0.3 in the paper), before every layer of Ω
+                        and Φ and before Ψ's last dense layer (film_generator.py)
     ln_unbiased, ln_eps layer-norm convention used in training: (x-μ)/(σ+eps), σ unbiased
                         (the original training code); the released runtime uses (False, 0.0)
     """

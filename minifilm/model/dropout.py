@@ -1,6 +1,8 @@
 """The dropout of one forward pass, with named sites and replayable keep-masks.
 
-Every network of the model applies dropout "before each layer" in training (Sec. 4.3, rate 0.3).
+The paper regularises "with a dropout rate of 0.3 everywhere" (Sec. 4.3). Here, as in the
+original code, Ω and Φ drop before each of their layers and Ψ before its last dense layer only
+(marked PAPER: in minifilm/model/film_generator.py).
 A gradient check needs the *same* masks on every evaluation of the loss, so each dropout site has
 a name ("gating0", "motion2", "film_dense", ...) and a forward pass can be given the masks to use
 (``masks={name: bool array}``); the masks a pass actually used are kept in ``used``, so a caller

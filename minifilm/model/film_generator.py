@@ -5,8 +5,9 @@
                 -> flatten (B, T//4 * F) -> dense(film_dense) -> ReLU         dense block
                 -> dropout -> dense(4 * hidden) = [γ1, β1, γ2, β2]           dense block (Eq. 2)
 
-Dropout sits after the hidden dense layer only, as in the original code (Conv1D_Dense); the
-convolutions have none. Flattening is time-major (frame, filter), like a TF reshape of (B, T, F).
+PAPER: the paper applies dropout 0.3 "everywhere" (Sec. 4.3). Ψ's dropout sits after the hidden
+dense layer only, as in the original code (its Conv1D_Dense class); the convolutions have none.
+Flattening is time-major (frame, filter), like a TF reshape of (B, T, F).
 
 Parameter count. With the paper's sizes (T 240, C 300, F 256, k 25, dense 2048, hidden 512) this
 network has 1,920,256 + 1,638,656 + 31,459,328 + 4,196,352 = 39,214,592 parameters, which is what
@@ -81,6 +82,7 @@ class FilmGenerator:
         h, c1 = conv_block_forward(h, P["conv1_W"], P["conv1_b"], W["conv1"])      # (B, T//4, F)
         pooled_shape = h.shape
         h = h.reshape(h.shape[0], -1)                                             # (B, T//4 * F)
+        # PAPER: dropout "everywhere" (Sec. 4.3); only here, before the last layer, as the original
         h, c2 = dense_forward(h, P["dense0_W"], P["dense0_b"], "relu")           # (B, film_dense)
         film, c3 = dense_forward(h, P["dense1_W"], P["dense1_b"], None, drop, "film_dense")  # (B, 4H)
         self._caches = (c0, c1, pooled_shape, c2, c3)

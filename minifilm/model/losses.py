@@ -1,8 +1,9 @@
 """The training objective L = L_mse + L_bll (Sec. 4.3, Eq. 5-7), with hand-written gradients.
 
 Both losses are computed on one minibatch, which holds frames of a single style (the paper's
-style-balanced minibatches), so the per-style normalisation 1/N_s of Eq. (5) and (7) becomes a
-mean over the minibatch; averaging over the style cycle gives the sum over styles.
+style-balanced minibatches, minifilm/train/batches.py), so the per-style normalisation 1/N_s of
+Eq. (5) and (7) becomes a mean over the minibatch; averaging over the style cycle gives the sum
+over styles (up to the factor S).
 """
 from __future__ import annotations
 
@@ -12,8 +13,14 @@ import numpy as np
 def mse_loss(pred, target):
     """Eq. (5) on one minibatch: mean of (z − ẑ)² over the batch *and* the features.
 
-    pred, target (B, D) -> loss (float), dpred (B, D). The mean over features (rather than
-    their sum) follows the original code (tf.reduce_mean); it only rescales the loss.
+    pred, target (B, D) -> loss (float), dpred (B, D).
+
+    PAPER: Eq. (5) sums the squared error over the D features of z, while Eq. (6) averages the
+    bone errors over the bones. The mean divides L_mse by D (342 for 100STYLE), so in
+    L = L_mse + L_bll the bone-length term weighs D times more than with the paper's sum (a
+    factor on the whole loss would barely matter to Adam; a factor on one term moves the
+    balance). The original code takes a mean for both terms (docs/original-code.md §14), and
+    the released network was trained so; this follows it.
     """
     if pred.shape != target.shape:
         raise ValueError(f"mse_loss: pred {pred.shape} and target {target.shape} differ")
@@ -43,7 +50,8 @@ def bone_length_loss(pred, target, positions_idx, parents, out_mean, out_std):
     out_mean, out_std (D,) output statistics: positions are de-normalised (z*std + mean) first,
                    so bone lengths are in metres, as in the original code.
     Returns loss (float), dpred (N, D). The gradient of |·| at 0 and of ‖·‖ at a zero-length
-    bone is taken as 0.
+    bone is taken as 0. The mean over the bones is Eq. (6)'s 1/B; the original code divides its
+    sum over the 24 bones of 100STYLE by 25, the joint count (docs/original-code.md §14).
     """
     positions_idx = np.asarray(positions_idx, dtype=int)
     parents = np.asarray(parents, dtype=int)

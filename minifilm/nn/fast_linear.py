@@ -1,8 +1,9 @@
 """The linear layer's backward pass with its weight gradient in a reused buffer (Ψ's dense layers).
 
 The same numbers as :func:`minifilm.nn.functional.linear_backward`; only where dW lives differs.
-Ψ's first dense layer has a large weight matrix (the paper's: 30,720 x 2,048), whose gradient
-would otherwise be a fresh array every step (benchmarks/README.md, "Workspaces").
+Ψ's first dense layer has a large weight matrix (the paper's: 15,360 x 2,048, its 240 clip frames
+pooled twice by 2 to 60, times 256 filters), whose gradient would otherwise be a fresh array every
+step (benchmarks/README.md, "Peak memory of a training step").
 """
 from __future__ import annotations
 

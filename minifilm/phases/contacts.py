@@ -110,10 +110,13 @@ def foot_contacts(sensor_positions, fps: float, floor_height: Optional[float] = 
         v[1:] = (p[1:] - p[:-1]) * fps
         v[0] = v[1]
     speed = np.linalg.norm(v, axis=-1)
-    if floor_height is None:
+    if floor_height is None:    # PAPER: the paper does not say where the floor is; the original:
+        # y = 0, its scene's plane. Estimated here, since not every file stands on y = 0.
         floor_height = estimate_floor_height(p[..., 1], speed, speed_threshold)
     floor = float(floor_height)
     raw = (speed <= speed_threshold) & (np.abs(p[..., 1] - floor) <= height_threshold)
+    # PAPER: the paper does not filter the labels; the original takes the majority of 11 frames
+    # (at 60 fps) around each, as here: short flickers of the raw label vanish
     half = int(np.floor(filter_seconds * fps / 2 + 0.5))
     return majority_filter(raw, half)
 
@@ -138,7 +141,7 @@ def humanoid_contacts(motion, humanoid, speed_threshold: Optional[float] = None,
     Returns:
         contacts (F, 2) of 0.0/1.0 and sensors (2,): the joint indices [right toe tip, left toe tip].
 
-    Difference to the paper: its 0.15 m/s and 1 cm were set on 100STYLE (60 fps, clean, feet on
+    PAPER: its 0.15 m/s and 1 cm were set on 100STYLE (60 fps, clean, feet on
     y = 0) and find no contact at all in CMU 08_01 (120 fps; its toe tips slide at about 0.2 m/s
     and rest 1.6-7 cm up through a stance) nor in Bandai runs. Pass the paper's values to get them.
     """

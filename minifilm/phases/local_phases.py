@@ -101,11 +101,15 @@ def phase_and_amplitude(fit: SinusoidFit, local_speed, fps: float, cutoff: float
     """
     speed = np.asarray(local_speed, dtype=np.float64)
     n = speed.size
-    # One fitted period around each frame: W = round(fps / F) frames, the overflow window of W // 2.
+    # PAPER: Eq. (1)'s ‖v_w‖ is taken "over a one second window"; here, as in the original code,
+    # over one fitted period around each frame: W = round(fps / F) frames, the overflow window of
+    # W // 2 (the same second for a 1 Hz cycle).
     with np.errstate(divide="ignore"):
         period = np.where(fit.frequency > 0, np.floor(fps / np.where(fit.frequency > 0, fit.frequency, 1) + 0.5), 0)
     lo, hi = overflow_window(np.arange(n), (period // 2).astype(np.int64), n)
     amplitude = fit.amplitude * range_reduce(speed, lo, hi, np.maximum)
+    # PAPER: the paper does not smooth the phase or the amplitude after the fit; the original code
+    # low-passes both with the source's 4 Hz Butterworth filter (the phase as its sin and cos), as here.
     angle = 2 * np.pi * fit.phase
     cutoff = usable_cutoff(cutoff, fps)
     sc = butterworth(np.stack([np.sin(angle), np.cos(angle)], axis=1), fps, cutoff)

@@ -292,6 +292,9 @@ def fit_sinusoids(signal, fps: float, window_seconds: float = 0.5, min_frequency
     amplitude = np.hypot(c1, c2)
     phase = np.mod(np.arctan2(c2, c1) / (2 * np.pi), 1.0)
     phase[(amplitude == 0) | (phase >= 1.0)] = 0.0
+    # PAPER: the frequency is the fit's own (Sec. 4.1.4, and the original's); here the slope of the
+    # phase track, as in sinusoid_fit_plain.py, which says why. Of the labels, only the amplitude's
+    # window reads it.
     F = phase_slope_frequency(phase, F, ~skipped & (amplitude > 0), fps, phase_slope_seconds,
                               min_frequency, max_frequency)
     return SinusoidFit(amplitude, F, phase, B, fit, skipped)

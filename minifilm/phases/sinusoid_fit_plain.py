@@ -247,8 +247,9 @@ def fit_sinusoids_plain(signal, fps: float, window_seconds: float = 0.5, min_fre
     phase[(amplitude == 0) | (phase >= 1.0)] = 0.0
     skipped = np.array([w.skipped for w in windows])
     valid = ~skipped & (amplitude > 0)
-    # The frequency: the slope of the unwrapped phase over the second around k, where all of it
-    # was fitted (see the module docstring); the window's own F elsewhere.
+    # PAPER: the paper's (and the original's) frequency is the fit's F. Here it is the slope of the
+    # unwrapped phase over the second around k, where all of it was fitted (see the module
+    # docstring); the window's own F elsewhere.
     slope_half = int(round(phase_slope_seconds * fps / 2))
     cycles = np.unwrap(2 * np.pi * phase) / (2 * np.pi)
     t = np.arange(n) / fps

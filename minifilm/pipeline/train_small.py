@@ -73,12 +73,12 @@ class Settings:
     batch_size: int = 32
     # 1e-3 kills the ReLUs of the FiLM generator Ψ within 12 epochs (all of conv1's, most of its
     # dense layer's), so several styles get the same FiLM vector (its bias) and share one motion;
-    # 3e-4 and 5e-4 keep them alive (benchmarks/trained_rollout.py; the paper uses 1e-4 for its 40x
+    # 3e-4 and 5e-4 keep them alive (benchmarks/trained_rollout.py; the paper uses 1e-4 for its 62x
     # larger network)
     learning_rate: float = 5e-4
     lr_schedule: str = "constant"        # or "cosine" (TrainConfig.lr_schedule)
     input_noise: float = 0.0             # TrainConfig.input_noise (0: none, the paper)
-    clips_per_batch: Optional[int] = 4   # None: one style clip per sample, as the paper (studies/clip_sharing.py)
+    clips_per_batch: Optional[int] = 4   # None: one style clip per sample, as the original (studies/clip_sharing.py)
     model: dict = field(default_factory=dict)   # overrides of ModelConfig.small
     generate_seconds: float = 10.0       # length of each generated BVH
     # weight of the user's trajectory in the near future samples (the demo's 0.75 suits the
@@ -89,6 +89,9 @@ class Settings:
     # cuts every file 80/10/10; "auto" picks files when the median file is under 20 s (a 10 %
     # window of a short file is shorter than the 2 s trajectory window of the features)
     split: str = "auto"
+    # PAPER: Sec. 3.2 adds the mirrors of the symmetric styles. Nothing is mirrored by default: the
+    # synthetic set can simply be made longer; --mirror mirrors every file of your own data (a
+    # manifest's mirror column chooses file by file)
     mirror: bool = False                 # also train on the left/right mirror of every file
     fps: Optional[float] = None          # your own data: resample every file to this rate (None: as recorded)
     rig: Optional[str] = None            # your own data: retarget every file onto this rig first (docs/retargeting.md)

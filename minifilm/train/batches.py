@@ -1,8 +1,18 @@
 """Style-balanced minibatches (Sec. 4.3) and the style clip each sample is paired with.
 
-Every minibatch holds frames of a single style; the styles are visited in a fixed cycle, and one
-epoch is one pass through the shortest style's training frames, so every style gets the same
-number of updates however much data it has (the per-style normalisation 1/N_s of Eq. 5 and 7).
+The paper (Sec. 4.3): each minibatch contains only one style, the styles are cycled in a fixed
+order (so every S consecutive minibatches hold all S styles), and one epoch is one pass through the
+shortest style's training frames; every style then gets the same number of updates however much
+data it has (the per-style normalisation 1/N_s of Eq. 5 and 7). That is all it says about a
+minibatch: neither its size nor which clip y^s of the style (Eq. 4) each sample reads.
+
+What this code does beside it. The batch size is 32, the original code's. Every sample of a
+minibatch reads a clip of the minibatch's style, drawn at random for it (:func:`draw_clips`), so Ψ
+runs on as many clips as there are samples; the original does the same, pairing the i-th frame of a
+minibatch with the i-th of 32 clips of the style taken from a shuffled stream (docs/original-code.md
+§14). With ``TrainConfig.clips_per_batch = n`` (the main job: 4) the minibatch draws n clips of its
+style and its samples share them (:func:`draw_shared_clips`): a departure from the original, for
+speed, since Ψ is the most expensive part of a training step.
 """
 from __future__ import annotations
 
@@ -44,8 +54,8 @@ def draw_shared_clips(data: TrainData, style: int, n_clips: int, batch: int, rng
     ``batch`` samples which of them it uses, spread evenly in a random order.
 
     Returns (clip indices (M,), assignment (batch,) ints in [0, M)), M = min(n_clips, batch).
-    A deviation from the paper and the original, which pair every sample with its own clip: Ψ
-    then runs on M clips instead of ``batch``, the most expensive part of a training step."""
+    Ψ then runs on M clips instead of ``batch``; the original gives every sample its own clip (the
+    paper does not say; see the module docstring)."""
     pool = np.flatnonzero(data.clip_style == style)
     m = max(1, min(int(n_clips), int(batch)))
     chosen = pool[rng.integers(0, len(pool), size=m)]

@@ -2,10 +2,11 @@
 
     loss = L_mse + L_bll                                  Eq. (5)-(7)
     minibatches hold one style; styles visited in a fixed cycle; one epoch = one pass through
-    the shortest style's training frames (Sec. 4.3); Adam, lr 1e-4, batch 32, dropout 0.3
+    the shortest style's training frames; Adam, lr 1e-4, dropout 0.3 (Sec. 4.3); batch 32 (the
+    paper gives none: the original code's)
 
-Each sample is paired with a clip of its own style, drawn at random per sample (the original
-draws a clip per style). Data comes in as plain arrays (minifilm.dataset.arrays.TrainData), already
+Which style clip each sample reads, and what the paper and the original say about it: batches.py,
+the one place that tells it. Data comes in as plain arrays (minifilm.dataset.arrays.TrainData), already
 normalised; the bone-length loss needs the joint-position columns of z and the parent list,
 which the caller takes from the feature layout. The minibatches are built in batches.py; fine-tuning
 Ψ alone (Sec. 5.3.2) is finetune.py.
@@ -40,7 +41,8 @@ class TrainingDiverged(RuntimeError):
 
 @dataclass
 class TrainConfig:
-    """Settings of a training run (the paper: 90 epochs, batch 32, Adam lr 1e-4).
+    """Settings of a training run (the paper: 90 epochs, Adam lr 1e-4; batch 32 is the original
+    code's, the paper gives no batch size).
 
     lr_schedule         "constant" (the paper) or "cosine": the learning rate falls from lr to
                         lr * lr_floor along half a cosine over the `epochs` of the run
@@ -50,10 +52,10 @@ class TrainConfig:
                         own slightly wrong predictions. For train_small's model, one seed each,
                         0.1-0.2 kept more styles stepping but stretched more bones in 60 s
                         rollouts (benchmarks/trained_rollout.py): not a clear win, so off by default
-    clips_per_batch     None: every sample gets its own style clip, drawn at random (the paper and
-                        the original). n: each minibatch (one style) draws n clips of its style and
-                        every sample uses one of them, so Ψ runs on n clips instead of batch_size
-                        (a deviation for speed; see batches.draw_shared_clips)
+    clips_per_batch     None: every sample gets its own clip of the minibatch's style, drawn at
+                        random (as the original). n: the minibatch draws n clips of its style and
+                        its samples share them, so Ψ runs on n clips instead of batch_size (for
+                        speed). What the paper and the original do: batches.py
     checkpoint_path     where to write a checkpoint after every `checkpoint_every` epochs (None: never)
     progress            a one-line progress display on stderr (None: only when stderr is a terminal)
     """
