@@ -12,7 +12,10 @@
   tests/pipeline/test_train_small.py);
 * every reference ``path`` or ``path::name`` to the code (functions, classes, methods, tests)
   points at a file that exists and a name defined in it, and every relative Markdown link or
-  image points at a file that exists (images under 200 KB).
+  image points at a file that exists (images under 200 KB);
+* the README's first screen (60 lines) holds the set-up commands, the paper's sizes, the two
+  pictures and a snippet of at most 15 lines, and that snippet, run as written, prints the output
+  shown under it (numbers to one unit of their last digit).
 """
 from __future__ import annotations
 
@@ -28,7 +31,7 @@ from pathlib import Path
 import pytest
 
 from python_names import defined_names
-from repo_paths import IN_CI, REPO_ROOT, SHARED_DATA, missing_data
+from repo_paths import IN_CI, REPO_ROOT, SHARED_DATA, missing_data, need_data
 
 DOCS = [REPO_ROOT / "README.md"] + sorted((REPO_ROOT / "docs").glob("*.md"))
 NEEDS_DATA = "# needs: shared data"
@@ -339,3 +342,83 @@ def test_readme_example_commands_run_in_miniature(tmp_path):
         from minifilm.motion.bvh import read_bvh
         assert read_bvh(tmp_path / "zombie.bvh").n_frames == 30
         assert read_bvh(tmp_path / "old.bvh").n_frames == 30
+
+
+# ---------------------------------------------------------------------------- 6. the README's first screen
+FIRST_SCREEN = 60        # lines a reader sees before scrolling
+SNIPPET_LINES = 15
+FIRST_SCREEN_HOLDS = ['pip install -e ".[viz]" && python examples/train_small.py',
+                      'pip install -e ".[dev]" && python -m pytest -q',
+                      "mpiexec -n 2 python examples/train_small.py", "4,935,928", "39,214,592", "707,420",
+                      "docs/img/model_shapes.png", "docs/img/phase_pipeline_bandai_walk.png"]
+NUMBER = re.compile(r"\d+(?:\.\d+)?")
+
+
+def readme_snippet():
+    """(line, code, shown output) of the README's first ```python block and the ```text block
+    that follows it directly: the snippet a reader pastes and what it printed."""
+    text = (REPO_ROOT / "README.md").read_text(encoding="utf-8")
+    blocks = list(FENCE.finditer(text))
+    i = next(i for i, m in enumerate(blocks) if m.group(1) == "python")
+    code, shown = blocks[i], blocks[i + 1] if i + 1 < len(blocks) else None
+    assert shown is not None and shown.group(1) == "text" and not text[code.end():shown.start()].strip(), \
+        "README.md: the first python snippet must be followed directly by a ```text block of its output"
+    return text.count("\n", 0, code.start()) + 1, code.group(2), shown.group(2)
+
+
+def same_output(printed: str, shown: str) -> list:
+    """What differs between printed and shown lines: the words and whole numbers exactly, every
+    decimal number to one unit of its last digit shown. Why that tolerance: the rollout's float32 sums come out about 1e-8 apart
+    between BLAS kernels and thread counts (measured: Haswell, SkylakeX and Zen kernels, 1 and 2
+    threads), yet a value next to a rounding boundary can still round the other way on another CPU."""
+    a, b = printed.strip().splitlines(), shown.strip().splitlines()
+    if len(a) != len(b):
+        return [f"{len(a)} lines printed, {len(b)} shown"]
+    problems = []
+    for got, want in zip(a, b):
+        if NUMBER.sub("#", got) != NUMBER.sub("#", want):
+            problems.append(f"printed {got!r}, shown {want!r}")
+            continue
+        for g, w in zip(NUMBER.findall(got), NUMBER.findall(want)):
+            decimals = len(w.partition(".")[2])
+            unit = 10.0 ** -decimals if decimals else 0.0       # a count (frames) is exact
+            if abs(float(g) - float(w)) > unit * 1.001:
+                problems.append(f"printed {g} where the README shows {w} (tolerance {unit:g}) in {want!r}")
+    return problems
+
+
+def test_the_first_screen_says_what_a_newcomer_needs():
+    head = "\n".join((REPO_ROOT / "README.md").read_text(encoding="utf-8").splitlines()[:FIRST_SCREEN])
+    missing = [s for s in FIRST_SCREEN_HOLDS if s not in head]
+    assert not missing, f"README.md's first {FIRST_SCREEN} lines lack {missing}"
+    line, code, shown = readme_snippet()
+    n = len(code.splitlines())
+    assert n <= SNIPPET_LINES, f"README.md's snippet (line {line}) has {n} lines, over {SNIPPET_LINES}"
+    assert line + n + 2 + len(shown.splitlines()) + 1 <= FIRST_SCREEN, "the snippet and its output end below the first screen"
+
+
+def test_the_readme_snippet_prints_what_the_readme_shows(tmp_path, monkeypatch, capsys):
+    """The README's first snippet, as written, run in a folder of its own beside ../shared/data."""
+    from minifilm.motion.bvh import read_bvh
+
+    need_data(SHARED_DATA / "released-lpn", "the released network (the README's first snippet)")
+    line, code, shown = readme_snippet()
+    work = tmp_path / "work"
+    work.mkdir()
+    (tmp_path / "shared").mkdir()
+    os.symlink(SHARED_DATA, tmp_path / "shared" / "data")
+    monkeypatch.chdir(work)
+    exec(compile(code, f"README.md, python snippet at line {line}", "exec"), {"__name__": "__readme__"})
+    problems = same_output(capsys.readouterr().out, shown)
+    assert not problems, "README.md's snippet printed something else than it shows:\n" + "\n".join(problems)
+    written = list(work.glob("*.bvh"))
+    assert len(written) == 1 and read_bvh(written[0]).n_frames > 0, written
+
+
+def test_the_output_comparison_can_fail():
+    shown = "120 frames -> zombie.bvh; hips 0.98-1.00 m, 0.78 m/s"
+    assert same_output("120 frames -> zombie.bvh; hips 0.99-1.00 m, 0.77 m/s\n", shown) == []
+    assert same_output("120 frames -> zombie.bvh; hips 0.98-1.00 m, 0.80 m/s", shown)      # a number off
+    assert same_output("121 frames -> zombie.bvh; hips 0.98-1.00 m, 0.78 m/s", shown)      # an integer off
+    assert same_output("120 frames -> walk.bvh; hips 0.98-1.00 m, 0.78 m/s", shown)        # a word off
+    assert same_output(shown + "\nmore", shown)                                              # a line more
