@@ -1,7 +1,7 @@
 """The package's shape, kept by reading every module's imports (ast): imports go one way, down the
 data flow, and sit at the top of their file unless a comment says why not.
 
-    errors, files, processes   shared by every layer: input errors, the file system, worker processes
+    errors, files, parallel   shared by every layer: input errors, the file system, maps on every core
     nn, motion           the bottom: the kit and the motion data know nothing of each other
     phases, features, synthetic, dataset     -> motion (and each other, downwards)
     model                -> nn
@@ -26,6 +26,7 @@ PACKAGE = REPO_ROOT / "minifilm"
 ALLOWED = {
     "errors": set(),
     "files": {"errors"},
+    "parallel": set(),
     "processes": set(),
     "nn": set(),
     "motion": {"errors", "files"},
@@ -33,22 +34,22 @@ ALLOWED = {
     "features": {"errors", "motion", "files"},
     "rigs": {"errors", "motion", "phases", "synthetic", "files"},
     "synthetic": {"errors", "motion", "files"},
-    "dataset": {"errors", "motion", "phases", "features", "files", "processes"},
+    "dataset": {"errors", "motion", "phases", "features", "files", "processes", "parallel"},
     "model": {"nn"},
-    "train": {"errors", "model", "nn", "dataset", "files", "processes"},
+    "train": {"errors", "model", "nn", "dataset", "files", "processes", "parallel"},
     "runtime": {"errors", "model", "nn", "features", "motion", "dataset", "files"},
     "viewer": {"errors", "motion", "phases", "features", "runtime", "dataset", "files"},
     "baselines": {"errors", "model", "nn", "dataset", "features", "runtime", "files"},
     "evaluation": {"errors", "baselines", "model", "nn", "dataset", "features", "motion", "phases", "synthetic", "train",
-                   "runtime", "viewer", "files", "rigs", "processes"},
+                   "runtime", "viewer", "files", "rigs", "processes", "parallel"},
     "pipeline": {"errors", "evaluation", "baselines", "model", "nn", "dataset", "features", "motion", "phases", "synthetic",
-                 "train", "runtime", "viewer", "files", "rigs", "processes"},
+                 "train", "runtime", "viewer", "files", "rigs", "processes", "parallel"},
     "demo": {"errors", "cli", "pipeline", "runtime", "viewer", "motion", "features", "dataset", "synthetic", "files"},
     "cli": {"errors", "demo", "pipeline", "evaluation", "baselines", "model", "nn", "dataset", "features", "motion",
-            "phases", "synthetic", "train", "runtime", "viewer", "files", "rigs", "processes"},
+            "phases", "synthetic", "train", "runtime", "viewer", "files", "rigs", "processes", "parallel"},
     "__main__": {"cli"},
 }
-CORE = {"errors", "files", "processes", "nn", "motion", "phases", "features", "synthetic", "rigs", "dataset", "model",
+CORE = {"errors", "files", "parallel", "processes", "nn", "motion", "phases", "features", "synthetic", "rigs", "dataset", "model",
         "train", "runtime", "viewer"}
 COMPARISON = {"baselines", "evaluation"}
 
