@@ -1,16 +1,12 @@
 """Maps on every core: one function applied to many items (files, walks, styles, variants) by the
-worker processes of concurrent.futures, or by any executor with its interface (mpi4py.futures'
-under mpiexec). ``workers``: None (every core this process may use), a whole number >= 1,
-or an Executor (used as given, never shut down: ``executor()`` keeps a pool for several maps).
-One worker or one item is the plain loop here: nothing started, nothing pickled.
-
-    rows = map_in_order(label, files, workers, doing="labelling")   # [label(f) for f in files]
-
+worker processes of concurrent.futures or any executor with its interface (mpi4py.futures' under
+mpiexec). ``workers``: None (every usable core), a whole number >= 1, or an Executor (used as given,
+not shut down; ``executor()`` keeps a pool for several maps); one worker or item: the plain loop.
 Results come in the items' order; an item's error is raised here as itself (pickled back) with a
 note naming the item; a dead worker is one ChildProcessError naming the first item not done; Ctrl-C
-or an error terminates the workers, which ignore SIGINT. Workers are fresh Pythons ('spawn': a
-script that maps needs ``if __name__ == "__main__":``) with this process's environment (the
-``minifilm`` command's: one BLAS thread). No file is ever unpickled.
+or an error terminates the workers, which ignore SIGINT. Workers are fresh Pythons ('spawn': a script
+that maps needs ``if __name__ == "__main__":``), one BLAS thread each (threads of several processes
+on shared cores take turns: walks took 6x the CPU so).
 """
 import contextlib
 import multiprocessing
@@ -18,6 +14,8 @@ import os
 import signal
 import threading
 from concurrent.futures import BrokenExecutor, Executor, ProcessPoolExecutor
+
+ONE_BLAS_THREAD = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}   #: read as numpy loads
 
 
 def worker_count(workers, jobs: int) -> int:
@@ -31,7 +29,7 @@ def worker_count(workers, jobs: int) -> int:
 
 @contextlib.contextmanager
 def executor(workers=None, jobs: int = 1):
-    """The Executor given, None (one worker), or a pool shut down on leaving: terminated on an exception."""
+    """The Executor given, None (one worker: map with workers=1), or a pool, terminated on an exception."""
     if isinstance(workers, Executor) or worker_count(workers, jobs) == 1:
         yield workers if isinstance(workers, Executor) else None
         return
@@ -46,7 +44,7 @@ def executor(workers=None, jobs: int = 1):
         pool.shutdown(cancel_futures=True)
 
 
-def map_in_order(fn, items, workers=None, doing: str = "doing", name=str, done=None) -> list:
+def map_in_order(fn, items, workers=None, doing: str = "doing", name=str, done=lambda i, result: None) -> list:
     """[fn(item) for item in items] on ``workers``; an error is noted "(while {doing} {name(item)})".
     ``done(i, result)``: called here for each result in the items' order (progress, collecting)."""
     items, results = list(items), []
@@ -63,17 +61,20 @@ def map_in_order(fn, items, workers=None, doing: str = "doing", name=str, done=N
                 if name(item) not in str(e):
                     e.add_note(f"(while {doing} {name(item)})")
                 raise
-            if done is not None:
-                done(i, results[-1])
+            done(i, results[-1])
     return results
 
 
 def _submit(pool, fn, items) -> list:
-    """Submit every item, SIGINT ignored: a worker started meanwhile keeps that (Python does), for good."""
-    main = threading.current_thread() is threading.main_thread()     # (only it may set a handler)
+    """Submit every item; workers started meanwhile inherit one BLAS thread and SIGINT ignored (kept by Python)."""
+    saved, main = dict(os.environ), threading.current_thread() is threading.main_thread()
     handler = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
+    os.environ.update(ONE_BLAS_THREAD)
     try:
         return [pool.submit(fn, item) for item in items]
     finally:
+        os.environ.update({k: v for k, v in saved.items() if k in ONE_BLAS_THREAD})    # as they were
+        for k in set(ONE_BLAS_THREAD) - set(saved):
+            del os.environ[k]
         if main:
             signal.signal(signal.SIGINT, signal.default_int_handler if handler is None else handler)

@@ -43,6 +43,10 @@ def bad_bvh(name: str):
     raise BVHError(name, 12, "expected a number, found 'x'")
 
 
+def blas_threads(i: int):
+    return os.environ.get("OPENBLAS_NUM_THREADS"), os.environ.get("OMP_NUM_THREADS")
+
+
 def killed_on_zero(i: int) -> int:
     if i == 0:
         os.kill(os.getpid(), signal.SIGKILL)
@@ -86,6 +90,13 @@ def test_a_killed_worker_ends_the_map_with_one_message_naming_the_item():
     with pytest.raises(ChildProcessError, match="ended abruptly while doing 0 or a later item"):
         map_in_order(killed_on_zero, range(4), workers=2)
     assert multiprocessing.active_children() == []
+
+
+def test_workers_run_one_blas_thread_and_this_process_keeps_its_own(monkeypatch):
+    monkeypatch.setenv("OPENBLAS_NUM_THREADS", "3")
+    monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
+    assert map_in_order(blas_threads, range(2), workers=2) == [("1", "1")] * 2
+    assert blas_threads(0) == ("3", None)
 
 
 def test_an_executor_given_is_used_as_given_and_left_open():
@@ -157,7 +168,7 @@ def wait_until(what, seconds: float = 120.0):
 def test_ctrl_c_stops_the_map_cleanly_and_leaves_no_worker(tmp_path, who):
     """"group": Ctrl-C in a terminal, SIGINT to the whole job at once; "parent": ``kill -INT``.
     One worker is busy, the other waits for work (where an interrupt would print a traceback)."""
-    script = tmp_path / "stopped.py"
+    script = tmp_path / "stopped_map"         # (a script, named without a suffix)
     script.write_text(STOPPED)
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(REPO_ROOT), os.environ.get("PYTHONPATH", "")]))
     proc = subprocess.Popen([sys.executable, str(script), str(tmp_path)], stdout=subprocess.PIPE,

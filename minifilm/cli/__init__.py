@@ -28,17 +28,13 @@ import threading
 from typing import Callable, Optional
 
 from minifilm.errors import MissingDependencyError, OutputPathError  # (imports nothing: numpy stays unloaded)
-
-#: one BLAS thread, whichever library numpy uses (OpenBLAS, OpenMP or MKL), read once as numpy loads;
-#: a command's worker processes (minifilm/parallel.py) inherit it: several processes with several
-#: threads each on a few cores only take turns
-ONE_BLAS_THREAD = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+from minifilm.parallel import ONE_BLAS_THREAD  # (nor does this)
 
 #: name -> (module, one-line help, environment defaults set before the module is imported)
 #: Training runs on one BLAS thread unless told otherwise: its matrices are small, a second thread
 #: gained 10-25 % on an idle 2-core machine, and on a shared one made steps 3-25x slower
 #: (benchmarks/README.md). So do the commands whose maps run in worker processes (dataset,
-#: finetune's walks, compare's runs), each worker one of the cores.
+#: finetune's walks, compare's runs; their workers take one BLAS thread whatever this process has).
 COMMANDS = {
     "train": ("minifilm.cli.train", "the main job: synthetic or your data -> trained model -> generated motion",
               ONE_BLAS_THREAD),
