@@ -1,5 +1,6 @@
-"""Building a data set in worker processes (minifilm/dataset/parallel_build.py): wall time, CPU time
-/ wall time and speed-up of ``minifilm dataset DIR --no-cache --workers W`` for W = 1 and 2.
+"""Building a data set in worker processes (build_dataset's map over the files, minifilm/parallel.py):
+wall time, CPU time / wall time and speed-up of ``minifilm dataset DIR --no-cache --workers W`` for
+W = 1 and 2.
 
     python benchmarks/dataset_build.py                    # the Bandai-Namco-2 folder, each count once
     python benchmarks/dataset_build.py --repeats 2        # each count twice, interleaved (1, 2, 1, 2)
@@ -7,7 +8,8 @@
     python benchmarks/dataset_build.py --data DIR         # another folder (or a .csv manifest)
 
 Each build is the command as a user runs it, in a process of its own (start-up, survey, labelling,
-statistics; no cache read or written), with one BLAS thread in every process. A row's wall time is
+statistics; no cache read or written), with one BLAS thread in every process (the command's own
+setting, which its workers inherit). A row's wall time is
 the least of its repeats (the run the machine's other load disturbed least); CPU is the user +
 system time of the command and its workers (getrusage of the waited-for children), so CPU / wall
 near 2 means two cores were busy. The data set's summary table must be the same for every count:
@@ -25,7 +27,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from parallel_training import autogroup, cpu_name, load  # (sets one BLAS thread per process)
+from machine import autogroup, cpu_name, load
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(os.environ.get("MINIFILM_SHARED_DATA", ROOT.parent / "shared" / "data"))

@@ -327,8 +327,8 @@ def main():
     ap.add_argument("--teacher", type=Path, help="the released network's folder that made the data set")
     ap.add_argument("--path-seed", type=int, default=1, help="gait scripts' seed (the data set's is 0)")
     ap.add_argument("--path-seconds", type=float, default=60.0, help="seconds per style over the gait scripts")
-    ap.add_argument("--walk-workers", type=int, default=1, help="motion: worker processes beside this one "
-                    "sharing the refinement's walks")
+    ap.add_argument("--walk-workers", type=int, default=2, help="motion: worker processes sharing the "
+                    "refinement's walks (1: all in this process)")
     ap.add_argument("--reuse-run", action="store_true", help="keep --work/run as trained (skip training)")
     ap.add_argument("--trained-vectors", choices=("library", "clip", "tuned"), default="library",
                     help="the trained styles' FiLM vectors for generating: the run's (mean Ψ over the style's "

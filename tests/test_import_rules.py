@@ -1,7 +1,7 @@
 """The package's shape, kept by reading every module's imports (ast): imports go one way, down the
 data flow, and sit at the top of their file unless a comment says why not.
 
-    errors, files, processes   shared by every layer: input errors, the file system, worker processes
+    errors, files, parallel   shared by every layer: input errors, the file system, maps on every core
     nn, motion           the bottom: the kit and the motion data know nothing of each other
     phases, features, synthetic     -> motion (and each other, downwards)
     body                 -> phases, synthetic, motion: which joint is the hips, a foot, a hand, found
@@ -29,29 +29,29 @@ PACKAGE = REPO_ROOT / "minifilm"
 ALLOWED = {
     "errors": set(),
     "files": {"errors"},
-    "processes": set(),
+    "parallel": set(),
     "nn": set(),
     "motion": {"errors", "files"},
     "phases": {"errors", "motion", "files"},
     "features": {"errors", "motion", "files"},
     "body": {"errors", "motion", "phases", "synthetic", "files"},
     "synthetic": {"errors", "motion", "files"},
-    "dataset": {"errors", "body", "motion", "phases", "features", "files", "processes"},
+    "dataset": {"errors", "body", "motion", "phases", "features", "files", "parallel"},
     "model": {"nn"},
-    "train": {"errors", "model", "nn", "dataset", "files", "processes"},
+    "train": {"errors", "model", "nn", "dataset", "files"},
     "runtime": {"errors", "model", "nn", "features", "motion", "dataset", "files"},
     "viewer": {"errors", "body", "motion", "phases", "features", "runtime", "dataset", "files"},
     "baselines": {"errors", "model", "nn", "dataset", "features", "runtime", "files"},
     "evaluation": {"errors", "baselines", "model", "nn", "dataset", "features", "body", "motion", "phases", "synthetic",
-                   "train", "runtime", "viewer", "files", "processes"},
+                   "train", "runtime", "viewer", "files", "parallel"},
     "pipeline": {"errors", "evaluation", "baselines", "model", "nn", "dataset", "features", "body", "motion", "phases",
-                 "synthetic", "train", "runtime", "viewer", "files", "processes"},
+                 "synthetic", "train", "runtime", "viewer", "files", "parallel"},
     "demo": {"errors", "cli", "pipeline", "runtime", "viewer", "motion", "features", "dataset", "synthetic", "files"},
     "cli": {"errors", "demo", "pipeline", "evaluation", "baselines", "model", "nn", "dataset", "features", "body", "motion",
-            "phases", "synthetic", "train", "runtime", "viewer", "files", "processes"},
+            "phases", "synthetic", "train", "runtime", "viewer", "files", "parallel"},
     "__main__": {"cli"},
 }
-CORE = {"errors", "files", "processes", "nn", "motion", "body", "phases", "features", "synthetic", "dataset", "model",
+CORE = {"errors", "files", "parallel", "nn", "motion", "body", "phases", "features", "synthetic", "dataset", "model",
         "train", "runtime", "viewer"}
 COMPARISON = {"baselines", "evaluation"}
 

@@ -28,17 +28,18 @@ import threading
 from typing import Callable, Optional
 
 from minifilm.errors import MissingDependencyError, OutputPathError  # (imports nothing: numpy stays unloaded)
-from minifilm.processes import ONE_BLAS_THREAD  # (nor does this)
+from minifilm.parallel import ONE_BLAS_THREAD  # (nor does this)
 
 #: name -> (module, one-line help, environment defaults set before the module is imported)
 #: Training runs on one BLAS thread unless told otherwise: its matrices are small, a second thread
 #: gained 10-25 % on an idle 2-core machine, and on a shared one made steps 3-25x slower
-#: (benchmarks/README.md).
+#: (benchmarks/README.md). So do the commands whose maps run in worker processes (dataset,
+#: finetune's walks, compare's runs; their workers take one BLAS thread whatever this process has).
 COMMANDS = {
     "train": ("minifilm.cli.train", "the main job: synthetic or your data -> trained model -> generated motion",
               ONE_BLAS_THREAD),
     "phases": ("minifilm.cli.phases", "draw a BVH file's contacts and local phases (Figure 4)", {}),
-    "dataset": ("minifilm.cli.dataset", "build and cache the training data of BVH files", {}),
+    "dataset": ("minifilm.cli.dataset", "build and cache the training data of BVH files", ONE_BLAS_THREAD),
     "generate": ("minifilm.cli.generate", "generate motion with the released network or a trained run", {}),
     "finetune": ("minifilm.cli.finetune", "teach a trained run a new style from a short clip (Ψ only)",
                  ONE_BLAS_THREAD),
@@ -48,7 +49,8 @@ COMMANDS = {
     # batch-1 timing on one BLAS thread, like a game loop: a matrix-vector product gains nothing
     # from threads, and on a busy machine threaded BLAS made it ~20x slower here
     "table2": ("minifilm.cli.table2", "Table 2: parameter counts and run time of the seven models", ONE_BLAS_THREAD),
-    "compare": ("minifilm.cli.compare", "Figure 10 and style metrics: train and compare the seven models", {}),
+    "compare": ("minifilm.cli.compare", "Figure 10 and style metrics: train and compare the seven models",
+                ONE_BLAS_THREAD),
     # tiny arrays: threaded BLAS only adds overhead, and the check shares the machine
     "gradcheck": ("minifilm.cli.gradcheck", "check every backward pass against numerical gradients (the table)",
                   ONE_BLAS_THREAD),

@@ -63,7 +63,7 @@ def add_arguments(p) -> None:
                    "row of the rollout table (default: the one a --from-released data set was made by, if present)")
     p.add_argument("--workers", type=in_range(1, 256, int),
                    help="processes training the variants and seeds at once, one BLAS thread each (default: the "
-                   "cores this process may use); the results are those of one process")
+                   "cores this process may use); the results are those of one process but for float round-off")
     p.add_argument("--tiny", action="store_true", help="a tiny model (tests and smoke runs)")
 
 

@@ -8,7 +8,8 @@
 A Bandai Namco folder (``dataset-N_{content}_{style}_{id}.bvh``) is read by its file names. The arrays are cached as .npz under --cache (default ``.cache/datasets``), keyed by the
 files' paths, sizes and modification times, the settings and the code, so a second run is fast.
 The files are labelled in --workers processes at once (default: every core this process may use);
-the data set is the same, bit for bit, for any number of them.
+the data set is the same for any number of them (each file is labelled by the same code wherever
+it runs, and collected in the files' order).
 
 With ``--from-released`` the command makes a data set instead of reading one: the authors' network
 walks, runs, turns, sidesteps, walks backwards, stops and stands in each of its styles, and the
@@ -16,7 +17,7 @@ motion is written as ``<Style>_<Gait>.bvh`` plus ``manifest.csv`` and ``dataset.
 (minifilm/pipeline/from_released.py), ready for ``minifilm train --data DATA``. The styles are
 driven in --workers processes at once, each a share of them (default: every core this process may
 use, at most one per style); the data set is the same for any number but for float32 round-off
-(minifilm/pipeline/from_released_workers.py says how much).
+(minifilm/pipeline/from_released.py says how much).
 """
 from __future__ import annotations
 

@@ -27,7 +27,6 @@ from minifilm.errors import InputError
 from minifilm.pipeline.new_style import teach_style
 from minifilm.pipeline.self_fed import SelfFed
 from minifilm.pipeline.motion_refit import RefitSettings
-from minifilm.processes import default_workers
 from minifilm.pipeline.teach_released import RECOMMENDED_SECONDS, SIGMA, WALK_WORKERS, report_lines, teach_released
 from minifilm.train.film_fit import FitSettings
 
@@ -51,9 +50,9 @@ def add_arguments(ap) -> None:
                          f"clip (pipeline/motion_refit.py; about 3 s each on two cores; 0: not at all). Default: "
                          f"{RefitSettings.rounds} with --params, 0 with --run (Ψ alone, the paper)")
     ap.add_argument("--workers", type=in_range(1, 64, int), default=None,
-                    help="processes that share the walks of --motion-rounds (with --params also the "
-                         "teacher-forced fits), this one included (default: every usable core, at most "
-                         f"{WALK_WORKERS + 1})")
+                    help="worker processes that share the walks of --motion-rounds (with --params also the "
+                         f"teacher-forced fits); default: every usable core, at most {WALK_WORKERS}; 1: all in "
+                         "this process")
     ap.add_argument("--rollout-rounds", type=in_range(0, 100, int), default=ROLLOUT_ROUNDS,
                     help="rounds of training on the model's own rollouts along the clip after the "
                          f"teacher-forced steps (pipeline/self_fed.py; default {ROLLOUT_ROUNDS}: teacher forcing "
@@ -71,7 +70,7 @@ def run(args) -> int:
     r = teach_style(args.run, args.name, args.files, steps=args.steps, lr=args.lr, seed=args.seed,
                     replace=args.replace,
                     self_fed=SelfFed(rounds=args.rollout_rounds) if args.rollout_rounds else None,
-                    motion=motion, workers=walk_workers(args.workers) if motion else 0)
+                    motion=motion, workers=args.workers)
     print(f"[finetune] {r.name}: Ψ fine-tuned for {r.steps} steps on {r.frames} frames ({r.clips} style clips) "
           f"in {r.seconds:.1f} s")
     print(f"    loss on the clip (MSE + BLL): {r.loss_before:.4f} with Ψ as trained -> {r.loss_after:.4f}")
@@ -89,12 +88,6 @@ def run(args) -> int:
     print(f"    added to {args.run / 'styles.npz'}; fine-tuned checkpoint {r.checkpoint}")
     print(f"    try: minifilm generate --run {args.run} --style {r.name!r} --out {r.name}.bvh")
     return 0
-
-
-def walk_workers(asked) -> int:
-    """Worker processes beside this one for the walks: --workers minus this process, or one per
-    further usable core, at most WALK_WORKERS."""
-    return asked - 1 if asked is not None else default_workers(WALK_WORKERS + 1) - 1
 
 
 def run_warnings(r) -> list:
@@ -122,7 +115,7 @@ def run_released(args) -> int:
     r = teach_released(args.params, args.name, args.files, args.out, replace=args.replace, settings=settings,
                        motion=RefitSettings(rounds=RefitSettings.rounds if args.motion_rounds is None
                                             else args.motion_rounds, seed=args.seed),
-                       workers=None if args.workers is None else args.workers - 1)
+                       workers=args.workers)
     for line in report_lines(r):
         print(line)
     print(f"    written to the style pack {args.out}")

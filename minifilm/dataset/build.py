@@ -3,7 +3,7 @@
     files (manifest.py) -> per file (file_rows.py): read, label (contacts, local phases), split
                            into segments; per segment (and its mirror): x, p, z rows and style
                            clips (features/) -- file after file here, or in worker processes
-                           (parallel_build.py) and collected in the same order: the same data set
+                           (minifilm/parallel.py) and collected in the same order
                         -> normalisation statistics from the training rows (stats.py)
                         -> cached .npz (cache.py, dataset.py)
 
@@ -19,9 +19,10 @@ Style-balanced minibatches (Sec. 4.3) are the trainer's job (``minifilm.train.ba
 """
 from __future__ import annotations
 
-import contextlib
+import functools
 import os
 import time
+from concurrent.futures import Executor
 from pathlib import Path
 from typing import Dict, List, Optional, Sequence, Union
 
@@ -31,19 +32,24 @@ from minifilm.dataset.cache import cached_key, dataset_cache_key
 from minifilm.dataset.dataset import Dataset, Split
 from minifilm.dataset.file_rows import FileRows, label_file
 from minifilm.dataset.manifest import MotionFile, read_manifest, scan_folder
-from minifilm.dataset.parallel_build import FRAMES_PER_WORKER, LabellingWorkers
 from minifilm.dataset.progress import Progress
 from minifilm.dataset.settings import DatasetSettings
 from minifilm.dataset.splits import SPLITS, split_files
 from minifilm.dataset.stats import NormStats
 from minifilm.dataset.survey import check_memory, check_one_rig, most_common_rig, survey
 from minifilm.dataset.validate import check_every_style_trains
-from minifilm.errors import DataError
 from minifilm.files import check_name, note_input, owned_writes
 from minifilm.features.layout import FeatureLayout
 from minifilm.body.rig import detect_skeleton
 from minifilm.motion.skeletons import builtin_skeleton
-from minifilm.processes import check_workers, default_workers
+from minifilm.parallel import map_in_order, worker_count
+
+#: frames of motion (mirrored copies counted) per worker by default: a worker's start -- a fresh
+#: interpreter importing numpy, scipy.signal and the labelling code -- costs about a second of
+#: CPU, about what labelling 1,000-2,000 frames costs (Bandai files, 30 fps); with less work than
+#: this per worker, two workers took longer than one process (4 Bandai files, 278 frames, on a
+#: busy 2-core machine: 2.2 s, against 0.8 s in one process)
+FRAMES_PER_WORKER = 2000
 
 
 def resolve_files(source: Union[str, Path, Sequence[MotionFile]]) -> List[MotionFile]:
@@ -77,7 +83,8 @@ def _pick_skeleton(settings: DatasetSettings, surveyed):
 
 def build_dataset(source: Union[str, Path, Sequence[MotionFile]],
                   settings: Optional[DatasetSettings] = None, cache_dir: Union[str, Path, None] = None,
-                  progress: bool = True, skeleton=None, dtype=np.float32, workers: Optional[int] = None,
+                  progress: bool = True, skeleton=None, dtype=np.float32,
+                  workers: Union[int, Executor, None] = None,
                   **overrides) -> Dataset:
     """Build (or load from cache) the dataset of a 100STYLE-named folder, a CSV manifest or a list
     of :class:`~minifilm.dataset.manifest.MotionFile`.
@@ -89,13 +96,19 @@ def build_dataset(source: Union[str, Path, Sequence[MotionFile]],
         progress: a status line on stderr.
         skeleton: a :class:`~minifilm.motion.skeletons.Skeleton` object for a custom skeleton
             (overrides ``settings.skeleton``; its repr enters the cache key).
-        workers: processes labelling the files at once (parallel_build.py), default the cores
+        workers: processes labelling the files at once (minifilm/parallel.py), default the cores
             this process may use, at most one per file and per FRAMES_PER_WORKER frames; 1 = one
-            file after another in this process. The dataset is the same, bit for bit, for any
-            number (it is not in the cache key).
+            file after another in this process; or a concurrent.futures Executor to label them
+            with. Each file is labelled by the same code wherever it runs and the results are
+            collected in the files' order, so the dataset is the same for any number (it is not in
+            the cache key).
     """
     settings = settings or DatasetSettings()
-    check_workers(workers, "build_dataset")
+    if not isinstance(workers, Executor):
+        try:
+            worker_count(workers, 1)        # a count that is not one: refused before any work
+        except ValueError as e:
+            raise ValueError(f"build_dataset: {e}") from None
     if overrides:
         settings = DatasetSettings(**{**settings.to_dict(), **overrides})
     files = [f for f in resolve_files(source) if f.gait not in settings.idle_gaits]
@@ -117,8 +130,7 @@ def build_dataset(source: Union[str, Path, Sequence[MotionFile]],
                  np.dtype(dtype).itemsize)
     if workers is None:     # every core, but a worker only for enough motion to pay for its start
         frames = sum(surveyed[Path(f.path)].n_frames * (2 if settings.mirrors(f) else 1) for f in files)
-        workers = default_workers(min(len(files), frames // FRAMES_PER_WORKER))
-    workers = min(workers, len(files))
+        workers = worker_count(None, min(len(files), frames // FRAMES_PER_WORKER))
     ds = _build(files, settings, skeleton, progress, dtype, workers, fps)
     ds.build_seconds = time.perf_counter() - t0
     ds.cache_key = key
@@ -130,38 +142,30 @@ def build_dataset(source: Union[str, Path, Sequence[MotionFile]],
 
 
 def _build(files: List[MotionFile], settings: DatasetSettings, skeleton, progress: bool, dtype,
-           workers: int = 1, fps: Optional[float] = None) -> Dataset:
-    """The dataset of ``files``, labelled one after another here, or (``workers`` > 1) in worker
-    processes and collected in the same order. ``fps``: the dataset's frame rate (the settings',
-    else the first file's), which the workers need before any file is read."""
+           workers: Union[int, Executor] = 1, fps: Optional[float] = None) -> Dataset:
+    """The dataset of ``files``, labelled by ``workers`` (minifilm/parallel.py: one after another
+    here, or in worker processes) and collected in the files' order. ``fps``: the dataset's frame
+    rate (the settings', else the first file's), which a worker needs before any file is read."""
     builder = _Builder(files, settings, skeleton, dtype)
     bar = Progress(len(files), "dataset", progress)
-    if workers <= 1:
-        for i, f in enumerate(files):
-            with _naming(f):
-                builder.add(f)
-            bar.update(i + 1, Path(f.path).name)
-        return builder.finish()
-    jobs = [(f, builder.whole_split(f)) for f in files]
-    with LabellingWorkers(jobs, settings, skeleton, fps, dtype, workers) as labelled:
-        bar.note(f"{len(files)} files in {workers} worker processes (ids {', '.join(map(str, labelled.pids))})")
-        for i, f in enumerate(files):           # the files' order, whichever worker finishes first
-            with _naming(f):
-                builder.collect(f, labelled.next())
-            bar.update(i + 1, Path(f.path).name)
+    if isinstance(workers, int) and min(workers, len(files)) > 1:
+        bar.note(f"{len(files)} files in {min(workers, len(files))} worker processes")
+
+    def collect(i: int, rows: FileRows) -> None:
+        builder.collect(files[i], rows)
+        bar.update(i + 1, Path(files[i].path).name)
+    label = functools.partial(_label, settings=settings, skeleton=skeleton, fps=fps, dtype=dtype)
+    map_in_order(label, [(f, builder.whole_split(f)) for f in files], workers, doing="building the dataset from",
+                 name=lambda job: str(job[0].path), done=collect)
     return builder.finish()
 
 
-@contextlib.contextmanager
-def _naming(f: MotionFile):
-    """Say which file an error came from, whatever went wrong inside (a DataError names it already)."""
-    try:
-        yield
-    except DataError:
-        raise
-    except Exception as e:
-        e.add_note(f"(while building the dataset from {f.path})")
-        raise
+def _label(job, settings: DatasetSettings, skeleton, fps: Optional[float], dtype) -> FileRows:
+    """One file's rows (file_rows.label_file) for ``job`` = (file, its whole-file split or None),
+    wherever it runs: with clips whenever the file may give them (the builder drops those a style
+    does not need, which depends on the files before it: _Builder.collect)."""
+    f, split = job
+    return label_file(f, settings, skeleton, fps, split, f.gait in settings.clip_gaits or settings.clip_fallback, dtype)
 
 
 class _Builder:
@@ -194,14 +198,9 @@ class _Builder:
         st = self.settings
         return f.gait in st.clip_gaits or (st.clip_fallback and f.style not in self.has_primary_clips)
 
-    def add(self, f: MotionFile) -> None:
-        """Label the file here and keep its rows and clips."""
-        self.collect(f, label_file(f, self.settings, self.skeleton, self.fps, self.whole_split(f),
-                                   self.wants_clips(f), self.dtype))
-
     def collect(self, f: MotionFile, labelled: FileRows) -> None:
-        """Keep the rows and clips of ``f`` (labelled here or by a worker, which may have made clips
-        this file does not give: they are dropped here, as add() never makes them)."""
+        """Keep the rows and clips of ``f`` (:func:`_label` made clips wherever they may be needed:
+        those this file does not give, after the files before it, are dropped here)."""
         if self.fps is None:
             self.fps = labelled.fps
         primary = f.gait in self.settings.clip_gaits

@@ -5,7 +5,7 @@ and compute the rows and style clips of every segment, for the file and its mirr
                -> per variant (the file, its mirror): x, p, z rows and clips y per segment (features/)
 
 :func:`label_file` depends on nothing but its arguments (not on the other files), so the builder
-(build.py) may call it file after file in one process, or in worker processes (parallel_build.py)
+(build.py) may call it file after file in one process, or in worker processes (minifilm/parallel.py)
 and get the same numbers.
 """
 from __future__ import annotations

@@ -33,6 +33,7 @@ machine with OPENBLAS_NUM_THREADS=1 (multithreaded BLAS thrashes when the cores 
 """
 from __future__ import annotations
 
+import functools
 import json
 import math
 import time
@@ -51,14 +52,13 @@ from minifilm.evaluation.compare_measures import (CLAVICLE_PATTERN, data_hand_am
 from minifilm.evaluation.compare_claims_more import table2_figures
 from minifilm.evaluation.compare_released import released_rollout
 from minifilm.evaluation.compare_rollouts import interpolation, style_recognition
-from minifilm.evaluation.compare_workers import run_figures, train_in_workers
 from minifilm.evaluation.compare_finetune import finetune_all
 from minifilm.evaluation.compare_tools import fit_stats, motion_errors, select_styles, steps_per_epoch, style_subset
 from minifilm.evaluation.convergence import train_with_curve, validation_subset
 from minifilm.evaluation.style_classifier import train_style_classifier
 from minifilm.model.config import ModelConfig
 from minifilm.motion.skeletons import BUILTIN_SKELETONS
-from minifilm.processes import default_workers, serve
+from minifilm.parallel import map_in_order, worker_count
 from minifilm.synthetic import generator as synthetic
 from minifilm.train.trainer import TrainConfig, Trainer
 
@@ -76,7 +76,9 @@ def log(msg=""):
 
 
 # ---------------------------------------------------------------------------- data
-def load_data(args):
+def load_data(args, workers=None):
+    """The data set of the options ``args`` (built once, then read from --work's cache), its name;
+    ``workers``: build_dataset's, for the labelling."""
     cache = Path(args.work) / "cache"
     if args.data in (None, "synthetic"):
         folder = Path(args.work) / "synthetic"      # made once; delete it after changing --styles etc.
@@ -95,7 +97,8 @@ def load_data(args):
         if args.styles:     # the run's style subset (already checked by run): only its files are read
             folder = [f for f in resolve_files(folder) if f.style in set(args.styles)]
     ds = build_dataset(folder, cache_dir=cache, progress=False, clip_seconds=args.clip_seconds,
-                       clip_stride_seconds=args.clip_seconds / 2, seed=args.seed, fps=args.fps, **extra)
+                       clip_stride_seconds=args.clip_seconds / 2, seed=args.seed, fps=args.fps, workers=workers,
+                       **extra)
     return ds, name
 
 
@@ -195,7 +198,7 @@ def train_variant(name, ctx, epochs, seed=None, eval_every=None):
 
 
 def variant_trainer(name, ctx, seed, weights, epoch, step, history):
-    """The Trainer of a run trained elsewhere (compare_workers.py): the variant built as
+    """The Trainer of a run trained in a worker process (:func:`trained_runs`): the variant built as
     train_variant builds it, with the run's weights, epoch count, step count and history."""
     a, L = ctx.args, ctx.layout
     model = build_variant(name, model_config(ctx, a.model), np.random.default_rng(seed), n_styles=len(ctx.seen))
@@ -209,34 +212,50 @@ def variant_trainer(name, ctx, seed, weights, epoch, step, history):
     return trainer
 
 
-def training_worker(args_text: str, holdouts: str, conn) -> None:
-    """The target of a training worker process (minifilm/evaluation/compare_workers.py): the same
-    context as the parent's (without the classifier), then train_variant for every job."""
-    def setup():
-        args = types.SimpleNamespace(**json.loads(args_text))
-        return Context(load_data(args)[0], [h for h in holdouts.split(",") if h], args, classifier=False)
+#: what a run trained in a worker sends back of train_variant's result (besides its weights)
+RUN_FIGURES = ("seconds", "steps", "errors", "params", "final_train_loss", "curve")
 
-    def job(ctx, m):
-        return run_figures(train_variant(m["variant"], ctx, m["epochs"], seed=m["seed"]), m["weights"])
-    serve(conn, setup, job)
+
+@functools.lru_cache(maxsize=1)
+def worker_context(args_text: str, holdouts: str) -> Context:
+    """The context a worker process trains in, made once per worker from the same options as this
+    process's (the data set from --work's cache), without the classifier it does not need."""
+    args = types.SimpleNamespace(**json.loads(args_text))
+    return Context(load_data(args, workers=1)[0], [h for h in holdouts.split(",") if h], args, classifier=False)
+
+
+def train_in_worker(job, args_text: str, holdouts: str) -> dict:
+    """One run, job = (variant, seed, epochs), in a worker process: train_variant's figures, the
+    trainer's epoch and history, and the model's weights (float32 as trained)."""
+    variant, seed, epochs = job
+    r = train_variant(variant, worker_context(args_text, holdouts), epochs, seed=seed)
+    t = r["trainer"]
+    return {**{k: r[k] for k in RUN_FIGURES}, "epoch": t.epoch, "history": t.history,
+            "weights": [ps.data for ps in t.model.parameter_sets()]}
 
 
 def trained_runs(variants, ctx, epochs):
-    """{(variant, seed): train_variant's result} for every run, trained in --workers processes;
-    None with one worker (the runs are then trained one after another in the main loop)."""
+    """{(variant, seed): train_variant's result} for every run, trained in --workers processes
+    (minifilm/parallel.py): each run depends only on its variant, its seed and the data, so a
+    worker trains the run this process would, the same numbers but for float round-off. None with
+    one worker (the runs are then trained one after another in the main loop)."""
     a = ctx.args
-    jobs = [(v, s) for v in variants for s in [a.seed] + list(a.extra_seeds)]
+    jobs = [(v, s, epochs) for v in variants for s in [a.seed] + list(a.extra_seeds)]
     jobs.sort(key=lambda job: "FiLM" not in job[0])    # the longest runs (Ψ on every clip) first: less idle time
-    n = default_workers(len(jobs)) if getattr(a, "workers", None) is None else min(a.workers, len(jobs))
+    n = worker_count(getattr(a, "workers", None), len(jobs))
     if n <= 1:
         return None
     log(f"[workers] {len(jobs)} training runs in {n} worker processes")
+    args_text = json.dumps({k: (str(v) if isinstance(v, Path) else v) for k, v in vars(a).items()}, default=str)
+    train = functools.partial(train_in_worker, args_text=args_text, holdouts=",".join(ctx.holdouts))
+    runs = map_in_order(train, jobs, n, doing="training", name=lambda job: f"{job[0]}, seed {job[1]}",
+                        done=lambda i, r: log(f"[worker] {jobs[i][0]}, seed {jobs[i][1]}: {r['steps']} steps in "
+                                              f"{r['seconds']:.0f} s"))
     out = {}
-    for (v, seed), (fig, weights) in train_in_workers(jobs, a, ",".join(ctx.holdouts), epochs, n, training_worker, log).items():
+    for (v, seed, _), fig in zip(jobs, runs):
         _, info = variant_data(v, ctx.data["train"], ctx.layout, ctx.norm, ctx.end_effectors)
-        trainer = variant_trainer(v, ctx, seed, weights, fig["epoch"], fig["steps"], fig["history"])
-        out[(v, seed)] = {**{k: fig[k] for k in ("seconds", "steps", "errors", "params", "final_train_loss", "curve")},
-                          "trainer": trainer, "info": info}
+        trainer = variant_trainer(v, ctx, seed, fig["weights"], fig["epoch"], fig["steps"], fig["history"])
+        out[(v, seed)] = {**{k: fig[k] for k in RUN_FIGURES}, "trainer": trainer, "info": info}
     return out
 
 

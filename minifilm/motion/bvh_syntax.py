@@ -35,6 +35,11 @@ class BVHError(InputError):
         error.source, error.line = None, None
         return error
 
+    def __reduce__(self):
+        """Pickled as it is (a worker process's error travels so): its message as worded, then its
+        file, line and notes; not through __init__, which words the message."""
+        return type(self).about_file, (str(self.args[0]),), self.__dict__
+
 
 _TOKEN = re.compile(r"[{}]|[^\s{}]+")
 #: a number as BVH files write it: ASCII digits, an optional sign, point and exponent (Python's

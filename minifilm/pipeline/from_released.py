@@ -13,14 +13,28 @@ The network is driven as ``minifilm generate --params`` does it, each style alon
 paths (:mod:`minifilm.pipeline.released_driver`: the speed calibration, the fitting onto the
 100STYLE skeleton, foot locking, the warm-up cut from every rollout).
 
-With ``workers`` > 1 (the default on a machine of several cores) worker processes each drive a
-share of the styles and write their files (:mod:`minifilm.pipeline.from_released_workers`); this
-process writes the manifest and the description. The data set is the same but for float32
-round-off, which standing can grow (from_released_workers.py says how much).
+With ``workers`` > 1 (the default on a machine of several cores) the styles are cut into one
+contiguous share per worker process (minifilm/parallel.py): each share is calibrated, then driven
+gait after gait, its files written by the worker; this process writes the manifest and the
+description, the rows in the order one process makes them (gait-major, then style order). The file
+stems are made here from all the styles' names, so two styles of different shares never get one
+file name.
+
+Why the data set is nearly the one of one process: each style's paths come from its own seeded
+generator (style_seed), and a character of a batch rollout depends only on its own inputs (the
+batch is the rows of the same matrix products), so a style drives the same in any share, to
+float32 round-off (a batch of 2-4 characters takes the network's vector-product path,
+runtime/network.py); the calibration's batches mix styles too, with the same argument. Bit for
+bit, two workers of four styles write what one process writes with ``batch=4`` (the same
+products); against another batch size the round-off differs, and a few seconds of standing can
+grow it: 8 styles' TR1 and ID files, 1 worker against 2, all within 0.01 (cm, degrees) but
+Swimming's ID, 1.2. (A coupling between characters of one batch -- a walker's feet kept as the
+held feet of another's stop, runtime/standing.py -- is fixed; before, 7 of 160 TR1 files differed
+by up to 1.9 cm and 19 degrees.)
 """
 from __future__ import annotations
 
-import contextlib
+import functools
 import json
 import re
 import time
@@ -35,12 +49,11 @@ from minifilm.dataset.survey import MIN_FRAMES
 from minifilm.errors import InputError
 from minifilm.evaluation.label_agreement import summarise
 from minifilm.files import atomic_directory, atomic_write_text, file_names, read_json
-from minifilm.pipeline.from_released_workers import ReleasedWorkers
 from minifilm.pipeline.gait_scripts import GAIT_SHARES
 # the driving (released_driver.py), named here too: the job's settings, and its parts for studies/
 from minifilm.pipeline.released_driver import (FPS, ReleasedDataSettings, StyleDriver,  # noqa: F401 (re-exported)
                                                calibrate_styles, drive_gaits, style_seed)
-from minifilm.processes import check_workers, default_workers
+from minifilm.parallel import executor, map_in_order, worker_count
 from minifilm.runtime.released import load_released
 
 _OWN_NAME = re.compile(r"^[A-Za-z0-9]+_[A-Z]+[0-9]*\.bvh$|^manifest\.csv$|^dataset\.json$")
@@ -101,52 +114,75 @@ def make_released_dataset(params: Path, out: Path, settings: ReleasedDataSetting
     return its description (also written as ``out/dataset.json``).
 
     workers: processes driving the network at once, each a contiguous share of the styles
-    (from_released_workers.py); default every core this process may use, at most one per style;
-    1 drives them all in this process. The data set is the same for any number but for float32
-    round-off, which standing can grow (from_released_workers.py says how much).
+    (module docstring); default every core this process may use, at most one per style; 1 drives
+    them all in this process. The data set is the same for any number but for float32 round-off,
+    which standing can grow (module docstring).
     """
     s = settings
     check_settings(s)
-    check_workers(workers, "make_released_dataset")
-    rel = load_released(params)
+    try:
+        worker_count(workers, 1)        # a count that is not one: refused before any work
+    except ValueError as e:
+        raise ValueError(f"make_released_dataset: {e}") from None
+    rel = released(str(params))
     names = list(rel.styles) if s.styles is None else list(s.styles)
     unknown = [n for n in names if n not in rel.styles]
     if unknown or not names or len(set(names)) != len(names):
         raise InputError(f"--styles: {'unknown ' + str(unknown) if unknown else 'each style once, at least one'}; "
                          f"the released network has {' '.join(rel.styles)}")
     stems = style_file_names(names)
-    workers = min(default_workers(len(names)) if workers is None else workers, len(names))
+    n = worker_count(workers, len(names))
+    bounds = np.linspace(0, len(names), n + 1).round().astype(int)
+    shares = [names[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
     own = previous_output(Path(out))
     t_start = time.perf_counter()
-    described: List[dict] = []
     with atomic_directory(out, "data set folder",
                           replaceable=lambda name: name in own or bool(_OWN_NAME.match(name))) as tmp, \
-            _drivers(params, rel, names, stems, tmp, s, workers, log) as driver:
+            executor(n, n) as pool:         # (left first: the workers end before the temporary goes)
+        on = 1 if pool is None else pool
+        if pool is not None:
+            log(f"{len(names)} styles in {n} worker processes, each a share of them")
+        calibrations = [None] * n
         if s.calibrate:
             t0 = time.perf_counter()
-            driver.calibrate()
+            calibrations = map_in_order(functools.partial(calibrate_share, params=str(params), settings=s), shares,
+                                        on, doing="calibrating the speeds of", name=", ".join)
             log(f"speed calibration of {len(names)} styles: {time.perf_counter() - t0:.1f} s")
-        for gait in s.gaits:
-            t0 = time.perf_counter()
-            rows = driver.gait(gait)
-            log(f"{gait}: {len(names)} styles x {rows[0]['frames'] / FPS:.1f} s in {time.perf_counter() - t0:.1f} s")
-            described += rows
+        jobs = [(gait, share, {st: stems[st] for st in share}, cal) for gait in s.gaits
+                for share, cal in zip(shares, calibrations)]
+
+        def said(i: int, rows: List[dict]) -> None:       # a gait's last share is back
+            if i % n == n - 1:
+                log(f"{jobs[i][0]}: {len(names)} styles x {rows[0]['frames'] / FPS:.1f} s, "
+                    f"{time.perf_counter() - t_start:.1f} s from the start")
+        driven = map_in_order(functools.partial(drive_share, params=str(params), folder=tmp, settings=s), jobs, on,
+                              doing="driving", name=lambda job: f"gait {job[0]} of {', '.join(job[1])}", done=said)
+        described = [row for rows in driven for row in rows]        # gait-major, then style order
         info = _write_description(tmp, params, s, names, described)
     log(f"{len(described)} files of {len(names)} styles -> {out} in {time.perf_counter() - t_start:.1f} s")
     return info
 
 
-@contextlib.contextmanager
-def _drivers(params, rel, names, stems, folder: Path, s: ReleasedDataSettings, workers: int, log):
-    """What drives the styles: a :class:`StyleDriver` of them all here (1 worker), or worker
-    processes each driving a share (the same calibrate() and gait(), the rows in style order),
-    stopped when the block is left, however it is left."""
-    if workers <= 1:
-        yield StyleDriver(rel, names, stems, folder, s)
-        return
-    with ReleasedWorkers(params, names, stems, folder, s, workers) as pool:
-        log(f"{len(names)} styles in {workers} worker processes (ids {', '.join(map(str, pool.pids))})")
-        yield pool
+@functools.lru_cache(maxsize=1)
+def released(params: str):
+    """The released network in the folder ``params``, loaded once per process (each worker its own)."""
+    return load_released(Path(params))
+
+
+def calibrate_share(names: Sequence[str], params: str, settings: ReleasedDataSettings) -> list:
+    """The speed calibrations of the styles ``names`` (StyleDriver.calibrate), wherever it runs."""
+    driver = StyleDriver(released(params), names, {}, Path(), settings)
+    driver.calibrate()
+    return driver.calibrations
+
+
+def drive_share(job, params: str, folder: Path, settings: ReleasedDataSettings) -> List[dict]:
+    """One gait of a share of the styles, job = (gait, names, their file stems, their calibrations or
+    None), wherever it runs: the files written into ``folder``, their rows in style order."""
+    gait, names, stems, calibrations = job
+    driver = StyleDriver(released(params), names, stems, folder, settings)
+    driver.calibrations = calibrations
+    return driver.gait(gait)
 
 
 def _write_description(folder: Path, params, s: ReleasedDataSettings, names: Sequence[str],

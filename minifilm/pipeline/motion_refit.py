@@ -33,18 +33,19 @@ start's has not, or one of the start's worse by more than walk_checks.WORSE_BY, 
 
 Cost: the known styles' walks once, then one batch rollout of population + 2 characters (the
 centre and the best so far beside the new ones) per round, about 3.5 s each on one core: about
-a minute in all with the defaults, shared between processes by a WalkPool (walkers.py). The motion
+a minute in all with the defaults, in shares walked by worker processes (walks.walk). The motion
 is deterministic, so a vector's score does not change between rounds.
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from typing import Callable, Mapping, Optional
 
 import numpy as np
 
 from minifilm.evaluation.style_measures import StyleSpace, frechet_distance, gaussian
-from minifilm.pipeline.walkers import WalkPool
+from minifilm.pipeline.walks import walk_here
 from minifilm.runtime.walk_checks import Faults, adds_faults
 
 
@@ -98,7 +99,7 @@ def refine_by_motion(network, layout, stats, start: np.ndarray, known: Mapping[s
                      clip_summaries: np.ndarray, speed: float, settings: RefitSettings = RefitSettings(),
                      known_summaries: Optional[Mapping[str, np.ndarray]] = None,
                      problems: Optional[Callable[[object, int], Faults]] = None,
-                     pool: Optional[WalkPool] = None, log: Callable[[str], None] = lambda m: None) -> Refit:
+                     walks: Optional[Callable] = None, log: Callable[[str], None] = lambda m: None) -> Refit:
     """Move ``start`` (D,) so that the network's walk in it looks like the clip (module docstring).
 
     known: the styles whose vectors give the search directions (name -> (D,)), and whose walks,
@@ -106,15 +107,16 @@ def refine_by_motion(network, layout, stats, start: np.ndarray, known: Mapping[s
     (``known_summaries``: those walks' summaries if already made). speed: m/s of the walks.
     problems: (rollout, character) -> the faults of that walk (kind -> severity, or a set of kinds);
     a vector whose walk is worse than the start's (walk_checks.adds_faults) scores infinity.
-    pool: the processes that share the walks (walkers.py; with workers, ``problems`` must be a
-    FaultCheck); default: this one alone."""
+    walks: (films, speed, seconds, check) -> their walks and faults (walks.walk with a pool of
+    workers, which need ``problems`` to be a FaultCheck); default: walks.walk_here, this process."""
     s = settings
     names = list(known)
     V = np.stack([np.asarray(known[n], np.float64) for n in names])
     directions, scales = style_directions(V, s.directions)
-    pool = pool if pool is not None else WalkPool(network, layout, stats, workers=0)
+    if walks is None:
+        walks = functools.partial(walk_here, network, layout, stats)
     if known_summaries is None:
-        known_summaries = dict(zip(names, pool.walk(V, speed, s.seconds)[0]))
+        known_summaries = dict(zip(names, walks(V, speed, s.seconds)[0]))
     clip_key = "\0clip"                 # beside the styles: no style name holds a NUL character
     space = StyleSpace.fit({**known_summaries, clip_key: clip_summaries}, dims=s.dims, summarised=True)
     target = space.gaussians[clip_key]
@@ -133,10 +135,10 @@ def refine_by_motion(network, layout, stats, start: np.ndarray, known: Mapping[s
 
     def scores(films):
         nonlocal allowed
-        walks, faults = pool.walk(films, speed, s.seconds, problems)
+        walked, faults = walks(films, speed, s.seconds, problems)
         allowed = faults[0] if allowed is None else allowed         # films[0] is the start in round 1
         got = np.array([objective(w) if len(w) >= 2 and not adds_faults(f, allowed) else (np.inf, np.inf)
-                        for w, f in zip(walks, faults)])
+                        for w, f in zip(walked, faults)])
         return got[:, 0], got[:, 1]
 
     def film_of(c):

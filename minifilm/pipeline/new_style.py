@@ -138,15 +138,15 @@ def clip_training_data(motions: Sequence[Motion], files, run: RunFolder, stats, 
 def teach_style(run_path, name: str, files: Sequence, steps: int = 400, lr: float = 5e-4, seed: int = 0,
                 replace: bool = False, log: Callable[[str], None] = print, with_mirror: bool = False,
                 self_fed: Optional[SelfFed] = None, motion: Optional[RefitSettings] = None,
-                workers: int = 0) -> NewStyleResult:
+                workers: Optional[int] = 1) -> NewStyleResult:
     """Fine-tune the run's Ψ on ``files`` and add ``name`` to its style library (see the module
     docstring). ``self_fed``: rollout-aware rounds after the teacher-forced steps (self_fed.py;
     None, the default: teacher forcing alone, as the paper. On the 90-style runs of
     studies/dense_study.py, SelfFed() lowered the rollout error along the clip by 10-32 % for
     each of five held-out styles but reproduced no more of them on a new path: see
     benchmarks/README.md). ``motion``: then the style's vector is refined by the motion it makes
-    (run_motion_refit.py; None or 0 rounds, the default: not), its walks shared with ``workers``
-    processes beside this one.
+    (run_motion_refit.py; None or 0 rounds, the default: not), its walks shared by ``workers``
+    processes (minifilm/parallel.py; None: every usable core, at most WALK_WORKERS; 1: this one).
     Raises ValueError naming the file or setting that is wrong; the run folder is then untouched.
     The run folder is locked meanwhile: a second command writing it is refused."""
     RunFolder.load(run_path)                    # a run folder at all, before a lock file is made beside it
@@ -157,7 +157,7 @@ def teach_style(run_path, name: str, files: Sequence, steps: int = 400, lr: floa
 
 def _teach_style(run: RunFolder, name: str, files: Sequence, steps: int, lr: float, seed: int, replace: bool,
                  log: Callable[[str], None], with_mirror: bool, self_fed: Optional[SelfFed],
-                 motion: Optional[RefitSettings], workers: int) -> NewStyleResult:
+                 motion: Optional[RefitSettings], workers: Optional[int]) -> NewStyleResult:
     log(f"[finetune] teaching {run.path} the style {name!r} from {len(files)} file(s)")
     check_new_name(name, run, replace)
     if motion is not None and refinable(run):
@@ -171,7 +171,7 @@ def _teach_style(run: RunFolder, name: str, files: Sequence, steps: int, lr: flo
 
 def _teach(run: RunFolder, name: str, files: Sequence, steps: int, lr: float, seed: int,
            log: Callable[[str], None], with_mirror: bool, self_fed: Optional[SelfFed], checkpoint: Path,
-           written, motion: Optional[RefitSettings], workers: int) -> NewStyleResult:
+           written, motion: Optional[RefitSettings], workers: Optional[int]) -> NewStyleResult:
     for path in written:   # before the work
         check_writable(path, f"run folder {run.path}:")
     files = [Path(f) for f in files]

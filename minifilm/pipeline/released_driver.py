@@ -1,7 +1,7 @@
 """Driving the authors' released network in some of its styles along each 100STYLE gait's scripted
 path, and writing what it did as BVH files: the work of ``minifilm dataset --from-released``
 (from_released.py), done by one process for all the styles or by each worker process for its
-share (from_released_workers.py).
+share (from_released.py: calibrate_share, drive_share).
 
 How the network is driven (as ``minifilm generate --params`` does it): the per-style speed
 calibration (measured for all the styles together, in batches), every frame fitted onto the
@@ -114,7 +114,7 @@ def drive_gaits(controller: Controller, films: np.ndarray, names: Sequence[str],
 class StyleDriver:
     """The released network driven in some of its styles: their speed calibration, then every
     gait's files written into ``folder``. One process drives all the styles with one; a worker
-    (from_released_workers.py) drives its share with one.
+    (from_released.py: drive_share) drives its share with one.
 
     rel: the loaded network (runtime/released.py: load_released); names: the styles, in order;
     stems: style -> the stem of its files (made from all the data set's styles, so names stay

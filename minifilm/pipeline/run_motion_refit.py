@@ -19,15 +19,16 @@ with one message before anything is fine-tuned.
 """
 from __future__ import annotations
 
-from typing import Callable, Sequence
+import functools
+from typing import Callable, Optional, Sequence
 
 import numpy as np
 
 from minifilm.motion.skeletons import STYLE100
 from minifilm.pipeline.motion_refit import Refit, RefitSettings, refine_by_motion
 from minifilm.pipeline.run_folder import RunFolder
-from minifilm.pipeline.walkers import WalkPool
-from minifilm.pipeline.walks import FPS, FaultCheck, rows_summaries, straight_path
+from minifilm.parallel import executor, worker_count
+from minifilm.pipeline.walks import FPS, WALK_WORKERS, FaultCheck, rows_summaries, straight_path, walk
 from minifilm.runtime.network import RuntimeNetwork
 from minifilm.runtime.walk_checks import count_strikes
 
@@ -55,11 +56,13 @@ def clip_figures(run: RunFolder, segments: Sequence) -> tuple:
 
 
 def refine_run_style(run: RunFolder, model, stats, film: np.ndarray, known: dict, segments: Sequence,
-                     settings: RefitSettings, workers: int = 0, log: Callable[[str], None] = print) -> Refit:
+                     settings: RefitSettings, workers: Optional[int] = 1,
+                     log: Callable[[str], None] = print) -> Refit:
     """The run's style ``film`` (D,) moved until its walk looks like the clip ``segments`` (raw
     rows per file, as new_style.clip_training_data gives them; no mirrored copy). model, stats:
     the fine-tuned model (its Ω and Φ are the run's) and the run's statistics. known: the run's
-    other styles {name: (D,)}. workers: processes beside this one sharing the walks."""
+    other styles {name: (D,)}. workers: processes sharing the walks (minifilm/parallel.py; None:
+    every usable core, at most WALK_WORKERS; 1: all in this process)."""
     why = refinable(run)
     if why:
         raise ValueError(f"--motion-rounds: {why}")
@@ -72,7 +75,11 @@ def refine_run_style(run: RunFolder, model, stats, film: np.ndarray, known: dict
     check = FaultCheck([names.index("RightToe"), names.index("LeftToe")],
                        straight_path(speed, settings.seconds + 1), steps_per_s, hips)
     network = RuntimeNetwork.from_model(model, stats)
-    with WalkPool(network, run.layout, stats, workers, position_bias=run.position_bias) as pool:
-        log(f"refining by motion: {settings.rounds} rounds of {settings.population} walks{pool.sharing_words()} ...")
+    n = worker_count(workers, WALK_WORKERS)
+    with executor(n, n) as pool:
+        log(f"refining by motion: {settings.rounds} rounds of {settings.population} walks"
+            + (f" in {n} worker processes" if pool is not None else "") + " ...")
+        walks = functools.partial(walk, network, run.layout, stats, position_bias=run.position_bias, pool=pool,
+                                  shares=n)
         return refine_by_motion(network, run.layout, stats, np.asarray(film, np.float64), known, windows, speed,
-                                settings, problems=check, pool=pool, log=log)
+                                settings, problems=check, walks=walks, log=log)

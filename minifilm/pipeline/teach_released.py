@@ -12,6 +12,7 @@ The released network is never written: the new style lives in the pack folder, w
 """
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -37,18 +38,15 @@ from minifilm.runtime.style_pack import load_pack_or_empty
 from minifilm.runtime.walk_checks import count_strikes, walk_report
 from minifilm.pipeline.joint_axes import align_axes
 from minifilm.pipeline.motion_refit import RefitSettings, refine_by_motion
-from minifilm.pipeline.walkers import WalkPool
-from minifilm.pipeline.walks import CHECK_SECONDS, FPS, FaultCheck, candidate_rollouts, clip_summaries, straight_path
-from minifilm.processes import default_workers
+from minifilm.parallel import executor, map_in_order, worker_count
+from minifilm.pipeline.walks import (CHECK_SECONDS, FPS, WALK_WORKERS, FaultCheck, candidate_rollouts,  # noqa: F401
+                                     clip_summaries, straight_path, walk)     # (WALK_WORKERS: for the command's help)
 from minifilm.synthetic.generator import rest_motion
 from minifilm.train.film_fit import FitSettings, FrozenRows, StylePrior, fit_film
 
 RECOMMENDED_SECONDS = 10.0        # shorter clips are taught, with a warning
 SIGMA = 5.0                       # a normalised feature beyond this many σ of the network's data is "far"
 PRIOR_WEIGHTS = (0.3, 1.0, 3.0)   # λ of the fit: the candidates the rollouts choose between
-#: worker processes at most beside this one for the refinement's walks: a round's 18 walks in
-#: shares of 4-5; smaller shares save little (a step costs about as much for 1 walk as for 9)
-WALK_WORKERS = 3
 
 
 class ClipError(InputError):
@@ -202,23 +200,21 @@ def teach(rel, layout: FeatureLayout, name: str, motions: Sequence[Motion], file
     the prior is made of (default all of the network's); ``align``: turn the joint axes to the
     network's convention (:func:`align_axes`; for retargeted clips); ``motion``: how the kept vector
     is then refined by the motion it makes (:func:`refine_by_motion`; None or 0 rounds: not at
-    all); ``workers``: processes beside this one that share the refinement's walks and the
-    teacher-forced fits (default: one per further usable core, at most WALK_WORKERS; none when not
-    refining). Nothing is written."""
+    all); ``workers``: processes that share the teacher-forced fits and the refinement's walks
+    (minifilm/parallel.py; default: every usable core, at most WALK_WORKERS; 1: all in this
+    process; one when not refining). Nothing is written."""
     clip = clip_rows(motions, files, name, require_steps)
     refining = motion is not None and motion.rounds > 0
-    if not refining:
-        workers = 0
-    elif workers is None:
-        workers = default_workers(WALK_WORKERS + 1) - 1
-    with WalkPool(rel.network, layout, rel.stats, workers) as pool:
+    n = worker_count(workers, WALK_WORKERS) if refining else 1
+    with executor(n, n) as pool:
         return _teach(rel, layout, name, clip, known, settings, prior_weights, choose_by_rollout, align,
-                      motion if refining else None, pool, log)
+                      motion if refining else None, pool, n, log)
 
 
-def _teach(rel, layout, name, clip, known, settings, prior_weights, choose_by_rollout, align, motion, pool, log):
-    """:func:`teach` with the clip's rows made and the walkers' pool open (``motion``: None when
-    not refining)."""
+def _teach(rel, layout, name, clip, known, settings, prior_weights, choose_by_rollout, align, motion, pool, shares,
+           log):
+    """:func:`teach` with the clip's rows made and the pool of ``shares`` workers open (None: this
+    process alone; ``motion``: None when not refining)."""
     known = dict(rel.styles if known is None else known)
     names = list(known)
     V = np.stack([known[n] for n in names]).astype(np.float64)
@@ -228,9 +224,7 @@ def _teach(rel, layout, name, clip, known, settings, prior_weights, choose_by_ro
         clip.x, clip.z, turns = align_axes(clip.x, clip.z, layout, rel.stats)
     windows = clip_summaries(clip, rel.stats, layout)       # the clip's windows, as taught (axes turned)
     motion = motion if len(windows) >= 2 else None          # too short to measure a walk against: no refining
-    # the known styles walk in the worker processes (if any) while this one fits: the space the
-    # refinement measures distances in is made of their walks
-    known_walks = pool.submit(V, clip.speed, motion.seconds) if motion is not None else None
+    walks = functools.partial(walk, rel.network, layout, rel.stats, pool=pool, shares=shares)
     x, p, z = normalised(rel.stats, clip)
     t0 = time.perf_counter()
     rows = FrozenRows(rel.model, x, p, z)
@@ -240,15 +234,13 @@ def _teach(rel, layout, name, clip, known, settings, prior_weights, choose_by_ro
     share, worst = input_distance(x, layout)
     distance = Distance(share, worst, float(losses.min()), [], share_as_read, turns)
     prior = StylePrior.from_vectors(V)
-    # the first candidates (the weakest priors, which run longest) are fitted in the workers once
-    # their walks are done, the rest here; each is the same fit wherever it runs
+    # one candidate per prior weight, each fit in a worker (the same fit wherever it runs)
     fits = [FitSettings(**{**settings.__dict__, "prior_weight": lam}) for lam in prior_weights]
-    away = min(len(pool.procs), len(fits) - 1)
     start = V[int(np.argmin(losses))]
-    sent = [pool.submit_fit(rows, prior, start, f, worker=w) for w, f in enumerate(fits[:away])]
-    here = [fit_film(rows, prior, start=start, settings=f) for f in fits[away:]]
+    fitted = map_in_order(functools.partial(fit_film, rows, prior, start), fits, 1 if pool is None else pool,
+                          doing="fitting", name=lambda f: f"the vector of prior weight {f.prior_weight:g}")
     candidates, films = [], []
-    for lam, fit in zip(prior_weights, [pending.result() for pending in sent] + here):
+    for lam, fit in zip(prior_weights, fitted):
         candidates.append({"prior_weight": lam, "loss": fit.loss, "holdout_loss": fit.holdout_loss,
                            "steps": fit.steps})
         films.append(fit.film)
@@ -267,11 +259,11 @@ def _teach(rel, layout, name, clip, known, settings, prior_weights, choose_by_ro
     candidates[chosen]["chosen"] = True
     distance.known_losses = [own_loss(rel, r, len(films), ref, best_known)]
     if motion is not None:
-        log(f"refining by motion: {motion.rounds} rounds of {motion.population} walks{pool.sharing_words()} ...")
+        log(f"refining by motion: {motion.rounds} rounds of {motion.population} walks"
+            + (f" in {shares} worker processes" if pool is not None else "") + " ...")
         faults = FaultCheck(toes, straight_path(clip.speed, motion.seconds + 1), clip.steps_per_s, clip.hips)
         refit = refine_by_motion(rel.network, layout, rel.stats, film, known, windows, clip.speed, motion,
-                                 known_summaries=dict(zip(names, known_walks.result()[0])), problems=faults,
-                                 pool=pool)
+                                 problems=faults, walks=walks)
         r, path = candidate_rollouts(rel.network, layout, refit.film[None], clip.speed)
         check = walk_report(r, 0, toes, path, clip_steps_per_s=clip.steps_per_s, clip_hips=clip.hips)
         candidates[chosen]["chosen"] = False

@@ -246,7 +246,7 @@ def prepare_data(s: Settings, data: Optional[Path], out: Path, executor=None):
         data = retarget_files(resolve_files(data), load_target(s.rig), out / "data", log)
     ds = build_dataset(data, cache_dir=out / "cache", progress=True, clip_seconds=s.clip_seconds,
                        clip_stride_seconds=s.clip_seconds / 2, seed=s.seed,
-                       workers=s.workers if executor is None else 1, **extra)  # until build_dataset maps on an executor
+                       workers=s.workers if executor is None else executor, **extra)
     log(f"[dataset] built in {time.perf_counter() - t0:.1f} s")
     log(ds.summary())
     empty = [name for name in ("val", "test") if len(getattr(ds, name)) == 0]

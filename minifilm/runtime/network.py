@@ -19,7 +19,6 @@ FiLM vector (4H,) or (B, 4H) for FiLM models, style ids for the one-hot and adap
 """
 from __future__ import annotations
 
-import copy
 from typing import Callable, Optional, Sequence, Tuple
 
 import numpy as np
@@ -124,8 +123,8 @@ class RuntimeNetwork:
         return cls(gate, experts, stats, FilmHidden(cfg.hidden, unbiased, eps), dtype)
 
     def to_arrays(self) -> dict:
-        """A FiLM network with a :class:`GatingMLP` gate as named arrays (an ``.npz`` archive, e.g. for a
-        worker process: minifilm/pipeline/walkers.py); :meth:`from_arrays` makes the same network."""
+        """A FiLM network with a :class:`GatingMLP` gate as named arrays (an ``.npz`` archive, or the
+        fingerprint of a calibration: demo/calibration_cache.py); :meth:`from_arrays` makes the same network."""
         if not (isinstance(self.gate, GatingMLP) and isinstance(self.hidden, FilmHidden)):
             raise TypeError("RuntimeNetwork.to_arrays: only a FiLM network with a GatingMLP gate is written")
         h = self.hidden
@@ -146,25 +145,6 @@ class RuntimeNetwork:
         hidden, unbiased, eps = np.asarray(arrays["film"], np.float64)
         experts = [(arrays[f"expert.W{l}"], arrays[f"expert.b{l}"]) for l in range(3)]
         return cls(gate, experts, stats, FilmHidden(int(hidden), bool(unbiased), float(eps)), dtype)
-
-    @property
-    def expert_bytes(self) -> int:
-        """Bytes of Φ's expert weights (nearly all of the network), as :meth:`sharing` lays them out."""
-        return sum(Wc.nbytes for Wc, _, _ in self.layers)
-
-    def sharing(self, buffer, fill: bool) -> "RuntimeNetwork":
-        """This network with its expert weights read from ``buffer`` (``expert_bytes`` long, e.g. a
-        shared-memory segment), copied in first when ``fill``: processes walking one network then
-        read one copy of its weights, which the CPU's shared cache can hold (walkers.py)."""
-        net, layers, offset = copy.copy(self), [], 0
-        for Wc, b, O in self.layers:
-            view = np.ndarray(Wc.shape, Wc.dtype, buffer=buffer, offset=offset)
-            if fill:
-                view[...] = Wc
-            layers.append((view, b, O))
-            offset += Wc.nbytes
-        net.layers = layers
-        return net
 
     @property
     def film_dim(self) -> Optional[int]:

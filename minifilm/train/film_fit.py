@@ -81,16 +81,6 @@ class StylePrior:
         """dL/dfilm (D,) -> dL/dc (k,), dL/dr (D,)."""
         return (self.directions @ dfilm) * self.scales, self.tau * dfilm
 
-    def to_arrays(self) -> dict:
-        """The prior as named arrays (for a worker process, minifilm/pipeline/walkers.py)."""
-        return {"prior.mean": self.mean, "prior.directions": self.directions, "prior.scales": self.scales,
-                "prior.tau": np.array(self.tau)}
-
-    @classmethod
-    def from_arrays(cls, arrays) -> "StylePrior":
-        return cls(*(np.asarray(arrays[f"prior.{k}"]) for k in ("mean", "directions", "scales")),
-                   float(arrays["prior.tau"]))
-
 
 class FrozenRows:
     """Rows (x, p, z normalised) with everything that does not depend on the FiLM vector done once.
@@ -111,24 +101,6 @@ class FrozenRows:
         self.alpha = model.gating.forward(p.astype(model.dtype)).astype(dtype)        # Ω(p), (N, K)
         f1, _ = F.expert_linear_forward(x, self.alpha, P["W0"].astype(dtype), P["b0"].astype(dtype))
         self.n1, _ = F.layer_norm_forward(f1, unbiased=ln_unbiased, eps=ln_eps)      # (N, H)
-
-    #: what :meth:`to_arrays` writes: everything a fit reads
-    ARRAYS = ("alpha", "n1", "z", "W1", "b1", "W2", "b2")
-
-    def to_arrays(self) -> dict:
-        """The rows and frozen weights as named arrays (for a worker process:
-        minifilm/pipeline/walkers.py); :meth:`from_arrays` makes rows that give the same numbers."""
-        return {**{f"rows.{k}": getattr(self, k) for k in self.ARRAYS},
-                "rows.form": np.array([self.hidden, self.ln[0], self.ln[1]], np.float64)}
-
-    @classmethod
-    def from_arrays(cls, arrays) -> "FrozenRows":
-        rows = cls.__new__(cls)
-        for k in cls.ARRAYS:
-            setattr(rows, k, np.asarray(arrays[f"rows.{k}"]))
-        hidden, unbiased, eps = np.asarray(arrays["rows.form"], np.float64)
-        rows.dtype, rows.hidden, rows.ln = rows.n1.dtype, int(hidden), (bool(unbiased), float(eps))
-        return rows
 
     def __len__(self) -> int:
         return len(self.z)

@@ -318,8 +318,8 @@ def test_a_skeleton_without_the_layouts_joints_is_named():
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
 def test_runtime_network_written_as_arrays_is_the_same_network(dtype):
-    """to_arrays / from_arrays (how a worker process gets the network) keep every weight, the
-    statistics, the layer-norm convention and the dtype: the same outputs, bit for bit."""
+    """to_arrays / from_arrays keep every weight, the statistics, the layer-norm convention and the
+    dtype: the same outputs, bit for bit (in this process)."""
     rng = np.random.default_rng(1)
     cfg = ModelConfig.tiny(x_dim=LAYOUT.x_dim, z_dim=LAYOUT.z_dim)
     model = StyleModel(cfg, rng, dtype=dtype)
@@ -334,30 +334,6 @@ def test_runtime_network_written_as_arrays_is_the_same_network(dtype):
     np.testing.assert_array_equal(again.predict(X, P, film), net.predict(X, P, film))
     other = RuntimeNetwork.from_model(model, random_stats(LAYOUT, rng), dtype=dtype)      # training's layer norm
     assert RuntimeNetwork.from_arrays(other.to_arrays()).hidden.ln_unbiased == cfg.ln_unbiased
-
-
-def test_a_network_sharing_a_buffer_reads_its_weights_there_and_predicts_the_same():
-    """sharing(buffer, fill=True) copies the expert weights in and reads them there (as the walk
-    workers share one copy); sharing(fill=False) of another network reads what is already there."""
-    rng = np.random.default_rng(2)
-    cfg = ModelConfig.tiny(x_dim=LAYOUT.x_dim, z_dim=LAYOUT.z_dim)
-    model = StyleModel(cfg, rng, dtype=np.float32)
-    for ps in model.parameter_sets():
-        ps.data[...] = rng.normal(scale=0.3, size=ps.data.shape)
-    net = RuntimeNetwork.from_model(model, random_stats(LAYOUT, rng), runtime_layer_norm=True)
-    buffer = bytearray(net.expert_bytes)
-    shared = net.sharing(buffer, fill=True)
-    X, P, film = rng.normal(size=(5, LAYOUT.x_dim)), rng.normal(size=(5, 8)), rng.normal(size=(5, cfg.film_dim))
-    np.testing.assert_array_equal(shared.predict(X, P, film), net.predict(X, P, film))
-    arrays = net.to_arrays()
-    blank = RuntimeNetwork.from_arrays({**arrays, **{f"expert.W{l}": np.zeros_like(arrays[f"expert.W{l}"])
-                                                     for l in range(3)}})
-    assert not np.array_equal(blank.predict(X, P, film), net.predict(X, P, film))
-    np.testing.assert_array_equal(blank.sharing(buffer, fill=False).predict(X, P, film), net.predict(X, P, film))
-    for (Wc, _, _), (Ws, _, _) in zip(net.layers, shared.layers):
-        assert Ws.base is not None and not np.shares_memory(Wc, Ws)
-    np.frombuffer(buffer, np.float32)[:] = 0.0             # the weights are read from the buffer
-    assert not np.array_equal(shared.predict(X, P, film), net.predict(X, P, film))
 
 
 def test_only_a_film_network_is_written_as_arrays():

@@ -83,22 +83,3 @@ def test_a_hidden_style_is_found_again_among_known_ones():
         d = np.linalg.norm(styles - fit.film, axis=1)
         assert np.argmin(d) == hidden, (hidden, d.round(2))
         assert fit.loss < 0.2 * fit.start_loss
-
-
-def test_rows_and_prior_written_as_arrays_fit_the_same_vector():
-    """FrozenRows.to_arrays / from_arrays and StylePrior.to_arrays / from_arrays (how a worker process
-    gets a fit) give the same fit, number for number."""
-    model, x, p, rng = tiny(5)
-    H = model.config.hidden
-    films = random_film(rng, H, n=6)
-    z = model.forward_with_film(x, p, films[0], ln_unbiased=False, ln_eps=0.0)
-    rows = FrozenRows(model, x, p, z)
-    prior = StylePrior.from_vectors(films[1:])
-    again_rows = FrozenRows.from_arrays(rows.to_arrays())
-    again_prior = StylePrior.from_arrays(prior.to_arrays())
-    assert again_rows.dtype == rows.dtype and again_rows.hidden == H and again_rows.ln == rows.ln
-    settings = FitSettings(steps=30, batch=16, every=5)
-    a, b = fit_film(rows, prior, settings=settings), fit_film(again_rows, again_prior, settings=settings)
-    assert a.steps == b.steps and a.loss == b.loss
-    np.testing.assert_array_equal(a.film, b.film)
-    assert not np.allclose(a.film, prior.mean)            # it moved
