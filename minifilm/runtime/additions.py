@@ -1,21 +1,18 @@
 """What the runtime adds to the paper's loop (Sec. 4.4), at the points where the controller calls it.
 
-PAPER: none of this is in the paper's loop. :meth:`Controller.step
-<minifilm.runtime.controller.Controller.step>` runs the paper's steps and calls
-:class:`RuntimeAdditions` once at each of four named points; an addition that is switched off
-does nothing there, and with all of them off the loop is the paper's (the original's, with its
-velocity blend off too):
+PAPER: none of this is in the paper's loop. :meth:`~minifilm.runtime.controller.Controller.step`
+runs the paper's steps and calls :class:`RuntimeAdditions` once at each of four named points (a
+method each); an addition switched off does nothing there, and with ``stand=None``,
+``heading_follow=None`` and ``velocity_blend=1.0`` none of them changes anything.
 
-=====================  ===================================================================
-before the input       standing still: a still character's future pinned to its root, the
-                       clocks of being still, idle and at rest (:mod:`~minifilm.runtime.standing`)
-the predicted frame    standing's root held (its drift faded out, its turn once idle); the
-                       heading follow's turn (:mod:`~minifilm.runtime.heading`); the demo's
-                       velocity blend (docs/original-code.md §10.3); the held feet planted
-the skeleton fit       the fitted legs put back on the held feet
-after the frame        the phases of idle characters decayed (held: a slow idle cycle); a held
-                       body's own velocities and contacts fed back
-=====================  ===================================================================
+- ``before_input``: standing still: a still character's future pinned to its root, the clocks
+  of being still, idle and at rest counted (:mod:`~minifilm.runtime.standing`);
+- ``correct`` (the predicted frame): standing's root held (its drift faded out, its turn once
+  idle); the heading follow's turn (:mod:`~minifilm.runtime.heading`); the demo's velocity blend
+  (docs/original-code.md §10.3); the held feet planted;
+- ``refit`` (inside the skeleton fit): the fitted legs put back on the held feet;
+- ``after_frame``: the phases of idle characters decayed (held: a slow idle cycle); a held body's
+  own velocities and contacts fed back.
 
 The run feed (the demo's Shift) changes only the trajectory input: see
 :mod:`~minifilm.runtime.run_feed`.
