@@ -104,10 +104,12 @@ class Controller:
             the demo's setting: a slowly turning network otherwise never follows a heading that
             keeps turning); None: the paper's loop.
 
-    The options are plain attributes, and may be changed between frames (the demo switches the
-    fit and the foot locking live); so may ``run_feed`` (B,), the weights of a perfect run in the
-    trajectory input (:mod:`~minifilm.runtime.run_feed`, the demo's Shift; None: the paper's
-    input), and ``run_feed_speed`` (m/s).
+    ``skeleton``, ``feed_back_fit`` and ``foot_locker`` are plain attributes that may be changed
+    between frames (the demo switches the fit and the foot locking live); so may ``run_feed``
+    (B,), the weights of a perfect run in the trajectory input (:mod:`~minifilm.runtime.run_feed`,
+    the demo's Shift; None: the paper's input), and ``run_feed_speed`` (m/s). ``stand``,
+    ``heading_follow`` and ``velocity_blend`` are kept in ``additions``
+    (:class:`~minifilm.runtime.additions.RuntimeAdditions`).
     """
 
     def __init__(self, network: RuntimeNetwork, layout: FeatureLayout, fps: float = 60.0,
