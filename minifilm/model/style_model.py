@@ -51,9 +51,10 @@ class StyleModel:
         self.gating = GatingNetwork(config, rng, dtype)   # Ω
         self.motion = MotionNetwork(config, rng, dtype)   # Φ
         self.film = FilmGenerator(config, rng, dtype) if with_film_generator else None   # Ψ
-        self._film_shape = None
-        self._used_generator = False
-        self._gather = None
+        # what the last forward pass left for backward (each network keeps its own layers' caches):
+        # {"film_shape": the FiLM vectors' shape as given, "clips": the gather cache of shared
+        # clips or None, present only when Ψ ran}; None before any forward pass
+        self._cache = None
 
     # ---- parameters ----------------------------------------------------------------------
     def parameter_sets(self):
@@ -80,6 +81,8 @@ class StyleModel:
     def film_parameters(self, clip, train=False, rng=None, masks=None):
         """Ψ(y): clip (B, T, C) -> FiLM parameters (B, 4H) (Eq. 2)."""
         self._require_film_generator()
+        if self._cache is not None:         # Ψ's caches are this pass's now: no backward through Ψ
+            self._cache.pop("clips", None)
         return self.film.forward(clip, train=train, rng=rng, masks=masks)
 
     def forward(self, x, p, clip, train=False, rng=None, masks=None, clip_index=None):
@@ -90,12 +93,13 @@ class StyleModel:
         style, so a few clips of it can serve the whole batch: TrainConfig.clips_per_batch).
         """
         self._require_film_generator()
+        self._cache = None
         film = self.film.forward(clip, train=train, rng=rng, masks=masks)     # (M, 4H)
-        self._gather = None
+        gather = None
         if clip_index is not None:
-            film, self._gather = F.gather_forward(film, clip_index)           # (B, 4H)
-        z = self.forward_with_film(x, p, film, train=train, rng=rng, masks=masks)
-        self._used_generator = True
+            film, gather = F.gather_forward(film, clip_index)                 # (B, 4H)
+        z = self._omega_phi(x, p, film, train, rng, masks)
+        self._cache = {"film_shape": film.shape, "clips": gather}
         return z
 
     def forward_with_film(self, x, p, film, train=False, rng=None, masks=None, ln_unbiased=None, ln_eps=None):
@@ -104,11 +108,16 @@ class StyleModel:
         film (B, 4H), or (4H,) shared by the whole batch (a precomputed or blended style).
         """
         film = np.asarray(film)
-        self._film_shape = film.shape
+        self._cache = None
+        z = self._omega_phi(x, p, film, train, rng, masks, ln_unbiased, ln_eps)
+        self._cache = {"film_shape": film.shape}
+        return z
+
+    def _omega_phi(self, x, p, film, train, rng, masks, ln_unbiased=None, ln_eps=None):
+        """α = Ω(p), then z = Φ(x; α, film); a shared film (4H,) is broadcast over the batch."""
         if film.ndim == 1:
             film = np.broadcast_to(film, (x.shape[0], film.shape[0]))
         alpha = self.gating.forward(p, train=train, rng=rng, masks=masks)
-        self._used_generator = False
         return self.motion.forward(x, alpha, film, train=train, rng=rng, masks=masks,
                                    ln_unbiased=ln_unbiased, ln_eps=ln_eps)
 
@@ -119,9 +128,11 @@ class StyleModel:
         dfilm has the shape the film was given in ((B, 4H), or (4H,) summed over the batch).
         Gradients of Ω and Φ are added to their .params.grads.
         """
+        if self._cache is None:
+            raise RuntimeError("StyleModel.backward_with_film needs a preceding forward pass")
         dx, dalpha, dfilm = self.motion.backward(dz)
         dp = self.gating.backward(dalpha)
-        if len(self._film_shape) == 1:
+        if len(self._cache["film_shape"]) == 1:       # one vector served the whole batch
             dfilm = dfilm.sum(axis=0)
         return dx, dp, dfilm
 
@@ -131,11 +142,12 @@ class StyleModel:
         Adds the gradients of every parameter of Ω, Φ and Ψ. With need_input_grads=False the
         clip's gradient (the costly one) is skipped and 'clip' is None; training passes False.
         """
-        if not self._used_generator:
+        if self._cache is None or "clips" not in self._cache:
             raise RuntimeError("StyleModel.backward needs a preceding forward(x, p, clip); "
                                "use backward_with_film after forward_with_film")
+        gather = self._cache["clips"]
         dx, dp, dfilm = self.backward_with_film(dz)
-        if self._gather is not None:                  # a shared clip gets its samples' gradients
-            dfilm = F.gather_backward(dfilm, self._gather)
+        if gather is not None:                        # a shared clip gets its samples' gradients
+            dfilm = F.gather_backward(dfilm, gather)
         dclip = self.film.backward(dfilm, need_input_grad=need_input_grads)
         return {"x": dx, "p": dp, "clip": dclip}

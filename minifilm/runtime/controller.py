@@ -1,33 +1,41 @@
-"""Autoregressive stylised synthesis (Sec. 4.4; docs/original-code.md §10.2-10.4, with the §12 fixes).
+"""Autoregressive stylised synthesis (Sec. 4.4): the network's output frame is its next input.
 
-Each frame, for every character of a batch:
+:meth:`Controller.step` makes one frame for every character of a batch, in the paper's order
+(the original's loop: docs/original-code.md §10.2-10.4, with the §12 fixes), one method per step:
 
-1. the user's target (a :mod:`minifilm.runtime.control` script) is blended into the future trajectory
-   (``blend_future_trajectory``: near samples keep the prediction, far samples follow the user);
-2. the input frame x is built: 12 trajectory samples (past from the root history, future from
-   step 1, at the *training* sample times of the layout) and the previous frame's joints, all
-   re-expressed relative to the current root;
-3. z = Φ(x; Ω(p), film) with precomputed FiLM vectors (:class:`RuntimeNetwork`);
-4. the root moves by the predicted root delta, joints and the future trajectory are read back into
-   the world, the local phases advance with ``p <- 0.5 p_pred + 0.5 (p + Δp_pred)`` (§10.2 step 7),
-   and optional foot locking (:mod:`minifilm.motion.foot_ik`) post-processes the legs.
+1. ``_blend_user_trajectory``: the user's command (a :mod:`minifilm.runtime.control` script) is
+   blended into the future trajectory, after Zhang et al. 2018 (near samples keep the
+   prediction, far samples follow the user);
+2. ``build_input``: the input frame x (Sec. 3.2): 12 trajectory samples (the past from the root's
+   history, the future from step 1, at the *training* sample times) and the previous frame's
+   joints, all relative to the current root;
+3. ``_predict``: z = Φ(x; Ω(p), film) with a precomputed FiLM vector (:class:`RuntimeNetwork`);
+4. ``_read_prediction``, ``_move_root``: the joints and the future trajectory are read back into
+   the world, and the root moves to the predicted next root;
+5. ``_advance_phases``: p <- 0.5 p_pred + 0.5 (p + Δp_pred), the original's rule (§10.2);
+6. ``_post_process``: the paper's IK post-processing gives the pose shown (foot contact IK:
+   foot locking, :mod:`minifilm.motion.foot_ik`; its arm IK becomes a fit of the whole body
+   onto the skeleton), and the pose fed back as the next input is chosen.
 
-Deviations from the Unity demo (docs/original-code.md §12): future samples at the training spacing
-(+0.2 .. +1.0 s, not 1/6 s), FiLM applied from hidden unit 0, user speed given in m/s and mapped
-to the command that makes the network really move at that speed by a measured per-style
-calibration (:func:`~minifilm.runtime.calibration.calibrate_speed`, instead of the demo's velocity bias of unclear units), the
-root moves by the full predicted delta. The demo's smoothing of joint positions with the predicted
-velocities (``lerp(p_prev + v dt, p, 0.5)``) and of the future trajectory with the previous one
-(weight 0.15) are kept as options. A run starts from the data's mean pose (the input means) with
-a still past trajectory and the mean phases, or (``start_x``, :func:`~minifilm.runtime.start_state.start_from_dataset`) from a
-frame of the style's own data: pose, trajectory and phases in mid-stride; a small trained
-network may never leave the mean pose. The demo's arm IK becomes an optional fit of the whole
-body onto the source skeleton every frame (``skeleton=``, :class:`~minifilm.motion.skeleton_fit.SkeletonFit`):
-rigid bones aimed at the predicted positions, fed back to the network like the demo's post-IK pose
-only when asked (``feed_back_fit``; foot locking then applies to the fitted pose and is fed back
-with it). Without a skeleton, with foot locking, the next input takes the locked positions but
-the predicted forward/up axes; with a skeleton that is not fed back, the next input is the
-network's own (velocity-blended) pose, so neither the fit nor the locking changes the motion.
+What the runtime adds to the paper's loop (standing still, heading follow, the demo's velocity
+blend, held feet) is kept out of that path, in :class:`~minifilm.runtime.additions.RuntimeAdditions`,
+called once at each of its named points; the run feed (:mod:`~minifilm.runtime.run_feed`) changes
+only the trajectory input (``_trajectory_input``).
+
+PAPER: departures from the paper and the authors' demo (§12): future samples at the training
+spacing (+0.2 .. +1.0 s, not 1/6 s); FiLM applied from hidden unit 0; the user's speed in m/s,
+mapped to the command that makes the network move at that speed by a measured per-style
+calibration (:func:`~minifilm.runtime.calibration.calibrate_speed`) instead of the demo's
+velocity bias of unclear units; the root moves by the full predicted delta; the demo's smoothing
+of the future trajectory with the previous one (weight 0.15) is an option. A run starts from the
+data's mean pose (the input means) with a still past and the mean phases, or (``start_x``,
+:func:`~minifilm.runtime.start_state.start_from_dataset`) from a frame of the style's own data,
+in mid-stride: a small trained network may never leave the mean pose. The skeleton fit
+(``skeleton=``, :class:`~minifilm.motion.skeleton_fit.SkeletonFit`) is fed back to the network
+like the demo's post-IK pose only when asked (``feed_back_fit``; foot locking then applies to
+the fitted pose and is fed back with it). Without a skeleton, the next input takes the locked
+positions but the predicted axes; with a skeleton not fed back, it is the network's own pose,
+so neither the fit nor the locking changes the motion.
 
 Everything reads its columns from a :class:`~minifilm.features.layout.FeatureLayout`.
 """
@@ -43,16 +51,17 @@ from minifilm.features.layout import CURRENT_SAMPLE, FeatureLayout
 from minifilm.motion.motion import Motion
 from minifilm.motion.retarget import axes_to_rotation
 from minifilm.motion.skeleton_fit import SkeletonFit
+from minifilm.runtime.additions import RuntimeAdditions
 from minifilm.runtime.calibration import SpeedCalibration
 from minifilm.runtime.control import Script, blend_future_trajectory
-from minifilm.runtime.root_frames import to_local2, to_local3, to_world2, to_world3, unit2
 from minifilm.runtime.heading import HeadingFollow
-from minifilm.runtime.held_body import leg_chains
 from minifilm.runtime.network import RuntimeNetwork
-from minifilm.runtime.rollout import Rollout
+from minifilm.runtime.rollout import Rollout, run_scripts
+from minifilm.runtime.root_frames import to_local2, to_local3, to_world2, to_world3, unit2
+from minifilm.runtime.run_feed import run_trajectory
 from minifilm.runtime.standing import StandStill
-from minifilm.runtime.start_state import root_joint_indices
-from minifilm.runtime.state import CharacterState
+from minifilm.runtime.start_state import root_joint_indices, trajectory_from_x
+from minifilm.runtime.state import CharacterState, Prediction
 
 
 class NonFiniteOutputError(InputError):
@@ -94,6 +103,13 @@ class Controller:
             facing by what the network's own turn leaves (:class:`~minifilm.runtime.heading.HeadingFollow`,
             the demo's setting: a slowly turning network otherwise never follows a heading that
             keeps turning); None: the paper's loop.
+
+    ``skeleton``, ``feed_back_fit`` and ``foot_locker`` are plain attributes that may be changed
+    between frames (the demo switches the fit and the foot locking live); so may ``run_feed``
+    (B,), the weights of a perfect run in the trajectory input (:mod:`~minifilm.runtime.run_feed`,
+    the demo's Shift; None: the paper's input), and ``run_feed_speed`` (m/s). ``stand``,
+    ``heading_follow`` and ``velocity_blend`` are kept in ``additions``
+    (:class:`~minifilm.runtime.additions.RuntimeAdditions`).
     """
 
     def __init__(self, network: RuntimeNetwork, layout: FeatureLayout, fps: float = 60.0,
@@ -104,29 +120,25 @@ class Controller:
         if network.x_dim != layout.x_dim or network.z_dim != layout.z_dim:
             raise ValueError(f"Controller: network sizes (x {network.x_dim}, z {network.z_dim}) do not match "
                              f"the layout (x {layout.x_dim}, z {layout.z_dim})")
-        self.net, self.layout, self.fps = network, layout, float(fps)
-        self.velocity_blend, self.future_smoothing = float(velocity_blend), float(future_smoothing)
-        self.position_bias, self.direction_bias = position_bias, direction_bias
-        self.foot_locker = foot_locker
         if skeleton is not None and len(skeleton.joint_indices) != layout.n_joints:
             raise ValueError(f"Controller: the skeleton fit places {len(skeleton.joint_indices)} joints, "
                              f"the layout has {layout.n_joints}")
-        self.skeleton, self.feed_back_fit = skeleton, bool(feed_back_fit)
-        self.stand = stand
-        self.heading_follow = heading_follow
-        self._target = None
-        #: (B,) weights in [0, 1] of a perfect run fed as the trajectory input (:meth:`_run_trajectory`;
-        #: the demo's Shift); None: the paper's input
+        self.net, self.layout, self.fps = network, layout, float(fps)
+        self.future_smoothing = float(future_smoothing)
+        self.position_bias, self.direction_bias = position_bias, direction_bias
+        self.foot_locker, self.skeleton, self.feed_back_fit = foot_locker, skeleton, bool(feed_back_fit)
+        # what the runtime adds to the paper's loop, called at its points of the step
+        self.additions = RuntimeAdditions(stand, heading_follow, velocity_blend, layout, self.fps)
         self.run_feed: Optional[np.ndarray] = None
         self.run_feed_speed = 8.0
-        self.legs = leg_chains(layout.joint_names, layout.parents)     # (2, 4) or None: no legs to hold
+        self._target = None             # the command of the frame being made: facing, velocity (B, 2)
         L = layout
-        ts = np.asarray(L.trajectory_seconds)
         # the training features' rounding (halves away from zero), so a sample on half a frame
         # (e.g. -1/6 s at 15 fps) reads the same frame here as in the data set
         self.past_frames = -trajectory_offsets(self.fps, L.trajectory_seconds)[:CURRENT_SAMPLE]  # 60, 50, .., 10
-        fut = ts[CURRENT_SAMPLE:]
-        self.sample_dt = float(np.mean(np.diff(fut)))                              # 0.2 s
+        future = np.asarray(L.trajectory_seconds)[CURRENT_SAMPLE:]
+        self.sample_dt = float(np.mean(np.diff(future)))                              # 0.2 s
+        self.sample_times = np.r_[-self.past_frames / self.fps, future]             # (12,) seconds
         self.history = int(self.past_frames.max())
         self.x_traj_cols = np.stack([L.trajectory_columns("x", s) for s in range(L.n_trajectory_samples)])
         self.z_traj_cols = np.stack([L.trajectory_columns("z", s)
@@ -141,7 +153,6 @@ class Controller:
         its joints matched to the layout's by name."""
         return SkeletonFit(skeleton, root_joint_indices(layout, skeleton))
 
-    # ------------------------------------------------------------------ state
     def reset(self, start_positions: np.ndarray, start_facing: np.ndarray,
               phases: Optional[np.ndarray] = None, start_x: Optional[np.ndarray] = None) -> None:
         """Start B characters standing at (B, 2) world (x, z) positions facing (B, 2), in the mean
@@ -154,22 +165,18 @@ class Controller:
         trajectory instead of standing still: the character starts in mid-stride, as in the data."""
         pos = np.asarray(start_positions, dtype=np.float64).reshape(-1, 2)
         face = unit2(np.asarray(start_facing, dtype=np.float64).reshape(-1, 2), np.array([0.0, 1.0]))
-        B, X = len(pos), self.layout.x_dim
-        pose = self.net.stats.x_mean
-        if start_x is not None:
-            pose = np.asarray(start_x, dtype=np.float64)
-            if pose.shape[-1] != X or pose.ndim > 2 or (pose.ndim == 2 and len(pose) not in (1, B)):
-                raise ValueError(f"Controller.reset: start_x must be ({X},) or ({B}, {X}), got {pose.shape}")
-            pose = pose[:, None] if pose.ndim == 2 else pose      # (B, 1, x) broadcasts per character
-        S = self.layout.n_future_samples
-        history_pos = np.repeat(pos[:, None], self.history, axis=1)      # [:, -n] = root n frames ago
-        history_dir = np.repeat(face[:, None], self.history, axis=1)
-        future_pos, future_dir = np.repeat(pos[:, None], S, axis=1), np.repeat(face[:, None], S, axis=1)
-        if start_x is not None:
-            history_pos, history_dir, future_pos, future_dir = self._trajectory_from_x(
-                pos, face, np.broadcast_to(pose.reshape(-1, X), (B, X)))
-        local = {f: np.broadcast_to(pose[..., c].reshape(-1, *c.shape) if pose.ndim > 1 else pose[c],
-                                    (B,) + c.shape) for f, c in self.x_cols.items()}
+        B, X, S = len(pos), self.layout.x_dim, self.layout.n_future_samples
+        pose = self.net.stats.x_mean if start_x is None else np.asarray(start_x, dtype=np.float64)
+        if pose.shape[-1] != X or pose.ndim > 2 or (pose.ndim == 2 and len(pose) not in (1, B)):
+            raise ValueError(f"Controller.reset: start_x must be ({X},) or ({B}, {X}), got {pose.shape}")
+        frames = np.broadcast_to(pose.reshape(-1, X), (B, X))          # one start frame per character
+        if start_x is None:             # standing still: the whole past and future at the root
+            history_pos, history_dir = np.repeat(pos[:, None], self.history, 1), np.repeat(face[:, None], self.history, 1)
+            future_pos, future_dir = np.repeat(pos[:, None], S, 1), np.repeat(face[:, None], S, 1)
+        else:
+            history_pos, history_dir, future_pos, future_dir = trajectory_from_x(
+                frames[:, self.x_traj_cols], pos, face, self.past_frames, self.history)
+        local = {f: frames[:, c] for f, c in self.x_cols.items()}      # (B, J, 3), the root's frame
         joint_pos = to_world3(local["position"], face)
         joint_pos[..., 0] += pos[:, 0, None]
         joint_pos[..., 2] += pos[:, 1, None]
@@ -185,43 +192,48 @@ class Controller:
         if self.foot_locker is not None:
             self.foot_locker.reset(B)
 
-    def _trajectory_from_x(self, root: np.ndarray, facing: np.ndarray, x: np.ndarray):
-        """Past root history and future trajectory from raw input frames x (B, x_dim), placed at
-        the characters' roots (B, 2) facing (B, 2): the future samples as they are, the history
-        interpolated linearly between the past samples (directions renormalised).
-        Returns history_pos, history_dir (B, N, 2), future_pos, future_dir (B, S, 2)."""
-        traj = x[:, self.x_traj_cols]                                       # (B, 12, 4), root frame
-        f = facing[:, None]
-        wp = to_world2(traj[..., :2], f) + root[:, None]
-        wd = unit2(to_world2(traj[..., 2:], f), f)
-        # samples at -past_frames .. 0; history slot -n is n frames ago (n = history .. 1)
-        known = np.r_[-self.past_frames, 0].astype(np.float64)
-        n = -np.arange(self.history, 0, -1).astype(np.float64)
-        order = np.argsort(known)
-        history = []
-        for src in (wp, wd):
-            vals = src[:, :CURRENT_SAMPLE + 1][:, order]                      # (B, 7, 2)
-            history.append(np.array([[np.interp(n, known[order], vals[b, :, c]) for c in range(2)]
-                                     for b in range(len(vals))]).transpose(0, 2, 1))   # (B, history, 2)
-        return (history[0], unit2(history[1], f),
-                wp[:, CURRENT_SAMPLE:].copy(), wd[:, CURRENT_SAMPLE:].copy())
+    # ------------------------------------------------------------------ one frame, Sec. 4.4
+    def step(self, target_facing: np.ndarray, target_velocity: np.ndarray, film: np.ndarray) -> dict:
+        """Advance every character by one frame.
 
-    # ------------------------------------------------------------------ one frame
+        Args:
+            target_facing (B, 2), target_velocity (B, 2) m/s: the user's command (world x, z).
+            film: (4H,) shared or (B, 4H) per character.
+        Returns the new frame (see :meth:`frame`; arrays are the live state, copy to keep them).
+        """
+        film = self._check_command(target_facing, target_velocity, film)
+        self._target = (np.asarray(target_facing, dtype=np.float64), np.asarray(target_velocity, dtype=np.float64))
+        self._blend_user_trajectory()           # 1. the user's trajectory
+        self.additions.before_input(self.state, *self._target)      # (standing)
+        x = self.build_input()                  # 2. x (the run feed inside)
+        z = self._predict(x, film)              # 3. z = Φ(x; Ω(p), film)
+        self._apply_output(z)                   # 4.-6.
+        return self.frame()
+
+    def _apply_output(self, z: np.ndarray) -> None:
+        """Steps 4-6: the next frame from the network's output z (B, z_dim)."""
+        previous = self.state.joint_pos         # the pose this frame was made from
+        prediction = self._read_prediction(z)   # 4. z in the world
+        prediction = self.additions.correct(self.state, prediction, self._target)   # (standing, heading, ...)
+        self._move_root(prediction)             # 4. the root moves
+        self._advance_phases(z)                 # 5. the phases advance
+        self._post_process(prediction)          # 6. the pose shown, the pose fed back
+        self.additions.after_frame(self.state, previous)           # (standing)
+
+    def _blend_user_trajectory(self) -> None:
+        """Step 1: the command blended into the future trajectory (:func:`blend_future_trajectory`)."""
+        st, (facing, velocity) = self.state, self._target
+        st.future_pos, st.future_dir = blend_future_trajectory(
+            st.future_pos, st.future_dir, velocity, facing, self.sample_dt, self.position_bias, self.direction_bias)
+
     def build_input(self) -> np.ndarray:
-        """The raw input frame x (B, x_dim) for the current state."""
+        """Step 2: the raw input frame x (B, x_dim) of the current state (Sec. 3.2): the trajectory
+        and the joints, relative to the current root."""
         st, L = self.state, self.layout
-        B = len(st.root)
         root, face = st.root, st.facing
-        past_p = st.history_pos[:, -self.past_frames]                          # (B, 6, 2)
-        past_d = st.history_dir[:, -self.past_frames]
-        tp = np.concatenate([past_p, st.future_pos], axis=1) - root[:, None]   # (B, 12, 2)
-        td = np.concatenate([past_d, st.future_dir], axis=1)
-        f = face[:, None]
-        if self.run_feed is not None and self._target is not None and np.any(self.run_feed > 0):
-            tp, td = self._run_trajectory(tp, td)
-        traj = np.concatenate([to_local2(tp, f), to_local2(td, f)], axis=-1)  # (B, 12, 4)
-        x = np.empty((B, L.x_dim))
-        x[:, self.x_traj_cols] = traj
+        tp, td = self._trajectory_input()
+        x = np.empty((len(root), L.x_dim))
+        x[:, self.x_traj_cols] = np.concatenate([to_local2(tp, face[:, None]), to_local2(td, face[:, None])], axis=-1)
         rel = st.joint_pos.copy()
         rel[..., 0] -= root[:, 0, None]
         rel[..., 2] -= root[:, 1, None]
@@ -231,49 +243,85 @@ class Controller:
         x[:, self.x_cols["velocity"]] = to_local3(st.joint_vel, face)
         return x
 
-    def _run_trajectory(self, tp: np.ndarray, td: np.ndarray):
-        """The trajectory input (B, 12, 2) (positions relative to the root, directions) blended by
-        ``run_feed`` (B,) into a perfect straight run at ``run_feed_speed`` m/s along the target
-        velocity. Told only its own past (walking), the released network walks on (Neutral at most
-        1.8 m/s); shown a run, it runs at the speed it learnt for the style (Neutral 2.06 m/s,
-        benchmarks/run_speed.py). The state's history and future are not changed."""
-        facing, velocity = self._target
-        w = self.run_feed[:, None, None]
-        speed = np.linalg.norm(velocity, axis=-1, keepdims=True)
-        way = np.where(speed > 1e-9, velocity / np.maximum(speed, 1e-9), facing)          # (B, 2)
-        times = np.r_[-self.past_frames / self.fps, np.asarray(self.layout.trajectory_seconds)[CURRENT_SAMPLE:]]
-        ideal_p = way[:, None] * (self.run_feed_speed * times)[None, :, None]
-        ideal_d = np.broadcast_to(facing[:, None], td.shape)
-        return (1 - w) * tp + w * ideal_p, unit2((1 - w) * td + w * ideal_d, td)
-
-    def step(self, target_facing: np.ndarray, target_velocity: np.ndarray, film: np.ndarray) -> dict:
-        """Advance every character by one frame.
-
-        Args:
-            target_facing (B, 2), target_velocity (B, 2) m/s: the user's command (world x, z).
-            film: (4H,) shared or (B, 4H) per character.
-        Returns the new frame (see :meth:`frame`; arrays are the live state, copy to keep them).
-        """
+    def _trajectory_input(self):
+        """The 12 trajectory samples of x: positions relative to the root (B, 12, 2, world axes)
+        and directions (B, 12, 2); the past from the root's history, the future blended in step 1.
+        With ``run_feed``, a perfect run blended in (:func:`~minifilm.runtime.run_feed.run_trajectory`)."""
         st = self.state
-        film = self._check_command(target_facing, target_velocity, film)
-        st.future_pos, st.future_dir = blend_future_trajectory(
-            st.future_pos, st.future_dir, target_velocity, target_facing, self.sample_dt,
-            self.position_bias, self.direction_bias)
-        idle = None
-        if self.stand is not None:      # standing.py: a zero command stops and stands
-            idle = self.stand.begin_frame(st, target_velocity, target_facing, 1.0 / self.fps)
-        self._target = (np.asarray(target_facing, dtype=np.float64), np.asarray(target_velocity, dtype=np.float64))
-        x = self.build_input()
+        tp = np.concatenate([st.history_pos[:, -self.past_frames], st.future_pos], axis=1) - st.root[:, None]
+        td = np.concatenate([st.history_dir[:, -self.past_frames], st.future_dir], axis=1)
+        if self.run_feed is not None and self._target is not None and np.any(self.run_feed > 0):
+            tp, td = run_trajectory(tp, td, self.run_feed, self.run_feed_speed, *self._target, self.sample_times)
+        return tp, td
+
+    def _predict(self, x: np.ndarray, film: np.ndarray) -> np.ndarray:
+        """Step 3: z (B, z_dim) = Φ(x; Ω(p), film), raw features (:meth:`RuntimeNetwork.predict`);
+        NonFiniteOutputError at once if any is not finite (one NaN would spread to every later frame)."""
         # overflow is caught just below as one clear error, not as a screen of RuntimeWarnings
         with np.errstate(over="ignore", invalid="ignore"):
-            z = self.net.predict(x, st.phases, film).astype(np.float64)
-        if not np.all(np.isfinite(z)):      # stop at once: one NaN would spread to every later frame
+            z = self.net.predict(x, self.state.phases, film).astype(np.float64)
+        if not np.all(np.isfinite(z)):
             b = int(np.argwhere(~np.isfinite(z))[0][0])
             raise NonFiniteOutputError(f"the network's output for character {b} is not finite (the motion "
                                        "diverged: its style vector or speed is far outside the training data, "
                                        "or the network's weights are corrupt)")
-        self._apply_output(z, idle)
-        return self.frame()
+        return z
+
+    def _read_prediction(self, z: np.ndarray) -> Prediction:
+        """Step 4: the future trajectory and the joints of z, relative to the current root, read into
+        the world; the joints as predicted are kept (``network_positions``)."""
+        st, L = self.state, self.layout
+        root, face = st.root, st.facing
+        traj = z[:, self.z_traj_cols]                                   # (B, 6, 4), current root frame
+        joints = to_world3(z[:, self.z_cols["position"]], face)
+        joints[..., 0] += root[:, 0, None]
+        joints[..., 2] += root[:, 1, None]
+        st.network_pos = joints
+        return Prediction(
+            trajectory_pos=to_world2(traj[..., :2], face[:, None]) + root[:, None],
+            trajectory_dir=unit2(to_world2(traj[..., 2:], face[:, None]), st.future_dir),
+            joint_pos=joints, joint_fwd=to_world3(z[:, self.z_cols["forward"]], face),
+            joint_up=to_world3(z[:, self.z_cols["up"]], face),
+            joint_vel=to_world3(z[:, self.z_cols["velocity"]], face), contacts=z[:, L.z_contacts])
+
+    def _move_root(self, prediction: Prediction) -> None:
+        """Step 4: the root's history takes the current root, the root moves to the predicted next
+        root (future sample 0), and the predicted future becomes the trajectory to blend next."""
+        st, s = self.state, self.future_smoothing
+        new_pos, new_dir = prediction.trajectory_pos, prediction.trajectory_dir
+        st.history_pos = np.concatenate([st.history_pos[:, 1:], st.root[:, None]], axis=1)
+        st.history_dir = np.concatenate([st.history_dir[:, 1:], st.facing[:, None]], axis=1)
+        # PAPER: the demo's smoothing of the future with the previous one (§10.3; 0 turns it off)
+        fut_pos = (1 - s) * new_pos + s * st.future_pos
+        fut_dir = unit2((1 - s) * new_dir + s * st.future_dir, new_dir)
+        fut_pos[:, 0], fut_dir[:, 0] = new_pos[:, 0], new_dir[:, 0]
+        st.future_pos, st.future_dir = fut_pos, fut_dir
+        st.root, st.facing = new_pos[:, 0].copy(), new_dir[:, 0].copy()
+
+    def _advance_phases(self, z: np.ndarray) -> None:
+        """Step 5: p <- 0.5 p_pred + 0.5 (p + Δp_pred), the original's update (§10.2), amplitude kept."""
+        st, L = self.state, self.layout
+        st.phases = 0.5 * z[:, L.z_phases] + 0.5 * (st.phases + z[:, L.z_phase_updates])
+
+    def _post_process(self, prediction: Prediction) -> None:
+        """Step 6: the pose shown (``out_*``) and the pose fed back as the next input (``joint_*``).
+
+        PAPER: the paper's post-processing is foot contact IK and IK along the arms; here the arm
+        IK is a fit of the whole body onto the skeleton (``skeleton``), fed back only with
+        ``feed_back_fit``; foot locking (``foot_locker``) follows the predicted contacts."""
+        st = self.state
+        st.contacts = prediction.contacts
+        pos, fwd, up = prediction.joint_pos, prediction.joint_fwd, prediction.joint_up
+        if self.skeleton is not None:
+            pos, rot = self.skeleton.fit(pos, axes_to_rotation(fwd, up))
+            pos, rot = self.additions.refit(st, self.skeleton, pos, rot)     # (standing: held feet)
+            fwd, up = rot[..., 2], rot[..., 1]
+        if self.foot_locker is not None:
+            pos = self.foot_locker.apply(pos, st.contacts)
+        st.out_pos, st.out_fwd, st.out_up = pos, fwd, up
+        if self.skeleton is not None and not self.feed_back_fit:      # the network's own pose
+            pos, fwd, up = prediction.joint_pos, prediction.joint_fwd, prediction.joint_up
+        st.joint_pos, st.joint_fwd, st.joint_up, st.joint_vel = pos, fwd, up, prediction.joint_vel
 
     def _check_command(self, target_facing, target_velocity, film) -> np.ndarray:
         """The user's command and style vector as arrays of the right shapes with finite values;
@@ -292,75 +340,6 @@ class Controller:
                              f"{film.dtype} {film.shape}")
         return film
 
-    def _apply_output(self, z: np.ndarray, idle: Optional[np.ndarray] = None) -> None:
-        st, L = self.state, self.layout
-        root, face = st.root, st.facing
-        f = face[:, None]
-        traj = z[:, self.z_traj_cols]                                   # (B, 6, 4), current root frame
-        new_pos = to_world2(traj[..., :2], f) + root[:, None]
-        new_dir = unit2(to_world2(traj[..., 2:], f), st.future_dir)
-        # joints of the next frame, read relative to the current root
-        jpos = to_world3(z[:, self.z_cols["position"]], face)
-        jpos[..., 0] += root[:, 0, None]
-        jpos[..., 2] += root[:, 1, None]
-        jvel = to_world3(z[:, self.z_cols["velocity"]], face)
-        st.network_pos = jpos
-        jfwd = to_world3(z[:, self.z_cols["forward"]], face)
-        jup = to_world3(z[:, self.z_cols["up"]], face)
-        if idle is not None:
-            # standing.py: at a zero command the root's leftover drift fades out, and once idle its
-            # turning too; the predicted body and trajectory are moved back with the root
-            new_pos, new_dir, jpos, (jfwd, jup, jvel) = self.stand.hold_prediction(
-                st, new_pos, new_dir, jpos, (jfwd, jup, jvel))
-        if self.heading_follow is not None and self._target is not None:     # heading.py: the body follows the heading
-            facing_target, velocity_target = self._target
-            moving = np.linalg.norm(velocity_target, axis=-1) > 1e-6
-            new_pos, new_dir, jpos, (jfwd, jup, jvel) = self.heading_follow.apply(
-                facing_target, moving, new_pos, new_dir, jpos, (jfwd, jup, jvel), 1.0 / self.fps)
-        if self.velocity_blend < 1.0:
-            integrated = st.joint_pos + jvel / self.fps
-            jpos = self.velocity_blend * jpos + (1 - self.velocity_blend) * integrated
-        holding = idle is not None and self.stand.holds_feet(st, self.legs)
-        if holding:     # standing.py: the feet kept where they came to rest, before the fit and feedback
-            jpos = self.stand.plant(st, jpos, self.legs, 1.0 / self.fps)
-        else:
-            st.feet = None
-        st.joint_vel = jvel
-        # phases: average of the predicted phase and previous + predicted update (§10.2 step 7)
-        st.phases = 0.5 * z[:, L.z_phases] + 0.5 * (st.phases + z[:, L.z_phase_updates])
-        if idle is not None:            # standing: the amplitudes decay towards a still body's
-            st.phases = st.phases * self.stand.phase_factor(idle, 1.0 / self.fps)[:, None]
-            st.phases = self.stand.idle_phases(st.phases, st.rest_seconds)   # held: a slow sway, not a statue
-        st.contacts = z[:, L.z_contacts]
-        # root history, then move the root by the predicted delta (future sample 0 of the next frame)
-        st.history_pos = np.concatenate([st.history_pos[:, 1:], root[:, None]], axis=1)
-        st.history_dir = np.concatenate([st.history_dir[:, 1:], face[:, None]], axis=1)
-        s = self.future_smoothing
-        fut_pos = (1 - s) * new_pos + s * st.future_pos
-        fut_dir = unit2((1 - s) * new_dir + s * st.future_dir, new_dir)
-        fut_pos[:, 0], fut_dir[:, 0] = new_pos[:, 0], new_dir[:, 0]
-        st.future_pos, st.future_dir = fut_pos, fut_dir
-        st.root, st.facing = new_pos[:, 0].copy(), new_dir[:, 0].copy()
-        blended = jpos
-        if self.skeleton is not None:
-            fit_pos, fit_rot = self.skeleton.fit(jpos, axes_to_rotation(jfwd, jup))
-            if holding:
-                fit_pos, fit_rot = self.stand.refit(st, self.skeleton, fit_pos, fit_rot, self.legs)
-            st.out_fwd, st.out_up = fit_rot[..., 2], fit_rot[..., 1]
-            jpos = fit_pos
-        else:
-            st.out_fwd, st.out_up = jfwd, jup
-        if self.foot_locker is not None:
-            jpos = self.foot_locker.apply(jpos, st.contacts)
-        st.out_pos = jpos
-        previous = st.joint_pos
-        if self.skeleton is None or self.feed_back_fit:
-            st.joint_pos, st.joint_fwd, st.joint_up = jpos, st.out_fwd, st.out_up
-        else:
-            st.joint_pos, st.joint_fwd, st.joint_up = blended, jfwd, jup
-        if idle is not None:            # standing.py: a held body's own velocities and contacts
-            self.stand.settle_feedback(st, previous, self.fps)
-
     def frame(self) -> dict:
         """The current frame: positions (B, J, 3) and forward/up axes (B, J, 3) as output (after the
         skeleton fit and foot locking, when on), contacts, phases, root, and network_positions
@@ -373,45 +352,6 @@ class Controller:
     def run(self, scripts: Union[Script, Sequence[Script]], n_frames: int,
             film: Union[np.ndarray, Callable[[int], np.ndarray]], phases: Optional[np.ndarray] = None,
             calibration: Optional[SpeedCalibration] = None, start_x: Optional[np.ndarray] = None) -> Rollout:
-        """Run B = len(scripts) characters for ``n_frames`` frames.
-
-        Args:
-            scripts: one :class:`~minifilm.runtime.control.Script` per character (or one for B = 1); each
-                starts where its ``start()`` says.
-            film: (4H,) or (B, 4H) for all frames, (n_frames, 4H) / (n_frames, B, 4H) per frame
-                (style transitions), or a callable frame -> film.
-            calibration: maps the user's speed (m/s) to the command that makes this network
-                actually move at that speed (see :func:`~minifilm.runtime.calibration.calibrate_speed`); None = use as given.
-            phases, start_x: the start phases (B, 8) and pose (raw input frames), see :meth:`reset`.
-        """
-        if isinstance(scripts, Script):
-            scripts = [scripts]
-        B = len(scripts)
-        for s in scripts:
-            s.reset()
-        starts = [s.start() for s in scripts]
-        self.reset(np.array([p for p, _ in starts]), np.array([f for _, f in starts]), phases, start_x)
-        J = self.layout.n_joints
-        out = dict(positions=np.empty((B, n_frames, J, 3)), forward=np.empty((B, n_frames, J, 3)),
-                   network_positions=np.empty((B, n_frames, J, 3), dtype=np.float32),
-                   up=np.empty((B, n_frames, J, 3)),
-                   contacts=np.empty((B, n_frames, 2)), phases=np.empty((B, n_frames, 8)),
-                   root=np.empty((B, n_frames, 2)), facing=np.empty((B, n_frames, 2)),
-                   targets=np.empty((B, n_frames, 2)))
-        per_frame = (not callable(film)) and np.ndim(film) >= 2 and np.shape(film)[0] == n_frames \
-            and not (np.ndim(film) == 2 and B == n_frames)
-        tf, tv = np.empty((B, 2)), np.empty((B, 2))
-        for k in range(n_frames):
-            t = k / self.fps
-            for b, s in enumerate(scripts):
-                tf[b], tv[b] = s.command(t, self.state.root[b], self.state.facing[b])
-            if calibration is not None:
-                tv = calibration.apply(tv, tf)
-            fk = film(k) if callable(film) else (film[k] if per_frame else film)
-            fr = self.step(tf, tv, fk)
-            for key in ("positions", "forward", "up", "contacts", "phases", "root", "facing", "network_positions"):
-                out[key][:, k] = fr[key]
-            out["targets"][:, k] = tv
-        rotations = axes_to_rotation(out["forward"], out["up"])
-        return Rollout(out["positions"], rotations, out["contacts"], out["phases"], out["root"],
-                       out["facing"], out["targets"], self.fps, out["network_positions"])
+        """Run B = len(scripts) characters for ``n_frames`` frames, each from where its script
+        starts (:func:`~minifilm.runtime.rollout.run_scripts` says what each argument may be)."""
+        return run_scripts(self, scripts, n_frames, film, phases, calibration, start_x)

@@ -1,15 +1,17 @@
-"""Rollout: what :meth:`~minifilm.runtime.controller.Controller.run` returns, and the checks of one."""
+"""Whole rollouts: scripts run through a controller frame by frame (:func:`run_scripts`, what
+:meth:`~minifilm.runtime.controller.Controller.run` does), the :class:`Rollout` it returns, and
+the checks of one."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import List, Optional, Sequence
+from typing import Callable, List, Optional, Sequence, Union
 
 import numpy as np
 
 from minifilm.motion.measures import bone_length_cv, foot_sliding
 from minifilm.motion.motion import Motion
-from minifilm.motion.retarget import retarget
-from minifilm.runtime.control import distance_to_path
+from minifilm.motion.retarget import axes_to_rotation, retarget
+from minifilm.runtime.control import Script, distance_to_path
 
 
 @dataclass
@@ -66,3 +68,54 @@ class Rollout:
         """Character ``character`` as a Motion on ``skeleton`` (see :func:`retarget`), for BVH export."""
         return retarget(self.positions[character], self.rotations[character], skeleton, joint_indices,
                         frame_time=1.0 / self.fps, fit_positions=fit_positions)
+
+
+def run_scripts(controller, scripts: Union[Script, Sequence[Script]], n_frames: int,
+                film: Union[np.ndarray, Callable[[int], np.ndarray]], phases: Optional[np.ndarray] = None,
+                calibration=None, start_x: Optional[np.ndarray] = None) -> Rollout:
+    """Run B = len(scripts) characters for ``n_frames`` frames with ``controller`` (a
+    :class:`~minifilm.runtime.controller.Controller`): reset to the scripts' starts, then one
+    :meth:`~minifilm.runtime.controller.Controller.step` per frame with each script's command.
+
+    Args:
+        scripts: one :class:`~minifilm.runtime.control.Script` per character (or one for B = 1); each
+            starts where its ``start()`` says.
+        film: (4H,) or (B, 4H) for all frames, (n_frames, 4H) / (n_frames, B, 4H) per frame
+            (style transitions), or a callable frame -> film.
+        calibration: a :class:`~minifilm.runtime.calibration.SpeedCalibration` that maps the user's
+            speed (m/s) to the command that makes this network actually move at that speed (see
+            :func:`~minifilm.runtime.calibration.calibrate_speed`); None = use as given.
+        phases, start_x: the start phases (B, 8) and pose (raw input frames), see
+            :meth:`~minifilm.runtime.controller.Controller.reset`.
+    """
+    if isinstance(scripts, Script):
+        scripts = [scripts]
+    B, fps = len(scripts), controller.fps
+    for s in scripts:
+        s.reset()
+    starts = [s.start() for s in scripts]
+    controller.reset(np.array([p for p, _ in starts]), np.array([f for _, f in starts]), phases, start_x)
+    J = controller.layout.n_joints
+    out = dict(positions=np.empty((B, n_frames, J, 3)), forward=np.empty((B, n_frames, J, 3)),
+               network_positions=np.empty((B, n_frames, J, 3), dtype=np.float32),
+               up=np.empty((B, n_frames, J, 3)),
+               contacts=np.empty((B, n_frames, 2)), phases=np.empty((B, n_frames, 8)),
+               root=np.empty((B, n_frames, 2)), facing=np.empty((B, n_frames, 2)),
+               targets=np.empty((B, n_frames, 2)))
+    per_frame = (not callable(film)) and np.ndim(film) >= 2 and np.shape(film)[0] == n_frames \
+        and not (np.ndim(film) == 2 and B == n_frames)
+    tf, tv = np.empty((B, 2)), np.empty((B, 2))
+    for k in range(n_frames):
+        t = k / fps
+        for b, s in enumerate(scripts):
+            tf[b], tv[b] = s.command(t, controller.state.root[b], controller.state.facing[b])
+        if calibration is not None:
+            tv = calibration.apply(tv, tf)
+        fk = film(k) if callable(film) else (film[k] if per_frame else film)
+        fr = controller.step(tf, tv, fk)
+        for key in ("positions", "forward", "up", "contacts", "phases", "root", "facing", "network_positions"):
+            out[key][:, k] = fr[key]
+        out["targets"][:, k] = tv
+    rotations = axes_to_rotation(out["forward"], out["up"])
+    return Rollout(out["positions"], rotations, out["contacts"], out["phases"], out["root"],
+                   out["facing"], out["targets"], fps, out["network_positions"])

@@ -58,3 +58,22 @@ class CharacterState:
     @property
     def batch(self) -> int:
         return len(self.root)
+
+
+@dataclass
+class Prediction:
+    """The network's output frame z (Sec. 3.2) read into the world, for B characters: what the
+    controller makes its next frame from.
+
+    trajectory_pos, trajectory_dir (B, S, 2)  the predicted future samples; [:, 0] is the next root
+    joint_pos, joint_fwd, joint_up, joint_vel (B, J, 3)  the predicted joints of the next frame
+    contacts (B, 2)                the predicted foot contacts [right, left]
+    """
+
+    trajectory_pos: np.ndarray
+    trajectory_dir: np.ndarray
+    joint_pos: np.ndarray
+    joint_fwd: np.ndarray
+    joint_up: np.ndarray
+    joint_vel: np.ndarray
+    contacts: np.ndarray

@@ -142,3 +142,31 @@ def test_film_starts_near_identity():
     H = cfg.hidden
     np.testing.assert_allclose(film[:H], 1.0)
     np.testing.assert_allclose(film[H:2 * H], 0.0)
+
+
+def test_backward_follows_what_the_last_forward_pass_left(setup):
+    """Backward reads the cache of the last forward pass: the path through Ψ only after
+    forward(x, p, clip) (and not once Ψ has run again on other clips), a shared FiLM vector's
+    gradient summed over the batch, and nothing at all after a forward pass that failed (no
+    stale caches of the pass before)."""
+    model, x, p, clip, _ = setup
+    dz = np.ones((x.shape[0], model.config.z_dim))
+    for backward in (model.backward, model.backward_with_film):
+        with pytest.raises(RuntimeError, match="preceding forward"):
+            backward(dz)                                   # no forward pass yet
+    model.forward(x, p, clip)
+    assert model.backward(dz)["clip"].shape == clip.shape
+    film = model.film_parameters(clip)
+    model.forward_with_film(x, p, film[0])
+    assert model.backward_with_film(dz)[2].shape == film[0].shape
+    with pytest.raises(RuntimeError, match="backward_with_film after forward_with_film"):
+        model.backward(dz)                                 # Ψ did not run in this pass
+    model.forward(x, p, clip)
+    model.film_parameters(clip[:2])                        # Ψ ran again, on other clips
+    with pytest.raises(RuntimeError, match="backward_with_film after forward_with_film"):
+        model.backward(dz)
+    model.forward(x, p, clip)
+    with pytest.raises(ValueError, match="clip must be"):
+        model.forward(x, p, clip[:, :-1])
+    with pytest.raises(RuntimeError, match="preceding forward"):
+        model.backward(dz)
