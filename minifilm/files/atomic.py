@@ -34,6 +34,7 @@ from typing import BinaryIO, Callable, Iterator, Optional, Union
 import numpy as np
 
 from minifilm.errors import OutputPathError
+from minifilm.files.lock import folder_lock
 from minifilm.files.output_targets import folder_target, output_target
 
 PathLike = Union[str, os.PathLike]
@@ -267,7 +268,9 @@ def atomic_directory(path: PathLike, what: str = "output folder",
     renamed aside first. When the block raises, ``tmp`` is deleted and ``folder`` is untouched.
     ``folder`` may not be a file, nor hold an input of the running command, and an existing
     folder is replaced only when it is empty or every name in it is one the writer makes
-    (``replaceable(name)``): ``--out .`` must never delete a user's own files.
+    (``replaceable(name)``): ``--out .`` must never delete a user's own files. The folder is
+    locked meanwhile (:mod:`minifilm.files.lock`): a second writer of it is refused, naming this
+    one. An error writing into ``tmp`` (a full disk) names ``folder``, the folder the user knows.
     """
     path = folder_target(path, what)
     _check_replaceable(path, what, replaceable)
@@ -275,23 +278,38 @@ def atomic_directory(path: PathLike, what: str = "output folder",
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError:
         raise OutputPathError(f"cannot write {what} {path}: its folder cannot be made") from None
-    remove_stale_temporaries(path)
-    tmp = Path(tempfile.mkdtemp(prefix=_temp_prefix(path), suffix=".tmp", dir=path.parent))
-    try:
-        os.chmod(tmp, 0o777 & ~_umask())
-        yield tmp
-        folder_target(path, what)            # checked again: the work may have taken long
-        _check_replaceable(path, what, replaceable)
-        if path.is_dir() and _exchange(tmp, path):
-            shutil.rmtree(tmp, ignore_errors=True)          # now the old folder
-            return
-        old: Optional[Path] = None
-        if path.exists():
-            old = Path(tempfile.mkdtemp(prefix=_temp_prefix(path), suffix=".old", dir=path.parent))
-            os.replace(path, old / "folder")
-        os.replace(tmp, path)
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+    with folder_lock(path, what):
+        remove_stale_temporaries(path)
+        tmp = Path(tempfile.mkdtemp(prefix=_temp_prefix(path), suffix=".tmp", dir=path.parent))
+        try:
+            os.chmod(tmp, 0o777 & ~_umask())
+            try:
+                yield tmp
+            except OSError as e:
+                raise _named_after(e, tmp, path, what) from None
+            folder_target(path, what)            # checked again: the work may have taken long
+            _check_replaceable(path, what, replaceable)
+            if path.is_dir() and _exchange(tmp, path):
+                shutil.rmtree(tmp, ignore_errors=True)          # now the old folder
+                return
+            old: Optional[Path] = None
+            if path.exists():
+                old = Path(tempfile.mkdtemp(prefix=_temp_prefix(path), suffix=".old", dir=path.parent))
+                os.replace(path, old / "folder")
+            os.replace(tmp, path)
+            if old is not None:
+                shutil.rmtree(old, ignore_errors=True)
+        except BaseException:
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise
+
+
+def _named_after(e: OSError, tmp: Path, path: Path, what: str) -> OSError:
+    """The error ``e`` raised while a folder was filled in ``tmp``, naming ``path`` instead of the
+    hidden temporary, which is gone by the time the user reads the message."""
+    if isinstance(e, OutputPathError) and str(tmp) in str(e):
+        return OutputPathError(str(e).replace(str(tmp), str(path)))
+    if not isinstance(e, OutputPathError) and (e.errno in _WRITE_ERRNOS or str(tmp) in str(e.filename or "")):
+        inside = os.path.relpath(e.filename, tmp) if e.filename and str(e.filename).startswith(str(tmp)) else ""
+        return OutputPathError(f"cannot write {what} {path / inside if inside else path}: {e.strerror or e}")
+    return e
