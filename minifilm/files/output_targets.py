@@ -5,7 +5,9 @@ The rule every writer follows (:func:`output_target`):
 * a new path is created (its folder too);
 * an existing **regular file** is replaced whole and keeps its permission bits;
 * a **symbolic link** is followed: the file it leads to is replaced and the link stays a link
-  (what a shell's ``>`` does), under the same rules;
+  (what a shell's ``>`` does), under the same rules; but a link where one of minifilm's state
+  files belongs (a run folder's ``styles.npz``, ``starts.npz``, ``model-<NAME>.npz``, a cache) is
+  refused: a run's own files are never written through a link;
 * a **read-only** file is refused: minifilm never replaces what somebody protected (``chmod u+w``
   it or remove it first). Root ignores permissions, so the file's mode bits are read, not access();
 * a **folder, device, FIFO or socket** is refused: replacing ``/dev/null`` with a regular file (as
@@ -114,6 +116,7 @@ def output_target(path, what: str = "output") -> Path:
     links lead), after the checks of the module docstring; OutputPathError naming ``path`` and
     the reason otherwise."""
     path = Path(path)
+    _check_state_not_linked(path, what)
     try:
         st = os.stat(path)                   # follows links, /proc's magic ones included
     except (FileNotFoundError, NotADirectoryError):   # a new file, or a folder in the way (said later)
@@ -144,6 +147,20 @@ def output_target(path, what: str = "output") -> Path:
         raise OutputPathError(f"cannot write {what} to {path}: it is not a file that can be replaced by name "
                               "(a link into /proc or a moving target)")
     return real
+
+
+def _check_state_not_linked(path: Path, what: str) -> None:
+    """OutputPathError when ``path`` is a symbolic link where one of minifilm's state files belongs
+    (a run folder's ``styles.npz``, a checkpoint, a cache): a run's own files are written where
+    they are, never through a link, which may lead anywhere (a run unpacked from an archive can
+    hold links to files elsewhere, dangling ones included)."""
+    if not os.path.islink(path):
+        return
+    why = state_of(path)
+    if why:
+        raise OutputPathError(f"cannot write {what} to {path}: it is a symbolic link (to {os.readlink(path)}) where "
+                              f"{why} belongs; minifilm never writes a run's own files through a link "
+                              "(it may lead outside the folder): put the file itself there, or remove the link")
 
 
 def folder_target(path, what: str = "output folder") -> Path:
