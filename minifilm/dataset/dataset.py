@@ -19,11 +19,11 @@ from minifilm.dataset.arrays import TrainData
 from minifilm.dataset.cache import CACHE_FORMAT
 from minifilm.dataset.splits import SPLITS
 from minifilm.dataset.stats import NormStats
-from minifilm.dataset.survey import memory_budget
 from minifilm.errors import DataError
 from minifilm.features.compute import trajectory_offsets, trajectory_sample_frames
 from minifilm.features.layout import FeatureLayout
 from minifilm.files import MAX_JSON_BYTES, Member, atomic_savez, parse_json, read_npz, read_npz_member
+from minifilm.files.reading import memory_budget
 
 
 @dataclass

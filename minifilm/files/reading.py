@@ -38,6 +38,15 @@ MAX_JSON_BYTES = 16 << 20
 MAX_NPZ_BYTES = 1 << 30
 
 
+def memory_budget() -> int:
+    """Half of this machine's memory, in bytes (4 GiB when the system does not say): the most a
+    command lets one input ask for (a data set, a long motion)."""
+    try:
+        return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") // 2
+    except (ValueError, OSError, AttributeError):
+        return 4 << 30
+
+
 def check_regular(path, what: str = "file", error: Type[Exception] = InputError) -> os.stat_result:
     """``os.stat(path)`` when ``path`` is a regular file (or a link to one); ``error`` naming what
     it is otherwise. FileNotFoundError when there is nothing there."""
