@@ -14,7 +14,7 @@ This package imports nothing of minifilm but its errors, so every layer may use 
 from minifilm.files.atomic import (atomic_directory, atomic_path, atomic_savez, atomic_write, atomic_write_text,
                                    check_writable, remove_stale_temporaries)
 from minifilm.files.lock import FolderInUseError, folder_lock
-from minifilm.files.names import (MAX_NAME_LENGTH, check_name, child_path, file_name, file_names, same_file_key,
+from minifilm.files.names import (MAX_NAME_LENGTH, check_name, child_path, few, file_name, file_names, same_file_key,
                                   shared_file_names)
 from minifilm.files.reading import (MAX_JSON_BYTES, MAX_NPZ_BYTES, Member, check_regular, open_regular, parse_json,
                                     read_json, read_npz, read_npz_member, read_regular_bytes)
@@ -23,6 +23,6 @@ from minifilm.files.output_targets import check_not_state, command_inputs, folde
 
 __all__ = ["atomic_directory", "atomic_path", "atomic_savez", "atomic_write", "atomic_write_text", "check_writable",
            "remove_stale_temporaries", "FolderInUseError", "folder_lock", "MAX_NAME_LENGTH", "check_name",
-           "child_path", "file_name", "file_names", "same_file_key", "shared_file_names", "MAX_JSON_BYTES", "MAX_NPZ_BYTES", "Member", "check_regular",
+           "child_path", "few", "file_name", "file_names", "same_file_key", "shared_file_names", "MAX_JSON_BYTES", "MAX_NPZ_BYTES", "Member", "check_regular",
            "open_regular", "parse_json", "read_json", "read_npz", "read_npz_member", "read_regular_bytes", "command_inputs",
            "folder_target", "check_not_state", "note_input", "output_target", "owned_writes", "state_of"]

@@ -15,7 +15,8 @@ and every writer here asks it first. A replaced file keeps its permission bits; 
 what a plain ``open(path, "w")`` would give (0666 less the umask), not the 0600 of ``tempfile``.
 
 A writer killed midway (power cut, SIGKILL) cannot clean up after itself; its temporary carries its
-process id, and the next writer of the same target removes temporaries whose process is gone.
+process id, and the next writer into the same folder removes temporaries whose process is gone,
+whatever target they were for.
 An error while writing (a full disk) is an OutputPathError naming the target.
 """
 from __future__ import annotations
@@ -62,25 +63,34 @@ def _process_alive(pid: int) -> bool:
     return True
 
 
+#: a temporary of an atomic writer: ``.<target name>.<process id>.<8 random characters><suffix>``
+_TEMPORARY = re.compile(r"^\.(?P<name>.+)\.(?P<pid>\d+)\.[a-z0-9_]{8}\.(?P<kind>tmp|part|old)$", re.DOTALL)
+
+
 def remove_stale_temporaries(target: PathLike) -> int:
-    """Delete temporary siblings of ``target`` left by writers that were killed (their process no
-    longer exists); returns how many were removed. Temporaries of live writers are left alone. A
-    folder moved aside by a writer killed between its two renames is put back first, when the
-    target is missing."""
+    """Delete the temporaries that writers killed midway (their process no longer exists) left in
+    the folder of ``target``, for any target there (a killed ``train --out runA`` would otherwise
+    leave its temporary folder for good when the user then picks another name); returns how many
+    were removed. Temporaries of live writers are left alone. A
+    folder moved aside by a writer killed between its two renames is put back first, when its
+    place is empty."""
     target = Path(target)
-    pattern = re.compile(r"^\." + re.escape(target.name) + r"\.(\d+)\..*\.(tmp|part|old)$")
     removed = 0
     try:
-        siblings = list(target.parent.iterdir())
+        entries = [e.name for e in os.scandir(target.parent) if e.name.startswith(".")]
     except OSError:
         return 0
-    for p in siblings:
-        m = pattern.match(p.name)
-        if not m or int(m.group(1)) == os.getpid() or _process_alive(int(m.group(1))):
+    for name in entries:
+        m = _TEMPORARY.match(name)
+        if not m:
             continue
-        if m.group(2) == "old" and not os.path.lexists(target) and (p / "folder").is_dir():
+        pid, p = int(m["pid"]), target.parent / name
+        if pid == os.getpid() or _process_alive(pid):
+            continue
+        own = target.parent / m["name"]
+        if m["kind"] == "old" and not os.path.lexists(own) and (p / "folder").is_dir():
             with contextlib.suppress(OSError):
-                os.replace(p / "folder", target)
+                os.replace(p / "folder", own)
         with contextlib.suppress(OSError):
             shutil.rmtree(p) if p.is_dir() and not p.is_symlink() else p.unlink()
             removed += 1
@@ -100,7 +110,7 @@ def check_writable(path: PathLike, what: str = "output") -> Path:
         existing = existing.parent
     if not existing.is_dir():
         raise OutputPathError(f"{what} {path}: {existing} is a file, not a folder")
-    if not os.access(existing, os.W_OK | os.X_OK):
+    if not os.access(existing, os.W_OK | os.X_OK) or not os.stat(existing).st_mode & 0o222:   # root: the mode bits
         raise OutputPathError(f"{what} {path}: folder {existing} is not writable")
     _check_name_lengths(target, existing, what)
     return path

@@ -27,6 +27,7 @@ from typing import Any, BinaryIO, Dict, Mapping, Optional, Tuple, Type, Union
 import numpy as np
 
 from minifilm.errors import InputError
+from minifilm.files.names import few
 from minifilm.files.output_targets import kind_of
 
 #: The most a JSON file minifilm reads (run.json, a retarget map, a checkpoint's configuration)
@@ -248,11 +249,11 @@ def check_members(headers: Mapping[str, Header], members: Mapping[str, Member], 
     prefixes = sorted(((n[:-1], m) for n, m in members.items() if n.endswith("*")), key=lambda p: -len(p[0]))
     unknown = [n for n in headers if n not in exact and not any(n.startswith(p) for p, _ in prefixes)]
     if unknown:
-        raise error(f"{where}: holds {_few(unknown)}, which such a file does not have (a damaged, forged or padded "
-                    f"archive); it holds {_few(sorted(exact))}")
+        raise error(f"{where}: holds {few(unknown)}, which such a file does not have (a damaged, forged or padded "
+                    f"archive; such a file holds {few(sorted(exact))})")
     missing = [n for n, m in exact.items() if not m.optional and n not in headers]
     if missing:
-        raise error(f"{where}: missing arrays {_few(missing)} (not such a file, or a damaged one)")
+        raise error(f"{where}: missing arrays {few(missing)} (not such a file, or a damaged one)")
     sizes: Dict[str, int] = {}
     for name, (shape, dtype) in headers.items():
         m = exact.get(name) or next(m for p, m in prefixes if name.startswith(p))
@@ -274,12 +275,6 @@ def check_members(headers: Mapping[str, Header], members: Mapping[str, Member], 
 
 
 _KINDS = {"f": "floats", "U": "text", "iu": "whole numbers", "b": "booleans"}
-
-
-def _few(names, limit: int = 5) -> str:
-    """The first ``limit`` names and how many more: an error stays a line, whatever a file holds."""
-    names = list(names)
-    return ", ".join(repr(n) for n in names[:limit]) + (f" and {len(names) - limit:,} more" if len(names) > limit else "")
 
 
 def _check_unique_members(archive: zipfile.ZipFile, where: str, error) -> None:

@@ -35,7 +35,7 @@ import numpy as np
 from minifilm.dataset.stats import NormStats
 from minifilm.errors import InputError, check_fps
 from minifilm.features.layout import FeatureLayout
-from minifilm.files import (MAX_JSON_BYTES, Member, atomic_savez, atomic_write_text, check_name, check_regular,
+from minifilm.files import (MAX_JSON_BYTES, Member, atomic_savez, atomic_write_text, check_name, check_regular, few,
                             note_input, parse_json, read_json, read_npz, read_npz_member)
 from minifilm.pipeline.run_identity import (CHECKPOINT, RUN_ID, checkpoint_fingerprint, describe_foreign,
                                             foreign_files, new_run_id)
@@ -187,8 +187,8 @@ class RunFolder:
         starts = self._member_names("starts.npz")
         if starts and not set(starts) & set(library.names):
             raise RunFolderError(f"run folder {self.path}: styles.npz is another run's style library: none of its "
-                                 f"{len(library)} styles ({_few(library.names)}) has a start frame in starts.npz "
-                                 f"({_few(starts)}), which minifilm train and finetune write for each style; put "
+                                 f"{len(library)} styles ({few(library.names)}) has a start frame in starts.npz "
+                                 f"({few(starts)}), which minifilm train and finetune write for each style; put "
                                  "back this run's own styles.npz")
         return library
 
@@ -314,8 +314,3 @@ class RunFolder:
         if not names or any(n not in starts for n in names):
             return None, None
         return np.stack([starts[n][0] for n in names]), np.stack([starts[n][1] for n in names])
-
-
-def _few(names, limit: int = 5) -> str:
-    names = list(names)
-    return ", ".join(map(repr, names[:limit])) + (f" and {len(names) - limit} more" if len(names) > limit else "")
