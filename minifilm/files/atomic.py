@@ -71,9 +71,8 @@ def remove_stale_temporaries(target: PathLike) -> int:
     """Delete the temporaries that writers killed midway (their process no longer exists) left in
     the folder of ``target``, for any target there (a killed ``train --out runA`` would otherwise
     leave its temporary folder for good when the user then picks another name); returns how many
-    were removed. Temporaries of live writers are left alone. A
-    folder moved aside by a writer killed between its two renames is put back first, when its
-    place is empty."""
+    were removed. Temporaries of live writers are left alone. A folder moved aside by a writer
+    killed between its two renames is put back first, when its place is empty."""
     target = Path(target)
     removed = 0
     try:
@@ -319,7 +318,7 @@ def _named_after(e: OSError, tmp: Path, path: Path, what: str) -> OSError:
     hidden temporary, which is gone by the time the user reads the message."""
     if isinstance(e, OutputPathError) and str(tmp) in str(e):
         return OutputPathError(str(e).replace(str(tmp), str(path)))
-    if not isinstance(e, OutputPathError) and (e.errno in _WRITE_ERRNOS or str(tmp) in str(e.filename or "")):
+    if not isinstance(e, OutputPathError) and e.errno in _WRITE_ERRNOS:
         inside = os.path.relpath(e.filename, tmp) if e.filename and str(e.filename).startswith(str(tmp)) else ""
         return OutputPathError(f"cannot write {what} {path / inside if inside else path}: {e.strerror or e}")
     return e
