@@ -21,6 +21,7 @@ import numpy as np
 
 from minifilm.body.parts import Humanoid
 from minifilm.errors import InputError
+from minifilm.files import few
 
 __all__ = ["RigError", "Limb", "Roles", "BUILTIN_ROLES", "roles_from_mapping", "roles_from_humanoid", "sensor_positions",
            "SIDES"]
@@ -113,11 +114,11 @@ class Roles:
         names = self.names()
         missing = [n for n in names if n not in motion.names]
         if missing:
-            raise RigError(f"{where}: the joint map names joints the file does not have: {missing} "
-                           f"(its joints are {list(motion.names)})")
+            raise RigError(f"{where}: the joint map names joints the file does not have: [{few(missing)}] "
+                           f"(its joints are {few(motion.names, 10)})")
         dup = sorted(n for n, count in Counter(names).items() if count > 1)
         if dup:
-            raise RigError(f"{where}: the joint map gives {dup} more than one role")
+            raise RigError(f"{where}: the joint map gives {few(dup)} more than one role")
         index = {n: i for i, n in enumerate(motion.names)}
 
         def below(child: str, ancestor: str) -> bool:
@@ -194,20 +195,20 @@ def roles_from_mapping(mapping, motion, where: str = "joint map") -> Roles:
                        f"got {type(mapping).__name__}")
     unknown = sorted(set(mapping) - {"hips", "spine", "neck", "head_end", "left", "right"})
     if unknown:
-        raise RigError(f"{where}: unknown keys {unknown}; expected hips, spine, neck, head_end, left, right")
+        raise RigError(f"{where}: unknown keys {few(unknown)}; expected hips, spine, neck, head_end, left, right")
     missing = [k for k in ("hips", "spine", "neck", "left", "right") if k not in mapping]
     if missing:
         raise RigError(f"{where}: missing {missing} (a map names hips, spine, neck, left and right)")
 
     def name(value, key):
         if not isinstance(value, str) or not value:
-            raise RigError(f"{where}: {key} must be a joint name, got {value!r}")
+            raise RigError(f"{where}: {key} must be a joint name, got {few([value], 1)}")
         return value
 
     def names(value, key):
         value = [value] if isinstance(value, str) else value
         if not isinstance(value, list) or not value:
-            raise RigError(f"{where}: {key} must be a list of joint names from the body outwards, got {value!r}")
+            raise RigError(f"{where}: {key} must be a list of joint names from the body outwards, got {few([value], 1)}")
         return tuple(name(v, key) for v in value)
 
     limbs = {}
@@ -217,7 +218,7 @@ def roles_from_mapping(mapping, motion, where: str = "joint map") -> Roles:
             raise RigError(f"{where}: {side} must be an object with {', '.join(_REQUIRED_LIMB)}")
         bad = sorted(set(m) - set(_LIMB_KEYS))
         if bad:
-            raise RigError(f"{where}: {side}: unknown keys {bad}; expected {', '.join(_LIMB_KEYS)}")
+            raise RigError(f"{where}: {side}: unknown keys {few(bad)}; expected {', '.join(_LIMB_KEYS)}")
         lack = [k for k in _REQUIRED_LIMB if k not in m]
         if lack:
             raise RigError(f"{where}: {side}: missing {lack}")

@@ -20,6 +20,7 @@ and keeps its traceback.
 from __future__ import annotations
 
 import argparse
+import codecs
 import importlib
 import os
 import signal
@@ -79,10 +80,25 @@ def describe_error(e: BaseException) -> str:
     note added on the way up (e.g. which file a dataset was being built from)."""
     if isinstance(e, OSError) and e.filename is not None and e.strerror:
         text = f"{e.filename}: {e.strerror}"
+    elif isinstance(e, UnicodeEncodeError) and _is_terminal_encoding(e.encoding):
+        text = (f"this terminal's character encoding ({e.encoding}) cannot show {e.object[e.start:e.end]!r}, part of "
+                "what minifilm had to print (a name, a path); use a UTF-8 terminal (LANG=C.UTF-8, or "
+                "PYTHONIOENCODING=utf-8)")
     else:
         text = str(e) or type(e).__name__
     notes = " ".join(getattr(e, "__notes__", []))
     return " ".join(f"{text} {notes}".split())
+
+
+def _is_terminal_encoding(encoding: str) -> bool:
+    """Whether ``encoding`` is the one standard output or standard error writes in."""
+    def name(enc):
+        try:
+            return codecs.lookup(enc).name
+        except (LookupError, TypeError):
+            return None
+    return name(encoding) is not None and name(encoding) in (name(getattr(s, "encoding", None))
+                                                             for s in (sys.stdout, sys.stderr))
 
 
 def report_errors(main: Callable[[], Optional[int]]) -> None:

@@ -102,7 +102,7 @@ def output_folder(text: str) -> Path:
         existing = existing.parent
     if not existing.is_dir():
         raise argparse.ArgumentTypeError(f"{text}: {existing} is a file, not a folder")
-    if not os.access(existing, os.W_OK | os.X_OK):
+    if not os.access(existing, os.W_OK | os.X_OK) or not os.stat(existing).st_mode & 0o222:   # root: the mode bits
         raise argparse.ArgumentTypeError(f"{text}: folder {existing} is not writable")
     try:                  # a run's data/, cache/ or generated/ is no folder to write into
         check_not_state(p)

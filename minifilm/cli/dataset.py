@@ -6,7 +6,7 @@
                                           # make a 100STYLE-named data set with the released network
 
 A Bandai Namco folder (``dataset-N_{content}_{style}_{id}.bvh``) is read by its file names. The arrays are cached as .npz under --cache (default ``.cache/datasets``), keyed by the
-files' paths, sizes and modification times, the settings and the code, so a second run is fast.
+files' paths and contents, the settings and the code, so a second run is fast.
 The files are labelled in --workers processes at once (default: every core this process may use);
 the data set is the same for any number of them (each file is labelled by the same code wherever
 it runs, and collected in the files' order).
@@ -100,9 +100,9 @@ def run(args) -> int:
                        clip_stride_seconds=args.clip_seconds / 2, seed=args.seed, fps=args.fps,
                        split_unit="files" if args.split_files else "segments", workers=args.workers)
     took = time.perf_counter() - t0
-    how = f"loaded from cache {ds.cache_path}" if ds.build_seconds == 0 or took < 0.5 * ds.build_seconds \
+    how = f"loaded from cache {ds.cache_path}" if ds.loaded \
         else "built" + ("" if ds.cache_path is None else f", cached in {ds.cache_path}")
-    print(f"\n{how} in {took:.1f} s (first build took {ds.build_seconds:.1f} s)\n")
+    print(f"\n{how} in {took:.1f} s" + (f" (first build took {ds.build_seconds:.1f} s)" if ds.loaded else "") + "\n")
     print("rows (frames, mirrored copies included) and clips per style and split:")
     print(ds.summary())
     return 0

@@ -33,7 +33,7 @@ def memory_limit(gib: Optional[float]) -> int:
     """The limit in bytes: ``gib`` GiB, or half of this machine's memory when None."""
     if gib is not None:
         return int(gib * 2**30)
-    from minifilm.dataset.survey import memory_budget     # numpy: loaded only by the commands that check
+    from minifilm.files.reading import memory_budget     # numpy: loaded only by the commands that check
     return memory_budget()
 
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import functools
 import os
+import sys
 import time
 from concurrent.futures import Executor
 from pathlib import Path
@@ -118,8 +119,11 @@ def build_dataset(source: Union[str, Path, Sequence[MotionFile]],
     if cache_dir is not None:
         name, key = dataset_cache_key(files, settings, skeleton)
         cache_path = Path(cache_dir) / f"dataset-{name}.npz"
-        if cache_path.is_file() and cached_key(cache_path) == key:
-            return Dataset.load(cache_path)
+        if cache_path.is_file() and cached_key(cache_path) == key:       # the key, before any array is read
+            try:
+                return Dataset.load(cache_path)
+            except DataError as e:           # damaged or padded under a matching key: built and written anew
+                warn(f"the data set cache {cache_path} cannot be used ({str(e)[:300]}); building the data set again")
     t0 = time.perf_counter()
     surveyed = survey(files, settings.fps)                # headers only: rates, lengths, joints
     skeleton = skeleton or _pick_skeleton(settings, surveyed)
@@ -135,10 +139,19 @@ def build_dataset(source: Union[str, Path, Sequence[MotionFile]],
     ds.build_seconds = time.perf_counter() - t0
     ds.cache_key = key
     if cache_path is not None:     # overwrites a stale cache of the same dataset
-        with owned_writes(cache_path):       # the builder owns its caches (minifilm/files/state.py)
-            ds.save(cache_path)
-        ds.cache_path = cache_path
+        try:
+            with owned_writes(cache_path):       # the builder owns its caches (minifilm/files/state.py)
+                ds.save(cache_path)
+            ds.cache_path = cache_path
+        except OSError as e:            # a full disk or a read-only folder costs the cache, not the data set
+            warn(f"the data set is built, but its cache could not be written ({str(e)[:300]}); the next run "
+                 "builds it again")
     return ds
+
+
+def warn(text: str) -> None:
+    """One line on stderr that says what went wrong and what happens instead; the work goes on."""
+    print(f"warning: {text}", file=sys.stderr)
 
 
 def _build(files: List[MotionFile], settings: DatasetSettings, skeleton, progress: bool, dtype,

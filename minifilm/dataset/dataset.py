@@ -22,7 +22,8 @@ from minifilm.dataset.stats import NormStats
 from minifilm.errors import DataError
 from minifilm.features.compute import trajectory_offsets, trajectory_sample_frames
 from minifilm.features.layout import FeatureLayout
-from minifilm.files import atomic_savez, parse_json, read_npz
+from minifilm.files import MAX_JSON_BYTES, Member, atomic_savez, parse_json, read_npz, read_npz_member
+from minifilm.files.reading import memory_budget
 
 
 @dataclass
@@ -78,6 +79,7 @@ class Dataset:
     cache_path: Optional[Path] = None
     build_seconds: float = 0.0
     cache_key: str = ""
+    loaded: bool = False        # read from a cache (True) or built now
 
     def split(self, name: str) -> Split:
         if name not in SPLITS:
@@ -170,21 +172,47 @@ class Dataset:
 
     @classmethod
     def load(cls, path: Union[str, Path]) -> "Dataset":
-        d = read_npz(path, "dataset cache", DataError, max_bytes=None)
-        try:
-            meta = parse_json(str(d["meta"]), f"dataset cache {path}: 'meta'", DataError)
-            splits = {name: Split(*(d[f"{name}/{key}"] for key in _SPLIT_ARRAYS)) for name in SPLITS}
-            norm = NormStats.from_arrays(d, prefix="norm/")
-        except (KeyError, ValueError, TypeError) as e:
-            raise DataError(f"dataset cache {path}: not a dataset cache ({type(e).__name__}: {e})") from None
+        """Read a cache written by :meth:`save`. Its small 'meta' entry is read first; every array's
+        header is then checked against the layout it describes (rows of x, p and z alike in each
+        split, clips of one length) and their sum against half of this machine's memory, before
+        any data is read: a padded or forged cache is a DataError, never a huge allocation."""
+        meta = read_npz_member(path, "meta", "dataset cache", DataError, Member("U", ()), 4 * MAX_JSON_BYTES)
+        if meta is None:
+            raise DataError(f"dataset cache {path}: not a dataset cache (no 'meta' entry)")
+        meta = parse_json(str(meta), f"dataset cache {path}: 'meta'", DataError)
         if not isinstance(meta, dict) or meta.get("format") != CACHE_FORMAT:
             raise DataError(f"dataset cache {path}: format {meta.get('format') if isinstance(meta, dict) else meta!r} "
                             f"is not {CACHE_FORMAT}")
-        here = os.path.dirname(os.path.abspath(path))
-        for f in meta["files"]:
-            f["segments"] = [tuple(s) for s in f["segments"]]
-            f["path"] = os.path.normpath(os.path.join(here, f["path"]))
-        return cls(FeatureLayout.from_dict(meta["layout"]), list(meta["styles"]), float(meta["fps"]),
-                   meta["skeleton"], splits["train"], splits["val"], splits["test"], norm,
-                   meta["files"], meta["settings"], Path(path), float(meta.get("build_seconds", 0.0)),
-                   meta.get("cache_key", ""))
+        try:
+            layout = FeatureLayout.from_dict(meta["layout"])
+        except (KeyError, ValueError, TypeError, AttributeError) as e:
+            raise DataError(f"dataset cache {path}: not a dataset cache ({type(e).__name__}: {e})") from None
+        d = read_npz(path, "dataset cache", DataError, memory_budget(), cache_members(layout))
+        try:
+            splits = {name: Split(*(d[f"{name}/{key}"] for key in _SPLIT_ARRAYS)) for name in SPLITS}
+            norm = NormStats.from_arrays(d, prefix="norm/")
+            here = os.path.dirname(os.path.abspath(path))
+            for f in meta["files"]:
+                f["segments"] = [tuple(s) for s in f["segments"]]
+                f["path"] = os.path.normpath(os.path.join(here, f["path"]))
+            return cls(layout, list(meta["styles"]), float(meta["fps"]), meta["skeleton"], splits["train"],
+                       splits["val"], splits["test"], norm, meta["files"], meta["settings"], Path(path),
+                       float(meta.get("build_seconds", 0.0)), meta.get("cache_key", ""), loaded=True)
+        except (KeyError, ValueError, TypeError, AttributeError) as e:
+            raise DataError(f"dataset cache {path}: not a dataset cache ({type(e).__name__}: {e})") from None
+
+
+def cache_members(layout: FeatureLayout) -> Dict[str, Member]:
+    """What a dataset cache of ``layout`` holds: per split, N rows of x, p, z, style, file and frame
+    and M clips of T frames with their style and file; the statistics; 'meta'."""
+    members = {"meta": Member("U", ())}
+    for name in SPLITS:
+        rows, clips = f"{name} rows", f"{name} clips"
+        members.update({f"{name}/x": Member("f", (rows, layout.x_dim)), f"{name}/p": Member("f", (rows, layout.phase_dim)),
+                        f"{name}/z": Member("f", (rows, layout.z_dim)),
+                        f"{name}/clips": Member("f", (clips, "T", layout.clip_dim))})
+        members.update({f"{name}/{key}": Member("iu", (rows,)) for key in ("style", "file", "frame")})
+        members.update({f"{name}/{key}": Member("iu", (clips,)) for key in ("clip_style", "clip_file")})
+    for part, size in (("x", layout.x_dim), ("z", layout.z_dim), ("p", layout.phase_dim)):
+        members.update({f"norm/{part}_{k}": Member("f", (size,)) for k in ("mean", "std")})
+    return members

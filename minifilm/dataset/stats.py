@@ -17,7 +17,7 @@ from typing import Dict, Tuple, Union
 import numpy as np
 
 from minifilm.errors import InputError
-from minifilm.files import atomic_savez, read_npz
+from minifilm.files import Member, atomic_savez, read_npz
 
 FIELDS = ("x_mean", "x_std", "z_mean", "z_std", "p_mean", "p_std")
 
@@ -111,7 +111,8 @@ class NormStats:
 
     @classmethod
     def load(cls, path: Union[str, Path]) -> "NormStats":
-        arrays = read_npz(path, "statistics", InputError)
+        members = {k: Member("f", (k[0],)) for k in FIELDS}     # x_mean and x_std of one size, ...
+        arrays = read_npz(path, "statistics", InputError, members=members)
         try:
             return cls.from_arrays(arrays, prefix="")
         except (KeyError, ValueError) as e:

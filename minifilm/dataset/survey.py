@@ -12,7 +12,6 @@ error naming the files at fault, what would otherwise fail late or blame the wro
 """
 from __future__ import annotations
 
-import os
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,6 +20,7 @@ from typing import Dict, List, Optional, Sequence, Tuple
 
 from minifilm.dataset.manifest import MotionFile
 from minifilm.errors import DataError
+from minifilm.files.reading import memory_budget
 from minifilm.motion.bvh import bvh_header_names
 
 #: Frames a file needs for one training row (a current frame with a frame before and after it).
@@ -100,14 +100,6 @@ def check_one_rig(surveyed: Dict[Path, FileSurvey], skeleton) -> None:
            if fitting is not None else f"give files of the {skeleton.name!r} skeleton")
     raise DataError(f"{len(odd)} of {len(surveyed)} files are not of the {skeleton.name!r} skeleton the data set "
                     f"is read with: {listed}{more}. A data set is one rig: {how}, or leave them out")
-
-
-def memory_budget() -> int:
-    """Half of this machine's memory, in bytes (4 GiB when the system does not say)."""
-    try:
-        return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") // 2
-    except (ValueError, OSError, AttributeError):
-        return 4 << 30
 
 
 def check_memory(surveyed: Dict[Path, FileSurvey], mirrored: List[bool], layout, clip_frames: int,

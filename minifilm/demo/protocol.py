@@ -35,6 +35,7 @@ import math
 from dataclasses import dataclass
 from typing import Collection, Dict, Optional, Sequence, Tuple, Union
 
+from minifilm.files.names import few
 from minifilm.files.reading import bounded_int, finite_float
 
 PROTOCOL_VERSION = 1
@@ -140,9 +141,9 @@ def parse_message(data: Union[str, bytes], styles: Collection[str]) -> Message:
     missing = required - set(obj)
     extra = set(obj) - required - optional - {"type", "seq"}
     if missing:
-        raise ProtocolError(f"{kind}: missing field(s) {sorted(missing)}", seq)
+        raise ProtocolError(f"{kind}: missing field(s) {few(sorted(missing))}", seq)
     if extra:
-        raise ProtocolError(f"{kind}: unknown field(s) {sorted(k[:40] for k in extra)}", seq)
+        raise ProtocolError(f"{kind}: unknown field(s) {few(sorted(extra))}", seq)
     try:
         if kind == "input":
             move = obj["move"]

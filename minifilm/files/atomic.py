@@ -15,7 +15,8 @@ and every writer here asks it first. A replaced file keeps its permission bits; 
 what a plain ``open(path, "w")`` would give (0666 less the umask), not the 0600 of ``tempfile``.
 
 A writer killed midway (power cut, SIGKILL) cannot clean up after itself; its temporary carries its
-process id, and the next writer of the same target removes temporaries whose process is gone.
+process id, and the next writer into the same folder removes temporaries whose process is gone,
+whatever target they were for.
 An error while writing (a full disk) is an OutputPathError naming the target.
 """
 from __future__ import annotations
@@ -34,6 +35,7 @@ from typing import BinaryIO, Callable, Iterator, Optional, Union
 import numpy as np
 
 from minifilm.errors import OutputPathError
+from minifilm.files.lock import folder_lock
 from minifilm.files.output_targets import folder_target, output_target
 
 PathLike = Union[str, os.PathLike]
@@ -61,25 +63,33 @@ def _process_alive(pid: int) -> bool:
     return True
 
 
+#: a temporary of an atomic writer: ``.<target name>.<process id>.<8 random characters><suffix>``
+_TEMPORARY = re.compile(r"^\.(?P<name>.+)\.(?P<pid>\d+)\.[a-z0-9_]{8}\.(?P<kind>tmp|part|old)$", re.DOTALL)
+
+
 def remove_stale_temporaries(target: PathLike) -> int:
-    """Delete temporary siblings of ``target`` left by writers that were killed (their process no
-    longer exists); returns how many were removed. Temporaries of live writers are left alone. A
-    folder moved aside by a writer killed between its two renames is put back first, when the
-    target is missing."""
+    """Delete the temporaries that writers killed midway (their process no longer exists) left in
+    the folder of ``target``, for any target there (a killed ``train --out runA`` would otherwise
+    leave its temporary folder for good when the user then picks another name); returns how many
+    were removed. Temporaries of live writers are left alone. A folder moved aside by a writer
+    killed between its two renames is put back first, when its place is empty."""
     target = Path(target)
-    pattern = re.compile(r"^\." + re.escape(target.name) + r"\.(\d+)\..*\.(tmp|part|old)$")
     removed = 0
     try:
-        siblings = list(target.parent.iterdir())
+        entries = [e.name for e in os.scandir(target.parent) if e.name.startswith(".")]
     except OSError:
         return 0
-    for p in siblings:
-        m = pattern.match(p.name)
-        if not m or int(m.group(1)) == os.getpid() or _process_alive(int(m.group(1))):
+    for name in entries:
+        m = _TEMPORARY.match(name)
+        if not m:
             continue
-        if m.group(2) == "old" and not os.path.lexists(target) and (p / "folder").is_dir():
+        pid, p = int(m["pid"]), target.parent / name
+        if pid == os.getpid() or _process_alive(pid):
+            continue
+        own = target.parent / m["name"]
+        if m["kind"] == "old" and not os.path.lexists(own) and (p / "folder").is_dir():
             with contextlib.suppress(OSError):
-                os.replace(p / "folder", target)
+                os.replace(p / "folder", own)
         with contextlib.suppress(OSError):
             shutil.rmtree(p) if p.is_dir() and not p.is_symlink() else p.unlink()
             removed += 1
@@ -99,7 +109,7 @@ def check_writable(path: PathLike, what: str = "output") -> Path:
         existing = existing.parent
     if not existing.is_dir():
         raise OutputPathError(f"{what} {path}: {existing} is a file, not a folder")
-    if not os.access(existing, os.W_OK | os.X_OK):
+    if not os.access(existing, os.W_OK | os.X_OK) or not os.stat(existing).st_mode & 0o222:   # root: the mode bits
         raise OutputPathError(f"{what} {path}: folder {existing} is not writable")
     _check_name_lengths(target, existing, what)
     return path
@@ -267,7 +277,9 @@ def atomic_directory(path: PathLike, what: str = "output folder",
     renamed aside first. When the block raises, ``tmp`` is deleted and ``folder`` is untouched.
     ``folder`` may not be a file, nor hold an input of the running command, and an existing
     folder is replaced only when it is empty or every name in it is one the writer makes
-    (``replaceable(name)``): ``--out .`` must never delete a user's own files.
+    (``replaceable(name)``): ``--out .`` must never delete a user's own files. The folder is
+    locked meanwhile (:mod:`minifilm.files.lock`): a second writer of it is refused, naming this
+    one. An error writing into ``tmp`` (a full disk) names ``folder``, the folder the user knows.
     """
     path = folder_target(path, what)
     _check_replaceable(path, what, replaceable)
@@ -275,23 +287,38 @@ def atomic_directory(path: PathLike, what: str = "output folder",
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError:
         raise OutputPathError(f"cannot write {what} {path}: its folder cannot be made") from None
-    remove_stale_temporaries(path)
-    tmp = Path(tempfile.mkdtemp(prefix=_temp_prefix(path), suffix=".tmp", dir=path.parent))
-    try:
-        os.chmod(tmp, 0o777 & ~_umask())
-        yield tmp
-        folder_target(path, what)            # checked again: the work may have taken long
-        _check_replaceable(path, what, replaceable)
-        if path.is_dir() and _exchange(tmp, path):
-            shutil.rmtree(tmp, ignore_errors=True)          # now the old folder
-            return
-        old: Optional[Path] = None
-        if path.exists():
-            old = Path(tempfile.mkdtemp(prefix=_temp_prefix(path), suffix=".old", dir=path.parent))
-            os.replace(path, old / "folder")
-        os.replace(tmp, path)
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+    with folder_lock(path, what):
+        remove_stale_temporaries(path)
+        tmp = Path(tempfile.mkdtemp(prefix=_temp_prefix(path), suffix=".tmp", dir=path.parent))
+        try:
+            os.chmod(tmp, 0o777 & ~_umask())
+            try:
+                yield tmp
+            except OSError as e:
+                raise _named_after(e, tmp, path, what) from None
+            folder_target(path, what)            # checked again: the work may have taken long
+            _check_replaceable(path, what, replaceable)
+            if path.is_dir() and _exchange(tmp, path):
+                shutil.rmtree(tmp, ignore_errors=True)          # now the old folder
+                return
+            old: Optional[Path] = None
+            if path.exists():
+                old = Path(tempfile.mkdtemp(prefix=_temp_prefix(path), suffix=".old", dir=path.parent))
+                os.replace(path, old / "folder")
+            os.replace(tmp, path)
+            if old is not None:
+                shutil.rmtree(old, ignore_errors=True)
+        except BaseException:
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise
+
+
+def _named_after(e: OSError, tmp: Path, path: Path, what: str) -> OSError:
+    """The error ``e`` raised while a folder was filled in ``tmp``, naming ``path`` instead of the
+    hidden temporary, which is gone by the time the user reads the message."""
+    if isinstance(e, OutputPathError) and str(tmp) in str(e):
+        return OutputPathError(str(e).replace(str(tmp), str(path)))
+    if not isinstance(e, OutputPathError) and e.errno in _WRITE_ERRNOS:
+        inside = os.path.relpath(e.filename, tmp) if e.filename and str(e.filename).startswith(str(tmp)) else ""
+        return OutputPathError(f"cannot write {what} {path / inside if inside else path}: {e.strerror or e}")
+    return e

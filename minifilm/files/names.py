@@ -130,3 +130,12 @@ def child_path(folder, name: str, suffix: str = "") -> Path:
     if path.parent != folder or path.name in ("", ".", ".."):      # cannot happen; kept as the guarantee
         raise InputError(f"{name!r}: would not name a file inside {folder}")
     return path
+
+
+def few(names: Iterable, limit: int = 5) -> str:
+    """The first ``limit`` of ``names`` (each escaped and cut to 60 characters) and how many more:
+    an error message stays one short line whatever a file holds (300,000 unknown keys)."""
+    names = list(names)
+    shown = [r if len(r) <= 60 else r[:56] + "...'" for r in map(repr, names[:limit])]
+    return ", ".join(shown) + (f" and {len(names) - limit:,} more" if len(names) > limit else "")
+

@@ -5,9 +5,13 @@ The rule every writer follows (:func:`output_target`):
 * a new path is created (its folder too);
 * an existing **regular file** is replaced whole and keeps its permission bits;
 * a **symbolic link** is followed: the file it leads to is replaced and the link stays a link
-  (what a shell's ``>`` does), under the same rules;
+  (what a shell's ``>`` does), under the same rules; but a link where one of minifilm's state
+  files belongs (a run folder's ``styles.npz``, ``starts.npz``, ``model-<NAME>.npz``, a cache) is
+  refused: a run's own files are never written through a link;
 * a **read-only** file is refused: minifilm never replaces what somebody protected (``chmod u+w``
-  it or remove it first). Root ignores permissions, so the file's mode bits are read, not access();
+  it or remove it first). Root ignores permissions, so the file's mode bits are read, not access().
+  The same rule holds for folders: nothing is written into a read-only folder, and a read-only
+  folder is not replaced;
 * a **folder, device, FIFO or socket** is refused: replacing ``/dev/null`` with a regular file (as
   a rename over it would, for root) or hanging on a FIFO is never what an output meant;
 * a file that the **running command reads** is refused (``generate --skeleton-bvh a.bvh --out a.bvh``), and so is a
@@ -114,12 +118,14 @@ def output_target(path, what: str = "output") -> Path:
     links lead), after the checks of the module docstring; OutputPathError naming ``path`` and
     the reason otherwise."""
     path = Path(path)
+    _check_state_not_linked(path, what)
     try:
         st = os.stat(path)                   # follows links, /proc's magic ones included
     except (FileNotFoundError, NotADirectoryError):   # a new file, or a folder in the way (said later)
         st = None
     except OSError as e:
         raise OutputPathError(f"cannot write {what} to {path}: {e.strerror or e}") from None
+    _check_folder_not_protected(Path(os.path.realpath(path)).parent, f"cannot write {what} to {path}")
     if st is None:
         # a new file (a dangling link is followed to where it points, as a shell would)
         _check_not_state(path, what)
@@ -146,10 +152,38 @@ def output_target(path, what: str = "output") -> Path:
     return real
 
 
+def _check_folder_not_protected(folder: Path, lead: str) -> None:
+    """OutputPathError when the existing ``folder`` is read-only, by its mode bits as a file is
+    (root could write into it, but somebody protected it)."""
+    try:
+        st = os.stat(folder)
+    except OSError:
+        return                                   # not there yet: made, in a folder checked in its turn
+    if stat.S_ISDIR(st.st_mode) and (not st.st_mode & 0o222 or not os.access(folder, os.W_OK | os.X_OK)):
+        raise OutputPathError(f"{lead}: the folder {folder} is read-only (minifilm does not write into a protected "
+                              "folder; make it writable or choose another)")
+
+
+def _check_state_not_linked(path: Path, what: str) -> None:
+    """OutputPathError when ``path`` is a symbolic link where one of minifilm's state files belongs
+    (a run folder's ``styles.npz``, a checkpoint, a cache): a run's own files are written where
+    they are, never through a link, which may lead anywhere (a run unpacked from an archive can
+    hold links to files elsewhere, dangling ones included)."""
+    if not os.path.islink(path):
+        return
+    why = state_of(path)
+    if why:
+        raise OutputPathError(f"cannot write {what} to {path}: it is a symbolic link (to {os.readlink(path)}) where "
+                              f"{why} belongs; minifilm never writes a run's own files through a link "
+                              "(it may lead outside the folder): put the file itself there, or remove the link")
+
+
 def folder_target(path, what: str = "output folder") -> Path:
     """The folder a whole-folder writer creates or replaces: ``path``, or where its link leads.
-    OutputPathError when it exists and is not a folder, or holds an input of the running command."""
+    OutputPathError when it exists and is not a folder, is read-only or holds an input of the running
+    command, or when the folder it is made in is read-only."""
     path = Path(path)
+    _check_folder_not_protected(Path(os.path.realpath(path)).parent, f"cannot write {what} {path}")
     try:
         st = os.stat(path)
     except (FileNotFoundError, NotADirectoryError):
@@ -159,6 +193,7 @@ def folder_target(path, what: str = "output folder") -> Path:
         raise OutputPathError(f"cannot write {what} {path}: {e.strerror or e}") from None
     if not stat.S_ISDIR(st.st_mode):
         raise OutputPathError(f"cannot write {what} {path}: it is {kind_of(st.st_mode)}, expected a folder")
+    _check_folder_not_protected(path, f"cannot write {what} {path}")
     named = input_inside(path)
     if named is not None:
         raise OutputPathError(f"cannot write {what} {path}: it holds an input of this command ({named}), "

@@ -9,8 +9,9 @@
 * :func:`parse_json` / :func:`read_json` turn every way a JSON text can be bad (syntax, nesting
   deep enough to exhaust Python's recursion, a file over its limit) into one error naming the file;
 * :func:`read_npz` is the one reader of the ``.npz`` archives minifilm writes: it checks every
-  member's declared size against the file and a memory budget *before* allocating, never
-  unpickles, refuses two members of one name, and turns every way an archive can be broken into one error naming the file.
+  member's declared shape and dtype against what the file must hold (a :class:`Member` each) and
+  its size against the file and a memory budget *before* allocating, never unpickles, refuses two
+  members of one name, and turns every way an archive can be broken into one error naming the file.
 """
 from __future__ import annotations
 
@@ -19,12 +20,14 @@ import os
 import stat
 import zipfile
 import zlib
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, BinaryIO, Dict, Optional, Type
+from typing import Any, BinaryIO, Dict, Mapping, Optional, Tuple, Type, Union
 
 import numpy as np
 
 from minifilm.errors import InputError
+from minifilm.files.names import few
 from minifilm.files.output_targets import kind_of
 
 #: The most a JSON file minifilm reads (run.json, a retarget map, a checkpoint's configuration)
@@ -34,6 +37,15 @@ MAX_JSON_BYTES = 16 << 20
 #: The most a single .npz archive may ask for when read: far above any minifilm file (the paper's
 #: model and its Adam state are ~70 MB), far below a machine's memory.
 MAX_NPZ_BYTES = 1 << 30
+
+
+def memory_budget() -> int:
+    """Half of this machine's memory, in bytes (4 GiB when the system does not say): the most a
+    command lets one input ask for (a data set, a long motion)."""
+    try:
+        return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") // 2
+    except (ValueError, OSError, AttributeError):
+        return 4 << 30
 
 
 def check_regular(path, what: str = "file", error: Type[Exception] = InputError) -> os.stat_result:
@@ -143,15 +155,37 @@ def read_json(path, what: str = "file", error: Type[Exception] = InputError,
     return parse_json(text, f"{what} {path}", error)
 
 
+@dataclass(frozen=True)
+class Member:
+    """What one array of an archive must be, checked from its ``.npy`` header before any data is read.
+
+    kinds: the dtype kinds it may have (NumPy's ``dtype.kind``: "f" floats, "U" text, "iu" whole
+    numbers); shape: one entry per axis, a whole number (that size), None (any size) or a word
+    naming a size that must be the same wherever the word appears in the archive (``names`` ("S",)
+    and ``films`` ("S", 2048): one name per vector, each of 2048 numbers), or None for any shape
+    at all; optional: whether the archive may lack it."""
+    kinds: str
+    shape: Optional[Tuple[Union[int, str, None], ...]]
+    optional: bool = False
+    why: str = ""          # said after a wrong shape: why it must be so ("the network needs 2048 numbers")
+
+
+#: what a member's header says: (shape, dtype)
+Header = Tuple[Tuple[int, ...], np.dtype]
+
+
 def read_npz(path, what: str = "archive", error: Type[InputError] = InputError,
-             max_bytes: Optional[int] = MAX_NPZ_BYTES) -> Dict[str, np.ndarray]:
+             max_bytes: Optional[int] = MAX_NPZ_BYTES, members: Optional[Mapping[str, Member]] = None
+             ) -> Dict[str, np.ndarray]:
     """Every array of the ``.npz`` at ``path`` -> {name: array}, or ``error`` naming ``what`` and the file.
 
-    Before reading, each member's ``.npy`` header is checked: no object dtype (that would be a
-    pickle), and the size it declares must fit in the member and, summed, in ``max_bytes`` (None: no
-    budget, for dataset caches, which hold whatever data the user has). So a
-    truncated or forged archive is an error, never a huge allocation or a half-read array.
-    FileNotFoundError when there is no file at all (the caller knows better what that means).
+    Before any data is read, each member's ``.npy`` header is checked: no object dtype (that would
+    be a pickle); the size it declares must fit in the member and, summed, in ``max_bytes`` (None:
+    no budget); and, given ``members`` (name -> :class:`Member`; a name ending in ``*`` stands for
+    every name that starts with the rest), the archive must hold those arrays and no others, each of
+    its kinds and shape. So a truncated, forged or padded archive is an error, never a huge
+    allocation or a half-read array. FileNotFoundError when there is no file at all (the caller
+    knows better what that means).
     """
     path = Path(path)
     if not path.exists():
@@ -161,11 +195,14 @@ def read_npz(path, what: str = "archive", error: Type[InputError] = InputError,
         with open_regular(path, what, error=error) as f:
             with zipfile.ZipFile(f) as archive:
                 _check_unique_members(archive, where, error)
-                total = 0
-                for info in archive.infolist():
-                    total += _member_bytes(archive, info, where, error)
-                    if max_bytes is not None and total > max_bytes:
-                        raise error(f"{where}: its arrays would take more than {max_bytes / 2**30:g} GiB of memory")
+                headers = {info.filename[:-4]: _member_header(archive, info, where, error)
+                           for info in _npy_members(archive, where, error)}
+                if members is not None:
+                    check_members(headers, members, where, error)
+                total = sum(_nbytes(*h) for h in headers.values())
+                if max_bytes is not None and total > max_bytes:
+                    raise error(f"{where}: its arrays would take {total / 2**30:.3g} GiB of memory, more than the "
+                                f"{max_bytes / 2**30:.3g} GiB such a file may")
                 f.seek(0)
                 with np.load(f, allow_pickle=False) as z:
                     return {name: z[name] for name in z.files}
@@ -176,10 +213,11 @@ def read_npz(path, what: str = "archive", error: Type[InputError] = InputError,
         raise error(f"{where}: not a readable .npz archive ({type(e).__name__}: {e})") from None
 
 
-def read_npz_member(path, name: str, what: str = "archive", error: Type[InputError] = InputError) -> Optional[np.ndarray]:
+def read_npz_member(path, name: str, what: str = "archive", error: Type[InputError] = InputError,
+                    member: Optional[Member] = None, max_bytes: Optional[int] = MAX_NPZ_BYTES) -> Optional[np.ndarray]:
     """The one array ``name`` of the .npz at ``path`` (None when it has no such member), checked as
-    :func:`read_npz` checks every member, without reading the others (a checkpoint's small
-    meta.json beside its weights)."""
+    :func:`read_npz` checks every member (against ``member`` when given, and ``max_bytes``),
+    without reading the others (a checkpoint's small meta.json beside its weights)."""
     where = f"{what} {path}"
     try:
         with open_regular(path, what, error=error) as f, zipfile.ZipFile(f) as archive:
@@ -188,14 +226,55 @@ def read_npz_member(path, name: str, what: str = "archive", error: Type[InputErr
                 info = archive.getinfo(name + ".npy")
             except KeyError:
                 return None
-            _member_bytes(archive, info, where, error)
-            with archive.open(info) as member:
-                return np.lib.format.read_array(member, allow_pickle=False)
+            header = _member_header(archive, info, where, error)
+            if member is not None:
+                check_members({name: header}, {name: member}, where, error)
+            if max_bytes is not None and _nbytes(*header) > max_bytes:
+                raise error(f"{where}: array {name!r} would take {_nbytes(*header):,} bytes, more than the "
+                            f"{max_bytes:,} it may")
+            with archive.open(info) as opened:
+                return np.lib.format.read_array(opened, allow_pickle=False)
     except error:
         raise
     except (zipfile.BadZipFile, zipfile.LargeZipFile, ValueError, OSError, EOFError, MemoryError, zlib.error,
             NotImplementedError) as e:
         raise error(f"{where}: not a readable .npz archive ({type(e).__name__}: {e})") from None
+
+
+def check_members(headers: Mapping[str, Header], members: Mapping[str, Member], where: str,
+                  error: Type[Exception] = InputError) -> None:
+    """``error`` naming ``where`` unless the arrays ``headers`` (name -> (shape, dtype)) are what
+    ``members`` asks for (see :func:`read_npz`)."""
+    exact = {n: m for n, m in members.items() if not n.endswith("*")}
+    prefixes = sorted(((n[:-1], m) for n, m in members.items() if n.endswith("*")), key=lambda p: -len(p[0]))
+    unknown = [n for n in headers if n not in exact and not any(n.startswith(p) for p, _ in prefixes)]
+    if unknown:
+        raise error(f"{where}: holds {few(unknown)}, which such a file does not have (a damaged, forged or padded "
+                    f"archive; such a file holds {few(sorted(exact))})")
+    missing = [n for n, m in exact.items() if not m.optional and n not in headers]
+    if missing:
+        raise error(f"{where}: missing arrays {few(missing)} (not such a file, or a damaged one)")
+    sizes: Dict[str, int] = {}
+    for name, (shape, dtype) in headers.items():
+        m = exact.get(name) or next(m for p, m in prefixes if name.startswith(p))
+        if m.shape is None:
+            if dtype.kind not in m.kinds:
+                raise error(f"{where}: array {name!r} is {dtype}, expected {_KINDS.get(m.kinds, m.kinds)}")
+            continue
+        ok = dtype.kind in m.kinds and len(shape) == len(m.shape)
+        for have, want in zip(shape, m.shape) if ok else ():
+            if isinstance(want, str):
+                ok = ok and sizes.setdefault(want, have) == have
+            elif want is not None:
+                ok = ok and have == want
+        if not ok:
+            want = "(" + ", ".join("any" if w is None else str(sizes.get(w, w)) if isinstance(w, str) else str(w)
+                                   for w in m.shape) + ("," if len(m.shape) == 1 else "") + ")"
+            raise error(f"{where}: array {name!r} is {dtype} of shape {shape}, expected {_KINDS.get(m.kinds, m.kinds)} "
+                        f"of shape {want}" + (f" ({m.why})" if m.why else ""))
+
+
+_KINDS = {"f": "floats", "U": "text", "iu": "whole numbers", "b": "booleans"}
 
 
 def _check_unique_members(archive: zipfile.ZipFile, where: str, error) -> None:
@@ -210,10 +289,16 @@ def _check_unique_members(archive: zipfile.ZipFile, where: str, error) -> None:
         seen.add(name)
 
 
-def _member_bytes(archive: zipfile.ZipFile, info: zipfile.ZipInfo, where: str, error) -> int:
-    """The bytes one ``.npy`` member declares, after checking it may be read at all."""
-    if not info.filename.endswith(".npy"):
-        raise error(f"{where}: member {info.filename!r} is not a .npy array")
+def _npy_members(archive: zipfile.ZipFile, where: str, error):
+    """The archive's members, every one of them a ``.npy`` array."""
+    for info in archive.infolist():
+        if not info.filename.endswith(".npy"):
+            raise error(f"{where}: member {info.filename!r} is not a .npy array")
+        yield info
+
+
+def _member_header(archive: zipfile.ZipFile, info: zipfile.ZipInfo, where: str, error) -> Header:
+    """(shape, dtype) one ``.npy`` member declares, after checking it may be read at all."""
     with archive.open(info) as member:
         version = np.lib.format.read_magic(member)
         header = (np.lib.format.read_array_header_1_0 if version == (1, 0)
@@ -221,8 +306,11 @@ def _member_bytes(archive: zipfile.ZipFile, info: zipfile.ZipInfo, where: str, e
         shape, _, dtype = header(member)
     if dtype.hasobject:
         raise error(f"{where}: array {info.filename[:-4]!r} holds Python objects (refused: never unpickled)")
-    nbytes = int(np.prod(shape, dtype=np.float64)) * dtype.itemsize
-    if nbytes > info.file_size:
-        raise error(f"{where}: array {info.filename[:-4]!r} declares {nbytes:,} bytes but holds "
+    if _nbytes(shape, dtype) > info.file_size:
+        raise error(f"{where}: array {info.filename[:-4]!r} declares {_nbytes(shape, dtype):,} bytes but holds "
                     f"{info.file_size:,} (truncated or forged)")
-    return nbytes
+    return tuple(shape), dtype
+
+
+def _nbytes(shape, dtype: np.dtype) -> int:
+    return int(np.prod(shape, dtype=np.float64)) * dtype.itemsize

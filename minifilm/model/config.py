@@ -140,5 +140,6 @@ class ModelConfig:
         names = {f.name for f in fields(cls)}
         unknown = sorted(set(d) - names)
         if unknown:
-            raise ValueError(f"ModelConfig.from_dict: unknown field(s) {unknown}")
+            more = f" and {len(unknown) - 5:,} more" if len(unknown) > 5 else ""     # one line, whatever a file holds
+            raise ValueError(f"ModelConfig.from_dict: unknown field(s) {[u[:40] for u in unknown[:5]]}{more}")
         return cls(**d)

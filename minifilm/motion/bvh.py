@@ -29,6 +29,7 @@ from typing import Dict, List, Tuple, Union
 import numpy as np
 
 from minifilm.files import open_regular, read_regular_bytes
+from minifilm.files.reading import memory_budget
 from minifilm.motion.bvh_syntax import (LINE_END, MAX_VALUE, NUMBER, BVHError, Hierarchy, clip,
                                         parse_motion_header)
 from minifilm.motion.kinematics import axis_rotation, euler_to_matrix
@@ -46,10 +47,15 @@ def read_bvh(path: Union[str, os.PathLike], scale: float = 0.01) -> Motion:
     """Read a BVH file into a ``Motion`` (metres = BVH units * ``scale``, radians).
 
     Raises ``BVHError`` (a ValueError) for malformed files, for anything but a regular file (a
-    FIFO, a device) and for files over :data:`MAX_BVH_BYTES`, and OSError when the file can't be read.
+    FIFO, a device), for files over :data:`MAX_BVH_BYTES`, and for files whose header alone shows
+    that reading them would take more memory than allowed (:func:`check_motion_size`, said with the
+    estimate before the file is read); OSError when the file can't be read.
     """
-    raw = read_regular_bytes(path, "BVH file", MAX_BVH_BYTES, error=BVHError.about_file)
-    return parse_bvh(decode_bvh(raw, str(path)), source=str(path), scale=scale)
+    header, n_frames, _ = _header(path)
+    check_motion_size(len(header.names), n_frames, sum(len(c) for c in header.channels), os.path.getsize(path),
+                      str(path))
+    text = decode_bvh(read_regular_bytes(path, "BVH file", MAX_BVH_BYTES, error=BVHError.about_file), str(path))
+    return parse_bvh(text, source=str(path), scale=scale)
 
 
 def bvh_duration(path: Union[str, os.PathLike]) -> float:
@@ -78,6 +84,12 @@ def bvh_header_names(path: Union[str, os.PathLike]) -> Tuple[List[str], int, flo
 
     The hierarchy is read by the same parser as the whole file (so a hierarchy written on one line
     counts its joints, and names are those ``read_bvh`` gives); the frames are not read."""
+    header, n_frames, frame_time = _header(path)
+    return list(header.names), n_frames, frame_time
+
+
+def _header(path: Union[str, os.PathLike]) -> Tuple[Hierarchy, int, float]:
+    """(parsed hierarchy, frames, seconds per frame) of a BVH file: its text up to the frames."""
     chunks: List[bytes] = []
     motion_line, after = None, 0
     with open_regular(path, "BVH file", MAX_BVH_BYTES, error=BVHError.about_file) as raw:
@@ -95,7 +107,7 @@ def bvh_header_names(path: Union[str, os.PathLike]) -> Tuple[List[str], int, flo
     header = Hierarchy(lines, str(path))
     motion_line = header.parse()
     n_frames, frame_time, _ = parse_motion_header(lines, motion_line, str(path))
-    return list(header.names), n_frames, frame_time
+    return header, n_frames, frame_time
 
 
 def decode_bvh(raw: bytes, source: str) -> str:
@@ -123,26 +135,54 @@ def parse_bvh(text: str, source: str = "<string>", scale: float = 0.01) -> Motio
     motion_line = header.parse()
     n_frames, frame_time, first_data_line = parse_motion_header(lines, motion_line, source)
     n_channels = sum(len(c) for c in header.channels)
-    _check_memory(len(header.names), n_frames, n_channels, len(text), source)
+    check_motion_size(len(header.names), n_frames, n_channels, len(text), source)
     values = _parse_frames(lines, first_data_line, n_frames, n_channels, source)
     return _build_motion(header, values, frame_time, scale, source)
 
 
-#: the most memory one motion may take, and per character of its file: a real take's rotations
-#: and translations (96 bytes per joint and frame) need a few times its file's size; a header that
-#: declares thousands of joints without channels, or frames the file does not hold, asks for more
+#: the most memory reading one motion may take (also bounded by half of this machine's memory), and
+#: per character of its file: a real take's rotations and translations (96 bytes per joint and
+#: frame) need a few times its file's size; a header that declares thousands of joints without
+#: channels, or frames the file does not hold, asks for more
 MAX_MOTION_BYTES, MAX_BYTES_PER_CHARACTER, ALWAYS_ALLOWED_BYTES = 4 << 30, 64, 256 << 20
+#: what reading a file takes, per character of it (its bytes, text and lines) and per joint and frame
+#: (the channels, the rotations and translations, their temporaries): the peak traced memory of
+#: read_bvh on Bandai and CMU takes of 20,000 and 60,000 frames (27 and 57 joints) was 3.6 x the file's
+#: size + 257 bytes per joint and frame, rounded up (so the estimate is 5-20 % above the peak)
+READ_BYTES_PER_CHARACTER, READ_BYTES_PER_JOINT_FRAME = 4, 280
 
 
-def _check_memory(n_joints: int, n_frames: int, n_channels: int, n_characters: int, source: str) -> None:
-    """BVHError, before anything is allocated, when the header asks for more memory than a file
-    of this size can justify (see MAX_MOTION_BYTES)."""
-    need = n_frames * (n_joints * 12 + n_channels) * 8
-    limit = min(MAX_MOTION_BYTES, max(ALWAYS_ALLOWED_BYTES, MAX_BYTES_PER_CHARACTER * n_characters))
-    if need > limit:
+def check_motion_size(n_joints: int, n_frames: int, n_channels: int, n_characters: int, source: str) -> None:
+    """BVHError, before anything is allocated, when a header of ``n_joints`` joints, ``n_frames``
+    frames and ``n_channels`` values per frame cannot be read from a text of ``n_characters``:
+
+    * it declares frames the text cannot hold (each value takes a digit and a separator), or
+      motion arrays far larger than a text of this size justifies (see MAX_BYTES_PER_CHARACTER):
+      a broken or hostile header;
+    * reading it would take more memory than :data:`MAX_MOTION_BYTES` or half of this machine's:
+      an honest file too large, refused with the estimate (cut it into shorter files).
+    """
+    if n_frames * max(2 * n_channels, 1) > n_characters:
+        raise BVHError(source, None, f"its header declares {n_frames:,} frames of {n_channels} values, more than its "
+                                     f"{n_characters:,} characters can hold (a broken or hostile header)")
+    arrays = n_frames * (n_joints * 12 + n_channels) * 8
+    justified = max(ALWAYS_ALLOWED_BYTES, MAX_BYTES_PER_CHARACTER * n_characters)
+    if arrays > justified:
         raise BVHError(source, None, f"its header declares {n_joints:,} joints and {n_frames:,} frames, "
-                                     f"{need / 2**30:.2f} GiB of memory; a file of {n_characters:,} characters "
-                                     f"may ask for at most {limit / 2**30:.2f} GiB (a broken or hostile header)")
+                                     f"{arrays / 2**30:.2f} GiB of memory; a file of {n_characters:,} characters "
+                                     f"may ask for at most {justified / 2**30:.2f} GiB (a broken or hostile header)")
+    need = READ_BYTES_PER_CHARACTER * n_characters + READ_BYTES_PER_JOINT_FRAME * n_joints * n_frames
+    budget = memory_budget()
+    limit = min(MAX_MOTION_BYTES, budget)
+    if need > limit:
+        whose = "half of this machine's memory" if budget < MAX_MOTION_BYTES else "the most minifilm reads as one motion"
+        raise BVHError(source, None, f"{n_frames:,} frames of {n_joints} joints ({_size(n_characters)}): reading it "
+                                     f"would need about {_size(need)} of memory, more than {_size(limit)} ({whose}); "
+                                     "cut it into shorter files")
+
+
+def _size(n: float) -> str:
+    return f"{n / 2**30:.1f} GiB" if n >= 2**30 else f"{n / 2**20:.0f} MiB"
 
 
 def _parse_frames(lines: List[str], first: int, n_frames: int, n_channels: int, source: str) -> np.ndarray:

@@ -35,9 +35,8 @@ import numpy as np
 from minifilm.dataset.stats import NormStats
 from minifilm.errors import InputError, check_fps
 from minifilm.features.layout import FeatureLayout
-from minifilm.files import (atomic_savez, atomic_write_text, check_name, check_regular, note_input, parse_json, read_json,
-                            read_npz)
-from minifilm.files.reading import read_npz_member
+from minifilm.files import (MAX_JSON_BYTES, Member, atomic_savez, atomic_write_text, check_name, check_regular, few,
+                            note_input, parse_json, read_json, read_npz, read_npz_member)
 from minifilm.pipeline.run_identity import (CHECKPOINT, RUN_ID, checkpoint_fingerprint, describe_foreign,
                                             foreign_files, new_run_id)
 from minifilm.files.state import RUN_MARKER, RUN_STATE, is_run_entry  # noqa: F401  (is_run_entry: re-exported)
@@ -188,8 +187,8 @@ class RunFolder:
         starts = self._member_names("starts.npz")
         if starts and not set(starts) & set(library.names):
             raise RunFolderError(f"run folder {self.path}: styles.npz is another run's style library: none of its "
-                                 f"{len(library)} styles ({_few(library.names)}) has a start frame in starts.npz "
-                                 f"({_few(starts)}), which minifilm train and finetune write for each style; put "
+                                 f"{len(library)} styles ({few(library.names)}) has a start frame in starts.npz "
+                                 f"({few(starts)}), which minifilm train and finetune write for each style; put "
                                  "back this run's own styles.npz")
         return library
 
@@ -200,17 +199,10 @@ class RunFolder:
             return {}
         where = f"run folder {self.path}: starts.npz"
         self.check_files_belong()
-        d = read_npz(path, f"run folder {self.path}: start frames", RunFolderError)
-        try:
-            names, x, p = d["names"], d["x"], d["p"]
-        except KeyError as e:
-            raise RunFolderError(f"{where}: not a start-frame file (no array {e})") from None
-        if names.dtype.kind != "U" or x.dtype.kind != "f" or p.dtype.kind != "f":
-            raise RunFolderError(f"{where}: names must be strings and x, p floats, got {names.dtype}, {x.dtype}, {p.dtype}")
-        x, p = x.astype(np.float64), p.astype(np.float64)
-        if names.ndim != 1 or x.shape != (len(names), self.layout.x_dim) or p.shape != (len(names), 8):
-            raise RunFolderError(f"{where}: arrays {names.shape}, {x.shape}, {p.shape}, expected (S,), "
-                                 f"(S, {self.layout.x_dim}), (S, 8)")
+        members = {"names": Member("U", ("S",)), "x": Member("f", ("S", self.layout.x_dim)),
+                   "p": Member("f", ("S", 8)), RUN_ID: Member("U", (), optional=True)}
+        d = read_npz(path, f"run folder {self.path}: start frames", RunFolderError, members=members)
+        names, x, p = d["names"], d["x"].astype(np.float64), d["p"].astype(np.float64)
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(p))):
             raise RunFolderError(f"{where}: non-finite values")
         for i, n in enumerate(names.tolist()):
@@ -218,24 +210,24 @@ class RunFolder:
         return {str(n): (x[i], p[i]) for i, n in enumerate(names.tolist())}
 
     # ---- belonging together (minifilm/pipeline/run_identity.py) -------------------------------
-    def _member(self, name: str, member: str):
-        """The array ``member`` of the folder's archive ``name``, or None when there is none or the
-        archive cannot be read (its own reader then says what is wrong with it)."""
+    def _member(self, name: str, member: str, expected: Member):
+        """The array ``member`` of the folder's archive ``name`` (``expected`` of it), or None when
+        there is none or it cannot be read (the archive's own reader then says what is wrong)."""
         path = self.path / name
         if not os.path.lexists(path):
             return None
         try:
-            return read_npz(path, name, RunFolderError).get(member)
+            return read_npz_member(path, member, name, RunFolderError, expected, MAX_JSON_BYTES)
         except (InputError, OSError):
             return None
 
     def _member_id(self, name: str) -> Optional[str]:
-        value = self._member(name, "run_id")
-        return str(value) if value is not None and value.ndim == 0 and value.dtype.kind == "U" else None
+        value = self._member(name, RUN_ID, Member("U", ()))
+        return None if value is None else str(value)
 
     def _member_names(self, name: str) -> list:
-        value = self._member(name, "names")
-        return value.tolist() if value is not None and value.ndim == 1 and value.dtype.kind == "U" else []
+        value = self._member(name, "names", Member("U", (None,)))
+        return [] if value is None else value.tolist()
 
     def file_ids(self) -> Dict[str, Optional[str]]:
         """file -> the run id it carries (None: none, as in runs written before ids existed);
@@ -258,7 +250,8 @@ class RunFolder:
     def _checkpoint_meta(self) -> Optional[dict]:
         """model.npz's configuration (its small meta.json member alone), or None when unreadable."""
         try:
-            text = read_npz_member(self.path / "model.npz", "meta.json", "checkpoint", RunFolderError)
+            text = read_npz_member(self.path / "model.npz", "meta.json", "checkpoint", RunFolderError, Member("U", ()),
+                                   MAX_JSON_BYTES)
             meta = None if text is None else parse_json(str(text), "checkpoint meta.json", RunFolderError)
         except (InputError, OSError):
             return None
@@ -321,8 +314,3 @@ class RunFolder:
         if not names or any(n not in starts for n in names):
             return None, None
         return np.stack([starts[n][0] for n in names]), np.stack([starts[n][1] for n in names])
-
-
-def _few(names, limit: int = 5) -> str:
-    names = list(names)
-    return ", ".join(map(repr, names[:limit])) + (f" and {len(names) - limit} more" if len(names) > limit else "")

@@ -23,7 +23,7 @@ import numpy as np
 from minifilm.errors import InputError
 from minifilm.features.compute import frame_features
 from minifilm.features.layout import FeatureLayout
-from minifilm.files import check_name
+from minifilm.files import check_name, folder_lock
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.editing import resample
 from minifilm.motion.motion import Motion
@@ -296,20 +296,25 @@ def teach_released(params, name: str, files: Sequence, out, replace: bool = Fals
     rel = load_released(params)
     if name in rel.styles:
         raise InputError(f"--name {name!r}: the released network already has a style of that name; pick another")
-    pack = load_pack_or_empty(out, film_dim=4 * rel.model.config.hidden, reserved=rel.styles)
-    if name in pack.info and not replace:
-        raise InputError(f"--name {name!r}: the pack {out} already has a style of that name (--replace to overwrite it)")
-    if replace and name not in pack.info:
-        raise InputError(f"--replace: the pack {out} has no style {name!r} to replace "
-                         f"(it holds: {', '.join(pack.names) or 'none'}); leave out --replace to add a new style")
-    log(f"[finetune] teaching the released network {Path(params).name} the style {name!r} from {len(files)} file(s)")
-    read = [read_clip(f, log) for f in files]
-    motions = [m for m, _ in read]
-    layout = FeatureLayout.for_skeleton(STYLE100)
-    align = any(retargeted for _, retargeted in read)
-    taught = teach(rel, layout, name, motions, files, settings=settings, align=align, motion=motion,
-                   workers=workers, log=log)
-    pack.with_style(name, taught.film, taught.pack_info(), replace=replace).save(out)
+    load_pack_or_empty(out, film_dim=4 * rel.model.config.hidden, reserved=rel.styles)  # a pack, before a lock beside it
+    # one writer of a pack from reading it to writing it: a second teaching into it is refused,
+    # naming this one, rather than both succeeding and one style being lost (minifilm/files/lock.py)
+    with folder_lock(out, "style pack folder"):
+        pack = load_pack_or_empty(out, film_dim=4 * rel.model.config.hidden, reserved=rel.styles)
+        if name in pack.info and not replace:
+            raise InputError(f"--name {name!r}: the pack {out} already has a style of that name (--replace to "
+                             "overwrite it)")
+        if replace and name not in pack.info:
+            raise InputError(f"--replace: the pack {out} has no style {name!r} to replace "
+                             f"(it holds: {', '.join(pack.names) or 'none'}); leave out --replace to add a new style")
+        log(f"[finetune] teaching the released network {Path(params).name} the style {name!r} from {len(files)} "
+            "file(s)")
+        read = [read_clip(f, log) for f in files]
+        layout = FeatureLayout.for_skeleton(STYLE100)
+        align = any(retargeted for _, retargeted in read)
+        taught = teach(rel, layout, name, [m for m, _ in read], files, settings=settings, align=align, motion=motion,
+                       workers=workers, log=log)
+        pack.with_style(name, taught.film, taught.pack_info(), replace=replace).save(out)
     return taught
 
 

@@ -247,7 +247,7 @@ def prepare_data(s: Settings, data: Optional[Path], out: Path, executor=None):
     ds = build_dataset(data, cache_dir=out / "cache", progress=True, clip_seconds=s.clip_seconds,
                        clip_stride_seconds=s.clip_seconds / 2, seed=s.seed,
                        workers=s.workers if executor is None else executor, **extra)
-    log(f"[dataset] built in {time.perf_counter() - t0:.1f} s")
+    log(f"[dataset] {'loaded from its cache' if ds.loaded else 'built'} in {time.perf_counter() - t0:.1f} s")
     log(ds.summary())
     empty = [name for name in ("val", "test") if len(getattr(ds, name)) == 0]
     if empty:   # nothing to validate or test on: say so now, not after training

@@ -21,9 +21,14 @@ from typing import Dict, Mapping, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from minifilm.errors import InputError
-from minifilm.files import atomic_savez, check_name, read_npz
+from minifilm.files import Member, atomic_savez, check_name, read_npz
 
 __all__ = ["StyleLibrary", "StyleLibraryError", "UnknownStyleError", "blend_film", "smoothstep"]
+
+
+#: the most a style library file may ask for when read: 10,000 styles of the paper's 2048 numbers in
+#: float64 take 164 MB (100STYLE's 100 styles in float32 take 0.8 MB)
+MAX_LIBRARY_BYTES = 256 << 20
 
 
 class UnknownStyleError(KeyError, InputError):
@@ -137,18 +142,11 @@ class StyleLibrary:
         (its network's 4*hidden). StyleLibraryError naming the file for anything else: a broken
         archive, names that are not unique non-empty strings, non-finite or non-float vectors."""
         where = f"style library {path}"
-        arrays = read_npz(path, "style library", StyleLibraryError)
-        missing = {"names", "films"} - set(arrays)
-        if missing:
-            raise StyleLibraryError(f"{where}: not a style library, missing arrays {sorted(missing)}")
+        # S names and S vectors of the network's length, checked from the headers before reading
+        members = {"names": Member("U", ("S",)), "films": Member("f", ("S", dim), why=f"the network needs {dim} numbers per style"),
+                   "run_id": Member("U", (), optional=True)}
+        arrays = read_npz(path, "style library", StyleLibraryError, MAX_LIBRARY_BYTES, members)
         names, films = arrays["names"], arrays["films"]
-        if names.ndim != 1 or names.dtype.kind != "U":
-            raise StyleLibraryError(f"{where}: 'names' must be a 1-D array of strings, got {names.dtype} {names.shape}")
-        if films.ndim != 2 or len(names) != len(films) or films.dtype.kind != "f":
-            raise StyleLibraryError(f"{where}: {len(names)} names but films of {films.dtype} {films.shape}, "
-                                    "expected floats (names, D)")
-        if dim is not None and len(names) and films.shape[1] != dim:
-            raise StyleLibraryError(f"{where}: FiLM vectors of length {films.shape[1]}, but the network needs {dim}")
         listed = names.tolist()
         if not listed:
             raise StyleLibraryError(f"{where}: the library holds no styles")
@@ -164,9 +162,8 @@ class StyleLibrary:
         library = cls(dict(zip(listed, films)), dtype=films.dtype)
         run_id = arrays.get("run_id")
         if run_id is not None:
-            if run_id.ndim != 0 or run_id.dtype.kind != "U" or not str(run_id).isalnum():
-                raise StyleLibraryError(f"{where}: 'run_id' must be one word of letters and digits, got "
-                                        f"{run_id.dtype} {run_id.shape}")
+            if not str(run_id).isalnum():
+                raise StyleLibraryError(f"{where}: 'run_id' must be one word of letters and digits")
             library.run_id = str(run_id)
         return library
 

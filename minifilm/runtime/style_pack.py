@@ -8,7 +8,9 @@ A pack is a folder of two files:
                               "checks": {...}}, ...]}
 
 ``minifilm finetune --params NET --out PACK`` writes one (the whole folder at once, atomically:
-a reader sees the old pack or the new one), ``minifilm generate / demo --params NET --styles PACK``
+a reader sees the old pack or the new one; it holds the pack's lock from reading the pack to
+writing it, so a second teaching into the same pack is refused rather than losing a style),
+``minifilm generate / demo --params NET --styles PACK``
 read it: the pack's styles join the network's own, so every name can be used and blended. A
 pack style may not take the name of one of the network's styles.
 """

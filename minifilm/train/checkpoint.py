@@ -23,8 +23,11 @@ from pathlib import Path
 import numpy as np
 
 from minifilm.errors import InputError
-from minifilm.files import atomic_savez, parse_json, read_npz
+from minifilm.files import MAX_JSON_BYTES, MAX_NPZ_BYTES, Member, atomic_savez, parse_json, read_npz, read_npz_member
 from minifilm.model.config import ModelConfig
+from minifilm.model.film_generator import film_shapes
+from minifilm.model.gating import gating_shapes
+from minifilm.model.motion_net import motion_shapes
 from minifilm.model.style_model import StyleModel
 
 FORMAT = "minifilm-checkpoint-1"
@@ -46,19 +49,53 @@ def save_checkpoint(path, meta: dict, arrays: dict) -> None:
 
 
 def load_checkpoint(path) -> tuple[dict, dict]:
-    """Read a checkpoint -> (meta dict, arrays dict). Raises CheckpointError naming the file."""
+    """Read a checkpoint -> (meta dict, arrays dict). Raises CheckpointError naming the file.
+
+    Its small meta.json is read first; the arrays' headers are then checked against the model its
+    configuration describes (every parameter's shape, the statistics' sizes, a memory budget of the
+    parameters and the optimiser's two moments) before any of their data is read."""
     path = Path(path)
     if not path.exists():
         raise CheckpointError(f"checkpoint {path}: no such file")
-    arrays = read_npz(path, "checkpoint", CheckpointError)
-    if "meta.json" not in arrays:
+    text = read_npz_member(path, "meta.json", "checkpoint", CheckpointError, Member("U", ()), MAX_JSON_BYTES)
+    if text is None:
         raise CheckpointError(f"checkpoint {path}: missing 'meta.json' entry")
-    meta = parse_json(str(arrays.pop("meta.json")), f"checkpoint {path}: 'meta.json'", CheckpointError)
+    meta = parse_json(str(text), f"checkpoint {path}: 'meta.json'", CheckpointError)
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
         raise CheckpointError(f"checkpoint {path}: format is {meta.get('format') if isinstance(meta, dict) else meta!r}, "
                               f"expected {FORMAT!r}")
+    members, budget = _expected_members(meta, path)
+    arrays = read_npz(path, "checkpoint", CheckpointError, budget, members)
+    arrays.pop("meta.json")
     _check_config_fits(meta, arrays, path)
     return meta, arrays
+
+
+def _expected_members(meta: dict, path: Path):
+    """(name -> Member, bytes) the checkpoint of ``meta`` holds: for the paper's style model every
+    parameter's exact shape and the statistics' sizes, and as many bytes as its parameters and the
+    optimiser's two moments take in float64 (at most the general budget of an archive); for a comparison variant (minifilm/baselines, whose
+    networks are shaped otherwise) float arrays within the general budget of an archive."""
+    members = {"meta.json": Member("U", ()), "adam.steps": Member("iu", (None,), optional=True),
+               "adam.*": Member("f", (None,)), "stats.*": Member("f", (None,))}
+    members.update({f"{net}.*": Member("f", None) for net in NETWORKS})
+    variant = meta.get("variant") or {}
+    if "model_config" not in meta or not isinstance(variant, dict) or variant.get("name") not in (None, "LPN FiLM"):
+        return members, MAX_NPZ_BYTES
+    try:
+        c = ModelConfig.from_dict(meta["model_config"])
+    except (ValueError, TypeError, KeyError, AttributeError) as e:
+        raise CheckpointError(f"checkpoint {path}: model configuration: {e}") from None
+    shapes = {"gating": gating_shapes(c), "motion": motion_shapes(c)}
+    if meta.get("has_film_generator", True):
+        shapes["film"] = film_shapes(c)
+    members = {k: m for k, m in members.items() if k.split(".")[0] not in NETWORKS}
+    for net, sizes in shapes.items():
+        members.update({f"{net}.{name}": Member("f", shape, optional=True) for name, shape in sizes.items()})
+    for part, size in (("x", c.x_dim), ("z", c.z_dim), ("p", c.phase_dim)):
+        members.update({f"stats.{part}_{k}": Member("f", (size,), optional=True) for k in ("mean", "std")})
+    budget = 8 * (3 * c.n_parameters + 2 * (c.x_dim + c.z_dim + c.phase_dim)) + 2 * MAX_JSON_BYTES
+    return members, min(budget, MAX_NPZ_BYTES)
 
 
 def _check_config_fits(meta: dict, arrays: dict, path: Path) -> None:
