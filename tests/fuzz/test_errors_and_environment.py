@@ -14,7 +14,7 @@ import pytest
 
 from minifilm.errors import OutputPathError
 from minifilm.files import atomic_directory, atomic_write, atomic_write_text, remove_stale_temporaries
-from minifilm.rigs.joint_map import RigError, roles_from_mapping
+from minifilm.body.roles import RigError, roles_from_mapping
 from test_names_and_outputs import invoke, one_error, tree
 
 FULL = OSError(errno.ENOSPC, "No space left on device")
