@@ -39,6 +39,7 @@ from minifilm.dataset.splits import SPLITS, split_files
 from minifilm.dataset.stats import NormStats
 from minifilm.dataset.survey import check_memory, check_one_rig, most_common_rig, survey
 from minifilm.dataset.validate import check_every_style_trains
+from minifilm.errors import DataError
 from minifilm.files import check_name, note_input, owned_writes
 from minifilm.features.layout import FeatureLayout
 from minifilm.body.rig import detect_skeleton

@@ -84,7 +84,7 @@ def test_two_ranks_make_one_run_folder_and_print_once(mpi_run):
     assert "training in 2 MPI ranks" in printed
     for line in ("[train] checkpoint", "[test] MSE per style", "[style]", "[done]"):
         assert printed.count(line) == 1, line               # rank 0 alone prints
-    assert sorted(p.name for p in folder.iterdir()) == [".run.lock", "log.txt", "run"]   # nothing stray
+    assert sorted(p.name for p in folder.iterdir()) == ["log.txt", "run"]     # nothing stray, no lock left
     run = folder / "run"
     for name in ("model.npz", "styles.npz", "starts.npz", "run.json", "loss_curve.png",
                  "generated/Neutral.bvh", "generated/LeftHop.bvh", "generated/styles.gif"):
