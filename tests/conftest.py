@@ -5,8 +5,10 @@ project root, never inside the repository. Tests that need it skip with a clear 
 is absent, and fail instead when ``CI=true`` (repo_paths.need_data). ``MINIFILM_SHARED_DATA``
 points elsewhere if your copy lives somewhere else.
 
-At the end of the session the gradient-check rows that ran are printed as one table, the table of
-``minifilm gradcheck`` (gradcheck_report.py).
+The gradient checks stand on their own: ``python -m pytest -q -m gradcheck`` runs every one (the
+tests of the modules named ``*gradcheck*``, marked here, and the tests marked ``gradcheck`` in
+other modules). At the end of a session the gradient-check rows that ran are printed as one
+table, the table of ``minifilm gradcheck``, and the other checks below it (gradcheck_report.py).
 """
 from pathlib import Path
 
@@ -22,9 +24,17 @@ def shared_data() -> Path:
     return need_data(SHARED_DATA, "the real data folder")
 
 
+def pytest_collection_modifyitems(items):
+    """Every test of a module named ``*gradcheck*`` is a gradient check (``-m gradcheck``)."""
+    for item in items:
+        if "gradcheck" in item.path.name:
+            item.add_marker(pytest.mark.gradcheck)
+
+
 def pytest_terminal_summary(terminalreporter):
-    """The gradient-check table of the (case, seed) tests that ran: ``minifilm gradcheck``'s table."""
+    """The gradient checks that ran: ``minifilm gradcheck``'s table of the (case, seed) tests, then
+    the other checks, one line each."""
     text = gradcheck_report.table()
     if text:
-        terminalreporter.write_sep("=", "gradient checks (minifilm gradcheck)")
+        terminalreporter.write_sep("=", "gradient checks (the table of minifilm gradcheck, then the others)")
         terminalreporter.write_line(text)
