@@ -51,6 +51,23 @@ def released_source() -> DemoSource:
     return DemoSource.released(RELEASED)
 
 
+@pytest.fixture
+def budget_clock_stopped(monkeypatch):
+    """The message budget of every page that connects from now on (minifilm/demo/budget.py) sees
+    all its messages arrive in the same instant. The budget is a rate, so what a flood or a burst
+    leads to would otherwise depend on how fast this machine sends and the server reads, which a
+    loaded machine slows down; so a test of it depends on what was sent, not on the load. (The
+    budget's clock itself is tested in test_demo_budget.py; a client address's budget, given
+    its clock by AddressBudgets, keeps the real one.)"""
+    from minifilm.demo import budget
+
+    class Stopped(budget.MessageBudget):
+        def __init__(self, rate=budget.MESSAGES_PER_SECOND, clock=None):
+            super().__init__(rate, (lambda: 0.0) if clock is None else clock)
+
+    monkeypatch.setattr(budget, "MessageBudget", Stopped)
+
+
 def serve(source: DemoSource, max_characters: int = 2, **settings) -> DemoServer:
     """A started server on 127.0.0.1, any free port; stop it with ``.stop()``."""
     server = DemoServer(source, DemoSettings(style=source.default_style(), **settings), host="127.0.0.1", port=0,
