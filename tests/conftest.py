@@ -10,6 +10,7 @@ tests of the modules named ``*gradcheck*``, marked here, and the tests marked ``
 other modules). At the end of a session the gradient-check rows that ran are printed as one
 table, the table of ``minifilm gradcheck``, and the other checks below it (gradcheck_report.py).
 """
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -22,6 +23,26 @@ from repo_paths import REPO_ROOT, SHARED_DATA, need_data  # noqa: F401  (re-expo
 def shared_data() -> Path:
     """Path to ``../shared/data``; skips the test when it is not there (fails it in CI)."""
     return need_data(SHARED_DATA, "the real data folder")
+
+
+@pytest.fixture(scope="session")
+def tiny_job(tmp_path_factory):
+    """The main job in miniature, made once for the whole session (two synthetic styles, one gait
+    of 6 s, one epoch, 0.5 s generated: a few seconds): (run folder, the job's result). It has
+    model.npz, styles.npz, starts.npz, run.json, skeleton.bvh, data/, generated/ and cache/.
+    Every test that needs a trained run reads this one; a test that changes a run changes a copy
+    (shutil.copytree), never this folder."""
+    from minifilm.pipeline.train_small import Settings, run
+    out = tmp_path_factory.mktemp("tiny_run")
+    settings = replace(Settings(out=out).quick(), styles=("Neutral", "LeftHop"), gaits=("FW",), seconds_per_clip=6.0,
+                       epochs=1, generate_seconds=0.5)
+    return out, run(settings)
+
+
+@pytest.fixture(scope="session")
+def tiny_run(tiny_job) -> Path:
+    """The folder of :func:`tiny_job`'s run (read it; copy it to change it)."""
+    return tiny_job[0]
 
 
 def pytest_collection_modifyitems(items):

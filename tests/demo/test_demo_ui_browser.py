@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 import pytest
-from demo_helpers import RELEASED, DemoPage, browser, make_tiny_run  # noqa: F401  (browser: a fixture)
+from demo_helpers import RELEASED, DemoPage, browser  # noqa: F401  (browser: a fixture)
 
 from minifilm.demo.process import DemoProcess
 
@@ -23,11 +23,11 @@ HAS_RELEASED = (RELEASED / "Xmean.bin").is_file()
 
 
 @pytest.fixture(scope="module")
-def server(tmp_path_factory):
+def server(request):
     # the released network when it is there (its calibration is not waited for: nothing here
     # depends on speeds), else a miniature run, whose body hardly turns at all: both let the
     # heading run ahead of the body on Q
-    source = ["--params", RELEASED] if HAS_RELEASED else ["--run", make_tiny_run(tmp_path_factory.mktemp("tiny"))]
+    source = ["--params", RELEASED] if HAS_RELEASED else ["--run", request.getfixturevalue("tiny_run")]
     s = DemoProcess(*source, "--max-characters", 4)
     yield s
     s.stop()
