@@ -6,8 +6,8 @@
 
 Runs ``python -m pytest -q --durations=N`` (N = --durations, 40 by default) in a subprocess from
 the repository root, shows its output as it goes, then prints the CPU, the load average before and
-after, the wall time, the peak resident memory and the --top slowest tests (15 by default). Every
-argument this script does not know is handed to pytest.
+after, the wall time and the CPU time, the peak resident memory and the --top slowest tests (15 by
+default). Every argument this script does not know is handed to pytest.
 
 The peak memory is that of the largest single process of the run (pytest, or a process a test
 starts), the figure ``/usr/bin/time -v`` calls "Maximum resident set size": ru_maxrss of
@@ -52,7 +52,7 @@ def main() -> int:
             sys.stdout.write(line)
             lines.append(line.rstrip("\n"))
     wall = time.perf_counter() - start
-    peak_kb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss    # kB on Linux
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)     # the run's whole tree, once it has ended
 
     slowest = sorted(((float(m[1]), m[2], m[3]) for m in map(DURATION.match, lines) if m), reverse=True)
     outcome = next((line.strip("= ") for line in reversed(lines) if re.search(r"\d+ (passed|failed|error)", line)),
@@ -61,7 +61,8 @@ def main() -> int:
     print(f"load         {before} before, {load()} after (1, 5, 15 min)")
     print(f"result       {outcome} (exit code {run.returncode})")
     print(f"wall time    {wall:.0f} s ({wall / 60:.1f} min)")
-    print(f"peak memory  {peak_kb / 1024 ** 2:.2f} GB (largest process)")
+    print(f"CPU time     {usage.ru_utime + usage.ru_stime:.0f} s (user + system; beside the wall time on a busy machine)")
+    print(f"peak memory  {usage.ru_maxrss / 1024 ** 2:.2f} GB (largest process)")         # ru_maxrss: kB on Linux
     print(f"\n{min(args.top, len(slowest))} slowest of the {len(slowest)} durations pytest reported:")
     for seconds, phase, test in slowest[:args.top]:
         print(f"  {seconds:8.2f} s  {phase:<8}  {test}")
