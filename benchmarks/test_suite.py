@@ -26,7 +26,7 @@ from pathlib import Path
 from machine import cpu_name
 
 ROOT = Path(__file__).resolve().parents[1]
-#: "12.34s call     tests/x.py::test_y" lines of pytest's --durations report
+#: a line of the --durations report: "12.34s call     <test id>"
 DURATION = re.compile(r"^(\d+\.\d+)s (setup|call|teardown)\s+(\S.*)$")
 
 
