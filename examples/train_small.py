@@ -22,7 +22,6 @@ Everything is written to the run folder runs/train_small/ (--out), which ``minif
 and ``minifilm finetune --run`` read back.
 """
 import os
-import sys
 import time
 
 # One BLAS thread, set before numpy loads: the matrices are small, and on a shared machine a second

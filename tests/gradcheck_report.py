@@ -1,14 +1,19 @@
 """The gradient-check rows the tests ran, gathered for one table at the end of the session.
 
 The test modules run the suite's cases (minifilm.evaluation.gradcheck_table) one (case, seed) per
-test through :func:`check`; tests/conftest.py prints :func:`table` in pytest's terminal summary,
-the same table ``minifilm gradcheck`` prints. (A module of its own: every test folder may import
-it, and conftest.py reads what they recorded.)
+test through :func:`check`; the gradient checks of code outside the table (t-SNE, the style
+classifier, the FiLM-vector fit, the companion's own check) go through :func:`other`.
+tests/conftest.py prints :func:`table` in pytest's terminal summary: the table ``minifilm
+gradcheck`` prints, then a line for each other check. (A module of its own: every test folder
+may import it, and conftest.py reads what they recorded.)
 """
+import math
+
 from minifilm.evaluation.gradcheck_table import Row, cases, float32_cases, format_table
 from minifilm.nn.gradcheck import worst_error
 
 ROWS: dict = {}
+OTHERS: dict = {}       # name -> [worst error, limit]
 
 
 def check(case, seed):
@@ -22,8 +27,27 @@ def check(case, seed):
     return result
 
 
+def other(name: str, errors, limit: float) -> None:
+    """Record a gradient check outside the table (``errors``: a number, or a dict or list of
+    them; NaN or inf is a failure) and fail the test when its worst error is not below ``limit``."""
+    worst = worst_error(errors if isinstance(errors, (dict, list, tuple)) else [errors])
+    entry = OTHERS.setdefault(name, [0.0, limit])
+    entry[0] = max(entry[0], worst)
+    assert worst < limit, f"{name}: {worst:.2e} >= {limit:g} ({errors})"
+
+
+def format_others() -> str:
+    w = max([len("other gradient check")] + [len(n) for n in OTHERS])
+    head = f"{'other gradient check':<{w}}  {'worst rel. error':>16}  limit    pass"
+    lines = [head, "-" * len(head)]
+    for name, (worst, limit) in OTHERS.items():
+        ok = math.isfinite(worst) and worst < limit
+        lines.append(f"{name:<{w}}  {worst:>16.1e}  {limit:<7.0e}  {'yes' if ok else 'NO'}")
+    return "\n".join(lines)
+
+
 def table() -> str:
-    """Both tables of the rows recorded so far (empty when none ran)."""
+    """Both tables of the rows recorded so far and the other checks (empty when none ran)."""
     parts = []
     order = {(False, c.name): i for i, c in enumerate(cases())}
     order.update({(True, c.name): i for i, c in enumerate(float32_cases())})
@@ -32,4 +56,6 @@ def table() -> str:
         rows = [r for key, r in sorted(ROWS.items(), key=lambda kv: order[kv[0]]) if key[0] == float32]
         if rows:
             parts.append(format_table(rows, title, error))
+    if OTHERS:
+        parts.append(format_others())
     return "\n\n".join(parts)

@@ -17,6 +17,7 @@ import importlib.util
 import numpy as np
 import pytest
 
+from gradcheck_report import other
 from minifilm.dataset.stats import NormStats
 from minifilm.features.layout import FeatureLayout
 from minifilm.model.config import ModelConfig
@@ -129,6 +130,17 @@ def test_forward_losses_and_every_gradient_agree_with_the_package(shared_clip, t
             errors[f"{s}.{name}"] = rel_error(grads[f"{PREFIX[s]}.{name}"], ps.grads[name])
     assert set(grads) == set(P)
     assert max(errors.values()) < LIMIT, {k: v for k, v in errors.items() if v >= LIMIT}
+
+
+@pytest.mark.gradcheck
+def test_the_companion_s_own_gradient_check_passes(capsys):
+    """The companion's gradient check (its section 6: two-point differences, the worst entry
+    against the largest gradient), which its main runs before training: one printed row per
+    layer and per array of the whole model, every one below 1e-7."""
+    assert one.gradient_check(0)
+    rows = [line.split() for line in capsys.readouterr().out.splitlines()[1:]]
+    assert len(rows) > 30 and all(row[-1] == "ok" for row in rows)
+    other("the companion's own gradient check", {" ".join(row[:-2]): float(row[-2]) for row in rows}, 1e-7)
 
 
 def test_the_layer_norm_epsilon_matters_so_the_comparison_can_fail(monkeypatch):

@@ -55,13 +55,13 @@ POS_IDX = 2 + np.arange(12).reshape(4, 3)
 class Site:
     """An ELU or ReLU: ``pre()`` is its input (..., units) after a forward pass, ``shift(d)`` adds
     d (units,) to the bias that moves every row of each unit alike. :meth:`fix` moves every row
-    at least ``margin`` from 0 with the smallest shift."""
+    at least ``margin`` from 0 with the smallest shift (``live``: a ReLU, kept alive, shift_away)."""
 
-    def __init__(self, pre: Callable[[], np.ndarray], shift: Callable[[np.ndarray], None]):
-        self.pre, self.shift = pre, shift
+    def __init__(self, pre: Callable[[], np.ndarray], shift: Callable[[np.ndarray], None], live: bool = False):
+        self.pre, self.shift, self.live = pre, shift, live
 
     def fix(self, margin: float) -> None:
-        self.shift(shift_away(self.pre(), margin))
+        self.shift(shift_away(self.pre(), margin, self.live))
 
     def sides(self) -> np.ndarray:
         return (self.pre() > 0).ravel()
@@ -99,10 +99,13 @@ def _add(a: np.ndarray, d: np.ndarray) -> None:
     a += d                                      # in place: a is a view into a parameter buffer
 
 
-def shift_away(values: np.ndarray, margin: float) -> np.ndarray:
+def shift_away(values: np.ndarray, margin: float, live: bool = False) -> np.ndarray:
     """d (units,): for each unit (last axis) the smallest |d| with every |values + d| >= margin,
     among the shifts that keep a row on each side of 0 where there was one (so both branches of
-    the unit stay exercised and no ReLU unit is shifted dead), else the smallest of all."""
+    the unit stay exercised and no ReLU unit is shifted dead), else the smallest of all.
+    ``live`` (a ReLU): first of all leave a row above 0 in every unit, even if no row is then
+    left below it: a dead unit's weights are checked vacuously, and in a toy Ψ the few units of
+    a layer can all be dead, cutting Ψ off from the output whatever the dropout masks."""
     v = values.reshape(-1, values.shape[-1])
     d = np.zeros(v.shape[1])
     for u in range(v.shape[1]):
@@ -111,6 +114,8 @@ def shift_away(values: np.ndarray, margin: float) -> np.ndarray:
         cands = cands[np.argsort(np.abs(cands), kind="stable")]
         ok = [c for c in cands if np.all(np.abs(col + c) >= margin)]
         sides = [c for c in ok if (col + c > 0).any() >= (col > 0).any() and (col + c < 0).any() >= (col < 0).any()]
+        if live:                                    # alive first; both sides when it can have them
+            sides = [c for c in sides if (col + c > 0).any()] or [c for c in ok if (col + c > 0).any()]
         d[u] = (sides or ok)[0]
     return d
 
@@ -122,9 +127,9 @@ def gating_sites(net: GatingNetwork) -> List[Site]:
 
 def film_generator_sites(net: FilmGenerator) -> List[Site]:
     P = net.params.params
-    return [Site(lambda: net._caches[0].relu, lambda d: _add(P["conv0_b"], d)),
-            Site(lambda: net._caches[1].relu, lambda d: _add(P["conv1_b"], d)),
-            Site(lambda: net._caches[3].act, lambda d: _add(P["dense0_b"], d))]
+    return [Site(lambda: net._caches[0].relu, lambda d: _add(P["conv0_b"], d), live=True),
+            Site(lambda: net._caches[1].relu, lambda d: _add(P["conv1_b"], d), live=True),
+            Site(lambda: net._caches[3].act, lambda d: _add(P["dense0_b"], d), live=True)]
 
 
 def motion_sites(net: MotionNetwork, beta: Callable[[int], np.ndarray]) -> List[Site]:

@@ -174,7 +174,7 @@ def dropout_forward(x: np.ndarray, p: float, rng: np.random.Generator | None = N
     expected activation is the same in training and at run time.
     """
     require(0.0 <= p < 1.0, f"dropout_forward: p must be in [0, 1), got {p}")
-    if not np.issubdtype(np.asarray(x).dtype, np.floating):
+    if np.asarray(x).dtype.kind != "f":
         # scaled in x's dtype, 1 / (1 - p) would round to an integer (1 for p < 0.5)
         raise TypeError(f"dropout_forward: x must be a floating-point array, got {np.asarray(x).dtype}")
     if not train or p == 0.0:
@@ -184,9 +184,10 @@ def dropout_forward(x: np.ndarray, p: float, rng: np.random.Generator | None = N
             raise ValueError("dropout_forward: training with p > 0 needs an rng "
                              "(np.random.Generator) or an explicit mask")
         mask = rng.random(x.shape) >= p
-    require(mask.shape == x.shape and mask.dtype == np.bool_,
-            f"dropout_forward: mask must be a boolean array of shape {x.shape}, "
-            f"got {mask.dtype} {mask.shape}")
+    # an if, not require(): require's message is formatted on every call, and a dtype formats slowly
+    if mask.shape != x.shape or mask.dtype != np.bool_:
+        raise ValueError(f"dropout_forward: mask must be a boolean array of shape {x.shape}, "
+                         f"got {mask.dtype} {mask.shape}")
     scale = x.dtype.type(1.0 / (1.0 - p))   # keep x's dtype
     return x * mask * scale, (mask, scale)
 

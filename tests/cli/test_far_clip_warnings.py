@@ -2,21 +2,17 @@
 synthetic motion): ``finetune --run`` and then ``generate`` both say so in words, and a style the
 run was trained on does not get those words."""
 import shutil
-from dataclasses import replace
 
 import pytest
 
 from minifilm import cli
-from minifilm.pipeline.train_small import Settings, run as train_run
 
 
 @pytest.fixture(scope="module")
-def taught(tmp_path_factory, shared_data):
-    out = tmp_path_factory.mktemp("far_clip") / "run"
-    train_run(replace(Settings(out=out).quick(), styles=("Neutral", "LeftHop"), gaits=("FW",), seconds_per_clip=6.0,
-                      epochs=1, generate_seconds=0.5))
+def taught(tiny_run, shared_data):
+    """The session's tiny trained run (tests/conftest.py; the test copies it) and a clip far outside its data."""
     clip = shared_data / "bandai2" / "dataset-2_walk_elderly_001.bvh"
-    return out, clip
+    return tiny_run, clip
 
 
 def invoke(argv, capsys):

@@ -9,7 +9,6 @@ from __future__ import annotations
 import os
 import shutil
 import socket
-from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -22,7 +21,6 @@ websockets = pytest.importorskip("websockets", reason="the demo needs the websoc
 from minifilm.demo.character import DemoSettings  # noqa: E402  (after the skip: it needs nothing more)
 from minifilm.demo.server import DemoServer  # noqa: E402
 from minifilm.demo.source import DemoSource  # noqa: E402
-from minifilm.pipeline.train_small import Settings, run  # noqa: E402
 
 RELEASED = SHARED_DATA / "released-lpn"
 CHROMIUM = os.environ.get("MINIFILM_CHROMIUM") or shutil.which("chromium") or "/usr/bin/chromium"
@@ -30,18 +28,10 @@ CHROMIUM = os.environ.get("MINIFILM_CHROMIUM") or shutil.which("chromium") or "/
 CHROMIUM_ARGS = ["--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
 
 
-def make_tiny_run(out: Path) -> Path:
-    """A miniature run folder (two styles, one gait, one epoch; about a second): enough to serve,
-    not to follow commands."""
-    settings = replace(Settings(out=out).quick(), styles=("Neutral", "LeftHop"), gaits=("FW",),
-                       seconds_per_clip=6.0, epochs=1, generate_seconds=0.5)
-    run(settings)
-    return out
-
-
 @pytest.fixture(scope="module")
-def tiny_source(tmp_path_factory) -> DemoSource:
-    return DemoSource.run_folder(make_tiny_run(tmp_path_factory.mktemp("tiny_run")))
+def tiny_source(tiny_run) -> DemoSource:
+    """The session's tiny trained run (tests/conftest.py), loaded as a demo source (it only reads it)."""
+    return DemoSource.run_folder(tiny_run)
 
 
 @pytest.fixture(scope="module")
@@ -49,6 +39,23 @@ def released_source() -> DemoSource:
     """The authors' released network; skips when it is not in the shared data folder."""
     need_data(RELEASED / "Xmean.bin", "the released network")      # skipped here, failed in CI
     return DemoSource.released(RELEASED)
+
+
+@pytest.fixture
+def budget_clock_stopped(monkeypatch):
+    """The message budget of every page that connects from now on (minifilm/demo/budget.py) sees
+    all its messages arrive in the same instant. The budget is a rate, so what a flood or a burst
+    leads to would otherwise depend on how fast this machine sends and the server reads, which a
+    loaded machine slows down; so a test of it depends on what was sent, not on the load. (The
+    budget's clock itself is tested in test_demo_budget.py; a client address's budget, given
+    its clock by AddressBudgets, keeps the real one.)"""
+    from minifilm.demo import budget
+
+    class Stopped(budget.MessageBudget):
+        def __init__(self, rate=budget.MESSAGES_PER_SECOND, clock=None):
+            super().__init__(rate, (lambda: 0.0) if clock is None else clock)
+
+    monkeypatch.setattr(budget, "MessageBudget", Stopped)
 
 
 def serve(source: DemoSource, max_characters: int = 2, **settings) -> DemoServer:

@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 import pytest
-from demo_helpers import RELEASED, DemoPage, browser, make_tiny_run  # noqa: F401  (browser: a fixture)
+from demo_helpers import RELEASED, DemoPage, browser  # noqa: F401  (browser: a fixture)
 from repo_paths import need_data
 
 from minifilm.demo.client import DemoClient
@@ -37,8 +37,8 @@ def released():
 
 
 @pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    source = ["--params", RELEASED] if HAS_RELEASED else ["--run", make_tiny_run(tmp_path_factory.mktemp("tiny"))]
+def server(request):
+    source = ["--params", RELEASED] if HAS_RELEASED else ["--run", request.getfixturevalue("tiny_run")]
     s = DemoProcess(*source, "--max-characters", 4)
     if HAS_RELEASED:       # the start style's speed calibration (from the package) is read on a thread: wait for it
         with DemoClient(s.url) as page:

@@ -6,19 +6,12 @@ import sys
 
 import pytest
 
-from demo_helpers import make_tiny_run
-
 pytest.importorskip("websockets", reason="the demo needs the websockets package")
 
 
 def minifilm(*args, module=("-m", "minifilm", "demo"), timeout=120):
     return subprocess.run([sys.executable, *module, *map(str, args)], capture_output=True, text=True,
                           timeout=timeout)
-
-
-@pytest.fixture(scope="module")
-def tiny_run(tmp_path_factory):
-    return make_tiny_run(tmp_path_factory.mktemp("tiny_run"))
 
 
 @pytest.mark.parametrize("module", [("-m", "minifilm", "demo"), ("-m", "minifilm.demo")])

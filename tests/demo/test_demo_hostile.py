@@ -12,7 +12,7 @@ import time
 
 import pytest
 
-from demo_helpers import http_get, serve, tiny_source  # noqa: F401  (tiny_source: a fixture)
+from demo_helpers import budget_clock_stopped, http_get, serve, tiny_source  # noqa: F401  (fixtures)
 from minifilm.demo.budget import MESSAGES_PER_SECOND
 from minifilm.demo.character import DemoSettings
 from minifilm.demo.client import DemoClient, RawWebSocket
@@ -22,7 +22,7 @@ from minifilm.demo.server import DemoServer
 websockets = pytest.importorskip("websockets")
 
 PING, PONG, TEXT, CONT, CLOSE = 0x9, 0xA, 0x1, 0x0, 0x8
-FLOOD = 40 * MESSAGES_PER_SECOND        # sent in well under a second: far over the budget
+FLOOD = 40 * MESSAGES_PER_SECOND        # far over the budget (its clock stopped by the flood tests)
 
 
 @pytest.fixture(scope="module")
@@ -45,7 +45,8 @@ def close_code(frames) -> int:
      + [RawWebSocket.frame(CONT, b"", fin=False) for _ in range(FLOOD)]),
     ("empty text frames", [RawWebSocket.frame(TEXT, b"") for _ in range(FLOOD)]),
 ])
-def test_a_flood_of_any_kind_of_frame_is_cut_off_and_answered_at_most_a_budget_of_times(server, name, flood):
+def test_a_flood_of_any_kind_of_frame_is_cut_off_and_answered_at_most_a_budget_of_times(server, name, flood,
+                                                                                        budget_clock_stopped):
     with RawWebSocket(server.port) as raw:
         assert raw.status == 101
         raw.send_raw(b"".join(flood))
@@ -67,7 +68,7 @@ def test_pings_within_the_budget_are_still_answered(server):
     assert pongs == [b"hello%d" % i for i in range(5)]
 
 
-def test_a_ping_flood_leaves_the_other_pages_frames_coming_and_is_logged_once(server, caplog):
+def test_a_ping_flood_leaves_the_other_pages_frames_coming_and_is_logged_once(server, caplog, budget_clock_stopped):
     caplog.set_level(logging.WARNING)
     with DemoClient(server.url) as other:
         floods = []
@@ -86,7 +87,7 @@ def test_a_ping_flood_leaves_the_other_pages_frames_coming_and_is_logged_once(se
     assert not [m for m in lines if "socket.send() raised exception" in m]
 
 
-def test_a_flooder_that_hangs_up_leaves_no_stream_of_log_lines(server, caplog):
+def test_a_flooder_that_hangs_up_leaves_no_stream_of_log_lines(server, caplog, budget_clock_stopped):
     caplog.set_level(logging.WARNING)
     for _ in range(3):
         raw = RawWebSocket(server.port)

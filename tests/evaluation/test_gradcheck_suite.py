@@ -180,3 +180,33 @@ def test_a_nan_in_a_float32_backward_fails_its_row(monkeypatch):
     case = next(c for c in suite.float32_cases() if c.name == "Φ")
     row = suite.run_case(case, [0])
     assert not row.passed and row.worst == float("inf")
+
+
+# ---- `python -m pytest -m gradcheck` runs every gradient check ---------------------------------
+GRADIENT_CHECKS = {"numerical_gradient", "check_gradients", "check_pair", "compare_gradients", "gradient_check",
+                   "check", "other"}      # the last two: tests/gradcheck_report.py's
+
+
+def test_every_gradient_check_of_the_tests_carries_the_mark():
+    """A test that computes numerical gradients (minifilm/nn/gradcheck.py, the companion's own
+    check) or records a check in tests/gradcheck_report.py lives in a module named *gradcheck*
+    (tests/conftest.py marks all of its tests) or is marked gradcheck itself."""
+    unmarked, found = [], 0
+    for path in sorted((REPO_ROOT / "tests").rglob("test_*.py")):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        imported = {a.asname or a.name for node in tree.body if isinstance(node, ast.ImportFrom)
+                    and node.module in ("gradcheck_report", "minifilm.nn.gradcheck") for a in node.names}
+        for node in tree.body:
+            if not (isinstance(node, ast.FunctionDef) and node.name.startswith("test_")):
+                continue
+            calls = {c.func.id if isinstance(c.func, ast.Name) else c.func.attr for c in ast.walk(node)
+                     if isinstance(c, ast.Call) and isinstance(c.func, (ast.Name, ast.Attribute))}
+            uses = calls & GRADIENT_CHECKS & (imported | {"gradient_check"})
+            if not uses:
+                continue
+            found += 1
+            marked = "gradcheck" in path.name or any("mark.gradcheck" in ast.unparse(d) for d in node.decorator_list)
+            if not marked:
+                unmarked.append(f"{path.relative_to(REPO_ROOT)}::{node.name} ({', '.join(sorted(uses))})")
+    assert found > 15
+    assert not unmarked, f"gradient checks without the mark gradcheck: {unmarked}"

@@ -1,22 +1,8 @@
-"""Fixtures of the fuzz suite: one tiny trained run (a few seconds) whose files the cases mutate,
-a copy of it a case may change, and a demo server on it."""
+"""Fixtures of the fuzz suite: a copy of the session's tiny trained run (``tiny_run``, made once in
+tests/conftest.py) that a case may change, and a demo server on the run."""
 import shutil
-from dataclasses import replace
 
 import pytest
-
-from minifilm.pipeline import train_small
-
-
-@pytest.fixture(scope="session")
-def tiny_run(tmp_path_factory):
-    """A run folder of the main job in miniature (two synthetic styles, one epoch): model.npz,
-    styles.npz, starts.npz, run.json, skeleton.bvh. Tests copy it; they never change it."""
-    out = tmp_path_factory.mktemp("fuzz_run")
-    s = replace(train_small.Settings(out=out).quick(), styles=("Neutral", "LeftHop"), gaits=("FW",),
-                seconds_per_clip=6.0, epochs=1, generate_seconds=0.5)
-    train_small.run(s)
-    return out
 
 
 @pytest.fixture

@@ -273,10 +273,11 @@ def test_family_6_errors_blame_the_right_thing(shared_data, tmp_path, capsys):
     with pytest.raises(DataError, match=r"1 of 3 files are not at the others' 30 fps: dataset-2_walk_normal_001.bvh \(120 fps\)"):
         build_dataset(folder, progress=False)
     # phases --out DIR is refused, not quietly written to DIR.png
+    (tmp_path / "plots").mkdir()
     with pytest.raises(SystemExit):
-        cli.main(["phases", str(shared_data / BANDAI.format(1)), "--out", str(tmp_path)])
+        cli.main(["phases", str(shared_data / BANDAI.format(1)), "--out", str(tmp_path / "plots")])
     assert "is a folder" in capsys.readouterr().err
-    assert not (tmp_path.parent / f"{tmp_path.name}.png").exists()
+    assert not (tmp_path / "plots.png").exists()
     # a truncated style library is a StyleLibraryError naming it, not a raw BadZipFile
     path = tmp_path / "styles.npz"
     write_members(path, {"names": np.array(["A"]), "films": np.zeros((1, 8), np.float32)})

@@ -53,12 +53,16 @@ def tree(folder):
 # ---- 1. names from data --------------------------------------------------------------------------
 @pytest.mark.parametrize("style", ["../../../X", "/abs/path/X", "\x1b[2Jerror: all fine", "a\\b", "x" * 80])
 def test_a_manifest_style_that_is_not_a_name_is_refused(run, tmp_path, capsys, style):
-    manifest = tmp_path / "data.csv"
+    # the test looks only at its own folder: the work lies five folders down in it, so that
+    # wherever the name's "../../../" would lead from the output folder is still inside it
+    work = tmp_path.joinpath(*"abcde")
+    work.mkdir(parents=True)
+    manifest = work / "data.csv"
     text = f"file,style,gait\n{run / 'data' / 'Neutral_FW.bvh'},Neutral,FW\n{run / 'data' / 'LeftHop_FW.bvh'},{style!s},FW\n"
     manifest.write_text(text)
-    before = tree(tmp_path.parent)
-    one_error(["train", "--data", manifest, "--out", tmp_path / "out", "--quick"], capsys, "data.csv", "line 3")
-    assert tree(tmp_path.parent) == before and not (tmp_path / "out").exists()
+    before = tree(tmp_path)
+    one_error(["train", "--data", manifest, "--out", work / "out", "--quick"], capsys, "data.csv", "line 3")
+    assert tree(tmp_path) == before and not (work / "out").exists()
 
 
 def test_a_style_library_with_an_escape_sequence_is_refused(run, capsys):

@@ -2,7 +2,7 @@
 the new style joins the library, the trained styles keep their vectors and motion bit for bit,
 the original checkpoint is never written over, and a clip at another frame rate is resampled."""
 import hashlib
-from dataclasses import replace
+import shutil
 
 import numpy as np
 import pytest
@@ -13,16 +13,15 @@ from minifilm.motion.editing import resample
 from minifilm.pipeline.new_style import teach_style
 from minifilm.pipeline.run_folder import RunFolder
 from minifilm.pipeline.self_fed import SelfFed
-from minifilm.pipeline.train_small import Settings, run
 from minifilm.runtime.control import figure_eight
 from minifilm.synthetic.generator import default_dataset
 
 
 @pytest.fixture(scope="module")
-def trained(tmp_path_factory):
+def trained(tiny_run, tmp_path_factory):
+    """A copy of the session's tiny trained run (tests/conftest.py), which these tests teach."""
     out = tmp_path_factory.mktemp("new_style") / "run"
-    run(replace(Settings(out=out).quick(), styles=("Neutral", "LeftHop"), gaits=("FW",), seconds_per_clip=6.0,
-                epochs=1, generate_seconds=0.5))
+    shutil.copytree(tiny_run, out)
     return out
 
 

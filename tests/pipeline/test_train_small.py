@@ -26,11 +26,10 @@ MINI = ["--quick", "--styles", "Neutral,LeftHop", "--gaits", "FW", "--seconds", 
 
 
 @pytest.fixture(scope="module")
-def mini_run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("run")
-    s = replace(Settings(out=out).quick(), styles=("Neutral", "LeftHop"), gaits=("FW",), seconds_per_clip=6.0,
-                epochs=1, generate_seconds=0.5)
-    return out, run(s)
+def mini_run(tiny_job):
+    """(run folder, result) of the main job in miniature: the session's (tests/conftest.py), made in
+    this process with MINI's settings."""
+    return tiny_job
 
 
 def test_train_small_miniature_end_to_end(mini_run, capsys):
