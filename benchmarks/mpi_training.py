@@ -38,6 +38,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from common import ROOT, header, load_average, table  # noqa: E402
+from machine import cpu_name  # noqa: E402
 from minifilm.dataset.arrays import TrainData  # noqa: E402
 from minifilm.dataset.stats import NormStats  # noqa: E402
 from minifilm.model.config import ModelConfig  # noqa: E402
@@ -301,16 +302,6 @@ def main():
         compare_ranks(args.ranks, args.steps, args.repeats)
         if args.job:
             compare_job(args.ranks, args.repeats)
-
-
-def cpu_name() -> str:
-    """The CPU's name, family and model from /proc/cpuinfo (AMD family 25 is Zen 3 and 4, 26 Zen 5)."""
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as f:
-            info = {k.strip(): v for k, v in (line.split(":", 1) for line in f if ":" in line)}
-        return f"{info['model name'].strip()}, family {info['cpu family'].strip()} model {info['model'].strip()}"
-    except (OSError, KeyError, ValueError):
-        return "unknown"
 
 
 if __name__ == "__main__":
