@@ -130,7 +130,7 @@ class Source:
             if args.styles is not None:
                 raise InputError("--styles (a style pack) is for --params; a run folder keeps its styles itself")
             run = RunFolder.load(args.run)
-            self.network, self.library = run.network(), run.styles()
+            self.network, self.library = run.adapted()
             self.layout, self.fps, self.bvh_scale = run.layout, run.fps, run.bvh_scale
             self.skeleton = run.template()
             self.starts = run.starts()

@@ -83,7 +83,8 @@ class DemoSource:
     @classmethod
     def run_folder(cls, path, calibrate: bool = True) -> "DemoSource":
         run = RunFolder.load(path)
-        return cls(f"trained run ({Path(path).name})", run.network(), run.layout, run.fps, run.styles(),
+        network, library = run.adapted()
+        return cls(f"trained run ({Path(path).name})", network, run.layout, run.fps, library,
                    run.template(), feed_back_fit=False, calibrate=calibrate,
                    options={"position_bias": run.position_bias, "heading_follow": HeadingFollow()},
                    starts=run.starts(), calibration_commands=RUN_CALIBRATION_COMMANDS)

@@ -144,14 +144,17 @@ def adapted_phi_backward(dz: np.ndarray, caches, adapter: StyleAdapter) -> None:
 class AdapterSettings:
     """kind: 'residual' or 'lowrank'; rank: of the low-rank updates; steps: Adam steps at most;
     batch: rows per step; replay: the share ρ of each minibatch replaying the network's own motion;
-    lr: Adam's step; decay: L2 pull of the arrays towards 0 (the identity); holdout: the clip's last
+    noise: σ of the Gaussian noise added to the clip rows' normalised inputs (their targets kept),
+    in ``copies`` noisy copies of every row drawn once (0: the rows as they are); lr: Adam's step; decay: L2 pull of the arrays towards 0 (the identity); holdout: the clip's last
     share kept out to stop early; every / patience: steps between evaluations, evaluations
     without a better held-out loss before stopping; seed."""
     kind: str = "lowrank"
     rank: int = 8
-    steps: int = 400
+    steps: int = 300
     batch: int = 256
     replay: float = 0.25
+    noise: float = 0.3
+    copies: int = 4
     lr: float = 1e-3
     decay: float = 0.0
     holdout: float = 0.2
@@ -170,6 +173,23 @@ class AdapterFit:
     steps: int
     best_step: int
     history: List[tuple] = field(default_factory=list)   # (step, minibatch loss, held-out, replay)
+
+
+def noisy_copies(rows: AdapterRows, phi: FrozenPhi, sigma: float, copies: int, rng) -> AdapterRows:
+    """``copies`` copies of ``rows`` with N(0, σ²) added to every normalised input number, the
+    targets unchanged: states a little off the clip, each with the clip's next frame as its answer.
+
+    PAPER: not in the paper, which trains on the data's own rows. A walk the network generates
+    reads back its own slightly wrong poses, phases and a trajectory blended with the user's
+    command; teacher-forced on the clip alone, the adapter has only seen the clip's exact states
+    and the walk drifts back to the network's own styles (exposure bias). Rows nudged off the
+    clip and told to come back teach it to return (as DAgger's corrections do, without rollouts)."""
+    parts = []
+    for _ in range(copies):
+        x = rows.x + (sigma * rng.standard_normal(rows.x.shape)).astype(rows.x.dtype)
+        parts.append(AdapterRows(x, rows.alpha, F.expert_linear_forward(x, rows.alpha, *phi.experts[0])[0],
+                                 rows.z, rows.style))
+    return AdapterRows.join(parts)
 
 
 def rows_loss(rows: AdapterRows, films, phi, adapter, share: float = 1.0, chunk: int = 2048) -> float:
@@ -195,13 +215,16 @@ def fit_adapter(phi: FrozenPhi, clip: AdapterRows, films: np.ndarray, replay: Op
     n = len(clip)
     n_hold = int(round(s.holdout * n)) if n >= 10 else 0
     train, hold = clip.take(slice(0, n - n_hold)), clip.take(slice(n - n_hold, n) if n_hold else slice(0, n))
-    use_replay = replay is not None and len(replay) > 0 and s.replay > 0
-    n_replay = int(round(s.replay * s.batch)) if use_replay else 0
+    if s.noise > 0:
+        train = noisy_copies(train, phi, s.noise, s.copies, rng)
+    have_replay = replay is not None and len(replay) > 0
+    n_replay = int(round(s.replay * s.batch)) if have_replay else 0
     n_clip = s.batch - n_replay
-    check = replay.take(rng.choice(len(replay), min(len(replay), 1024), replace=False)) if use_replay else None
+    # replay rows to measure the drift of the network's own motion on, also when none is trained on
+    check = replay.take(rng.choice(len(replay), min(len(replay), 1024), replace=False)) if have_replay else None
     off = StyleAdapter(s.kind, phi.sizes, phi.n_experts, s.rank, dtype=dtype)    # all zero: Φ as it is
     start = rows_loss(hold, films, phi, off)
-    replay_start = rows_loss(check, films, phi, off) if use_replay else 0.0
+    replay_start = rows_loss(check, films, phi, off) if have_replay else 0.0
     opt = Adam([adapter.params], lr=s.lr)
     best = (start, 0, adapter.params.data.copy(), replay_start)
     history, since_best, step = [(0, float("nan"), start, replay_start)], 0, 0
@@ -221,7 +244,7 @@ def fit_adapter(phi: FrozenPhi, clip: AdapterRows, films: np.ndarray, replay: Op
         opt.step()
         if step % s.every == 0 or step == s.steps:
             held = rows_loss(hold, films, phi, adapter)
-            rep = rows_loss(check, films, phi, adapter) if use_replay else 0.0
+            rep = rows_loss(check, films, phi, adapter) if have_replay else 0.0
             history.append((step, loss, held, rep))
             if held < best[0]:
                 best, since_best = (held, step, adapter.params.data.copy(), rep), 0
