@@ -46,7 +46,7 @@ from minifilm.motion.skeletons import STYLE100  # noqa: E402
 from minifilm.pipeline.joint_axes import align_axes  # noqa: E402
 from minifilm.pipeline.teach_adapter import (AdapterPlan, adapted_condition, fit_style_adapter,  # noqa: E402
                                              released_controller)
-from minifilm.pipeline.teach_released import clip_rows, normalised, read_clip, teach  # noqa: E402
+from minifilm.pipeline.teach_released import clip_rows, normalised, read_clip, teach, teach_released  # noqa: E402
 from minifilm.runtime.adapted import AdaptedNetwork  # noqa: E402
 from minifilm.runtime.calibration import calibrate_speed  # noqa: E402
 from minifilm.runtime.control import make_script  # noqa: E402
@@ -132,6 +132,19 @@ def parse_route(text: str):
     return AdapterSettings(**kw)
 
 
+def timing(args, out: Path) -> None:
+    """The teaching time of ``minifilm finetune --params NET --name NAME --out PACK CLIP...`` with its
+    defaults in one process (teach_released.teach_released, what the command calls), per style."""
+    for style in args.styles:
+        files = files_of(style, "walk", 0, args.files)
+        t0, c0 = time.perf_counter(), time.process_time()
+        taught = teach_released(args.params, style.title(), files, out / f"pack-{style}", workers=0, log=lambda m: None)
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+        kind = taught.adapter_info["kind"] if taught.adapter_info else "none"
+        print(f"{style}: {taught.clip.seconds:.1f} s of clip taught in {wall:.1f} s ({cpu:.1f} s of CPU; adapter: {kind}; "
+              f"the fit and adapter alone {taught.seconds:.1f} s); load {os.getloadavg()[0]:.1f}", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--params", type=Path, default=DATA / "released-lpn")
@@ -140,8 +153,8 @@ def main() -> None:
     ap.add_argument("--files", type=int, default=2, help="walk files taught from, per style")
     ap.add_argument("--seconds", type=float, default=21.0, help="the figure-eight walk (the first second is cut)")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--timing", action="store_true", help="teach only (the FiLM vector and the first route's "
-                                                          "adapter) and print the time; judge nothing")
+    ap.add_argument("--timing", action="store_true", help="time `minifilm finetune --params` itself (its defaults, "
+                                                          "one process) on each style's clip; judge nothing")
     ap.add_argument("--json", type=Path)
     ap.add_argument("--out", type=Path, help="folder for the pictures (default: a new temporary folder)")
     args = ap.parse_args()
@@ -149,7 +162,9 @@ def main() -> None:
     layout = FeatureLayout.for_skeleton(STYLE100)
     out = args.out or Path(tempfile.mkdtemp(prefix="teach-adapter-"))
     out.mkdir(parents=True, exist_ok=True)
-    refs = None if args.timing else references(rel, layout, args.files)
+    if args.timing:
+        return timing(args, out)
+    refs = references(rel, layout, args.files)
     rows = []
     for style in args.styles:
         files = files_of(style, "walk", 0, args.files)

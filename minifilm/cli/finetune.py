@@ -70,6 +70,9 @@ def add_arguments(ap) -> None:
                     help=f"rank of the low-rank updates (default {AdapterSettings.rank})")
     ap.add_argument("--adapter-steps", type=in_range(1, 20_000, int), default=AdapterSettings.steps,
                     help=f"Adam steps of the adapter's fit at most (default {AdapterSettings.steps})")
+    ap.add_argument("--adapter-noise", type=in_range(0.0, 10.0), default=AdapterSettings.noise,
+                    help="σ of the noise on the clip's normalised inputs the adapter is fitted on (their targets "
+                         f"kept: it learns to come back to the clip; default {AdapterSettings.noise:g}, 0: none)")
     ap.add_argument("--replay", type=in_range(0.0, 0.9), default=AdapterSettings.replay,
                     help="share of each minibatch of the adapter's fit that replays the network's own motion in "
                          f"its own styles (default {AdapterSettings.replay:g})")
@@ -118,7 +121,7 @@ def run(args) -> int:
 def adapter_plan(args) -> AdapterPlan:
     """The adapter options as an AdapterPlan."""
     return AdapterPlan(args.adapter, AdapterSettings(rank=args.adapter_rank, steps=args.adapter_steps,
-                                                     replay=args.replay, seed=args.seed))
+                                                     replay=args.replay, noise=args.adapter_noise, seed=args.seed))
 
 
 def walk_workers(asked) -> int:

@@ -48,6 +48,7 @@ from minifilm.train.film_fit import FitSettings, FrozenRows, StylePrior, fit_fil
 
 RECOMMENDED_SECONDS = 10.0        # shorter clips are taught, with a warning
 SIGMA = 5.0                       # a normalised feature beyond this many σ of the network's data is "far"
+FAR_SHARE = 0.01                  # ... and a clip with more than this share of such numbers
 PRIOR_WEIGHTS = (0.3, 1.0, 3.0)   # λ of the fit: the candidates the rollouts choose between
 #: worker processes at most beside this one for the refinement's walks: a round's 18 walks in
 #: shares of 4-5; smaller shares save little (a step costs about as much for 1 walk as for 9)
@@ -121,10 +122,10 @@ class Distance:
     axis_turns: Optional[np.ndarray] = None  # degrees per joint (align_axes), None: not aligned
 
     def far(self) -> bool:
-        """Far outside: more than 1 % of the input numbers beyond SIGMA, or a start loss over 3x the
-        known style's own."""
+        """Far outside: more than FAR_SHARE of the input numbers beyond SIGMA, or a start loss over 3x
+        the known style's own."""
         own = self.known_losses[0] if self.known_losses else None
-        return self.share_beyond > 0.01 or (own is not None and self.start_loss > 3 * own)
+        return self.share_beyond > FAR_SHARE or (own is not None and self.start_loss > 3 * own)
 
     def words(self) -> str:
         worst = ", ".join(f"{n} ({s:.0%} of frames)" for n, s in self.worst if s > 0) or "none"
@@ -236,16 +237,18 @@ def _teach(rel, layout, name, clip, known, settings, prior_weights, choose_by_ro
         clip.x, clip.z, turns = align_axes(clip.x, clip.z, layout, rel.stats)
     windows = clip_summaries(clip, rel.stats, layout)       # the clip's windows, as taught (axes turned)
     motion = motion if len(windows) >= 2 else None          # too short to measure a walk against: no refining
+    x, p, z = normalised(rel.stats, clip)
+    share, worst = input_distance(x, layout)
+    if adapter_kind(plan, share > FAR_SHARE, 0.0, 0.0) is not None:
+        motion = None          # an adapter whatever the fit gives (step 7): no refinement, no known walks
     # the known styles walk in the worker processes (if any) while this one fits: the space the
     # refinement measures distances in is made of their walks
     known_walks = pool.submit(V, clip.speed, motion.seconds) if motion is not None else None
-    x, p, z = normalised(rel.stats, clip)
     t0 = time.perf_counter()
     rows = FrozenRows(rel.model, x, p, z)
     sub = np.arange(0, len(rows), max(1, len(rows) // 600))
     losses = np.array([rows.loss(v, sub) for v in V])
     best_known = names[int(np.argmin(losses))]
-    share, worst = input_distance(x, layout)
     distance = Distance(share, worst, float(losses.min()), [], share_as_read, turns)
     prior = StylePrior.from_vectors(V)
     # the first candidates (the weakest priors, which run longest) are fitted in the workers once
@@ -277,8 +280,8 @@ def _teach(rel, layout, name, clip, known, settings, prior_weights, choose_by_ro
     kind = adapter_kind(plan, distance.far(), rows.loss(film), distance.known_losses[0])
     adapter = adapter_info = None
     if kind is not None:
-        log(f"the clip lies outside the style space: a {kind} adapter of its own beside the vector"
-            + (" (not refined by motion)" if motion is not None else ""))
+        log(f"the clip lies outside the style space: a {kind} adapter of its own beside the vector (which is "
+            "not refined by motion)")
         adapter, adapter_info = fit_style_adapter(rel.model, rel.network, lambda n: released_controller(n, layout),
                                                   (x, p, z), film, known, clip.speed, plan, kind, log)
         check = adapted_check(rel.network, layout, film, adapter, clip, toes, candidate_rollouts)
@@ -345,7 +348,8 @@ def report_lines(r: TaughtStyle) -> List[str]:
     and whether the new style walks, with a WARNING line for each thing that will not work."""
     c, k = r.clip, r.check
     own = r.distance.known_losses[0] if r.distance.known_losses else float("nan")
-    lines = [f"[finetune] {r.name}: FiLM vector fitted through the frozen network in {r.seconds:.1f} s "
+    lines = [f"[finetune] {r.name}: FiLM vector fitted through the frozen network"
+             + (" and an adapter beside it" if r.adapter_info else "") + f" in {r.seconds:.1f} s "
              f"from {c.seconds:.1f} s of motion ({len(c.x)} frames)"]
     if c.seconds < RECOMMENDED_SECONDS:
         lines.append(f"    WARNING: the clip lasts {c.seconds:.1f} s; {RECOMMENDED_SECONDS:g}-30 s of walking in the "

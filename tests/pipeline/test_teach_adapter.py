@@ -66,12 +66,23 @@ def test_teaching_with_an_adapter_fits_the_clip_and_keeps_the_other_styles(rel, 
     assert a["replay_loss"] < 0.1 * a["holdout_loss_film_alone"]
     pack = tmp_path / "pack"
     StylePack.empty().with_style("Taught", taught.film, taught.pack_info(), adapter=taught.adapter).save(pack)
+    StylePack.empty().with_style("Taught", taught.film, taught.pack_info()).save(tmp_path / "no-adapter")
     loaded = load_pack(pack, film_dim=2048, reserved=rel.styles, network=rel.network)
     assert loaded.info["Taught"]["adapter"]["kind"] == "lowrank"
     network, library = with_adapters(rel.network, with_pack(rel.styles, loaded), loaded.adapters)
     x = np.tile(rel.stats.x_mean, (2, 1))
     p = np.tile(rel.stats.p_mean, (2, 1))
     assert not np.allclose(network.predict(x, p, library["Taught"]), rel.network.predict(x, p, taught.film))
+    # the demo drives the same network and library; a released style's calibration is the one it
+    # has without the pack (the shipped calibrations stay valid), the adapted style's is its own
+    from minifilm.demo.calibration_cache import calibration_key, style_digest
+    from minifilm.demo.source import DemoSource
+    plain, adapted = DemoSource.released(shared_data / "released-lpn"), DemoSource.released(shared_data / "released-lpn",
+                                                                                           pack=pack)
+    assert adapted.network.film_dim == 2049 and calibration_key(adapted) == calibration_key(plain)
+    assert style_digest(adapted, "Old") == style_digest(plain, "Old")
+    assert style_digest(adapted, "Taught") != style_digest(DemoSource.released(shared_data / "released-lpn",
+                                                                               pack=tmp_path / "no-adapter"), "Taught")
     # generate: a released style (and a blend of two) with the pack holding an adapter, bit for bit
     for style in (["--style", "Old"], ["--style", "Old", "--style2", "Zombie", "--blend", "0.3"]):
         outs = []
