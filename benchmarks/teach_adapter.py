@@ -135,10 +135,11 @@ def parse_route(text: str):
 def timing(args, out: Path) -> None:
     """The teaching time of ``minifilm finetune --params NET --name NAME --out PACK CLIP...`` with its
     defaults in one process (teach_released.teach_released, what the command calls), per style."""
-    for style in args.styles:
+    for i, style in enumerate(args.styles):
         files = files_of(style, "walk", 0, args.files)
         t0, c0 = time.perf_counter(), time.process_time()
-        taught = teach_released(args.params, style.title(), files, out / f"pack-{style}", workers=0, log=lambda m: None)
+        taught = teach_released(args.params, style.title(), files, out / f"pack-{i}-{style}", workers=0,
+                                log=lambda m: None)
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         kind = taught.adapter_info["kind"] if taught.adapter_info else "none"
         print(f"{style}: {taught.clip.seconds:.1f} s of clip taught in {wall:.1f} s ({cpu:.1f} s of CPU; adapter: {kind}; "

@@ -242,8 +242,9 @@ def _teach(rel, layout, name, clip, known, settings, prior_weights, choose_by_ro
     if adapter_kind(plan, share > FAR_SHARE, 0.0, 0.0) is not None:
         motion = None          # an adapter whatever the fit gives (step 7): no refinement, no known walks
     # the known styles walk in the worker processes (if any) while this one fits: the space the
-    # refinement measures distances in is made of their walks
-    known_walks = pool.submit(V, clip.speed, motion.seconds) if motion is not None else None
+    # refinement measures distances in is made of their walks. Without workers they are walked
+    # when the refinement needs them, after the fits (a style given an adapter never does)
+    known_walks = pool.submit(V, clip.speed, motion.seconds) if motion is not None and pool.procs else None
     t0 = time.perf_counter()
     rows = FrozenRows(rel.model, x, p, z)
     sub = np.arange(0, len(rows), max(1, len(rows) // 600))
@@ -290,6 +291,8 @@ def _teach(rel, layout, name, clip, known, settings, prior_weights, choose_by_ro
     if motion is not None:
         log(f"refining by motion: {motion.rounds} rounds of {motion.population} walks{pool.sharing_words()} ...")
         faults = FaultCheck(toes, straight_path(clip.speed, motion.seconds + 1), clip.steps_per_s, clip.hips)
+        if known_walks is None:
+            known_walks = pool.submit(V, clip.speed, motion.seconds)
         refit = refine_by_motion(rel.network, layout, rel.stats, film, known, windows, clip.speed, motion,
                                  known_summaries=dict(zip(names, known_walks.result()[0])), problems=faults,
                                  pool=pool)
