@@ -42,6 +42,7 @@ from minifilm.motion.skeletons import STYLE100  # noqa: E402
 from minifilm.pipeline.joint_axes import align_axes  # noqa: E402
 from minifilm.pipeline.judge_taught import judge_taught  # noqa: E402
 from minifilm.pipeline.rollout_refit import rollout_refit  # noqa: E402
+from minifilm.pipeline.teach_adapter import AdapterPlan  # noqa: E402
 from minifilm.pipeline.teach_released import clip_rows, read_clip, teach  # noqa: E402
 from minifilm.pipeline.walks import candidate_rollouts, clip_summaries  # noqa: E402
 from minifilm.runtime.released import load_released  # noqa: E402
@@ -195,7 +196,7 @@ def main() -> None:
         motions = [m for m, _ in read]
         t0 = time.perf_counter()
         taught = teach(rel, layout, style, motions, files, align=True, motion=refit_settings(args.motion),
-                       log=lambda m: None)
+                       adapter=AdapterPlan("off"), log=lambda m: None)    # the FiLM route alone: teach_adapter.py
         seconds = time.perf_counter() - t0
         clip = []
         for m in motions:

@@ -17,6 +17,12 @@ vectors exactly; the fine-tuned checkpoint is saved as RUN/model-NAME.npz, never
 With --motion-rounds N the new style's vector is then moved until the run's own walk in it looks
 like the clip, as a style taught to the released network is (pipeline/run_motion_refit.py; off
 by default for a run: Ψ alone, as the paper).
+
+When the clip lies outside the style space (the distance test finetune prints), the new style also
+gets an adapter of its own (--adapter auto, the default; off, residual or lowrank to choose):
+a small change of Φ fitted on the clip's frames, with a share of every minibatch replaying the
+network's own motion, that acts only while that style is on (pipeline/teach_adapter.py,
+docs/teaching-released.md). The network's files are never written.
 """
 from __future__ import annotations
 
@@ -27,7 +33,9 @@ from minifilm.errors import InputError
 from minifilm.pipeline.new_style import teach_style
 from minifilm.pipeline.self_fed import SelfFed
 from minifilm.pipeline.motion_refit import RefitSettings
+from minifilm.pipeline.teach_adapter import MODES, AdapterPlan
 from minifilm.pipeline.teach_released import RECOMMENDED_SECONDS, SIGMA, WALK_WORKERS, report_lines, teach_released
+from minifilm.train.adapter_fit import AdapterSettings
 from minifilm.train.film_fit import FitSettings
 
 HELP = "teach a trained run a new style from a short clip (Ψ only)"
@@ -53,6 +61,20 @@ def add_arguments(ap) -> None:
                     help="worker processes that share the walks of --motion-rounds (with --params also the "
                          f"teacher-forced fits); default: every usable core, at most {WALK_WORKERS}; 1: all in "
                          "this process")
+    ap.add_argument("--adapter", choices=MODES, default="auto",
+                    help="an adapter of the new style's own beside its FiLM vector: auto (default: when the clip "
+                         "lies outside the style space), off, residual (on Φ's hidden layers) or lowrank (low-rank "
+                         "updates of the expert weights)")
+    ap.add_argument("--adapter-rank", type=in_range(1, 64, int), default=AdapterSettings.rank,
+                    help=f"rank of the low-rank updates (default {AdapterSettings.rank})")
+    ap.add_argument("--adapter-steps", type=in_range(1, 20_000, int), default=AdapterSettings.steps,
+                    help=f"Adam steps of the adapter's fit at most (default {AdapterSettings.steps})")
+    ap.add_argument("--adapter-noise", type=in_range(0.0, 10.0), default=AdapterSettings.noise,
+                    help="σ of the noise on the clip's normalised inputs the adapter is fitted on (their targets "
+                         f"kept: it learns to come back to the clip; default {AdapterSettings.noise:g}, 0: none)")
+    ap.add_argument("--replay", type=in_range(0.0, 0.9), default=AdapterSettings.replay,
+                    help="share of each minibatch of the adapter's fit that replays the network's own motion in "
+                         f"its own styles (default {AdapterSettings.replay:g})")
     ap.add_argument("--rollout-rounds", type=in_range(0, 100, int), default=ROLLOUT_ROUNDS,
                     help="rounds of training on the model's own rollouts along the clip after the "
                          f"teacher-forced steps (pipeline/self_fed.py; default {ROLLOUT_ROUNDS}: teacher forcing "
@@ -70,7 +92,7 @@ def run(args) -> int:
     r = teach_style(args.run, args.name, args.files, steps=args.steps, lr=args.lr, seed=args.seed,
                     replace=args.replace,
                     self_fed=SelfFed(rounds=args.rollout_rounds) if args.rollout_rounds else None,
-                    motion=motion, workers=args.workers)
+                    motion=motion, workers=args.workers, adapter=adapter_plan(args))
     print(f"[finetune] {r.name}: Ψ fine-tuned for {r.steps} steps on {r.frames} frames ({r.clips} style clips) "
           f"in {r.seconds:.1f} s")
     print(f"    loss on the clip (MSE + BLL): {r.loss_before:.4f} with Ψ as trained -> {r.loss_after:.4f}")
@@ -81,6 +103,11 @@ def run(args) -> int:
         f = r.refit
         print(f"    refined by motion: distance to the clip's windows {f.start_distance:.0f} -> {f.distance:.0f}; "
               f"{f.start_score:.2f} -> {f.score:.2f} times that to the nearest trained style's")
+    if r.adapter_info:
+        a = r.adapter_info
+        print(f"    an adapter of its own ({a['kind']}" + (f", rank {a['rank']}" if a["rank"] else "")
+              + f"): loss on the clip's held-out rows {a['holdout_loss_film_alone']:.4f} with the vector alone -> "
+              f"{a['holdout_loss']:.4f} ({a['seconds']:.1f} s); kept in {args.run / 'adapters.npz'}")
     if r.nearest:
         print(f"    nearest trained style in FiLM space: {r.nearest}")
     for line in run_warnings(r):
@@ -88,6 +115,12 @@ def run(args) -> int:
     print(f"    added to {args.run / 'styles.npz'}; fine-tuned checkpoint {r.checkpoint}")
     print(f"    try: minifilm generate --run {args.run} --style {r.name!r} --out {r.name}.bvh")
     return 0
+
+
+def adapter_plan(args) -> AdapterPlan:
+    """The adapter options as an AdapterPlan."""
+    return AdapterPlan(args.adapter, AdapterSettings(rank=args.adapter_rank, steps=args.adapter_steps,
+                                                     replay=args.replay, noise=args.adapter_noise, seed=args.seed))
 
 
 def run_warnings(r) -> list:
@@ -115,7 +148,7 @@ def run_released(args) -> int:
     r = teach_released(args.params, args.name, args.files, args.out, replace=args.replace, settings=settings,
                        motion=RefitSettings(rounds=RefitSettings.rounds if args.motion_rounds is None
                                             else args.motion_rounds, seed=args.seed),
-                       workers=args.workers)
+                       workers=args.workers, adapter=adapter_plan(args))
     for line in report_lines(r):
         print(line)
     print(f"    written to the style pack {args.out}")

@@ -37,6 +37,7 @@ from minifilm.motion.foot_ik import FootLocker
 from minifilm.motion.measures import bone_length_cv, foot_sliding
 from minifilm.motion.skeletons import STYLE100
 from minifilm.pipeline.run_folder import RunFolder
+from minifilm.runtime.adapted import with_adapters
 from minifilm.runtime.calibration import calibrate_speed
 from minifilm.runtime.control import SCRIPTS, distance_to_path, make_script
 from minifilm.runtime.controller import Controller
@@ -117,8 +118,11 @@ class Source:
         if args.params is not None:
             rel = load_released(args.params)
             if args.styles is not None:
-                self.pack = load_pack(args.styles, film_dim=4 * rel.model.config.hidden, reserved=rel.styles)
-            self.network, self.library = rel.network, with_pack(rel.styles, self.pack)
+                self.pack = load_pack(args.styles, film_dim=4 * rel.model.config.hidden, reserved=rel.styles,
+                                      network=rel.network)
+            # a pack style's adapter acts only while that style is on (runtime/adapted.py)
+            self.network, self.library = with_adapters(rel.network, with_pack(rel.styles, self.pack),
+                                                       self.pack.adapters if self.pack else {})
             self.layout, self.fps, self.bvh_scale = FeatureLayout.for_skeleton(STYLE100), 60.0, STYLE100.bvh_scale
             self.skeleton = rest_motion()
             self.fit, self.calibrate, self.options = args.fit or "feedback", not args.no_calibrate, {}
@@ -126,7 +130,7 @@ class Source:
             if args.styles is not None:
                 raise InputError("--styles (a style pack) is for --params; a run folder keeps its styles itself")
             run = RunFolder.load(args.run)
-            self.network, self.library = run.network(), run.styles()
+            self.network, self.library = run.adapted()
             self.layout, self.fps, self.bvh_scale = run.layout, run.fps, run.bvh_scale
             self.skeleton = run.template()
             self.starts = run.starts()

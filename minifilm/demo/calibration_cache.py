@@ -97,7 +97,8 @@ def calibration_key(source) -> Optional[str]:
 def style_digest(source, name: str) -> str:
     """16 hex digits: the bits of style ``name``'s FiLM vector and of its start frame (x, p), if any."""
     h = hashlib.blake2b(digest_size=8)
-    h.update(np.ascontiguousarray(source.library[name], np.float64).tobytes())
+    own = getattr(source.library, "calibration_bits", None)     # a library with adapters (runtime/adapted.py)
+    h.update(own(name) if own else np.ascontiguousarray(source.library[name], np.float64).tobytes())
     for part in source.starts.get(name, ()):
         h.update(b"\0" + np.ascontiguousarray(part, np.float64).tobytes())
     return h.hexdigest()

@@ -25,6 +25,7 @@ from minifilm.features.layout import FeatureLayout
 from minifilm.motion.motion import Motion
 from minifilm.motion.skeletons import STYLE100
 from minifilm.pipeline.run_folder import RunFolder
+from minifilm.runtime.adapted import with_adapters
 from minifilm.runtime.calibration import CALIBRATION_COMMANDS, RUN_CALIBRATION_COMMANDS
 from minifilm.runtime.heading import HeadingFollow
 from minifilm.runtime.network import RuntimeNetwork
@@ -69,9 +70,12 @@ class DemoSource:
     @classmethod
     def released(cls, params, calibrate: bool = True, pack=None) -> "DemoSource":
         rel = load_released(params)
-        styles = load_pack(pack, film_dim=4 * rel.model.config.hidden, reserved=rel.styles) if pack else None
+        styles = load_pack(pack, film_dim=4 * rel.model.config.hidden, reserved=rel.styles,
+                           network=rel.network) if pack else None
         name = f"released network ({Path(params).name})" + (f" with the style pack {Path(pack).name}" if pack else "")
-        return cls(name, rel.network, FeatureLayout.for_skeleton(STYLE100), 60.0, with_pack(rel.styles, styles),
+        # a pack style's adapter acts only while that style is on (runtime/adapted.py)
+        network, library = with_adapters(rel.network, with_pack(rel.styles, styles), styles.adapters if styles else {})
+        return cls(name, network, FeatureLayout.for_skeleton(STYLE100), 60.0, library,
                    rest_motion(), feed_back_fit=True, calibrate=calibrate,
                    options={"heading_follow": HeadingFollow()}, params=Path(params), run_feed_speed=8.0,
                    pack=Path(pack) if pack else None, pack_names=tuple(styles.names) if styles else ())
@@ -79,7 +83,8 @@ class DemoSource:
     @classmethod
     def run_folder(cls, path, calibrate: bool = True) -> "DemoSource":
         run = RunFolder.load(path)
-        return cls(f"trained run ({Path(path).name})", run.network(), run.layout, run.fps, run.styles(),
+        network, library = run.adapted()
+        return cls(f"trained run ({Path(path).name})", network, run.layout, run.fps, library,
                    run.template(), feed_back_fit=False, calibrate=calibrate,
                    options={"position_bias": run.position_bias, "heading_follow": HeadingFollow()},
                    starts=run.starts(), calibration_commands=RUN_CALIBRATION_COMMANDS)

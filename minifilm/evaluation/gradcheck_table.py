@@ -3,9 +3,10 @@
     minifilm gradcheck [--seeds 5] [--only TEXT]      (tests/*/test_*gradcheck*.py run the same)
 
 One row per backward pass (docs/backprop.md lists them): the kit's pairs, the model's blocks,
-the losses with their degenerate branches, each style modulation on its own, Ω, Φ, Ψ (also with
-the FFT convolution), the style model (per-sample clips, shared clips, one FiLM vector for the
-batch) and the seven comparison variants, every one on seeds 0-4. Each row says how many arrays
+the losses with their degenerate branches, each style modulation on its own, a taught style's
+adapters (the two layers, and Φ fitted with each: minifilm/evaluation/gradcheck_adapters.py),
+Ω, Φ, Ψ (also with the FFT convolution), the style model (per-sample clips, shared clips, one
+FiLM vector for the batch) and the seven comparison variants, every one on seeds 0-4. Each row says how many arrays
 and entries one seed perturbs, the worst elementwise relative error over all of them and all
 seeds, its limit, the stencil evaluations that crossed a kink (must be 0) and whether it passed.
 A second table runs the networks' backward passes in float32 against float64.
@@ -45,6 +46,7 @@ from functools import partial
 from typing import Callable, List, Optional, Sequence
 
 from minifilm.baselines.variants import SPECS, VARIANTS
+from minifilm.evaluation import gradcheck_adapters as adapters
 from minifilm.evaluation import gradcheck_cases as kit
 from minifilm.evaluation import gradcheck_networks as nets
 from minifilm.evaluation.gradcheck_problem import Result, check_problem, float32_errors
@@ -56,6 +58,7 @@ FUN, CONV, BLOCKS, LOSSES = "minifilm/nn/functional.py", "minifilm/nn/conv.py", 
     "minifilm/model/losses.py"
 FAST_CONV = "minifilm/nn/fast_conv.py"
 MOD, PFNN = "minifilm/baselines/style_modulation.py", "minifilm/baselines/phase_function.py"
+ADAPT, ADAPT_FIT = "minifilm/model/adapters.py", "minifilm/train/adapter_fit.py"
 
 
 def _pair(path, name):
@@ -102,7 +105,7 @@ STYLE = "minifilm/model/style_model.py::StyleModel"
 
 def cases() -> List[Case]:
     """Every row of the table, in the order of docs/backprop.md (kit, blocks, losses, style
-    modulation, networks, variants)."""
+    modulation, a taught style's adapters, networks, variants)."""
     K = "kit"
     rows = [
         Case("linear", K, kit.linear, _pair(FUN, "linear")),
@@ -147,6 +150,15 @@ def cases() -> List[Case]:
              (f"{MOD}::CPResidualAdapter", f"{MOD}::CPResidualAdapter.backward")),
         Case("PFNN phase-function layer", "modulation", kit.phase_function_layer,
              (f"{PFNN}::PhaseFunction", f"{PFNN}::catmull_rom_weights")),
+        Case("taught style's residual adapter (share)", "adapter", adapters.residual_adapter,
+             _pair(ADAPT, "residual_adapter")),
+        Case("taught style's low-rank expert update, rank 2", "adapter", adapters.lowrank_experts,
+             _pair(ADAPT, "lowrank_experts")),
+        Case("taught style's low-rank expert update, rank 4", "adapter", partial(adapters.lowrank_experts, rank=4),
+             _pair(ADAPT, "lowrank_experts")),
+        Case("Φ with a residual adapter, MSE", "adapter", adapters.adapted_phi, _pair(ADAPT_FIT, "adapted_phi")),
+        Case("Φ with low-rank expert updates, MSE", "adapter", partial(adapters.adapted_phi, kind="lowrank"),
+             _pair(ADAPT_FIT, "adapted_phi")),
         Case("Ω gating network", "network", _network(nets.omega_problem),
              ("minifilm/model/gating.py::GatingNetwork.forward", "minifilm/model/gating.py::GatingNetwork.backward")),
         Case("Φ motion network (Eq. 3)", "network", _network(nets.phi_problem),

@@ -42,6 +42,8 @@ RUN_STATE = {
     "model.npz": ("the run's checkpoint", "minifilm train"),
     "styles.npz": ("the run's style library", "minifilm train and minifilm finetune"),
     "starts.npz": ("the run's start frames", "minifilm train and minifilm finetune"),
+    "adapters.npz": ("the run's style adapters", "minifilm finetune"),
+    "adapters.json": ("the run's style adapters' description", "minifilm finetune"),
     "skeleton.bvh": ("the run's skeleton", "minifilm train"),
     "loss_curve.png": ("the run's loss curve", "minifilm train"),
     "data": ("the run's training data", "minifilm train"),

@@ -5,7 +5,9 @@
 
 The run folder gains the new style in styles.npz (every existing style keeps its stored vector
 exactly, so its motion is bit-identical), a start frame in starts.npz, and the fine-tuned
-checkpoint as ``model-<NAME>.npz`` beside the original, which is never overwritten. Everything is
+checkpoint as ``model-<NAME>.npz`` beside the original, which is never overwritten. A clip far
+outside the run's data also gives the style an adapter of its own (teach_adapter.py), kept in
+the run's adapters.npz / adapters.json and applied only while that style is on. Everything is
 checked before anything is written.
 """
 from __future__ import annotations
@@ -32,6 +34,9 @@ from minifilm.pipeline.run_folder import RunFolder
 from minifilm.pipeline.run_motion_refit import clip_figures, refinable, refine_run_style
 from minifilm.pipeline.run_rig import retarget_onto_run
 from minifilm.pipeline.self_fed import SelfFed, self_fed_rounds
+from minifilm.pipeline.teach_adapter import AdapterPlan, adapted_condition, adapter_kind, fit_style_adapter
+from minifilm.runtime.adapted import AdaptedNetwork
+from minifilm.runtime.adapter_file import write_adapters
 from minifilm.runtime.control import CommandScript
 from minifilm.runtime.network import RuntimeNetwork
 from minifilm.runtime.walk_checks import count_strikes, walk_report
@@ -56,6 +61,7 @@ class NewStyleResult:
     worst: list = field(default_factory=list)              # [(feature, share of rows)] worst first
     check: object = None          # WalkReport of the new style rolled out (runtime/walk_checks.py)
     refit: Optional[Refit] = None  # the refinement by motion (run_motion_refit.py), if asked for
+    adapter_info: Optional[dict] = None   # the style's adapter (teach_adapter.py), if it got one
 
 
 def check_new_name(name: str, run: RunFolder, replace: bool) -> None:
@@ -138,7 +144,7 @@ def clip_training_data(motions: Sequence[Motion], files, run: RunFolder, stats, 
 def teach_style(run_path, name: str, files: Sequence, steps: int = 400, lr: float = 5e-4, seed: int = 0,
                 replace: bool = False, log: Callable[[str], None] = print, with_mirror: bool = False,
                 self_fed: Optional[SelfFed] = None, motion: Optional[RefitSettings] = None,
-                workers: Optional[int] = 1) -> NewStyleResult:
+                workers: Optional[int] = 1, adapter: AdapterPlan = AdapterPlan()) -> NewStyleResult:
     """Fine-tune the run's Ψ on ``files`` and add ``name`` to its style library (see the module
     docstring). ``self_fed``: rollout-aware rounds after the teacher-forced steps (self_fed.py;
     None, the default: teacher forcing alone, as the paper. On the 90-style runs of
@@ -147,31 +153,34 @@ def teach_style(run_path, name: str, files: Sequence, steps: int = 400, lr: floa
     benchmarks/README.md). ``motion``: then the style's vector is refined by the motion it makes
     (run_motion_refit.py; None or 0 rounds, the default: not), its walks shared by ``workers``
     processes (minifilm/parallel.py; None: every usable core, at most WALK_WORKERS; 1: this one).
+    ``adapter``: whether the style gets an adapter of its own (auto: when more than 1 % of the
+    clip's input numbers lie beyond 5 σ of the run's data).
     Raises ValueError naming the file or setting that is wrong; the run folder is then untouched.
     The run folder is locked meanwhile: a second command writing it is refused."""
     RunFolder.load(run_path)                    # a run folder at all, before a lock file is made beside it
     with folder_lock(run_path):
         return _teach_style(RunFolder.load(run_path), name, files, steps, lr, seed, replace, log, with_mirror,
-                            self_fed, motion if motion is not None and motion.rounds > 0 else None, workers)
+                            self_fed, motion if motion is not None and motion.rounds > 0 else None, workers, adapter)
 
 
 def _teach_style(run: RunFolder, name: str, files: Sequence, steps: int, lr: float, seed: int, replace: bool,
                  log: Callable[[str], None], with_mirror: bool, self_fed: Optional[SelfFed],
-                 motion: Optional[RefitSettings], workers: Optional[int]) -> NewStyleResult:
+                 motion: Optional[RefitSettings], workers: Optional[int], adapter: AdapterPlan) -> NewStyleResult:
     log(f"[finetune] teaching {run.path} the style {name!r} from {len(files)} file(s)")
     check_new_name(name, run, replace)
     if motion is not None and refinable(run):
         raise ValueError(f"--motion-rounds: {refinable(run)}")
     checkpoint = checkpoint_path(run, name)
-    written = (checkpoint, run.path / "styles.npz", run.path / "starts.npz")
+    written = (checkpoint, run.path / "styles.npz", run.path / "starts.npz", run.path / "adapters.npz",
+               run.path / "adapters.json")
     with owned_writes(*written):        # finetune owns these files of the run (minifilm/files/state.py)
         return _teach(run, name, files, steps, lr, seed, log, with_mirror, self_fed, checkpoint, written,
-                      motion, workers)
+                      motion, workers, adapter)
 
 
 def _teach(run: RunFolder, name: str, files: Sequence, steps: int, lr: float, seed: int,
            log: Callable[[str], None], with_mirror: bool, self_fed: Optional[SelfFed], checkpoint: Path,
-           written, motion: Optional[RefitSettings], workers: Optional[int]) -> NewStyleResult:
+           written, motion: Optional[RefitSettings], workers: Optional[int], plan: AdapterPlan) -> NewStyleResult:
     for path in written:   # before the work
         check_writable(path, f"run folder {run.path}:")
     files = [Path(f) for f in files]
@@ -204,7 +213,20 @@ def _teach(run: RunFolder, name: str, files: Sequence, steps: int, lr: float, se
                                  if n != name}, own, motion, workers, log=lambda m: log("[finetune] " + m))
         library.add(name, refit.film)
     share, worst = input_distance(data.x, run.layout)
-    check = rollout_check(run, tuned.model, stats, library[name], start, segments)
+    network, cond = RuntimeNetwork.from_model(tuned.model, stats), library[name]
+    adapters, adapter_info = _adapters_kept(run, network, library, name), None
+    kind = adapter_kind(plan, share > 0.01, 0.0, 0.0)
+    if kind is not None:
+        own = segments[::2] if with_mirror else segments
+        others = {n: library[n] for n in library.names if n != name}
+        log(f"[finetune] the clip lies far outside the run's data: a {kind} adapter of its own beside the vector")
+        adapters[name], adapter_info = fit_style_adapter(
+            tuned.model, network, run.controller, (data.x, data.p, data.z), library[name], others,
+            clip_figures(run, own)[0], plan, kind, log=lambda m: log("[finetune] " + m))
+        network, cond = AdaptedNetwork(network, [adapters[name]]), adapted_condition(library[name])
+    check = rollout_check(run, network, cond, start, segments)
+    if adapter_info is not None:
+        adapter_info.update(steps_per_s=check.steps_per_s, hips=check.hips, toe_on_floor=check.toe_on_floor)
     others = [n for n in library.names if n != name]
     nearest = min(others, key=lambda n: float(np.linalg.norm(library[n] - library[name]))) if others else ""
     # styles.npz last: the new style exists for a reader only once its checkpoint and start are there
@@ -212,9 +234,19 @@ def _teach(run: RunFolder, name: str, files: Sequence, steps: int, lr: float, se
     starts = run.starts()
     starts[name] = start
     run.save_starts(starts)
+    for f in ("adapters.npz", "adapters.json"):      # written anew below (or none left)
+        if (run.path / f).exists() and not adapters:
+            (run.path / f).unlink()
+    write_adapters(run.path, adapters)
     run.save_styles(library)
     return NewStyleResult(name, seconds, tuned.step, len(data), len(data.clips), before, after, nearest, checkpoint,
-                          rollout_errors, sum(m.n_frames for m in motions) / run.fps, share, worst, check, refit)
+                          rollout_errors, sum(m.n_frames for m in motions) / run.fps, share, worst, check, refit,
+                          adapter_info)
+
+
+def _adapters_kept(run: RunFolder, network, library, name: str) -> dict:
+    """The run's adapters but the one of ``name`` (a style replaced is taught anew)."""
+    return {n: a for n, a in run.adapters(network, [n for n in library.names]).items() if n != name}
 
 
 def shortest_clip_frames(clip_seconds: float, fps: float) -> int:
@@ -232,14 +264,14 @@ def too_short(longest_frames: int, clip_seconds: float, fps: float, n_files: int
             f"{which} {longest_frames} ({longest_frames / fps:.3f} s)")
 
 
-def rollout_check(run: RunFolder, model, stats, film, start, segments, seconds: float = 6.0):
-    """The new style walked straight ahead at the clip's speed from its start frame: a WalkReport
-    against the clip's steps per second and hip height."""
+def rollout_check(run: RunFolder, network, film, start, segments, seconds: float = 6.0):
+    """The new style (``film``: its condition for ``network``) walked straight ahead at the clip's
+    speed from its start frame: a WalkReport against the clip's steps per second and hip height."""
     names = list(run.layout.joint_names)
     if not all(t in names for t in ("RightToe", "LeftToe")):
         return None
     speed, clip_steps, clip_hips = clip_figures(run, segments)
-    ctrl = run.controller(RuntimeNetwork.from_model(model, stats))
+    ctrl = run.controller(network)
     n = int(round(seconds * run.fps))
     r = ctrl.run(CommandScript([(0.0, speed, 0.0, 0.0), (seconds, speed, 0.0, 0.0)]), n, film,
                  phases=start[1][None], start_x=start[0])

@@ -29,6 +29,7 @@ from minifilm.runtime.control import make_script
 from minifilm.runtime.controller import Controller
 from minifilm.runtime.start_state import root_joint_indices
 from minifilm.pipeline.motion_refit import RefitSettings
+from minifilm.pipeline.teach_adapter import AdapterPlan
 from minifilm.pipeline.teach_released import FrozenRows, clip_rows, normalised, teach
 from minifilm.pipeline.walks import FPS
 from minifilm.synthetic.generator import rest_motion
@@ -96,7 +97,8 @@ def refit(rel, name: str, motion, settings: FitSettings = FitSettings(), prior_w
     known = {n: rel.styles[n] for n in names if n != name}
     layout = FeatureLayout.for_skeleton(STYLE100)
     taught = teach(rel, layout, f"{name}-refit", [motion], [f"{name} (generated)"], known=known, settings=settings,
-                   prior_weights=prior_weights, require_steps=False, motion=by_motion, log=log)   # the network's motion walks,
+                   prior_weights=prior_weights, require_steps=False, motion=by_motion, log=log,
+                   adapter=AdapterPlan("off"))   # the FiLM vector is what is measured; the network's motion walks,
     # whatever minifilm's contact labels find in it (BentKnees: fewer than two steps in 30 s)
     x, p, z = normalised(rel.stats, clip_rows([motion], [name], name, require_steps=False))
     rows = FrozenRows(rel.model, x, p, z)

@@ -9,6 +9,8 @@ demo read it, from any working directory:
     starts.npz     per style, a raw input frame x and its phases p from the style's own data, where
                    a generated motion starts (mid-stride rather than the data's mean pose)
     skeleton.bvh   one frame of the source skeleton: the BVH files are written on it
+    adapters.npz, adapters.json   only when finetune taught a style an adapter of its own
+                   (minifilm/runtime/adapter_file.py; applied only while that style is on)
 
 run.json, styles.npz and starts.npz carry the run's id, and run.json a fingerprint of model.npz,
 so a file of another run put into the folder is named as such (minifilm/pipeline/run_identity.py).
@@ -43,6 +45,8 @@ from minifilm.files.state import RUN_MARKER, RUN_STATE, is_run_entry  # noqa: F4
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.bvh_write import write_bvh
 from minifilm.motion.motion import Motion
+from minifilm.runtime.adapted import with_adapters
+from minifilm.runtime.adapter_file import read_adapters
 from minifilm.runtime.controller import Controller
 from minifilm.runtime.network import RuntimeNetwork
 from minifilm.runtime.style_library import StyleLibrary
@@ -298,6 +302,19 @@ class RunFolder:
     def network(self) -> RuntimeNetwork:
         model, stats = self.model_and_stats()
         return RuntimeNetwork.from_model(model, stats)
+
+    def adapters(self, network: RuntimeNetwork, names: Sequence[str]) -> dict:
+        """Style -> StyleAdapter of the styles ``names`` taught with one ({} when none), checked
+        against ``network`` (this run's)."""
+        H = network.hidden.hidden
+        return read_adapters(self.path, names, [network.x_dim, H, H, network.z_dim], network.n_experts,
+                             RunFolderError)
+
+    def adapted(self):
+        """(network, style library) with the adapters of the run's styles applied while their style
+        is on (minifilm/runtime/adapted.py); the plain ones when the run has none."""
+        network, library = self.network(), self.styles()
+        return with_adapters(network, library, self.adapters(network, library.names))
 
     def controller(self, network: Optional[RuntimeNetwork] = None, fit: bool = True, **options) -> Controller:
         """A Controller for this run: its layout and frame rate, the run's position bias, and (with

@@ -5,7 +5,9 @@
     vector fitted through the frozen Ω and Φ under a prior from the network's own styles
     (minifilm/train/film_fit.py) -> the candidate vectors rolled out, the one whose motion is
     closest to the clip kept -> that vector moved until the network's own walk in it looks like
-    the clip (minifilm/pipeline/motion_refit.py) -> a style pack (minifilm/runtime/style_pack.py)
+    the clip (minifilm/pipeline/motion_refit.py), or, when the clip lies outside the style space,
+    an adapter of the style's own fitted beside it instead (minifilm/pipeline/teach_adapter.py)
+    -> a style pack (minifilm/runtime/style_pack.py)
 
 The released network is never written: the new style lives in the pack folder, which
 ``minifilm generate / demo --params NET --styles PACK`` read beside the network's own styles.
@@ -39,6 +41,8 @@ from minifilm.runtime.walk_checks import count_strikes, walk_report
 from minifilm.pipeline.joint_axes import align_axes
 from minifilm.pipeline.motion_refit import RefitSettings, refine_by_motion
 from minifilm.parallel import executor, map_in_order, worker_count
+from minifilm.pipeline.teach_adapter import (AdapterPlan, adapted_check, adapter_kind, fit_style_adapter,
+                                             released_controller)
 from minifilm.pipeline.walks import (CHECK_SECONDS, FPS, WALK_WORKERS, FaultCheck, candidate_rollouts,  # noqa: F401
                                      clip_summaries, straight_path, walk)     # (WALK_WORKERS: for the command's help)
 from minifilm.synthetic.generator import rest_motion
@@ -46,6 +50,7 @@ from minifilm.train.film_fit import FitSettings, FrozenRows, StylePrior, fit_fil
 
 RECOMMENDED_SECONDS = 10.0        # shorter clips are taught, with a warning
 SIGMA = 5.0                       # a normalised feature beyond this many σ of the network's data is "far"
+FAR_SHARE = 0.01                  # ... and a clip with more than this share of such numbers
 PRIOR_WEIGHTS = (0.3, 1.0, 3.0)   # λ of the fit: the candidates the rollouts choose between
 
 
@@ -116,10 +121,10 @@ class Distance:
     axis_turns: Optional[np.ndarray] = None  # degrees per joint (align_axes), None: not aligned
 
     def far(self) -> bool:
-        """Far outside: more than 1 % of the input numbers beyond SIGMA, or a start loss over 3x the
-        known style's own."""
+        """Far outside: more than FAR_SHARE of the input numbers beyond SIGMA, or a start loss over 3x
+        the known style's own."""
         own = self.known_losses[0] if self.known_losses else None
-        return self.share_beyond > 0.01 or (own is not None and self.start_loss > 3 * own)
+        return self.share_beyond > FAR_SHARE or (own is not None and self.start_loss > 3 * own)
 
     def words(self) -> str:
         worst = ", ".join(f"{n} ({s:.0%} of frames)" for n, s in self.worst if s > 0) or "none"
@@ -154,6 +159,8 @@ class TaughtStyle:
     check: object                 # WalkReport of the chosen vector's rollout
     candidates: List[dict] = field(default_factory=list)
     candidate_films: Optional[np.ndarray] = None   # (len(candidates), 2048): every fitted vector
+    adapter: object = None        # the style's StyleAdapter (teach_adapter.py), or None
+    adapter_info: Optional[dict] = None
 
     def pack_info(self) -> dict:
         return {"taught_from": self.clip.sources,
@@ -166,7 +173,7 @@ class TaughtStyle:
                         "axis_turns_degrees": None if self.distance.axis_turns is None
                         else [round(float(a), 1) for a in self.distance.axis_turns],
                         "worst_features": [list(w) for w in self.distance.worst], "candidates": self.candidates},
-                "checks": self.check.to_dict()}
+                "checks": self.check.to_dict(), "adapter": self.adapter_info}
 
 
 def normalised(stats, clip: ClipRows):
@@ -195,24 +202,26 @@ def teach(rel, layout: FeatureLayout, name: str, motions: Sequence[Motion], file
           known: Optional[dict] = None, settings: FitSettings = FitSettings(),
           prior_weights: Sequence[float] = PRIOR_WEIGHTS, choose_by_rollout: bool = True,
           align: bool = False, require_steps: bool = True, motion: Optional[RefitSettings] = RefitSettings(),
-          workers: Optional[int] = None, log: Callable[[str], None] = print) -> TaughtStyle:
+          workers: Optional[int] = None, adapter: AdapterPlan = AdapterPlan(),
+          log: Callable[[str], None] = print) -> TaughtStyle:
     """Fit ``name`` to the clip(s) on the loaded released network ``rel``; ``known``: the styles
     the prior is made of (default all of the network's); ``align``: turn the joint axes to the
     network's convention (:func:`align_axes`; for retargeted clips); ``motion``: how the kept vector
     is then refined by the motion it makes (:func:`refine_by_motion`; None or 0 rounds: not at
     all); ``workers``: processes that share the teacher-forced fits and the refinement's walks
     (minifilm/parallel.py; default: every usable core, at most WALK_WORKERS; 1: all in this
-    process; one when not refining). Nothing is written."""
+    process; one when not refining); ``adapter``: whether and how the style gets an adapter of its
+    own (teach_adapter.py; with one, the vector is not refined by motion). Nothing is written."""
     clip = clip_rows(motions, files, name, require_steps)
     refining = motion is not None and motion.rounds > 0
     n = worker_count(workers, WALK_WORKERS) if refining else 1
     with executor(n, n) as pool:
         return _teach(rel, layout, name, clip, known, settings, prior_weights, choose_by_rollout, align,
-                      motion if refining else None, pool, n, log)
+                      motion if refining else None, pool, n, adapter, log)
 
 
 def _teach(rel, layout, name, clip, known, settings, prior_weights, choose_by_rollout, align, motion, pool, shares,
-           log):
+           plan, log):
     """:func:`teach` with the clip's rows made and the pool of ``shares`` workers open (None: this
     process alone; ``motion``: None when not refining)."""
     known = dict(rel.styles if known is None else known)
@@ -226,12 +235,14 @@ def _teach(rel, layout, name, clip, known, settings, prior_weights, choose_by_ro
     motion = motion if len(windows) >= 2 else None          # too short to measure a walk against: no refining
     walks = functools.partial(walk, rel.network, layout, rel.stats, pool=pool, shares=shares)
     x, p, z = normalised(rel.stats, clip)
+    share, worst = input_distance(x, layout)
+    if adapter_kind(plan, share > FAR_SHARE, 0.0, 0.0) is not None:
+        motion = None          # an adapter whatever the fit gives (step 7): no refinement, no known walks
     t0 = time.perf_counter()
     rows = FrozenRows(rel.model, x, p, z)
     sub = np.arange(0, len(rows), max(1, len(rows) // 600))
     losses = np.array([rows.loss(v, sub) for v in V])
     best_known = names[int(np.argmin(losses))]
-    share, worst = input_distance(x, layout)
     distance = Distance(share, worst, float(losses.min()), [], share_as_read, turns)
     prior = StylePrior.from_vectors(V)
     # one candidate per prior weight, each fit in a worker (the same fit wherever it runs)
@@ -258,6 +269,16 @@ def _teach(rel, layout, name, clip, known, settings, prior_weights, choose_by_ro
     film, check = films[chosen], reports[chosen]
     candidates[chosen]["chosen"] = True
     distance.known_losses = [own_loss(rel, r, len(films), ref, best_known)]
+    kind = adapter_kind(plan, distance.far(), rows.loss(film), distance.known_losses[0])
+    adapter = adapter_info = None
+    if kind is not None:
+        log(f"the clip lies outside the style space: a {kind} adapter of its own beside the vector (which is "
+            "not refined by motion)")
+        adapter, adapter_info = fit_style_adapter(rel.model, rel.network, lambda n: released_controller(n, layout),
+                                                  (x, p, z), film, known, clip.speed, plan, kind, log)
+        check = adapted_check(rel.network, layout, film, adapter, clip, toes, candidate_rollouts)
+        adapter_info.update(steps_per_s=check.steps_per_s, hips=check.hips, toe_on_floor=check.toe_on_floor)
+        motion = None
     if motion is not None:
         log(f"refining by motion: {motion.rounds} rounds of {motion.population} walks"
             + (f" in {shares} worker processes" if pool is not None else "") + " ...")
@@ -281,12 +302,13 @@ def _teach(rel, layout, name, clip, known, settings, prior_weights, choose_by_ro
     seconds = time.perf_counter() - t0
     d = np.linalg.norm(V - film, axis=1)
     return TaughtStyle(name, film.astype(np.float32), seconds, clip, distance, rows.loss(film), names[int(np.argmin(d))],
-                       best_known, check, candidates, np.stack(films).astype(np.float32))
+                       best_known, check, candidates, np.stack(films).astype(np.float32), adapter, adapter_info)
 
 
 def teach_released(params, name: str, files: Sequence, out, replace: bool = False,
                    settings: FitSettings = FitSettings(), motion: Optional[RefitSettings] = RefitSettings(),
-                   workers: Optional[int] = None, log: Callable[[str], None] = print) -> TaughtStyle:
+                   workers: Optional[int] = None, adapter: AdapterPlan = AdapterPlan(),
+                   log: Callable[[str], None] = print) -> TaughtStyle:
     """``minifilm finetune --params NET --name NAME --out PACK CLIP...``: read and check everything,
     teach, then write PACK (the old pack's styles kept) in one step. The network folder is only read."""
     check_name(name, "--name")
@@ -296,11 +318,12 @@ def teach_released(params, name: str, files: Sequence, out, replace: bool = Fals
     rel = load_released(params)
     if name in rel.styles:
         raise InputError(f"--name {name!r}: the released network already has a style of that name; pick another")
-    load_pack_or_empty(out, film_dim=4 * rel.model.config.hidden, reserved=rel.styles)  # a pack, before a lock beside it
+    shape = dict(film_dim=4 * rel.model.config.hidden, reserved=rel.styles, network=rel.network)
+    load_pack_or_empty(out, **shape)            # a pack, before a lock beside it
     # one writer of a pack from reading it to writing it: a second teaching into it is refused,
     # naming this one, rather than both succeeding and one style being lost (minifilm/files/lock.py)
     with folder_lock(out, "style pack folder"):
-        pack = load_pack_or_empty(out, film_dim=4 * rel.model.config.hidden, reserved=rel.styles)
+        pack = load_pack_or_empty(out, **shape)
         if name in pack.info and not replace:
             raise InputError(f"--name {name!r}: the pack {out} already has a style of that name (--replace to "
                              "overwrite it)")
@@ -313,8 +336,8 @@ def teach_released(params, name: str, files: Sequence, out, replace: bool = Fals
         layout = FeatureLayout.for_skeleton(STYLE100)
         align = any(retargeted for _, retargeted in read)
         taught = teach(rel, layout, name, [m for m, _ in read], files, settings=settings, align=align, motion=motion,
-                       workers=workers, log=log)
-        pack.with_style(name, taught.film, taught.pack_info(), replace=replace).save(out)
+                       workers=workers, adapter=adapter, log=log)
+        pack.with_style(name, taught.film, taught.pack_info(), replace=replace, adapter=taught.adapter).save(out)
     return taught
 
 
@@ -323,7 +346,8 @@ def report_lines(r: TaughtStyle) -> List[str]:
     and whether the new style walks, with a WARNING line for each thing that will not work."""
     c, k = r.clip, r.check
     own = r.distance.known_losses[0] if r.distance.known_losses else float("nan")
-    lines = [f"[finetune] {r.name}: FiLM vector fitted through the frozen network in {r.seconds:.1f} s "
+    lines = [f"[finetune] {r.name}: FiLM vector fitted through the frozen network"
+             + (" and an adapter beside it" if r.adapter_info else "") + f" in {r.seconds:.1f} s "
              f"from {c.seconds:.1f} s of motion ({len(c.x)} frames)"]
     if c.seconds < RECOMMENDED_SECONDS:
         lines.append(f"    WARNING: the clip lasts {c.seconds:.1f} s; {RECOMMENDED_SECONDS:g}-30 s of walking in the "
@@ -341,6 +365,13 @@ def report_lines(r: TaughtStyle) -> List[str]:
                      f"clip's {m['motion_distance_start']:.0f} -> {m['motion_distance']:.0f}"
                      + (f", {m['motion_ratio_start']:.2f} -> {m['motion_ratio']:.2f} times that to the nearest "
                         "known style's (below 1: nearer the clip than any)" if "motion_ratio" in m else ""))
+    if r.adapter_info:
+        a = r.adapter_info
+        lines.append(f"    an adapter of its own ({a['kind']}" + (f", rank {a['rank']}" if a["rank"] else "")
+                     + f", {a['replay']:.0%} of each minibatch replaying the network's own motion): loss on the "
+                     f"clip's held-out rows {a['holdout_loss_film_alone']:.4f} with the vector alone -> "
+                     f"{a['holdout_loss']:.4f}; on the network's own motion with it on {a['replay_loss']:.4f} "
+                     f"({a['seconds']:.1f} s)")
     lines.append(f"    nearest of the network's styles in FiLM space: {r.nearest}")
     lines.append(f"    rolled out {CHECK_SECONDS:g} s: {k.steps_per_s:.2f} steps/s (clip {c.steps_per_s:.2f}), hips "
                  f"{k.hips:.2f} m (clip {c.hips:.2f}), lowest toe on the floor in {k.toe_on_floor:.0%} of frames, "

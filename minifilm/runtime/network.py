@@ -152,9 +152,12 @@ class RuntimeNetwork:
         conditionings of the comparison variants."""
         return 4 * self.hidden.hidden if isinstance(self.hidden, FilmHidden) else None
 
-    def predict(self, x_raw: np.ndarray, p_raw: np.ndarray, cond) -> np.ndarray:
+    def predict(self, x_raw: np.ndarray, p_raw: np.ndarray, cond, change=None) -> np.ndarray:
         """Raw output z (B, z_dim) from raw x (B, x_dim), raw phases p (B, phase_dim) and the
-        style condition (a FiLM vector (4H,) / (B, 4H) for FiLM models)."""
+        style condition (a FiLM vector (4H,) / (B, 4H) for FiLM models). ``change``: a style's own
+        change of Φ for these rows (minifilm/runtime/adapted.py), applied after each gated-expert
+        layer (``change.experts(l, F, input, α)``) and each hidden layer (``change.hidden(l, h)``);
+        None: Φ as it is, the same operations as without the argument."""
         h = (np.asarray(x_raw, self.dtype) - self._x_mean) * self._x_inv
         alpha = self.gate(h, p_raw).astype(self.dtype, copy=False)      # (B, K)
         B = len(h)
@@ -163,7 +166,12 @@ class RuntimeNetwork:
                 y = np.stack([row @ Wc for row in h]).reshape(B, self.n_experts, O)
             else:
                 y = (h @ Wc).reshape(B, self.n_experts, O)              # every expert's output
-            h = np.matmul(alpha[:, None, :], y)[:, 0] + alpha @ b       # Σ_k α_k (h W_k + b_k)
+            f = np.matmul(alpha[:, None, :], y)[:, 0] + alpha @ b       # Σ_k α_k (h W_k + b_k)
+            if change is not None:
+                f = change.experts(l, f, h, alpha)
+            h = f
             if l < 2:
                 h = self.hidden(l, h, alpha, cond)
+                if change is not None:
+                    h = change.hidden(l, h)
         return h * self._z_std + self._z_mean

@@ -6,6 +6,8 @@ A pack is a folder of two files:
     pack.json    {"format": "minifilm style pack", "version": 1, "film_dim": D,
                   "styles": [{"name", "taught_from": [{"file", "frames", "fps", ...}], "fit": {...},
                               "checks": {...}}, ...]}
+    adapters.npz, adapters.json   only when a style was taught with an adapter of its own
+                  (adapter_file.py; applied only while that style is on: adapted.py)
 
 ``minifilm finetune --params NET --out PACK`` writes one (the whole folder at once, atomically:
 a reader sees the old pack or the new one; it holds the pack's lock from reading the pack to
@@ -25,11 +27,13 @@ import numpy as np
 
 from minifilm.errors import InputError
 from minifilm.files import atomic_directory, read_json
+from minifilm.runtime import adapter_file
 from minifilm.runtime.style_library import StyleLibrary, StyleLibraryError
 
 PACK_FORMAT = "minifilm style pack"
 PACK_VERSION = 1
 FILES = ("styles.npz", "pack.json")
+ALL_FILES = FILES + adapter_file.FILES
 
 
 class StylePackError(InputError):
@@ -37,10 +41,11 @@ class StylePackError(InputError):
 
 
 class StylePack:
-    """styles: StyleLibrary of the pack's vectors; info: name -> that style's pack.json entry."""
+    """styles: StyleLibrary of the pack's vectors; info: name -> that style's pack.json entry;
+    adapters: name -> StyleAdapter of the styles taught with one (minifilm/model/adapters.py)."""
 
-    def __init__(self, styles: StyleLibrary, info: Mapping[str, dict]):
-        self.styles, self.info = styles, dict(info)
+    def __init__(self, styles: StyleLibrary, info: Mapping[str, dict], adapters: Optional[Mapping] = None):
+        self.styles, self.info, self.adapters = styles, dict(info), dict(adapters or {})
 
     @property
     def names(self) -> List[str]:
@@ -50,8 +55,10 @@ class StylePack:
     def empty(cls) -> "StylePack":
         return cls(StyleLibrary(), {})
 
-    def with_style(self, name: str, film: np.ndarray, info: dict, replace: bool = False) -> "StylePack":
-        """A new pack with ``name`` added (or replaced when ``replace``); the old pack is unchanged."""
+    def with_style(self, name: str, film: np.ndarray, info: dict, replace: bool = False,
+                   adapter=None) -> "StylePack":
+        """A new pack with ``name`` added (or replaced when ``replace``), with its ``adapter`` (None:
+        the style has none); the old pack is unchanged."""
         if name in self.info and not replace:
             raise StylePackError(f"the pack already has a style {name!r} (--replace to overwrite it)")
         if replace and name not in self.info:
@@ -61,7 +68,10 @@ class StylePack:
         library.add(name, film)
         infos = dict(self.info)
         infos[name] = {**info, "name": name}
-        return StylePack(library, infos)
+        adapters = {n: a for n, a in self.adapters.items() if n != name}
+        if adapter is not None:
+            adapters[name] = adapter
+        return StylePack(library, infos, adapters)
 
     def save(self, folder) -> Path:
         """Write the pack as ``folder`` (atomically, see the module docstring)."""
@@ -70,16 +80,18 @@ class StylePack:
         doc = {"format": PACK_FORMAT, "version": PACK_VERSION, "film_dim": self.styles.dim,
                "styles": [self.info[n] for n in self.names]}
         text = json.dumps(doc, indent=1, allow_nan=False)
-        with atomic_directory(folder, "style pack folder", replaceable=lambda n: n in FILES) as tmp:
+        with atomic_directory(folder, "style pack folder", replaceable=lambda n: n in ALL_FILES) as tmp:
             self.styles.save(tmp / "styles.npz")
             (tmp / "pack.json").write_text(text + "\n", encoding="utf-8")
+            adapter_file.write_adapters(tmp, {n: self.adapters[n] for n in self.names if n in self.adapters})
         return Path(folder)
 
 
-def load_pack(folder, film_dim: Optional[int] = None, reserved: Mapping = ()) -> StylePack:
+def load_pack(folder, film_dim: Optional[int] = None, reserved: Mapping = (), network=None) -> StylePack:
     """Read a pack written by :meth:`StylePack.save`. ``film_dim``: the network's 4H; ``reserved``:
-    the network's own style names, which a pack style may not take. StylePackError naming the
-    folder and what is wrong, for anything that is not such a pack."""
+    the network's own style names, which a pack style may not take; ``network``: the
+    RuntimeNetwork the pack's adapters must fit (needed when the pack has adapters). StylePackError
+    naming the folder and what is wrong, for anything that is not such a pack."""
     d = Path(os.fspath(folder))
     where = f"style pack {d}"
     if not d.is_dir():
@@ -112,14 +124,26 @@ def load_pack(folder, film_dim: Optional[int] = None, reserved: Mapping = ()) ->
     clash = [n for n in styles.names if n in reserved]
     if clash:
         raise StylePackError(f"{where}: the style name(s) {clash[:5]} are already the network's own styles")
-    return StylePack(styles, info)
+    return StylePack(styles, info, _adapters(d, styles.names, network))
 
 
-def load_pack_or_empty(folder, film_dim: Optional[int] = None, reserved: Mapping = ()) -> StylePack:
+def _adapters(folder: Path, names, network) -> dict:
+    """The pack's adapters, checked against ``network`` (adapter_file.py)."""
+    if not (folder / "adapters.json").exists() and not (folder / "adapters.npz").exists():
+        return {}
+    if network is None or network.film_dim is None:
+        raise StylePackError(f"style pack {folder}: holds style adapters, which need the network they were "
+                             "taught to")
+    H = network.hidden.hidden
+    return adapter_file.read_adapters(folder, names, [network.x_dim, H, H, network.z_dim], network.n_experts,
+                                      StylePackError)
+
+
+def load_pack_or_empty(folder, film_dim: Optional[int] = None, reserved: Mapping = (), network=None) -> StylePack:
     """The pack at ``folder``, or an empty one when nothing is there yet (a first ``finetune --out``)."""
     if not os.path.lexists(folder):
         return StylePack.empty()
-    return load_pack(folder, film_dim, reserved)
+    return load_pack(folder, film_dim, reserved, network)
 
 
 def with_pack(styles: Mapping[str, np.ndarray], pack: Optional[StylePack]) -> StyleLibrary:

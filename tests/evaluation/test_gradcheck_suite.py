@@ -33,7 +33,8 @@ def backward_passes():
     networks and style modulations, as `path::name`."""
     out = []
     for rel in ("minifilm/nn/functional.py", "minifilm/nn/conv.py", "minifilm/nn/fast_conv.py",
-                "minifilm/nn/fast_linear.py", "minifilm/model/blocks.py"):
+                "minifilm/nn/fast_linear.py", "minifilm/model/blocks.py", "minifilm/model/adapters.py",
+                "minifilm/train/adapter_fit.py"):
         tree = ast.parse((REPO_ROOT / rel).read_text(encoding="utf-8"))
         out += [f"{rel}::{n.name}" for n in tree.body if isinstance(n, ast.FunctionDef) and n.name.endswith("_backward")]
     for rel in ("minifilm/model/gating.py", "minifilm/model/motion_net.py", "minifilm/model/film_generator.py",

@@ -141,6 +141,7 @@ def test_teaching_with_workers_gives_the_vector_of_one_process(shared_data):
     round-off of float32 sums in another order (tests/pipeline/test_walks_workers.py says how much)."""
     from minifilm.pipeline.motion_refit import RefitSettings
     from minifilm.pipeline.refit_released import generated_motions
+    from minifilm.pipeline.teach_adapter import AdapterPlan
     from minifilm.pipeline.teach_released import teach
     from minifilm.runtime.released import load_released
     from minifilm.train.film_fit import FitSettings
@@ -149,7 +150,7 @@ def test_teaching_with_workers_gives_the_vector_of_one_process(shared_data):
     known = {n: rel.styles[n] for n in list(rel.styles)[:12] if n != "Zombie"}
     kw = dict(known=known, settings=FitSettings(steps=20, every=5), prior_weights=(0.3, 3.0),
               motion=RefitSettings(directions=4, rounds=2, population=4, elite=2, seconds=2.0, dims=8),
-              log=lambda line: None)
+              adapter=AdapterPlan("off"), log=lambda line: None)      # the vector alone (no adapter)
     alone = teach(rel, LAYOUT, "Taught", [motion], ["zombie.bvh"], workers=1, **kw)
     shared = teach(rel, LAYOUT, "Taught", [motion], ["zombie.bvh"], workers=2, **kw)
     assert [c.get("steps") for c in shared.candidates] == [c.get("steps") for c in alone.candidates]
