@@ -9,7 +9,6 @@ Builds a ~5 MB file by repeating the frames of a real file (default: the largest
 import argparse
 import os
 import re
-import sys
 import tempfile
 import time
 from pathlib import Path

@@ -17,8 +17,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 
-from minifilm.features.layout import (CONTACT_ORDER, CURRENT_SAMPLE, JOINT_FIELDS,  # noqa: E402
-                                    PHASE_SLOTS, FeatureLayout)
+from minifilm.features.layout import (CONTACT_ORDER, CURRENT_SAMPLE, PHASE_SLOTS, FeatureLayout)
 from minifilm.motion.skeletons import STYLE100  # noqa: E402
 
 OUT = ROOT / "docs" / "features.md"

@@ -9,7 +9,6 @@ import pytest
 import minifilm.dataset.cache as cache_module
 from minifilm.dataset.arrays import TrainData
 from minifilm.dataset.build import build_dataset
-from minifilm.dataset.dataset import Dataset
 from minifilm.dataset.manifest import (MotionFile, bandai_files, read_manifest, scan_100style,
                                        write_bandai_manifest, write_manifest)
 from minifilm.dataset.settings import DatasetSettings

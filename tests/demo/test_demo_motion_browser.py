@@ -9,7 +9,6 @@ the test slower), or, when the network cannot run that fast (the frame then says
 than its fastest walk with both feet off the ground at times; and the page is served within 3 s of
 the command starting (the speed calibration no longer runs before it).
 """
-import json
 import time
 import urllib.request
 

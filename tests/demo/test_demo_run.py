@@ -2,7 +2,6 @@
 shown a run, so while Shift is held a perfect run is blended into its trajectory input; without
 Shift, or for sources without a run feed, the input is the paper's."""
 import numpy as np
-import pytest
 
 from demo_helpers import released_source, tiny_source  # noqa: F401  (fixtures)
 from minifilm.demo import calibrations

@@ -3,7 +3,7 @@ true size; the unit inferred from the body's legs; non-humanoids in centimetres,
 import numpy as np
 import pytest
 
-from humanoid_rigs import (CMU_CONVERSION_FROM_MB, CMU_CONVERSION_FROM_XIA, quadruped, renamed, renamed_bvh,
+from humanoid_rigs import (CMU_CONVERSION_FROM_MB, CMU_CONVERSION_FROM_XIA, quadruped, renamed_bvh,
                            scrambled)
 from minifilm.body.read import Body, read_in_metres
 from minifilm.body.units import scaled, standing_height

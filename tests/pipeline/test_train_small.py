@@ -1,8 +1,6 @@
 """Smoke test: a miniature of the main job (``examples/train_small.py`` = ``minifilm train``: tiny
 data, one epoch) runs every step and leaves a run folder that works from any working directory."""
 import ast
-import inspect
-import os
 import runpy
 import subprocess
 import sys
@@ -18,7 +16,6 @@ from minifilm.pipeline.run_folder import RunFolder, RunFolderError
 from minifilm.pipeline.train_small import Settings, run
 from minifilm.runtime.style_library import StyleLibrary
 from minifilm.train.checkpoint import load_checkpoint
-from minifilm.train.trainer import Trainer
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "train_small.py"
 MINI = ["--quick", "--styles", "Neutral,LeftHop", "--gaits", "FW", "--seconds", "6", "--epochs", "1",
