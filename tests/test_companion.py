@@ -169,6 +169,7 @@ def test_adam_steps_agree_with_the_package():
     assert max(rel_error(P[name], ps.params[name]) for name in P) < 1e-10
 
 
+@pytest.mark.gradcheck
 def test_the_gradient_check_passes_on_a_draw_away_from_every_kink(monkeypatch, capsys):
     """Every row under 1e-7 (per entry), and the model's draw as check_model says: its ELU and ReLU
     inputs, max-pool pairs of live units and bone errors >= 5e-3 from their kinks, 8x the reach

@@ -47,6 +47,7 @@ from typing import Callable, List, Optional, Sequence
 
 from minifilm.baselines.variants import SPECS, VARIANTS
 from minifilm.evaluation import gradcheck_adapters as adapters
+from minifilm.evaluation import gradcheck_baselines as baselines
 from minifilm.evaluation import gradcheck_cases as kit
 from minifilm.evaluation import gradcheck_networks as nets
 from minifilm.evaluation.gradcheck_problem import Result, check_problem, float32_errors
@@ -141,14 +142,14 @@ def cases() -> List[Case]:
              (f"{LOSSES}::bone_length_loss",), note="on the kink; exact by symmetry"),
         Case("bone-length loss, zero-length target bone", "loss", partial(kit.bll, degenerate="zero-target"),
              (f"{LOSSES}::bone_length_loss",)),
-        Case("one-hot style rows (ids)", "modulation", kit.onehot, (f"{MOD}::OneHotShift", f"{MOD}::OneHotShift.backward")),
-        Case("one-hot style rows (blended)", "modulation", partial(kit.onehot, blended=True),
+        Case("one-hot style rows (ids)", "modulation", baselines.onehot, (f"{MOD}::OneHotShift", f"{MOD}::OneHotShift.backward")),
+        Case("one-hot style rows (blended)", "modulation", partial(baselines.onehot, blended=True),
              (f"{MOD}::OneHotShift", f"{MOD}::OneHotShift.backward")),
-        Case("residual adapter (LPN Resad)", "modulation", kit.residual_adapter,
+        Case("residual adapter (LPN Resad)", "modulation", baselines.residual_adapter,
              (f"{MOD}::ResidualAdapter", f"{MOD}::ResidualAdapter.backward")),
-        Case("CP residual adapter (PFNN Resad)", "modulation", kit.cp_adapter,
+        Case("CP residual adapter (PFNN Resad)", "modulation", baselines.cp_adapter,
              (f"{MOD}::CPResidualAdapter", f"{MOD}::CPResidualAdapter.backward")),
-        Case("PFNN phase-function layer", "modulation", kit.phase_function_layer,
+        Case("PFNN phase-function layer", "modulation", baselines.phase_function_layer,
              (f"{PFNN}::PhaseFunction", f"{PFNN}::catmull_rom_weights")),
         Case("taught style's residual adapter (share)", "adapter", adapters.residual_adapter,
              _pair(ADAPT, "residual_adapter")),

@@ -172,7 +172,7 @@ def test_labels_agree_with_the_network(made):
 #: memory alignment), and a rollout carries their last bits on. Measured between 1 and 2 worker
 #: processes (another batching, so a larger change than two runs of one command): 2.5e-5 cm,
 #: 3.9e-6 degrees; standing can grow such round-off to 0.01 in some styles
-#: (minifilm/pipeline/from_released_workers.py), while another seed moves the body by metres.
+#: (minifilm/pipeline/from_released.py), while another seed moves the body by metres.
 SAME_SEED_CHANNELS = 0.05
 #: dataset.json's numbers (speeds, label agreement): 1 against 2 workers, 1.2e-7 relative
 SAME_SEED_NUMBERS = 1e-4
