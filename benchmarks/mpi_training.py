@@ -161,19 +161,25 @@ def profile(n_steps: int) -> None:
 
 # ---- one process against MPI ranks --------------------------------------------------------------
 def rank_run(n_steps: int, warmup: int, out: str) -> None:
-    """In each rank (or the one process): time n_steps training steps and the all-reduce inside them."""
+    """In each rank (or the one process): time n_steps training steps and the collective calls inside them (reduce-scatter, all-reduce of the losses, all-gather; their waits included)."""
     from minifilm.train import mpi
     ranks = mpi.world()
     trainer, data = main_job_trainer(ranks)
     waited = [0.0]
-    if ranks is not None:
-        comm_allreduce = ranks.comm.Allreduce
+    if ranks is not None:                   # time the step's collective calls (they include the waits)
+        comm = ranks.comm
 
-        def allreduce(*args, **kw):
-            t0 = time.perf_counter()
-            comm_allreduce(*args, **kw)
-            waited[0] += time.perf_counter() - t0
-        ranks.comm = type("Timed", (), {"Allreduce": staticmethod(allreduce)})()
+        class Timed:
+            def __getattr__(self, name):
+                call = getattr(comm, name)
+
+                def timed_call(*args, **kw):
+                    t0 = time.perf_counter()
+                    out = call(*args, **kw)
+                    waited[0] += time.perf_counter() - t0
+                    return out
+                return timed_call
+        ranks.comm = Timed()
     batches = steps(trainer, data)
     for _ in range(warmup):
         trainer.train_step(next(batches))
@@ -211,9 +217,9 @@ def compare_ranks(rank_counts, n_steps: int, repeats: int) -> None:
         mine = [row for row in rows if row["processes"] == n]
         ms = statistics.median(row["step_ms"] for row in mine)
         summary.append({"processes": n, "step ms": ms, "speed-up": one / ms,
-                        "all-reduce ms / step": statistics.median(row["allreduce_ms"] for row in mine),
+                        "collectives ms / step": statistics.median(row["allreduce_ms"] for row in mine),
                         "weights (|w| sum)": f"{mine[0]['checksum']:.4f}"})
-    table(summary, ["processes", "step ms", "speed-up", "all-reduce ms / step", "weights (|w| sum)"])
+    table(summary, ["processes", "step ms", "speed-up", "collectives ms / step", "weights (|w| sum)"])
 
 
 def allreduce_run(sizes, out: str) -> None:

@@ -71,14 +71,19 @@ class ChunkedAdam(Adam):
             out.append((i, self.lr * correction / (1 - self.beta1 ** t), self.eps * correction))
         return out
 
+    def scratch(self, dtype) -> np.ndarray:
+        """The scratch chunk for sets of ``dtype`` (made on first use)."""
+        buf = self._scratch.get(dtype)
+        if buf is None or len(buf) < CHUNK:              # a new dtype, or CHUNK changed
+            buf = self._scratch[dtype] = np.empty(CHUNK, dtype=dtype)
+        return buf
+
     def step(self) -> None:
         """Update ``.data`` of every trainable set in place from its ``.grad``."""
         for i, step_size, eps_hat in self.advance():
             p = self.sets[i]
-            buf = self._scratch.get(p.dtype)
-            if buf is None or len(buf) < CHUNK:              # a new dtype, or CHUNK changed
-                buf = self._scratch[p.dtype] = np.empty(CHUNK, dtype=p.dtype)
-            adam_span(p.data, p.grad, self.m[i], self.v[i], buf, self.beta1, self.beta2, step_size, eps_hat)
+            adam_span(p.data, p.grad, self.m[i], self.v[i], self.scratch(p.dtype), self.beta1, self.beta2,
+                      step_size, eps_hat)
 
 
 def adam_span(w, g, m, v, buf, beta1, beta2, step_size, eps_hat) -> None:

@@ -5,10 +5,19 @@
     mpiexec -hosts a,b -n 16 minifilm train ...          sixteen ranks on two machines
 
 Every rank runs the same script with the same seed, so every rank draws the same minibatches and
-the same dropout masks (:meth:`Ranks.share`). Each rank keeps its rows of the minibatch, computes
-the forward and backward pass on them, and :meth:`Ranks.sum_gradients` adds the ranks' gradients
-up in place with one ``Allreduce`` over the model's one flat gradient buffer; then every rank takes
-the same Adam step, so the weights stay equal without ever being sent.
+the same dropout masks (:meth:`Ranks.share`). Each rank keeps its rows of the minibatch and computes
+the forward and backward pass on them into the model's one flat gradient buffer. Then
+(:meth:`Ranks.sum_gradients`, :meth:`Ranks.step`):
+
+1. ``Reduce_scatter`` sums the ranks' buffers and leaves each rank one N-th of the sum: its part;
+2. each rank takes Adam's step on its part of the weights (Adam updates every number on its own);
+3. ``Allgatherv`` gives every rank every part of the new weights.
+
+Steps 1 and 3 move as many bytes as one ``Allreduce`` of the gradients (an all-reduce is a
+reduce-scatter and an all-gather), and Adam's step, a fifth of a step's time in one process, is
+shared: the simpler form, an ``Allreduce`` and the same whole Adam step on every rank, gave
+1.15x on two cores instead of the sharded 1.3x (benchmarks/mpi_training.py). Large trainings
+call this sharding of the optimiser state "ZeRO stage 1".
 
 Why the sum is the minibatch's gradient: the losses are means over the minibatch's B rows
 (Eq. 5-7), so the gradient of the whole is the sum over ranks of (n_r / B) x the gradient of the
@@ -35,6 +44,8 @@ from dataclasses import replace
 import numpy as np
 
 from minifilm.errors import InputError, MissingDependencyError
+from minifilm.nn.fast_optim import adam_span
+from minifilm.train.objective import all_finite
 
 #: Environment variables that MPI launchers set in every rank: MPICH and Intel MPI (Hydra),
 #: Open MPI, and PMIx launchers such as Slurm's srun.
@@ -93,21 +104,29 @@ class Ranks:
         self.together = True
         return result
 
-    def bind(self, model, batch_size: int) -> None:
-        """Put the model's trainable gradients into one flat buffer (one Allreduce per step) and
-        learn where it draws dropout masks. InputError when a minibatch cannot give every rank
-        a row."""
+    def bind(self, model, optimizer, batch_size: int) -> None:
+        """Put the model's trainable weights and gradients into one flat buffer each (one
+        collective call per step), give this rank its part of them, and learn where the model
+        draws dropout masks. InputError when a minibatch cannot give every rank a row."""
         if getattr(model, "film", None) is None or getattr(model, "takes_style_ids", False):
             raise InputError("mpiexec: data-parallel training needs the style model with its FiLM generator Ψ")
         if batch_size < self.size:
             raise InputError(f"mpiexec -n {self.size}: a minibatch of {batch_size} samples cannot give every "
                              f"rank a row; use at most {batch_size} ranks")
-        sets = [ps for ps in model.parameter_sets() if ps.trainable]
-        self.grad = np.zeros(sum(ps.size for ps in sets), dtype=model.dtype)
-        start = 0
-        for ps in sets:
-            ps.bind(ps.data, self.grad[start:start + ps.size])
+        sets = [(i, ps) for i, ps in enumerate(optimizer.sets) if ps.trainable]
+        n = sum(ps.size for _, ps in sets)
+        self.data, self.grad = np.zeros(n, dtype=model.dtype), np.zeros(n, dtype=model.dtype)
+        self.spans, start = [], 0                   # (Adam's set index, its network, first, end)
+        names = {id(getattr(model, net).params): net for net in ("gating", "motion", "film")}
+        for i, ps in sets:
+            ps.bind(self.data[start:start + ps.size], self.grad[start:start + ps.size])
+            self.spans.append((i, names.get(id(ps), f"set {i}"), start, start + ps.size))
             start += ps.size
+        edges = [r * n // self.size for r in range(self.size + 1)]     # rank r holds [edges[r], edges[r+1])
+        self.counts, self.starts = np.diff(edges), np.array(edges[:-1])
+        self.lo, self.hi = edges[self.rank], edges[self.rank + 1]
+        self.part = np.zeros(self.hi - self.lo, dtype=model.dtype)   # this rank's part of the summed gradient
+        self.nonfinite = {}
         self.model, self.sites = model, dropout_sites(model)
 
     # ---- a step ------------------------------------------------------------------------------
@@ -135,13 +154,48 @@ class Ranks:
                        share=len(rows) / B)
 
     def sum_gradients(self, b, mse: float, bll: float):
-        """The minibatch's gradient, in place in every rank's buffer, and its (mse, bll): the sum
-        over ranks of share x this rank's (the losses of this rank are means over its rows)."""
+        """This rank's part of the minibatch's gradient (``self.part``) and the minibatch's
+        (mse, bll): sums over ranks of share x this rank's (its losses are means over its rows).
+        With them, per network, whether any number of the summed gradient is NaN or inf
+        (``self.nonfinite``, {network: 'nan' | 'inf'}), the same on every rank."""
+        MPI = self.MPI
         self.grad *= self.model.dtype.type(b.share)
-        self.comm.Allreduce(self.MPI.IN_PLACE, self.grad, op=self.MPI.SUM)
-        losses = np.array([mse, bll], dtype=np.float64) * b.share
-        self.comm.Allreduce(self.MPI.IN_PLACE, losses, op=self.MPI.SUM)
-        return float(losses[0]), float(losses[1])
+        self.comm.Reduce_scatter(self.grad, self.part, self.counts, op=MPI.SUM)
+        totals = [mse * b.share, bll * b.share]
+        for _, net, first, end in self.spans:       # this rank's count of NaN and inf, per set
+            mine = self.part[max(first, self.lo) - self.lo:max(min(end, self.hi), self.lo) - self.lo]
+            finite = all_finite(mine)               # one pass; the counts only when it is not
+            totals += [0, 0] if finite else [np.count_nonzero(np.isnan(mine)), np.count_nonzero(np.isinf(mine))]
+        totals = np.array(totals, dtype=np.float64)
+        self.comm.Allreduce(MPI.IN_PLACE, totals, op=MPI.SUM)
+        self.nonfinite = {}
+        for k, (_, net, _, _) in enumerate(self.spans):
+            nan, inf = totals[2 + 2 * k:4 + 2 * k]
+            if nan or inf:
+                self.nonfinite.setdefault(net, "nan" if nan else "inf")
+        return float(totals[0]), float(totals[1])
+
+    def step(self, adam) -> None:
+        """Adam's step (a minifilm.nn.fast_optim.ChunkedAdam) on this rank's part of the weights,
+        from its part of the summed gradient; then every rank gets every part (Allgatherv)."""
+        spans = {i: (first, end) for i, _, first, end in self.spans}
+        for i, step_size, eps_hat in adam.advance():
+            first, end = spans[i]
+            lo, hi = max(first, self.lo), min(end, self.hi)
+            if lo < hi:                              # the overlap of set i with this rank's part
+                mine = slice(lo - first, hi - first)
+                adam_span(adam.sets[i].data[mine], self.part[lo - self.lo:hi - self.lo], adam.m[i][mine],
+                          adam.v[i][mine], adam.scratch(self.data.dtype), adam.beta1, adam.beta2, step_size, eps_hat)
+        self.comm.Allgatherv(self.MPI.IN_PLACE, [self.data, (self.counts, self.starts)])
+
+    def gather_moments(self, adam) -> None:
+        """Every rank's part of Adam's moments m and v to every rank, before a checkpoint is
+        written (each rank updates only its part of them)."""
+        for moments in (adam.m, adam.v):
+            flat = np.concatenate([moments[i] for i, _, _, _ in self.spans])
+            self.comm.Allgatherv(self.MPI.IN_PLACE, [flat, (self.counts, self.starts)])
+            for i, _, first, end in self.spans:
+                moments[i][...] = flat[first:end]
 
 
 def dropout_sites(model) -> dict:

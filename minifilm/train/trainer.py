@@ -128,8 +128,8 @@ class Trainer:
             if sub is not None:
                 sub.params.trainable = net not in self.config.freeze
         self.optimizer = ChunkedAdam(self.model.parameter_sets(), lr=self.config.lr)   # fast form of nn/optim.py::Adam
-        if self.ranks is not None:          # under mpiexec: one flat gradient buffer to sum (train/mpi.py)
-            self.ranks.bind(self.model, self.config.batch_size)
+        if self.ranks is not None:          # under mpiexec: one flat buffer to sum, a part per rank (train/mpi.py)
+            self.ranks.bind(self.model, self.optimizer, self.config.batch_size)
         self.rng = np.random.default_rng(self.config.seed)
         self.epoch = 0
         self.step = 0
@@ -213,7 +213,8 @@ class Trainer:
 
     def sum_over_ranks(self, b: Minibatch, mse: float, bll: float):
         """Under ``mpiexec`` (``self.ranks``, train/mpi.py): the gradients and losses of this rank's
-        rows summed over the ranks into the minibatch's, in place. In one process: as they are."""
+        rows summed over the ranks into the minibatch's (each rank keeps its part of the summed
+        gradient). In one process: as they are."""
         if self.ranks is None:
             return mse, bll
         return self.ranks.sum_gradients(b, mse, bll)
@@ -223,19 +224,29 @@ class Trainer:
         step at this point's learning rate, counted."""
         self.check_finite(b, mse, bll)
         self.optimizer.lr = self.learning_rate(self.epoch + b.index / b.count)
-        self.optimizer.step()                               # minifilm/nn/fast_optim.py
+        if self.ranks is None:
+            self.optimizer.step()                           # minifilm/nn/fast_optim.py
+        else:                                               # this rank's part, then the parts shared
+            self.ranks.step(self.optimizer)
         self.step += 1
 
     def check_finite(self, b: "Minibatch", mse: float, bll: float) -> None:
         """TrainingDiverged naming the minibatch and the quantity when a loss or a network's
         gradient is NaN or inf (called after the backward pass, before the optimiser step)."""
         self._check_finite(b.where, [("MSE loss", mse), ("bone-length loss", bll)])
+        if self.ranks is not None:      # under mpiexec each rank holds a part of the sum: the ranks' verdict
+            for net, kind in self.ranks.nonfinite.items():
+                raise TrainingDiverged(f"step {self.step} ({b.where}): gradient of the {net} network is not "
+                                       f"finite ({kind}); weights not updated")
+            return
         self._check_finite(b.where, [(f"gradient of the {net} network", getattr(self.model, net).params.grad)
                                      for net in NETWORKS if getattr(self.model, net) is not None])
 
     def end_epoch(self, train_losses: dict, val: TrainData | None = None) -> dict:
         """After an epoch's steps: count it, evaluate ``val``, record the history, checkpoint."""
         self.epoch += 1
+        if self.ranks is not None:          # each rank updated its part of Adam's moments: all of them
+            self.ranks.gather_moments(self.optimizer)
         record = {"epoch": self.epoch, "step": self.step, "train": train_losses}
         if val is not None:
             record["val"] = self.evaluate(val)

@@ -14,6 +14,7 @@ from minifilm.dataset.arrays import TrainData
 from minifilm.dataset.stats import NormStats
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
+from minifilm.nn.fast_optim import ChunkedAdam
 from minifilm.train.trainer import TrainConfig, Trainer
 
 pytest.importorskip("mpi4py", reason="the mpi extra (mpi4py, mpich) is not installed")
@@ -49,7 +50,9 @@ def trained(clips_per_batch, ranks=None):
         for b in t.minibatches(d):
             if t.step < STEPS:
                 losses.append(t.train_step(b))
-    return np.concatenate([ps.data for ps in t.model.parameter_sets()]), np.array(losses)
+    t.end_epoch({})                                    # under mpiexec: every rank's part of Adam's moments
+    moments = np.concatenate([a.ravel() for a in (*t.optimizer.m, *t.optimizer.v)])
+    return np.concatenate([ps.data for ps in t.model.parameter_sets()]), np.array(losses), moments
 
 
 def mpiexec(n, code, tmp_path, timeout=300):
@@ -68,7 +71,7 @@ ranks = mpi.world()
 assert ranks is not None and ranks.size == {n}
 out = {{}}
 for k, split in enumerate(SPLITS):
-    out[f"w{{k}}"], out[f"l{{k}}"] = trained(split, ranks)
+    out[f"w{{k}}"], out[f"l{{k}}"], out[f"m{{k}}"] = trained(split, ranks)
 np.savez(f"rank{{ranks.rank}}.npz", **out)
 """
 
@@ -90,19 +93,22 @@ def test_two_ranks_train_the_parameters_of_one_process(two_ranks, k):
     """1e-5 relative (the norm of the difference over the norm of the weights): two ranks add the
     same float32 numbers in another order, a few ulps per step; 20 Adam steps on a tiny model grow
     that to about 1e-6 here. The losses too (each rank's a mean over its rows, weighted by n_r / B)."""
-    weights, losses = trained(SPLITS[k])
+    weights, losses, moments = trained(SPLITS[k])
     for rank in two_ranks:
         assert relative(rank[f"w{k}"], weights) < 1e-5
         np.testing.assert_allclose(rank[f"l{k}"], losses, rtol=1e-5)
+        assert relative(rank[f"m{k}"], moments) < 1e-5     # each rank updated half: gathered for checkpoints
     initial = np.concatenate([ps.data for ps in StyleModel(CFG, np.random.default_rng(0)).parameter_sets()])
     assert relative(weights, initial) > 1e-3           # training moved them: the comparison can fail
 
 
 def test_the_ranks_end_with_the_same_weights(two_ranks):
-    """Every rank takes Adam's step on the same summed gradient, so their weights agree (to
-    round-off: an all-reduce gives every rank the same sum, but nothing here relies on its bits)."""
+    """Each rank updates its part of the weights and sends it to the others, so every rank holds the
+    same weights and moments (to round-off, although the all-gather copies bits: nothing here relies
+    on that)."""
     for k in range(len(SPLITS)):
         assert relative(two_ranks[1][f"w{k}"], two_ranks[0][f"w{k}"]) < 1e-6
+        assert relative(two_ranks[1][f"m{k}"], two_ranks[0][f"m{k}"]) < 1e-6
 
 
 def test_more_ranks_than_cores_still_train(tmp_path):
@@ -110,8 +116,9 @@ def test_more_ranks_than_cores_still_train(tmp_path):
     code = RANKS_TRAIN.format(n=3).replace("enumerate(SPLITS)", "enumerate(SPLITS[:1])")
     proc = mpiexec(3, code, tmp_path)
     assert proc.returncode == 0, proc.stdout + proc.stderr
-    weights, _ = trained(SPLITS[0])
+    weights, _, moments = trained(SPLITS[0])
     assert relative(np.load(tmp_path / "rank2.npz")["w0"], weights) < 1e-5
+    assert relative(np.load(tmp_path / "rank1.npz")["m0"], moments) < 1e-5
 
 
 def test_without_mpiexec_there_are_no_ranks_and_no_mpi4py(monkeypatch):
@@ -139,4 +146,42 @@ def test_a_minibatch_smaller_than_the_ranks_is_one_clear_error():
             return 4
 
     with pytest.raises(InputError, match="mpiexec -n 4: a minibatch of 2 samples"):
-        Ranks(World()).bind(StyleModel(CFG, np.random.default_rng(0)), batch_size=2)
+        model = StyleModel(CFG, np.random.default_rng(0))
+        Ranks(World()).bind(model, ChunkedAdam(model.parameter_sets()), batch_size=2)
+
+
+DIVERGING = """
+import numpy as np
+from minifilm.model.style_model import StyleModel
+from minifilm.train import mpi
+from minifilm.train.trainer import TrainingDiverged
+from test_mpi import trained
+ranks = mpi.world()
+backward = StyleModel.backward
+
+
+def backward_with_a_nan(self, *args, **kw):      # rank 1's rows give Psi's first gradient a NaN
+    out = backward(self, *args, **kw)
+    if ranks.rank == 1:
+        self.film.params.grad[0] = np.nan
+    return out
+
+
+StyleModel.backward = backward_with_a_nan
+try:
+    trained(4, ranks)
+except TrainingDiverged as error:
+    print(f"rank {ranks.rank}: {error}")
+"""
+
+
+def test_a_gradient_not_finite_on_one_rank_stops_every_rank_before_the_step(tmp_path):
+    """A NaN in one rank's gradient makes the summed gradient NaN, held in one rank's part only:
+    every rank stops at the same step with the same error naming the network, before any weight
+    changes; no rank waits for another forever."""
+    proc = mpiexec(2, DIVERGING, tmp_path)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    lines = sorted(proc.stdout.splitlines())
+    assert [line[:7] for line in lines] == ["rank 0:", "rank 1:"], proc.stdout + proc.stderr
+    assert "step 0" in lines[0] and "gradient of the film network is not finite (nan)" in lines[0]
+    assert lines[0][7:] == lines[1][7:]
