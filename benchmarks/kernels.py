@@ -17,7 +17,8 @@ Adam: one ``Adam.step`` over train_small's three parameter sets (707,420 numbers
 paper's (44,150,520), hot (the numbers still in the cache from the previous step) and cold (a
 64 MB buffer written between steps, as a forward and backward pass would), for chunk sizes
 32768 (before), 65536 (now) and the whole buffer at once; plus, for the record, the same update
-with scipy.linalg.blas's in-place sscal / saxpy (not used by the kit: see benchmarks/README.md, "Adam").
+with scipy.linalg.blas's in-place sscal / saxpy (not used by the kit: see
+reports/2026-12-01_fft_convolution_and_adam.md).
 
 Times are in ms: the minimum of several runs, and the median in brackets.
 """

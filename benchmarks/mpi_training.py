@@ -4,7 +4,7 @@
     python benchmarks/mpi_training.py --profile       # only the profile of one step
     python benchmarks/mpi_training.py --ranks 2 3     # 1 process vs 2 and 3 ranks (oversubscribed on 2 cores)
     python benchmarks/mpi_training.py --job           # also the whole examples/train_small.py, both ways
-    python benchmarks/mpi_training.py --allreduce     # an all-reduce's time for the main job's and the paper's gradients
+    python benchmarks/mpi_training.py --allreduce     # the gradients' exchange, the main job's and the paper's sizes
 
 The model and minibatches are the main job's (ModelConfig.small for x 348, z 342, clips 120 x 300;
 batch 32 of one style sharing 4 clips, dropout on; minifilm/pipeline/train_small.py) on random data
@@ -17,7 +17,8 @@ large float32 matrix product on the same core: how close the step comes to what 
 
 The ranks table trains the same steps in one process and under ``mpiexec -n N`` (each rank on its
 share of every minibatch, minifilm/train/mpi.py) and prints the step time, the speed-up and the
-all-reduce's time per step. One BLAS thread per process, as the main job.
+time per step in the ranks' collective calls (the exchange, and the waits for the slower rank).
+One BLAS thread per process, as the main job.
 """
 import os
 os.environ.setdefault("MINIFILM_BENCH_THREADS", "1")     # one BLAS thread per process, as the main job
@@ -161,7 +162,8 @@ def profile(n_steps: int) -> None:
 
 # ---- one process against MPI ranks --------------------------------------------------------------
 def rank_run(n_steps: int, warmup: int, out: str) -> None:
-    """In each rank (or the one process): time n_steps training steps and the collective calls inside them (reduce-scatter, all-reduce of the losses, all-gather; their waits included)."""
+    """In each rank (or the one process): time n_steps training steps and the collective calls
+    inside them (reduce-scatter, all-reduce of the losses, all-gather; their waits included)."""
     from minifilm.train import mpi
     ranks = mpi.world()
     trainer, data = main_job_trainer(ranks)
@@ -223,19 +225,32 @@ def compare_ranks(rank_counts, n_steps: int, repeats: int) -> None:
 
 
 def allreduce_run(sizes, out: str) -> None:
-    """In each rank: the median time of an in-place float32 Allreduce (sum) of each size."""
+    """In each rank: for each size, the median time of an in-place float32 Allreduce (sum), and of
+    the training step's exchange: a Reduce_scatter of the gradients and an Allgatherv of the weights
+    (minifilm/train/mpi.py)."""
     from mpi4py import MPI   # here: only under mpiexec, in the child this script starts
     comm = MPI.COMM_WORLD
     result = {}
     for n in sizes:
         buf = np.ones(n, np.float32)
-        times = []
-        for i in range(13):
-            comm.Barrier()
-            t0 = time.perf_counter()
-            comm.Allreduce(MPI.IN_PLACE, buf, op=MPI.SUM)
-            times.append(time.perf_counter() - t0)
-        result[n] = statistics.median(times[3:]) * 1e3
+        edges = [r * n // comm.size for r in range(comm.size + 1)]
+        counts, starts = np.diff(edges), np.array(edges[:-1])
+        part = np.empty(counts[comm.rank], np.float32)
+
+        def exchange():
+            comm.Reduce_scatter(buf, part, counts, op=MPI.SUM)
+            comm.Allgatherv(MPI.IN_PLACE, [buf, (counts, starts)])
+        row = {}
+        for name, call in (("allreduce", lambda: comm.Allreduce(MPI.IN_PLACE, buf, op=MPI.SUM)),
+                           ("exchange", exchange)):
+            times = []
+            for i in range(13):
+                comm.Barrier()
+                t0 = time.perf_counter()
+                call()
+                times.append(time.perf_counter() - t0)
+            row[name] = statistics.median(times[3:]) * 1e3
+        result[n] = row
     if comm.rank == 0:
         Path(out).write_text(json.dumps(result))
 
@@ -251,10 +266,12 @@ def compare_allreduce(rank_counts) -> None:
             subprocess.run([shutil.which("mpiexec"), "-n", str(n), sys.executable, __file__, "--allreduce-run",
                             str(out), str(small), str(paper)], check=True)
             for size, ms in json.loads(out.read_text()).items():
-                rows.append({"ranks": n, "parameters": int(size), "MB": 4 * int(size) / 1e6, "all-reduce ms": ms,
-                             "GB/s (2 S (N-1) / N / t)": 2 * 4 * int(size) * (n - 1) / n / (ms * 1e-3) / 1e9})
-    print(f"\nin-place float32 Allreduce (sum) on this machine (medians of 10; load now {load_average()}):")
-    table(rows, ["ranks", "parameters", "MB", "all-reduce ms", "GB/s (2 S (N-1) / N / t)"])
+                rows.append({"ranks": n, "parameters": int(size), "MB": 4 * int(size) / 1e6,
+                             "all-reduce ms": ms["allreduce"], "reduce-scatter + all-gather ms": ms["exchange"],
+                             "GB/s (2 S (N-1) / N / t)": 2 * 4 * int(size) * (n - 1) / n / (ms["exchange"] * 1e-3) / 1e9})
+    print(f"\nfloat32 gradients summed on this machine (medians of 10; load now {load_average()}):")
+    table(rows, ["ranks", "parameters", "MB", "all-reduce ms", "reduce-scatter + all-gather ms",
+                 "GB/s (2 S (N-1) / N / t)"])
 
 
 def compare_job(rank_counts, repeats: int) -> None:
@@ -287,7 +304,7 @@ def main():
     parser.add_argument("--steps", type=int, default=300, help="timed steps per run")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--job", action="store_true", help="also the whole main job, 1 process and each rank count")
-    parser.add_argument("--allreduce", action="store_true", help="only the all-reduce's time, main job and paper sizes")
+    parser.add_argument("--allreduce", action="store_true", help="only the gradients' exchange, main job and paper sizes")
     parser.add_argument("--rank-run", nargs=2, metavar=("STEPS", "OUT"), help=argparse.SUPPRESS)
     parser.add_argument("--allreduce-run", nargs="+", help=argparse.SUPPRESS)
     args = parser.parse_args()

@@ -59,7 +59,7 @@ def main(argv=None) -> int:
                 z = model.forward(b.x, b.p, b.clips, train=True, rng=trainer.rng, **b.kw)  # Eq. (4)
                 mse, bll, dz = trainer.losses(z, b.z)              # Eq. (5)-(7) and dL/dz
                 model.backward(dz, need_input_grads=False)          # Ψ, Φ, Ω in reverse, by hand
-                mse, bll = trainer.sum_over_ranks(b, mse, bll)      # mpiexec: Allreduce of the gradients
+                mse, bll = trainer.sum_over_ranks(b, mse, bll)      # mpiexec: the gradients summed
                 trainer.update(b, mse, bll)                         # NaN check, then Adam's step
                 losses.add(b, mse, bll)
             record = trainer.end_epoch(losses.summary(), val_data)  # validation MSE / BLL, checkpoint

@@ -12,10 +12,11 @@ Writes a run folder (--out, default runs/train_small) that ``minifilm generate -
 """
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import fields, replace
 
 from minifilm.cli.args import in_range, input_path, non_empty, output_folder, positive
 from minifilm.errors import InputError
+from minifilm.model.config import ModelConfig
 from minifilm.pipeline.train_small import Settings
 from minifilm.pipeline.run_rig import load_target
 from minifilm.pipeline.train_small import run as run_job
@@ -58,17 +59,27 @@ def add_arguments(parser) -> None:
     parser.add_argument("--learning-rate", type=positive(float, 1.0), default=d.learning_rate,
                         help=f"Adam's learning rate (default {d.learning_rate:g}; the paper's 1e-4 is for its 62x "
                              "larger network)")
+    parser.add_argument("--model", choices=("small", "paper"), default="small",
+                        help="the network's sizes: small (the main job's: K = 4, hidden 128, 32 filters; 707,420 "
+                             "parameters for 100STYLE) or paper (Sec. 4's: K = 8, hidden 512, 256 filters of 25, "
+                             "44 M parameters, a third of a second a step on one core: for mpiexec on many cores, "
+                             "docs/scaling.md)")
     parser.add_argument("--workers", type=in_range(1, 1024, int), default=None,
                         help="processes labelling the data set's files (default: every core this process may use; "
                              "1: all in this process). Training runs in this process; to split each minibatch "
                              "across processes or machines, start the job with mpiexec -n N")
 
 
+#: ModelConfig's sizes of the paper that do not come from the data (the others: the features' layout)
+PAPER_SIZES = {f.name: getattr(ModelConfig.paper(), f.name) for f in fields(ModelConfig)
+               if f.name not in ("x_dim", "z_dim", "phase_dim", "clip_frames", "clip_channels")}
+
+
 def settings(args) -> Settings:
     clips = None if args.clips_per_batch is None or args.clips_per_batch >= args.batch_size else args.clips_per_batch
     s = Settings(seed=args.seed, out=args.out, split=args.split, mirror=args.mirror, clips_per_batch=clips,
                  fps=args.fps, rig=args.rig, workers=args.workers, batch_size=args.batch_size,
-                 learning_rate=args.learning_rate)
+                 learning_rate=args.learning_rate, model=PAPER_SIZES if args.model == "paper" else {})
     if args.quick:
         s = s.quick()
     changes = {"epochs": args.epochs, "seconds_per_clip": args.seconds, "generate_seconds": args.generate_seconds,

@@ -10,7 +10,8 @@ exact ways, picked per call by a flop model (:func:`_conv1d_method`):
   approximated: the results differ from im2col's by float rounding only.
 
 tests/nn/test_fast_conv.py keeps both equal to the plain pair; the measurements behind the
-choices (flop rates, slab size, what else was tried) are in benchmarks/README.md ("conv1d").
+choices (flop rates, slab size, what else was tried) are in
+reports/2026-12-01_fft_convolution_and_adam.md and reports/2026-12-02_naive_beside_fast.md.
 """
 from __future__ import annotations
 
@@ -129,8 +130,9 @@ def _conv1d_method(B: int, T: int, C: int, F: int, k: int) -> str:
 
     Forward plus dW: im2col does 4 B T k C F flops, fft about 12 nf (k + B) C F. The factor 1.8
     (im2col's one big product runs faster per flop) and the fixed 5e6 (fft's overhead) are rates
-    measured with benchmarks/kernels.py (benchmarks/README.md, "conv1d"). So fft for a batch of
-    long clips (train_small's Ψ from batch ~8, the paper's from ~4), im2col for single clips.
+    measured with benchmarks/kernels.py (reports/2026-12-01_fft_convolution_and_adam.md). So fft
+    for a batch of long clips (train_small's Ψ from batch ~8, the paper's from ~4), im2col for
+    single clips.
     """
     nf = _fft_len(T + k // 2) // 2 + 1
     direct = 4.0 * B * T * k * C * F

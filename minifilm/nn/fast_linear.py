@@ -3,7 +3,7 @@
 The same numbers as :func:`minifilm.nn.functional.linear_backward`; only where dW lives differs.
 Ψ's first dense layer has a large weight matrix (the paper's: 15,360 x 2,048, its 240 clip frames
 pooled twice by 2 to 60, times 256 filters), whose gradient would otherwise be a fresh array every
-step (benchmarks/README.md, "Peak memory of a training step").
+step (benchmarks/README.md, "Peak memory of a training step, batch 32").
 """
 from __future__ import annotations
 

@@ -10,7 +10,7 @@ The same numbers as :class:`minifilm.nn.optim.Adam` up to rounding
   of a step run over numbers in the core's cache, and main memory is read and written once.
 
 Moments below the smallest normal float are set to 0 in the chunk, as in the plain Adam (why:
-optim.py). The chunk size and what else was tried are in benchmarks/README.md ("Adam").
+optim.py). The chunk size and what else was tried are in reports/2026-12-01_fft_convolution_and_adam.md.
 """
 from __future__ import annotations
 

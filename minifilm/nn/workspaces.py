@@ -9,7 +9,7 @@ def scratch(work: dict | None, name: str, shape: tuple, dtype, zeros: bool = Fal
     """The array ``work[name]`` of this shape and dtype, made (and kept in ``work``) if it is missing.
 
     Why: reusing a layer's big arrays from step to step avoids the page faults of mapping them
-    afresh (the measurements are in benchmarks/README.md, "Workspaces"). ``work=None``: a new
+    afresh (the measurements are in reports/2026-12-02_naive_beside_fast.md). ``work=None``: a new
     array every call. A workspace belongs to ONE layer: what is taken from it (and the caches and
     gradients that point into it) is overwritten by that layer's next call. ``zeros=True``: a new
     array starts zeroed (for callers that write only part of it and rely on the rest staying 0).

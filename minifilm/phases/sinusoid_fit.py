@@ -14,7 +14,8 @@ the original (docs/original-code.md §4.1-§4.4). The two agree to rounding
   prunes the same way, so both see the same losses);
 * the bounds come from a sparse-table range minimum / maximum (:func:`range_reduce`).
 
-Speed figures: benchmarks/phases.py and benchmarks/README.md ("Local phases").
+Speed figures: benchmarks/phases.py and benchmarks/README.md ("Labelling and features"); how
+they were reached: reports/2026-12-02_naive_beside_fast.md.
 """
 from __future__ import annotations
 

@@ -22,7 +22,7 @@ path, and the pose and phases are what drift. The target z_{s+k} is the clip's f
 time; horizons are short (a second) so that the rollout's gait cycle stays close to the clip's.
 Everything here works in raw (unnormalised) units; ``stats`` converts for the network.
 
-What it did on the 90-style runs (benchmarks/README.md, "A dense style space"): three rounds
+What it did on the 90-style runs (reports/2026-12-02_dense_style_space.md): three rounds
 lowered the rollout error along the clip by 10-32 % for each of five held-out styles, and
 reproduced no more of them on a new path (3 of 5 either way); so `minifilm finetune` leaves it
 off unless asked (``--rollout-rounds``).

@@ -14,7 +14,7 @@ and go on training every network on the teacher-forced rows and the gathered one
         training rows and the pool together
 
 The paper trains by teacher forcing alone (Sec. 4.3); this is an addition, and not used by
-``minifilm train``. On the 90-style run (benchmarks/README.md, "A dense style space") three rounds
+``minifilm train``. On the 90-style run (reports/2026-12-02_dense_style_space.md) three rounds
 cut the rollout error along the training files from 8.6 to 5.1 cm, but doubled the validation MSE
 and lowered the share of styles whose generated motion ranks first by Fréchet distance (34 % ->
 20 %): the file's frame at the same time is a poor label for a state that has drifted, and pulls

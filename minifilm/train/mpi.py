@@ -11,13 +11,15 @@ the forward and backward pass on them into the model's one flat gradient buffer.
 
 1. ``Reduce_scatter`` sums the ranks' buffers and leaves each rank one N-th of the sum: its part;
 2. each rank takes Adam's step on its part of the weights (Adam updates every number on its own);
-3. ``Allgatherv`` gives every rank every part of the new weights.
+3. ``Allgather`` gives every rank every part of the new weights.
 
 Steps 1 and 3 move as many bytes as one ``Allreduce`` of the gradients (an all-reduce is a
 reduce-scatter and an all-gather), and Adam's step, a fifth of a step's time in one process, is
-shared: the simpler form, an ``Allreduce`` and the same whole Adam step on every rank, gave
-1.15x on two cores instead of the sharded 1.3x (benchmarks/mpi_training.py). Large trainings
-call this sharding of the optimiser state "ZeRO stage 1".
+shared instead of repeated on every rank. The simpler form, an ``Allreduce`` and the whole Adam
+step on every rank, trained the main job's steps 1.10-1.14x as fast on two ranks as one process,
+this one 1.23-1.25x (benchmarks/mpi_training.py, the same machine and hour); on many ranks the
+repeated step would not shrink at all (docs/scaling.md). Large trainings call this sharding of
+the optimiser's work and state "ZeRO stage 1".
 
 Why the sum is the minibatch's gradient: the losses are means over the minibatch's B rows
 (Eq. 5-7), so the gradient of the whole is the sum over ranks of (n_r / B) x the gradient of the
@@ -115,17 +117,18 @@ class Ranks:
                              f"rank a row; use at most {batch_size} ranks")
         sets = [(i, ps) for i, ps in enumerate(optimizer.sets) if ps.trainable]
         n = sum(ps.size for _, ps in sets)
-        self.data, self.grad = np.zeros(n, dtype=model.dtype), np.zeros(n, dtype=model.dtype)
+        # equal parts, the buffers padded with zeros: Allgather took 0.11 ms for the main job's
+        # weights where Allgatherv, with a count per rank, took 0.29 (MPICH 5, two ranks)
+        part = -(-n // self.size)
+        self.data, self.grad = np.zeros(part * self.size, model.dtype), np.zeros(part * self.size, model.dtype)
         self.spans, start = [], 0                   # (Adam's set index, its network, first, end)
         names = {id(getattr(model, net).params): net for net in ("gating", "motion", "film")}
         for i, ps in sets:
             ps.bind(self.data[start:start + ps.size], self.grad[start:start + ps.size])
             self.spans.append((i, names.get(id(ps), f"set {i}"), start, start + ps.size))
             start += ps.size
-        edges = [r * n // self.size for r in range(self.size + 1)]     # rank r holds [edges[r], edges[r+1])
-        self.counts, self.starts = np.diff(edges), np.array(edges[:-1])
-        self.lo, self.hi = edges[self.rank], edges[self.rank + 1]
-        self.part = np.zeros(self.hi - self.lo, dtype=model.dtype)   # this rank's part of the summed gradient
+        self.lo, self.hi = self.rank * part, (self.rank + 1) * part       # this rank's part of the buffers
+        self.part = np.zeros(part, dtype=model.dtype)   # this rank's part of the summed gradient
         self.nonfinite = {}
         self.model, self.sites = model, dropout_sites(model)
 
@@ -160,7 +163,7 @@ class Ranks:
         (``self.nonfinite``, {network: 'nan' | 'inf'}), the same on every rank."""
         MPI = self.MPI
         self.grad *= self.model.dtype.type(b.share)
-        self.comm.Reduce_scatter(self.grad, self.part, self.counts, op=MPI.SUM)
+        self.comm.Reduce_scatter_block(self.grad, self.part, op=MPI.SUM)
         totals = [mse * b.share, bll * b.share]
         for _, net, first, end in self.spans:       # this rank's count of NaN and inf, per set
             mine = self.part[max(first, self.lo) - self.lo:max(min(end, self.hi), self.lo) - self.lo]
@@ -177,7 +180,7 @@ class Ranks:
 
     def step(self, adam) -> None:
         """Adam's step (a minifilm.nn.fast_optim.ChunkedAdam) on this rank's part of the weights,
-        from its part of the summed gradient; then every rank gets every part (Allgatherv)."""
+        from its part of the summed gradient; then every rank gets every part (Allgather)."""
         spans = {i: (first, end) for i, _, first, end in self.spans}
         for i, step_size, eps_hat in adam.advance():
             first, end = spans[i]
@@ -186,14 +189,16 @@ class Ranks:
                 mine = slice(lo - first, hi - first)
                 adam_span(adam.sets[i].data[mine], self.part[lo - self.lo:hi - self.lo], adam.m[i][mine],
                           adam.v[i][mine], adam.scratch(self.data.dtype), adam.beta1, adam.beta2, step_size, eps_hat)
-        self.comm.Allgatherv(self.MPI.IN_PLACE, [self.data, (self.counts, self.starts)])
+        self.comm.Allgather(self.MPI.IN_PLACE, self.data)
 
     def gather_moments(self, adam) -> None:
         """Every rank's part of Adam's moments m and v to every rank, before a checkpoint is
         written (each rank updates only its part of them)."""
         for moments in (adam.m, adam.v):
-            flat = np.concatenate([moments[i] for i, _, _, _ in self.spans])
-            self.comm.Allgatherv(self.MPI.IN_PLACE, [flat, (self.counts, self.starts)])
+            flat = np.zeros_like(self.data)
+            for i, _, first, end in self.spans:
+                flat[first:end] = moments[i]
+            self.comm.Allgather(self.MPI.IN_PLACE, flat)
             for i, _, first, end in self.spans:
                 moments[i][...] = flat[first:end]
 

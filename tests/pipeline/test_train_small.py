@@ -112,6 +112,9 @@ SETTINGS = {
     "--workers": ("1", "workers", 1, "0"), "--out": ("elsewhere", "out", Path("elsewhere"), ""),
     "--split": ("files", "split", "files", "sideways"), "--fps": ("30", "fps", 30.0, "0"),
     "--rig": ("cmu", "rig", "cmu", "no-such-rig"),
+    "--model": ("paper", "model", {"n_experts": 8, "hidden": 512, "gating_hidden": 32, "conv_filters": 256,
+                                   "conv_kernel": 25, "film_dense": 2048, "dropout": 0.3, "ln_unbiased": True,
+                                   "ln_eps": 1e-6}, "huge"),            # the paper's Sec. 4 sizes
 }
 OWN_DATA = ("--split", "--fps", "--rig")          # settings for your own data: given with --data
 

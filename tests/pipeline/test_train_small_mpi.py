@@ -26,7 +26,8 @@ def start(args, tmp_path, log_name="log.txt"):
     """``mpiexec -n 2 python examples/train_small.py ARGS`` in the background, its output to a file;
     (process, log path, marker): the marker is in every rank's environment, to find the ranks."""
     marker = uuid.uuid4().hex
-    env = dict(os.environ, MINIFILM_TEST_JOB=marker, OPENBLAS_NUM_THREADS="1")
+    # TMPDIR: temporary files of the job (and of mpiexec, where it honours it) go to the test's folder
+    env = dict(os.environ, MINIFILM_TEST_JOB=marker, OPENBLAS_NUM_THREADS="1", TMPDIR=str(tmp_path))
     log = tmp_path / log_name
     with open(log, "wb") as out:
         proc = subprocess.Popen([MPIEXEC, "-n", "2", sys.executable, str(EXAMPLE), *args], cwd=tmp_path,

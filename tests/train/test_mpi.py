@@ -58,7 +58,7 @@ def trained(clips_per_batch, ranks=None):
 def mpiexec(n, code, tmp_path, timeout=300):
     """``mpiexec -n n python -c code`` with this test's module importable; its completed process."""
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(Path(__file__).parent), *sys.path]),
-               OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
+               OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", TMPDIR=str(tmp_path))   # temporary files: here
     return subprocess.run([MPIEXEC, "-n", str(n), sys.executable, "-c", code], cwd=tmp_path, env=env,
                           capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL)
 
