@@ -226,20 +226,18 @@ def compare_ranks(rank_counts, n_steps: int, repeats: int) -> None:
 
 def allreduce_run(sizes, out: str) -> None:
     """In each rank: for each size, the median time of an in-place float32 Allreduce (sum), and of
-    the training step's exchange: a Reduce_scatter of the gradients and an Allgatherv of the weights
-    (minifilm/train/mpi.py)."""
+    the training step's exchange: a Reduce_scatter_block of the gradients and an Allgather of the
+    weights (minifilm/train/mpi.py)."""
     from mpi4py import MPI   # here: only under mpiexec, in the child this script starts
     comm = MPI.COMM_WORLD
     result = {}
     for n in sizes:
-        buf = np.ones(n, np.float32)
-        edges = [r * n // comm.size for r in range(comm.size + 1)]
-        counts, starts = np.diff(edges), np.array(edges[:-1])
-        part = np.empty(counts[comm.rank], np.float32)
+        part = np.empty(-(-n // comm.size), np.float32)     # equal parts, padded, as the training
+        buf = np.ones(len(part) * comm.size, np.float32)
 
         def exchange():
-            comm.Reduce_scatter(buf, part, counts, op=MPI.SUM)
-            comm.Allgatherv(MPI.IN_PLACE, [buf, (counts, starts)])
+            comm.Reduce_scatter_block(buf, part, op=MPI.SUM)
+            comm.Allgather(MPI.IN_PLACE, buf)
         row = {}
         for name, call in (("allreduce", lambda: comm.Allreduce(MPI.IN_PLACE, buf, op=MPI.SUM)),
                            ("exchange", exchange)):
