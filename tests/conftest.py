@@ -10,12 +10,20 @@ tests of the modules named ``*gradcheck*``, marked here, and the tests marked ``
 other modules). At the end of a session the gradient-check rows that ran are printed as one
 table, the table of ``minifilm gradcheck``, and the other checks below it (gradcheck_report.py).
 """
-from dataclasses import replace
-from pathlib import Path
+import os
 
-import pytest
+# The suite runs in two worker processes (setup.cfg: pytest-xdist's -n 2); each keeps one BLAS
+# thread, set before numpy loads, so that two workers' threads do not take turns on two cores.
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    for _key in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(_key, "1")
 
-import gradcheck_report
+from dataclasses import replace  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import pytest  # noqa: E402
+
+import gradcheck_report  # noqa: E402
 from repo_paths import REPO_ROOT, SHARED_DATA, need_data  # noqa: F401  (re-exported for the fixtures below)
 
 
@@ -55,17 +63,39 @@ def pytest_ignore_collect(collection_path, config):
     return None
 
 
+@pytest.hookimpl(tryfirst=True)      # before pytest-xdist reads the groups
 def pytest_collection_modifyitems(items):
-    """Every test of a module named ``*gradcheck*`` is a gradient check (``-m gradcheck``)."""
+    """Every test of a module named ``*gradcheck*`` is a gradient check (``-m gradcheck``). With two
+    workers (``--dist loadgroup``) a module's tests run in one worker, so its fixtures are made
+    once, and every gradient check runs in one worker, whose rows make the one table below."""
     for item in items:
         if "gradcheck" in item.path.name:
             item.add_marker(pytest.mark.gradcheck)
+        group = "gradcheck" if item.get_closest_marker("gradcheck") else item.nodeid.split("::")[0]
+        item.add_marker(pytest.mark.xdist_group(group))
+
+
+GRADCHECK_TABLES = []       # the table of each worker that ran gradient checks (pytest-xdist)
+
+
+def pytest_sessionfinish(session):
+    """In a worker of pytest-xdist: its gradient-check table goes to the main process."""
+    if hasattr(session.config, "workeroutput"):
+        session.config.workeroutput["gradcheck_table"] = gradcheck_report.table()
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_testnodedown(node, error):
+    """In the main process of pytest-xdist: a worker's gradient-check table, when it has one."""
+    text = getattr(node, "workeroutput", {}).get("gradcheck_table")
+    if text:
+        GRADCHECK_TABLES.append(text)
 
 
 def pytest_terminal_summary(terminalreporter):
     """The gradient checks that ran: ``minifilm gradcheck``'s table of the (case, seed) tests, then
     the other checks, one line each."""
-    text = gradcheck_report.table()
+    text = gradcheck_report.table() or "\n\n".join(GRADCHECK_TABLES)
     if text:
         terminalreporter.write_sep("=", "gradient checks (the table of minifilm gradcheck, then the others)")
         terminalreporter.write_line(text)
