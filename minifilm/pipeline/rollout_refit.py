@@ -19,6 +19,7 @@ from typing import List
 
 import numpy as np
 
+from minifilm.pipeline.teach_adapter import RecordedNetwork
 from minifilm.pipeline.teach_released import normalised
 from minifilm.pipeline.walks import FPS
 from minifilm.runtime.control import CommandScript
@@ -27,34 +28,17 @@ from minifilm.synthetic.generator import rest_motion
 from minifilm.train.film_fit import FitSettings, FrozenRows, StylePrior, fit_film
 
 
-class _Recording:
-    """The network, with every frame's raw input x, phases p and output z recorded (batch of one)."""
-
-    def __init__(self, network):
-        self._network, self.x, self.p, self.z = network, [], [], []
-
-    def __getattr__(self, name):
-        return getattr(self._network, name)
-
-    def predict(self, x, p, cond):
-        z = self._network.predict(x, p, cond)
-        self.x.append(np.array(x[0], np.float64))
-        self.p.append(np.array(p[0], np.float64))
-        self.z.append(np.array(z[0], np.float64))
-        return z
-
-
 def visited_rows(rel, layout, film: np.ndarray, clip, seconds: float = 8.0):
     """Rows at the states ``film`` visits walking straight at the clip's speed (the first second
     cut), with the clip's nearest-pose next-frame targets: -> (x, p, z) raw, and the median
     distance from a visited pose to its nearest clip pose (normalised units, per number)."""
-    rec = _Recording(rel.network)
+    rec = RecordedNetwork(rel.network)
     ctrl = Controller(rec, layout, fps=FPS, skeleton=Controller.skeleton_for(layout, rest_motion()),
                       feed_back_fit=True)
     v = float(np.clip(clip.speed, 0.3, 4.0))
     n = int(round((seconds + 1) * FPS))
     ctrl.run([CommandScript([(0.0, v, 0.0, 0.0), (seconds + 1, v, 0.0, 0.0)])], n, np.asarray(film, np.float32)[None])
-    X, P, Zown = (np.stack(a)[int(FPS):] for a in (rec.x, rec.p, rec.z))
+    X, P, Zown = (np.stack(a)[int(FPS):, 0] for a in (rec.x, rec.p, rec.z))     # one character
     a = rel.stats.normalize_x(X)[:, layout.x_joints]
     b = rel.stats.normalize_x(clip.x)[:, layout.x_joints]
     d2 = np.sum(a ** 2, 1)[:, None] + np.sum(b ** 2, 1)[None] - 2 * a @ b.T

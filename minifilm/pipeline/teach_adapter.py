@@ -61,8 +61,9 @@ def adapter_kind(plan: AdapterPlan, far: bool, loss: float, own_loss: float) -> 
     return AUTO_KIND if outside else None
 
 
-class _Recorded:
-    """A network with every frame's raw inputs and outputs recorded (a batch of characters)."""
+class RecordedNetwork:
+    """A network with every frame's raw inputs x, phases p and outputs z recorded, each frame's
+    as one array (B, ...) for its batch of characters."""
 
     def __init__(self, network):
         self._network, self.x, self.p, self.z = network, [], [], []
@@ -90,7 +91,7 @@ def replay_rows(controller: Callable, network, films: np.ndarray, speed: float, 
     driven by ``controller(network)`` (e.g. :func:`released_controller`): -> raw x (N, x_dim),
     p (N, 8), z (N, z_dim) of every frame after the first second (the start from the mean pose),
     and each row's vector index."""
-    rec = _Recorded(network)
+    rec = RecordedNetwork(network)
     ctrl = controller(rec)
     fps = ctrl.fps
     v = float(np.clip(speed, 0.3, 4.0))

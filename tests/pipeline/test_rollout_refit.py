@@ -8,16 +8,18 @@ import pytest
 
 from minifilm.features.layout import FeatureLayout
 from minifilm.motion.skeletons import STYLE100
-from minifilm.pipeline.rollout_refit import _Recording, visited_rows
+from minifilm.pipeline.rollout_refit import visited_rows
+from minifilm.pipeline.teach_adapter import RecordedNetwork
 from minifilm.runtime.released import load_released
 from minifilm.train.film_fit import FrozenRows
 
 
 def test_the_recording_passes_everything_through():
     net = SimpleNamespace(film_dim=4, predict=lambda x, p, c: x[:, :2] * 2)
-    rec = _Recording(net)
-    z = rec.predict(np.ones((1, 3)), np.zeros((1, 8)), None)
+    rec = RecordedNetwork(net)
+    z = rec.predict(np.ones((2, 3)), np.zeros((2, 8)), None)
     assert rec.film_dim == 4 and np.all(z == 2) and len(rec.x) == len(rec.p) == len(rec.z) == 1
+    assert rec.x[0].shape == (2, 3) and rec.z[0].shape == (2, 2)          # a frame of the whole batch
 
 
 def test_a_rollout_of_its_own_motion_finds_itself(shared_data):
