@@ -61,9 +61,9 @@ def add_arguments(parser) -> None:
                              "larger network)")
     parser.add_argument("--model", choices=("small", "paper"), default="small",
                         help="the network's sizes: small (the main job's: K = 4, hidden 128, 32 filters; 707,420 "
-                             "parameters for 100STYLE) or paper (Sec. 4's: K = 8, hidden 512, 256 filters of 25, "
-                             "44 M parameters, a third of a second a step on one core: for mpiexec on many cores, "
-                             "docs/scaling.md)")
+                             "parameters for 100STYLE) or paper (Sec. 4's: K = 8, hidden 512, 256 filters of 25; 44 M "
+                             "parameters with --clip-seconds 4, a third of a second a step on one core: for "
+                             "mpiexec on many cores, docs/scaling.md)")
     parser.add_argument("--workers", type=in_range(1, 1024, int), default=None,
                         help="processes labelling the data set's files (default: every core this process may use; "
                              "1: all in this process). Training runs in this process; to split each minibatch "
