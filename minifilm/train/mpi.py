@@ -42,6 +42,7 @@ import os
 import sys
 import traceback
 from dataclasses import replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -52,6 +53,16 @@ from minifilm.train.objective import all_finite
 #: Environment variables that MPI launchers set in every rank: MPICH and Intel MPI (Hydra),
 #: Open MPI, and PMIx launchers such as Slurm's srun.
 LAUNCHER_SIZES = ("PMI_SIZE", "OMPI_COMM_WORLD_SIZE", "PMIX_SIZE")
+
+
+class Span(NamedTuple):
+    """Where one trainable parameter set lies in the flat buffers: its network's name, [first, end)
+    in the buffers, and its numbers in this rank's part, as slices of the set and of the part."""
+    net: str
+    first: int
+    end: int
+    in_set: slice
+    in_part: slice
 
 
 class StoppedOnRank0(SystemExit):
@@ -121,14 +132,18 @@ class Ranks:
         # weights where Allgatherv, with a count per rank, took 0.29 (MPICH 5, two ranks)
         part = -(-n // self.size)
         self.data, self.grad = np.zeros(part * self.size, model.dtype), np.zeros(part * self.size, model.dtype)
-        self.spans, start = [], 0                   # (Adam's set index, its network, first, end)
-        names = {id(getattr(model, net).params): net for net in ("gating", "motion", "film")}
-        for i, ps in sets:
-            ps.bind(self.data[start:start + ps.size], self.grad[start:start + ps.size])
-            self.spans.append((i, names.get(id(ps), f"set {i}"), start, start + ps.size))
-            start += ps.size
         self.lo, self.hi = self.rank * part, (self.rank + 1) * part       # this rank's part of the buffers
         self.part = np.zeros(part, dtype=model.dtype)   # this rank's part of the summed gradient
+        names = {id(getattr(model, net).params): net for net in ("gating", "motion", "film")}
+        self.spans, start = {}, 0                   # Adam's set index -> where the set lies (Span)
+        for i, ps in sets:
+            end = start + ps.size
+            ps.bind(self.data[start:end], self.grad[start:end])
+            lo = max(start, self.lo)
+            hi = max(lo, min(end, self.hi))         # [lo, hi): the set's numbers in this rank's part
+            self.spans[i] = Span(names.get(id(ps), f"set {i}"), start, end, slice(lo - start, hi - start),
+                                 slice(lo - self.lo, hi - self.lo))
+            start = end
         self.nonfinite = {}
         self.model, self.sites = model, dropout_sites(model)
 
@@ -165,29 +180,26 @@ class Ranks:
         self.grad *= self.model.dtype.type(b.share)
         self.comm.Reduce_scatter_block(self.grad, self.part, op=MPI.SUM)
         totals = [mse * b.share, bll * b.share]
-        for _, net, first, end in self.spans:       # this rank's count of NaN and inf, per set
-            mine = self.part[max(first, self.lo) - self.lo:max(min(end, self.hi), self.lo) - self.lo]
+        for span in self.spans.values():           # this rank's count of NaN and inf, per set
+            mine = self.part[span.in_part]
             finite = all_finite(mine)               # one pass; the counts only when it is not
             totals += [0, 0] if finite else [np.count_nonzero(np.isnan(mine)), np.count_nonzero(np.isinf(mine))]
         totals = np.array(totals, dtype=np.float64)
         self.comm.Allreduce(MPI.IN_PLACE, totals, op=MPI.SUM)
         self.nonfinite = {}
-        for k, (_, net, _, _) in enumerate(self.spans):
+        for k, span in enumerate(self.spans.values()):
             nan, inf = totals[2 + 2 * k:4 + 2 * k]
             if nan or inf:
-                self.nonfinite.setdefault(net, "nan" if nan else "inf")
+                self.nonfinite.setdefault(span.net, "nan" if nan else "inf")
         return float(totals[0]), float(totals[1])
 
     def step(self, adam) -> None:
         """Adam's step (a minifilm.nn.fast_optim.ChunkedAdam) on this rank's part of the weights,
         from its part of the summed gradient; then every rank gets every part (Allgather)."""
-        spans = {i: (first, end) for i, _, first, end in self.spans}
         for i, step_size, eps_hat in adam.advance():
-            first, end = spans[i]
-            lo, hi = max(first, self.lo), min(end, self.hi)
-            if lo < hi:                              # the overlap of set i with this rank's part
-                mine = slice(lo - first, hi - first)
-                adam_span(adam.sets[i].data[mine], self.part[lo - self.lo:hi - self.lo], adam.m[i][mine],
+            mine = self.spans[i].in_set
+            if mine.stop > mine.start:               # set i has numbers in this rank's part
+                adam_span(adam.sets[i].data[mine], self.part[self.spans[i].in_part], adam.m[i][mine],
                           adam.v[i][mine], adam.scratch(self.data.dtype), adam.beta1, adam.beta2, step_size, eps_hat)
         self.comm.Allgather(self.MPI.IN_PLACE, self.data)
 
@@ -196,11 +208,11 @@ class Ranks:
         written (each rank updates only its part of them)."""
         for moments in (adam.m, adam.v):
             flat = np.zeros_like(self.data)
-            for i, _, first, end in self.spans:
-                flat[first:end] = moments[i]
+            for i, span in self.spans.items():
+                flat[span.first:span.end] = moments[i]
             self.comm.Allgather(self.MPI.IN_PLACE, flat)
-            for i, _, first, end in self.spans:
-                moments[i][...] = flat[first:end]
+            for i, span in self.spans.items():
+                moments[i][...] = flat[span.first:span.end]
 
 
 def dropout_sites(model) -> dict:
