@@ -178,11 +178,11 @@ class DemoPage:
                   " : minifilmDemo.sent === 0", timeout=timeout)
         return self.frame()
 
-    def hold(self, keys, steps: int, until: str = None):
+    def hold(self, keys, steps: int, until=None, until_timeout: float = None):
         """(frame before, frame after) holding ``keys`` (one name or a list) for ``steps`` network
         steps of the character counted from when the press reached it (and, with ``until``, until
-        that JavaScript condition holds too); the keys are released after, in reverse order, and
-        the release waited for."""
+        that condition holds too: JavaScript text or a function, as :meth:`wait` takes); the keys
+        are released after, in reverse order, and the release waited for."""
         keys = [keys] if isinstance(keys, str) else list(keys)
         before = self.frame()
         for key in keys:
@@ -191,7 +191,7 @@ class DemoPage:
             self.applied()
             after = self.steps_on(steps)
             if until:
-                self.wait(until, timeout=60.0 + steps / 6.0)
+                self.wait(until, timeout=until_timeout or 60.0 + steps / 6.0)
                 after = self.frame()
         finally:
             for key in reversed(keys):
