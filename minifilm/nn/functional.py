@@ -260,18 +260,19 @@ def expert_linear_forward(x: np.ndarray, alpha: np.ndarray, W: np.ndarray, b: np
     return y, (x, alpha, W, b, Z)
 
 
-def expert_linear_backward(dout: np.ndarray, cache):
+def expert_linear_backward(dout: np.ndarray, cache, weights: bool = True):
     """Gradients of :func:`expert_linear_forward`: dx (B, I), dalpha (B, K), dW (K, I, O), db (K, O).
 
     Three matrix products: dZ = dout W^T, dW = Z^T dout, db = alpha^T dout; then dZ (B, K, I) is
     contracted with alpha for dx and with x for dalpha (plus the bias path dout b^T).
+    weights=False: dW and db are None (frozen experts, as when a style's vector or adapter is fitted).
     """
     x, alpha, W, b, Z = cache
     K, I, O = W.shape
     require_grad_shape("expert_linear_backward", dout, (x.shape[0], O))
     dZ = (dout @ W.reshape(K * I, O).T).reshape(-1, K, I)       # (B, K, I)
-    dW = (Z.T @ dout).reshape(K, I, O)
-    db = alpha.T @ dout                                          # (K, O)
+    dW = (Z.T @ dout).reshape(K, I, O) if weights else None
+    db = alpha.T @ dout if weights else None                     # (K, O)
     dx = np.matmul(alpha[:, None, :], dZ)[:, 0, :]               # (B, I) = sum_k a_bk dZ_bk
     dalpha = np.matmul(dZ, x[:, :, None])[:, :, 0] + dout @ b.T  # (B, K)
     return dx, dalpha, dW, db

@@ -31,7 +31,6 @@ from minifilm.model.adapters import (StyleAdapter, lowrank_experts_backward, low
 from minifilm.model.motion_net import split_film
 from minifilm.nn import functional as F
 from minifilm.nn.optim import Adam
-from minifilm.train.film_fit import _expert_dx
 
 
 @dataclass
@@ -136,7 +135,7 @@ def adapted_phi_backward(dz: np.ndarray, caches, adapter: StyleAdapter) -> None:
             G[f"P{l}"] += dP
             G[f"Q{l}"] += dQ
         if l > 0:                       # to the layer's input, the hidden layer below
-            dh = _expert_dx(df, c["experts"])
+            dh = F.expert_linear_backward(df, c["experts"], weights=False)[0]
             df = dh if dx is None else dh + dx
 
 

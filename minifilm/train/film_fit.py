@@ -135,20 +135,11 @@ class FrozenRows:
         loss = float(np.mean(diff.astype(np.float64) ** 2))
         dz = (2.0 / diff.size) * diff
         # the kit's pairs in reverse; only the FiLM gradients are wanted (expert weights frozen)
-        dh2 = _expert_dx(dz, c_exp3)
+        dh2 = F.expert_linear_backward(dz, c_exp3, weights=False)[0]
         dn2, dg2, db2 = F.film_backward(F.elu_backward(dh2, c_elu2), c_film2)
-        dh1 = _expert_dx(F.layer_norm_backward(dn2, c_norm2), c_exp2)
+        dh1 = F.expert_linear_backward(F.layer_norm_backward(dn2, c_norm2), c_exp2, weights=False)[0]
         _, dg1, db1 = F.film_backward(F.elu_backward(dh1, c_elu1), c_film1)
         return loss, np.concatenate([dg1, db1, dg2, db2]).astype(np.float64)
-
-
-def _expert_dx(dout, cache):
-    """dx of :func:`minifilm.nn.functional.expert_linear_backward` without the weight gradients
-    (the experts are frozen): dx_b = Σ_k α_bk dout_b W_kᵀ."""
-    x, alpha, W, b, Z = cache
-    K, I, O = W.shape
-    dZ = (dout @ W.reshape(K * I, O).T).reshape(-1, K, I)
-    return np.matmul(alpha[:, None, :], dZ)[:, 0, :]
 
 
 @dataclass

@@ -71,6 +71,11 @@ def test_expert_linear_fast_form_equals_per_sample_weights(rng, batch):
     np.testing.assert_allclose(db, np.einsum("bk,bo->ko", alpha, dout), rtol=1e-11, atol=1e-12)
     expect_dalpha = np.einsum("bio,kio->bk", dW_per, W) + dout @ b.T
     np.testing.assert_allclose(dalpha, expect_dalpha, rtol=1e-11, atol=1e-12)
+    # frozen experts (fitting a style's vector or adapter): the same dx and dalpha, no weight gradients
+    dx_frozen, dalpha_frozen, dW_frozen, db_frozen = F.expert_linear_backward(dout, cache, weights=False)
+    assert dW_frozen is None and db_frozen is None
+    np.testing.assert_array_equal(dx_frozen, dx)          # one process, the same products: exact
+    np.testing.assert_array_equal(dalpha_frozen, dalpha)
 
 
 # ------------------------------------------------------------------------------ activations
