@@ -149,8 +149,9 @@ class VariantModel:
                 self.film = CPResidualAdapter(n_styles, cb.hidden, rank, rng, PFNN_CONTROL_POINTS, dtype)
             else:
                 self.film = ResidualAdapter(n_styles, cb.hidden, rng, dtype)
-        self._state = None
-        self._gather = None
+        # the last forward pass, for backward: {"kind": "clip" | "film" | "style", "film_shape",
+        # "gather" (clip_index's cache, or None)}; None before any forward
+        self._pass = None
 
     # ---- parameters ----------------------------------------------------------------------
     def parameter_sets(self):
@@ -181,12 +182,11 @@ class VariantModel:
             self._require_film_generator()
             if clip is None:
                 raise ValueError(f"{self.name}: FiLM needs a style clip")
-            film = self.film.forward(clip, train=train, rng=rng, masks=masks)
-            self._gather = None
+            film, gather = self.film.forward(clip, train=train, rng=rng, masks=masks), None
             if clip_index is not None:
-                film, self._gather = F.gather_forward(film, clip_index)
+                film, gather = F.gather_forward(film, clip_index)
             z = self.forward_with_film(x, p, film, train=train, rng=rng, masks=masks)
-            self._state = "clip"
+            self._pass.update(kind="clip", gather=gather)
             return z
         self._check_p(p)
         alpha = self.gate.forward(p, train=train, rng=rng, masks=masks)
@@ -198,20 +198,20 @@ class VariantModel:
                 raise ValueError(f"{self.name}: needs style ids (forward(..., style=ids))")
             adapter = lambda h: self.film.forward(h, style, alpha)   # noqa: E731 (α = spline weights for the PFNN)
         z = self.motion.forward(x, alpha, train=train, rng=rng, masks=masks, shift=shift, adapter=adapter)
-        self._state = "style"
+        self._pass = {"kind": "style"}
         return z
 
     def backward(self, dz, need_input_grads=True):
         """-> {'x': dx, 'p': dp, 'clip': dclip or None}; parameter gradients are added.
         dp is None for the PFNN (the phase is data)."""
-        if self._state is None:
+        if self._pass is None:
             raise RuntimeError(f"{self.name}: backward called before forward")
         if self.modulation == "film":
-            if self._state != "clip":
+            if self._pass["kind"] != "clip":
                 raise RuntimeError(f"{self.name}: use backward_with_film after forward_with_film")
             dx, dp, dfilm = self.backward_with_film(dz)
-            if self._gather is not None:
-                dfilm = F.gather_backward(dfilm, self._gather)
+            if self._pass["gather"] is not None:
+                dfilm = F.gather_backward(dfilm, self._pass["gather"])
             return {"x": dx, "p": dp, "clip": self.film.backward(dfilm, need_input_grad=need_input_grads)}
         adapter_backward = self.film.backward if self.modulation == "resad" else None
         dx, dalpha, dshift = self.motion.backward(dz, adapter_backward=adapter_backward)
@@ -229,17 +229,18 @@ class VariantModel:
         self._require_film()
         self._check_p(p)
         film = np.asarray(film)
-        self._film_shape = film.shape
+        self._pass = {"kind": "film", "film_shape": film.shape}
         if film.ndim == 1:
             film = np.broadcast_to(film, (x.shape[0], film.shape[0]))
         alpha = self.gate.forward(p, train=train, rng=rng, masks=masks)
-        self._state = "film"
         return self.motion.forward(x, alpha, film, train=train, rng=rng, masks=masks)
 
     def backward_with_film(self, dz):
+        if self._pass is None or "film_shape" not in self._pass:
+            raise RuntimeError(f"{self.name}: backward_with_film called before forward_with_film")
         dx, dalpha, dfilm = self.motion.backward(dz)
         dp = self.gating.backward(dalpha) if self.gating is not None else None
-        if len(self._film_shape) == 1:
+        if len(self._pass["film_shape"]) == 1:      # one vector served the whole batch
             dfilm = dfilm.sum(axis=0)
         return dx, dp, dfilm
 
