@@ -18,6 +18,8 @@ from functools import cached_property
 from pathlib import Path
 from typing import Optional, Tuple, Union
 
+import numpy as np
+
 from minifilm.body.humanoid import find_humanoid
 from minifilm.body.parts import Humanoid, HumanoidError
 from minifilm.body.rig import HumanoidRig, builtin_skeleton_of, humanoid_rig
@@ -81,6 +83,18 @@ class Body:
                            f"command reads")
         return roles_from_humanoid(self.motion, self.humanoid)
 
+    def on_skeleton(self, skeleton: Skeleton) -> Tuple[Motion, Optional[BodyUnit]]:
+        """(the motion in metres, the unit used or None) on the built-in ``skeleton``: in that
+        skeleton's ``bvh_scale`` while the body is of human height in it (unit None), else in the
+        unit its legs give (units.body_unit: a 100STYLE or Bandai file saved in metres is read in
+        metres, and the unit says so). A body without humanoid parts goes by the skeleton's unit;
+        HumanoidError when the body does not stand along y (a file saved z-up)."""
+        _check_upright(self.motion, skeleton)
+        unit = body_unit(self.motion, self.humanoid, skeleton) if self.is_humanoid else None
+        if unit is None or unit.metres_per_unit == skeleton.bvh_scale:
+            return scaled(self.motion, skeleton.bvh_scale), None
+        return scaled(self.motion, unit.metres_per_unit), unit
+
     def metres_per_unit(self, roles: Roles) -> float:
         """A built-in skeleton's unit when its body is of human height in it, else the common unit
         that makes the body 1.4-2.1 m tall (the one unit rule of every command); a rig the humanoid
@@ -88,6 +102,23 @@ class Body:
         if not self.is_humanoid:
             return unit_from_legs(self.motion, roles).metres_per_unit
         return self.unit.metres_per_unit
+
+
+#: the least share of the hips-to-toes distance that is vertical (y) in an upright body: about
+#: 0.9-1 standing, walking or running, over 0.6 crouching; about 0 in a file saved z-up
+UPRIGHT = 0.5
+
+
+def _check_upright(motion: Motion, skeleton: Skeleton) -> None:
+    """HumanoidError unless the hips stand above the toe tips along y on most frames: BVH is read
+    y-up, and a z-up file's walk would otherwise be labelled (no step found) without a word."""
+    P = motion.world()[0]
+    down = P[:, [skeleton.hips_index(motion)]] - P[:, skeleton.contact_indices(motion)]       # (F, 2, 3)
+    share = float(np.median(down[..., 1] / np.maximum(np.linalg.norm(down, axis=-1), 1e-12)))
+    if not share > UPRIGHT:
+        raise HumanoidError(f"{motion.source}: the body does not stand along y (the hips are above the feet by "
+                            f"{share:.2f} of their distance, upright is about 1): minifilm reads BVH with y up, "
+                            "and a file saved with z up must be rotated first")
 
 
 def read_in_metres(path: Union[str, os.PathLike]) -> Tuple[Motion, Optional[Humanoid], BodyUnit]:
@@ -107,15 +138,15 @@ def load_for_phases(path: Union[str, os.PathLike], skeleton_name: Optional[str] 
     """Read ``path`` in metres with the rig to label it with: (motion, rig, unit).
 
     ``skeleton_name`` picks a built-in skeleton; without it the built-in skeleton whose joints the
-    file has is used (its ``bvh_scale``, unit None), else the file's humanoid parts and the unit
-    from its legs (``body_unit``). HumanoidError when the file is not a humanoid; BVHError /
-    OSError as ``read_bvh``."""
-    if skeleton_name:
-        skeleton = builtin_skeleton(skeleton_name)
-        return read_bvh(path, scale=skeleton.bvh_scale), skeleton, None
+    file has is used (in its unit, or the one its legs give: :meth:`Body.on_skeleton`; the unit is
+    None when the skeleton's own served), else the file's humanoid parts and the unit from its legs
+    (``body_unit``). HumanoidError when the file is not a humanoid; BVHError / OSError as
+    ``read_bvh``."""
     body = Body(read_bvh(path, scale=1.0))
-    if body.skeleton is not None:        # the file is read once; scaling it gives the same numbers
-        return scaled(body.motion, body.skeleton.bvh_scale), body.skeleton, None
+    skeleton = builtin_skeleton(skeleton_name) if skeleton_name else body.skeleton
+    if skeleton is not None:             # the file is read once; scaling it gives the same numbers
+        motion, unit = body.on_skeleton(skeleton)
+        return motion, skeleton, unit
     motion = scaled(body.motion, body.unit.metres_per_unit)
     return motion, humanoid_rig(motion, body.humanoid), body.unit
 

@@ -15,6 +15,7 @@ from typing import List, Optional, Tuple
 
 import numpy as np
 
+from minifilm.body.read import Body
 from minifilm.dataset.manifest import MotionFile
 from minifilm.dataset.settings import DatasetSettings
 from minifilm.dataset.splits import apply_gap, file_rng, split_segments
@@ -53,8 +54,10 @@ class FileRows:
 
 
 def load_motion(f: MotionFile, skeleton, fps: Optional[float]):
-    """One manifest entry as a Motion: read, cropped to its frame range, resampled to ``fps``."""
-    motion = read_bvh(f.path, scale=skeleton.bvh_scale)
+    """One manifest entry as a Motion: read in metres (in the skeleton's unit, or the one the
+    body's legs give when it is saved in another: :meth:`~minifilm.body.read.Body.on_skeleton`),
+    cropped to its frame range, resampled to ``fps``."""
+    motion, _ = Body(read_bvh(f.path, scale=1.0)).on_skeleton(skeleton)
     if f.start is not None or f.end is not None:
         a = 0 if f.start is None else f.start
         b = motion.n_frames if f.end is None else f.end

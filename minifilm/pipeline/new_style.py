@@ -20,6 +20,7 @@ from typing import Callable, List, Optional, Sequence
 
 import numpy as np
 
+from minifilm.body.read import Body
 from minifilm.dataset.arrays import TrainData
 from minifilm.features.compute import clip_features, frame_features, seconds_to_frames
 from minifilm.motion.bvh import read_bvh
@@ -90,11 +91,19 @@ def checkpoint_path(run: RunFolder, name: str) -> Path:
 
 
 def read_clip(path, run: RunFolder, log: Callable[[str], None]) -> Motion:
-    """One file on the run's skeleton, at the run's frame rate (resampled, and said so)."""
-    motion = read_bvh(path, scale=run.bvh_scale)
-    missing = [n for n in run.layout.joint_names if n not in motion.names]
+    """One file on the run's skeleton, in metres (a file saved in another unit than the
+    skeleton's usual one is read in its own, and said so), at the run's frame rate (resampled, and
+    said so)."""
+    body = Body(read_bvh(path, scale=1.0))
+    if body.motion.n_frames < 2:
+        raise ValueError(f"{path}: {body.motion.n_frames} frame: too short to teach a style")
+    missing = [n for n in run.layout.joint_names if n not in body.motion.names]
     if missing:      # another rig: retargeted onto the run's skeleton (minifilm/body/retarget_batch.py)
         motion = retarget_onto_run(path, run.path, log)
+    else:
+        motion, unit = body.on_skeleton(builtin_skeleton(run.skeleton_name))
+        if unit is not None:
+            log(f"    {Path(path).name}: {unit.how}")
     if abs(motion.fps - run.fps) > 1e-3 * run.fps:
         log(f"    {Path(path).name}: {motion.fps:g} fps resampled to the run's {run.fps:g} fps")
         motion = resample(motion, run.fps)

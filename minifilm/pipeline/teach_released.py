@@ -31,7 +31,7 @@ from minifilm.motion.editing import resample
 from minifilm.motion.motion import Motion
 from minifilm.motion.skeletons import STYLE100
 from minifilm.phases.label import label
-from minifilm.body.read import read_source
+from minifilm.body.read import Body, read_source
 from minifilm.body.retarget_clip import retarget_motion
 from minifilm.body.target import load_rig
 from minifilm.runtime.start_state import root_joint_indices
@@ -73,10 +73,17 @@ class ClipRows:
 
 def read_clip(path, log: Callable[[str], None] = print):
     """One BVH file on the 100STYLE skeleton at 60 fps: -> (Motion, retargeted). Another rig is
-    retargeted, another frame rate resampled, and each is said."""
-    motion = read_bvh(path, scale=STYLE100.bvh_scale)
-    missing = [n for n in FeatureLayout.for_skeleton(STYLE100).joint_names if n not in motion.names]
-    if missing:
+    retargeted, another frame rate resampled, another unit than the skeleton's usual one read as
+    such (:meth:`~minifilm.body.read.Body.on_skeleton`), and each is said."""
+    body = Body(read_bvh(path, scale=1.0))
+    if body.motion.n_frames < 2:
+        raise ClipError(f"{path}: {body.motion.n_frames} frame: too short to teach a style")
+    missing = [n for n in FeatureLayout.for_skeleton(STYLE100).joint_names if n not in body.motion.names]
+    if not missing:
+        motion, unit = body.on_skeleton(STYLE100)
+        if unit is not None:
+            log(f"    {Path(path).name}: {unit.how}")
+    else:
         source, roles = read_source(path)
         motion = retarget_motion(source, load_rig("100style"), roles)
         log(f"    {Path(path).name}: not on the 100STYLE skeleton ({len(source.names)} joints, hips {roles.hips!r}); "

@@ -44,6 +44,7 @@ from minifilm.model.style_model import StyleModel
 from minifilm.motion.bvh import bvh_duration, read_bvh
 from minifilm.motion.skeletons import STYLE100, builtin_skeleton
 from minifilm.phases.label import label
+from minifilm.body.read import Body
 from minifilm.body.retarget_batch import retarget_files
 from minifilm.pipeline.run_folder import RunFolder, is_run_entry
 from minifilm.pipeline.run_rig import load_target
@@ -317,7 +318,7 @@ def finish(job: Job, trainer: Trainer) -> dict:
     save_loss_curve(trainer.history, work / "loss_curve.png", shown=out / "loss_curve.png")
 
     skeleton = builtin_skeleton(ds.skeleton)
-    template = read_bvh(ds.files[0]["path"], scale=skeleton.bvh_scale)   # the source skeleton, its own units
+    template, _ = Body(read_bvh(ds.files[0]["path"], scale=1.0)).on_skeleton(skeleton)   # the source skeleton, in metres
     folder = RunFolder.prepare(work, ds.layout, ds.fps, ds.skeleton, skeleton.bvh_scale, template,
                                s.position_bias)
     library = style_library(trainer, ds)
