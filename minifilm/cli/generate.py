@@ -71,8 +71,10 @@ def add_arguments(ap) -> None:
     ap.add_argument("--seconds", type=positive(float, 3600.0), default=30.0, help="length, seconds")
     ap.add_argument("--out", type=bvh_path, default=Path("motion.bvh"), help="BVH file to write")
     ap.add_argument("--skeleton-bvh", type=input_path,
-                    help="BVH whose hierarchy, offsets and channel order the output uses (default: the "
-                         "run's skeleton, or the 100STYLE skeleton for the released network)")
+                    help="BVH whose hierarchy, offsets and channel order the output uses: the network's "
+                         "skeleton (its joint names) with other proportions or channels; another rig goes "
+                         "through `minifilm retarget` (default: the run's skeleton, or the 100STYLE skeleton "
+                         "for the released network)")
     ap.add_argument("--foot-lock", action="store_true", help="pin feet in predicted contact (leg IK)")
     ap.add_argument("--fit", choices=("feedback", "output", "none"),
                     help="put each frame on the skeleton and feed that pose back (released default), fit the "

@@ -24,7 +24,7 @@ from typing import Optional, Tuple
 import numpy as np
 
 
-__all__ = ["estimate_floor_height", "foot_contacts", "majority_filter", "humanoid_contacts"]
+__all__ = ["estimate_floor_height", "foot_contacts", "majority_filter", "gait_contacts", "humanoid_contacts"]
 
 #: 11 frames at 60 fps (the original's FilterWidth = 5 each side), as a duration.
 DEFAULT_FILTER_SECONDS = 10.0 / 60.0
@@ -127,32 +127,36 @@ GAIT_SPEED_FRACTION = 0.3
 GAIT_HEIGHT_THRESHOLD = 0.03
 
 
-def humanoid_contacts(motion, humanoid, speed_threshold: Optional[float] = None,
-                      height_threshold: Optional[float] = None, **kwargs) -> Tuple[np.ndarray, np.ndarray]:
-    """Foot contacts of any humanoid motion, from the toe tips of its parts.
+def gait_contacts(positions, sensors, hips: int, fps: float, speed_threshold: Optional[float] = None,
+                  height_threshold: Optional[float] = None, **kwargs) -> np.ndarray:
+    """Foot contacts with thresholds that hold on motion capture of any source and on generated
+    motion: :func:`foot_contacts` with the speed threshold max(0.15, GAIT_SPEED_FRACTION x the
+    hips' median ground speed) and the height threshold GAIT_HEIGHT_THRESHOLD unless given.
 
-    Args:
-        motion: a Motion in metres (e.g. ``read_in_metres(path)`` of minifilm/body/read.py).
-        humanoid: its parts (a ``minifilm.body.parts.Humanoid``), found once by its reader (e.g.
-            ``read_in_metres``): its ``contact_sensors`` and ``hips`` are read.
-        speed_threshold: m/s; default max(0.15, GAIT_SPEED_FRACTION x the hips' median ground speed).
-        height_threshold: metres; default GAIT_HEIGHT_THRESHOLD.
-        kwargs: ``floor_height``, ``filter_seconds`` for :func:`foot_contacts`.
-    Returns:
-        contacts (F, 2) of 0.0/1.0 and sensors (2,): the joint indices [right toe tip, left toe tip].
+    positions (F, J, 3) world, metres; sensors (2,): [right, left] toe-tip joints; hips: the hips
+    joint; kwargs: ``floor_height``, ``filter_seconds``. Returns (F, 2) of 0.0/1.0.
 
-    PAPER: its 0.15 m/s and 1 cm were set on 100STYLE (60 fps, clean, feet on
-    y = 0) and find no contact at all in CMU 08_01 (120 fps; its toe tips slide at about 0.2 m/s
-    and rest 1.6-7 cm up through a stance) nor in Bandai runs. Pass the paper's values to get them.
-    """
-    sensors = np.array(humanoid.contact_sensors, dtype=np.int64)
-    positions, _ = motion.world()
+    PAPER: its 0.15 m/s and 1 cm were set on 100STYLE (60 fps, clean, feet on y = 0) and find no
+    contact at all in CMU 08_01 (120 fps; its toe tips slide at about 0.2 m/s and rest 1.6-7 cm up
+    through a stance), in Bandai runs, nor in a network's own walk whose feet slide at 0.3 m/s."""
+    positions = np.asarray(positions)
     if speed_threshold is None:
-        ground = positions[:, humanoid.hips, ::2]                                     # (F, 2) x, z
-        speed = np.linalg.norm(np.diff(ground, axis=0), axis=-1) * motion.fps if len(ground) > 1 else np.zeros(1)
+        ground = positions[:, hips, ::2]                                              # (F, 2) x, z
+        speed = np.linalg.norm(np.diff(ground, axis=0), axis=-1) * fps if len(ground) > 1 else np.zeros(1)
         speed_threshold = max(0.15, GAIT_SPEED_FRACTION * float(np.median(speed)))
     if height_threshold is None:
         height_threshold = GAIT_HEIGHT_THRESHOLD
-    contacts = foot_contacts(positions[:, sensors], motion.fps, speed_threshold=speed_threshold,
-                             height_threshold=height_threshold, **kwargs)
-    return contacts, sensors
+    return foot_contacts(positions[:, np.asarray(sensors)], fps, speed_threshold=speed_threshold,
+                         height_threshold=height_threshold, **kwargs)
+
+
+def humanoid_contacts(motion, humanoid, **kwargs) -> Tuple[np.ndarray, np.ndarray]:
+    """Foot contacts of any humanoid motion, from the toe tips of its parts (:func:`gait_contacts`).
+
+    motion: a Motion in metres (e.g. ``read_in_metres(path)`` of minifilm/body/read.py); humanoid:
+    its parts (a ``minifilm.body.parts.Humanoid``), found once by its reader: its
+    ``contact_sensors`` and ``hips`` are read. kwargs: as :func:`gait_contacts` (pass the paper's
+    thresholds to get them). Returns contacts (F, 2) of 0.0/1.0 and sensors (2,): the joint
+    indices [right toe tip, left toe tip]."""
+    sensors = np.array(humanoid.contact_sensors, dtype=np.int64)
+    return gait_contacts(motion.world()[0], sensors, humanoid.hips, motion.fps, **kwargs), sensors

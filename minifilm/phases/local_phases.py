@@ -149,7 +149,7 @@ def extract_local_phases(motion, skeleton, contacts=None, sources: Optional[Sequ
     fps = motion.fps
     n = motion.n_frames
     if n < 2:
-        raise ValueError(f"extract_local_phases({motion.source}): needs at least 2 frames, got {n}")
+        raise ValueError(f"{motion.source}: {n} frame(s); labelling its local phases needs at least 2")
     if contacts is None and "contact" in sources:
         raise ValueError(f"extract_local_phases({motion.source}): the 'contact' sources need the foot "
                          "contacts (label() in minifilm/phases/label.py computes both)")

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from minifilm.features.layout import CURRENT_SAMPLE, FeatureLayout
+from minifilm.files.names import few
 from minifilm.motion.motion import Motion
 from minifilm.runtime.root_frames import to_world2, unit2
 
@@ -16,7 +17,8 @@ def root_joint_indices(layout: FeatureLayout, skeleton: Motion) -> np.ndarray:
     missing = [n for n in layout.joint_names if n not in skeleton.names]
     if missing:
         raise ValueError(f"{skeleton.source}: the skeleton lacks {len(missing)} of the network's "
-                         f"{layout.n_joints} joints ({missing}); its joints are {skeleton.names}")
+                         f"{layout.n_joints} joints ({few(missing)}); its joints are {few(skeleton.names)}. "
+                         "Another rig's motion is put on the network's skeleton by `minifilm retarget`")
     return np.array([skeleton.index(n) for n in layout.joint_names], dtype=np.int64)
 
 
