@@ -118,8 +118,12 @@ def load_pack(folder, film_dim: Optional[int] = None, reserved: Mapping = (), ne
     if [e["name"] for e in entries] != styles.names:
         raise StylePackError(f"{where}: pack.json lists the styles {[e['name'] for e in entries][:10]} but "
                              f"styles.npz holds {styles.names[:10]}: the two files do not belong together")
-    if doc.get("film_dim") != styles.dim:
-        raise StylePackError(f"{where}: pack.json says FiLM vectors of {doc.get('film_dim')!r} numbers, "
+    film_dim = doc.get("film_dim")
+    if isinstance(film_dim, bool) or not isinstance(film_dim, int):
+        raise StylePackError(f"{where}: pack.json's 'film_dim' is {film_dim!r}, not a whole number (the length "
+                             f"of a FiLM vector: styles.npz holds {styles.dim})")
+    if film_dim != styles.dim:
+        raise StylePackError(f"{where}: pack.json says FiLM vectors of {film_dim} numbers, "
                              f"styles.npz holds {styles.dim}")
     clash = [n for n in styles.names if n in reserved]
     if clash:

@@ -55,6 +55,7 @@ def write_json(folder, doc):
     ("wrong version", "pack version"),
     ("names differ", "do not belong together"),
     ("dim in json", "FiLM vectors of"),
+    ("dim as text", r"'film_dim' is '8', not a whole number"),
     ("npz corrupt", "styles.npz"),
     ("npz nan", "non-finite"),
 ])
@@ -77,6 +78,8 @@ def test_bad_packs_are_one_clear_error(tmp_path, damage, message):
         write_json(folder, {**doc, "styles": doc["styles"][::-1]})
     elif damage == "dim in json":
         write_json(folder, {**doc, "film_dim": 3})
+    elif damage == "dim as text":
+        write_json(folder, {**doc, "film_dim": str(doc["film_dim"])})
     elif damage == "npz corrupt":
         (folder / "styles.npz").write_bytes(b"PK\x03\x04 broken")
     elif damage == "npz nan":
