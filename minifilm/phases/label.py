@@ -29,8 +29,8 @@ from minifilm.phases.contacts import foot_contacts, gait_contacts, humanoid_cont
 from minifilm.phases.local_phases import DEFAULT_SOURCES, LocalPhases, default_sources, extract_local_phases
 
 
-#: a walk or run has each foot down 25-60 % of its frames and a stand all of them; the paper's
-#: thresholds finding feet down on fewer than this share of frame-feet have missed the stances
+#: a foot that steps is down on 15-60 % of a walk's or run's frames, and on all of a stand's; the
+#: paper's thresholds finding a stepping foot down on fewer than this share have missed its stances
 FEW_CONTACTS = 0.05
 
 
@@ -71,9 +71,10 @@ def label(motion: Motion, skeleton, style: Optional[str] = None,
     ``motion`` (minifilm/body/read.py; taken as given: nothing is looked for here). ``style`` picks the phase sources (see
     ``default_sources``) unless ``sources`` names them; ``fit_options`` go to the sinusoid fit.
     Contacts use the skeleton's two toe-tip sensors with the floor height estimated from the file:
-    the paper's thresholds on a built-in Skeleton (the gait rule when they find feet down on fewer
-    than FEW_CONTACTS of the frames), ``humanoid_contacts``' on a HumanoidRig.
+    the paper's thresholds on a built-in Skeleton (the gait rule when they find a stepping foot
+    down on fewer than FEW_CONTACTS of the frames), ``humanoid_contacts``' on a HumanoidRig.
     """
+    sources = default_sources(style) if sources is None else tuple(sources)
     humanoid = getattr(skeleton, "humanoid", None)        # a HumanoidRig carries the parts it was made of
     rule = "paper"
     if humanoid is not None:
@@ -83,10 +84,11 @@ def label(motion: Motion, skeleton, style: Optional[str] = None,
         positions, _ = motion.world()
         sensors = skeleton.contact_indices(motion)
         contacts = foot_contacts(positions[:, sensors], motion.fps)
-        if contacts.mean() < FEW_CONTACTS:
+        # the feet whose phases come from their contacts (a hopping style's lifted foot does not)
+        stepping = [column for column, slot in ((0, 3), (1, 2)) if sources[slot] == "contact"]
+        if any(contacts[:, c].mean() < FEW_CONTACTS for c in stepping):
             # PAPER: its thresholds (0.15 m/s, 1 cm) missed the stances (capture whose toes slide
             # or rest above the floor, a network's sliding walk): the gait rule of any rig instead
             contacts = gait_contacts(positions, sensors, skeleton.hips_index(motion), motion.fps)
             rule = "gait"
-    sources = default_sources(style) if sources is None else tuple(sources)
     return Labels(contacts, extract_local_phases(motion, skeleton, contacts, sources, **fit_options), sources, rule)
