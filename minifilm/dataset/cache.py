@@ -26,10 +26,11 @@ CACHE_FORMAT = 1
 def source_fingerprint() -> str:
     """Hash of the code that computes the cached arrays: a code change invalidates old caches.
 
-    That code is every module of the packages that read, label and featurise motion."""
+    That code is every module of the packages that read (with the body's unit), label and
+    featurise motion."""
     h = hashlib.sha256()
     package = Path(__file__).resolve().parents[1]
-    for folder in ("motion", "phases", "features", "dataset"):
+    for folder in ("motion", "body", "phases", "features", "dataset"):
         for p in sorted((package / folder).glob("*.py")):
             h.update(f"{folder}/{p.name}".encode())
             h.update(p.read_bytes())
