@@ -39,6 +39,7 @@ from minifilm.pipeline.teach_adapter import AdapterPlan, adapted_condition, adap
 from minifilm.runtime.adapted import AdaptedNetwork
 from minifilm.runtime.adapter_file import write_adapters
 from minifilm.runtime.control import CommandScript
+from minifilm.runtime.held_body import toe_joints
 from minifilm.runtime.network import RuntimeNetwork
 from minifilm.runtime.walk_checks import count_strikes, walk_report
 from minifilm.pipeline.teach_released import input_distance
@@ -234,7 +235,7 @@ def _teach(run: RunFolder, name: str, files: Sequence, steps: int, lr: float, se
             clip_figures(run, own)[0], plan, kind, log=lambda m: log("[finetune] " + m))
         network, cond = AdaptedNetwork(network, [adapters[name]]), adapted_condition(library[name])
     check = rollout_check(run, network, cond, start, segments)
-    if adapter_info is not None:
+    if adapter_info is not None and check is not None:
         adapter_info.update(steps_per_s=check.steps_per_s, hips=check.hips, toe_on_floor=check.toe_on_floor)
     others = [n for n in library.names if n != name]
     nearest = min(others, key=lambda n: float(np.linalg.norm(library[n] - library[name]))) if others else ""
@@ -276,8 +277,8 @@ def too_short(longest_frames: int, clip_seconds: float, fps: float, n_files: int
 def rollout_check(run: RunFolder, network, film, start, segments, seconds: float = 6.0):
     """The new style (``film``: its condition for ``network``) walked straight ahead at the clip's
     speed from its start frame: a WalkReport against the clip's steps per second and hip height."""
-    names = list(run.layout.joint_names)
-    if not all(t in names for t in ("RightToe", "LeftToe")):
+    toes = toe_joints(run.layout.joint_names)                 # [right, left]
+    if toes is None:
         return None
     speed, clip_steps, clip_hips = clip_figures(run, segments)
     ctrl = run.controller(network)
@@ -285,5 +286,5 @@ def rollout_check(run: RunFolder, network, film, start, segments, seconds: float
     r = ctrl.run(CommandScript([(0.0, speed, 0.0, 0.0), (seconds, speed, 0.0, 0.0)]), n, film,
                  phases=start[1][None], start_x=start[0])
     path = np.array([[0.0, 0.0], [0.0, 2 * speed * seconds]])
-    return walk_report(r, 0, [names.index("RightToe"), names.index("LeftToe")], path,
+    return walk_report(r, 0, toes, path,
                        clip_steps_per_s=clip_steps, clip_hips=clip_hips)

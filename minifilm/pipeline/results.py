@@ -24,6 +24,7 @@ from minifilm.motion.bvh_write import write_bvh
 from minifilm.pipeline.run_folder import RunFolder
 from minifilm.runtime.control import make_script
 from minifilm.runtime.controller import Controller, NonFiniteOutputError
+from minifilm.runtime.held_body import toe_joints
 from minifilm.runtime.start_state import root_joint_indices
 from minifilm.runtime.network import RuntimeNetwork
 from minifilm.runtime.style_library import StyleLibrary
@@ -163,7 +164,7 @@ def show_styles(rollouts: dict, layout, out: Path, gif_seconds: float = 6.0, sho
     if not names:
         log("[view] no generated motion to show")
         return
-    toes = [layout.joint_names.index(t) for t in ("RightToe", "LeftToe")] if "RightToe" in layout.joint_names else None
+    toes = toe_joints(layout.joint_names)
     tracks = [tracks_from_rollout(rollouts[n], layout.parents, [n], layout.joint_names, toes)[0] for n in names]
     write_html(tracks, out / "index.html", title="minifilm: generated styles")
     log(f"[view] every style in a 3-D player (opens offline in a browser): {shown / 'index.html'}")

@@ -29,6 +29,7 @@ from minifilm.pipeline.motion_refit import Refit, RefitSettings, refine_by_motio
 from minifilm.pipeline.run_folder import RunFolder
 from minifilm.parallel import executor, worker_count
 from minifilm.pipeline.walks import FPS, WALK_WORKERS, FaultCheck, rows_summaries, straight_path, walk
+from minifilm.runtime.held_body import toe_joints
 from minifilm.runtime.network import RuntimeNetwork
 from minifilm.runtime.walk_checks import count_strikes
 
@@ -71,8 +72,7 @@ def refine_run_style(run: RunFolder, model, stats, film: np.ndarray, known: dict
         raise ValueError(f"--motion-rounds: the clip is too short to compare a walk with "
                          f"({len(windows)} window(s) of 0.75 s)")
     speed, steps_per_s, hips = clip_figures(run, segments)
-    names = list(run.layout.joint_names)
-    check = FaultCheck([names.index("RightToe"), names.index("LeftToe")],
+    check = FaultCheck(toe_joints(run.layout.joint_names),
                        straight_path(speed, settings.seconds + 1), steps_per_s, hips)
     network = RuntimeNetwork.from_model(model, stats)
     n = worker_count(workers, WALK_WORKERS)

@@ -7,35 +7,45 @@ foot locker's two-bone IK (:func:`minifilm.motion.foot_ik.two_bone_ik`).
 """
 from __future__ import annotations
 
-from typing import Optional, Sequence, Tuple
+from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
 
 from minifilm.motion.foot_ik import two_bone_ik
+from minifilm.motion.skeletons import BUILTIN_SKELETONS
 from minifilm.runtime.root_frames import to_local2, to_local3, to_world2, to_world3, unit2
 
-#: the toe joints' names tried, [right, left] (the contact columns' order)
-TOE_NAMES = (("RightToe", "LeftToe"), ("RightToeBase", "LeftToeBase"), ("RightFoot", "LeftFoot"))
+#: the toe joints' names tried, [right, left] (the contact columns' order): each built-in
+#: skeleton's feet phase joints, then the commonest other name
+TOE_NAMES = tuple((s.phase_bones[3], s.phase_bones[2]) for s in BUILTIN_SKELETONS) + (("RightFoot", "LeftFoot"),)
 #: metres: a held ankle is reached this much short of the straight leg (the knee keeps a bend)
 REACH_MARGIN = 0.0005
 
 
-def leg_chains(joint_names: Sequence[str], parents: Sequence[int]) -> Optional[np.ndarray]:
-    """(2, 4) exported-joint indices (hip, knee, ankle, toe) of the [right, left] legs: the toes by
-    name (``TOE_NAMES``), the rest their parents; None when no pair of toes is found."""
+def toe_joints(joint_names: Sequence[str]) -> Optional[List[int]]:
+    """[right, left] indices of the first pair of ``TOE_NAMES`` among ``joint_names``; None if none."""
     names = list(joint_names)
     for pair in TOE_NAMES:
         if all(n in names for n in pair):
-            chains = []
-            for toe in (names.index(n) for n in pair):
-                ankle = parents[toe]
-                knee = parents[ankle] if ankle >= 0 else -1
-                hip = parents[knee] if knee >= 0 else -1
-                if hip < 0:
-                    return None
-                chains.append([hip, knee, ankle, toe])
-            return np.array(chains, dtype=np.int64)
+            return [names.index(n) for n in pair]
     return None
+
+
+def leg_chains(joint_names: Sequence[str], parents: Sequence[int]) -> Optional[np.ndarray]:
+    """(2, 4) exported-joint indices (hip, knee, ankle, toe) of the [right, left] legs: the toes by
+    name (:func:`toe_joints`), the rest their parents; None when no pair of toes is found."""
+    toes = toe_joints(joint_names)
+    if toes is None:
+        return None
+    chains = []
+    for toe in toes:
+        ankle = parents[toe]
+        knee = parents[ankle] if ankle >= 0 else -1
+        hip = parents[knee] if knee >= 0 else -1
+        if hip < 0:
+            return None
+        chains.append([hip, knee, ankle, toe])
+    return np.array(chains, dtype=np.int64)
 
 
 def plant_feet(positions: np.ndarray, held: Optional[np.ndarray], weight: np.ndarray,
