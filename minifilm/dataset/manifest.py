@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterator, List, Optional, Sequence, Union
 
-from minifilm.files import atomic_write, check_name, check_regular, open_regular, read_json
+from minifilm.files import atomic_write, check_name, check_regular, few, open_regular, read_json
 
 #: 100STYLE gait codes: forwards / backwards / sideways walk and run, idle, transitions.
 STYLE100_GAITS = ("BR", "BW", "FR", "FW", "ID", "SR", "SW")
@@ -78,9 +78,10 @@ def scan_100style(folder: Union[str, Path]) -> List[MotionFile]:
             mirror = None if symmetric is None else style in symmetric
             out.append(MotionFile(path, style, gait, start, end, mirror))
     if not out:
-        raise ValueError(f"scan_100style: no file in {folder} is named <Style>_<Gait>.bvh with a gait "
-                         f"in {STYLE100_GAITS + ('TR*',)}; for other datasets write a CSV manifest "
-                         f"(minifilm.dataset.manifest.read_manifest)")
+        raise ValueError(f"{folder}: no file in it is named <Style>_<Gait>.bvh with a gait of "
+                         f"{', '.join(STYLE100_GAITS)} or TR, TR1, TR2, ... (100STYLE's naming), nor "
+                         "dataset-N_<content>_<style>_<id>.bvh (Bandai Namco's); for other names list the "
+                         "files in a CSV manifest and pass that (docs/own-data.md)")
     return out
 
 
@@ -265,9 +266,16 @@ def scan_folder(folder: Union[str, Path]) -> List[MotionFile]:
     made = made_manifest(folder)
     if made is not None:
         return read_manifest(made)
-    if any(_BANDAI_NAME.match(p.name) for p in folder.glob("*.bvh")):
-        return bandai_files(folder)
-    return scan_100style(folder)
+    bandai = [p.name for p in sorted(folder.glob("*.bvh")) if _BANDAI_NAME.match(p.name)]
+    if not bandai:
+        return scan_100style(folder)
+    style100 = [p.name for p in sorted(folder.glob("*.bvh")) if _STYLE100_NAME.match(p.name)]
+    if style100:         # read one way, the others would be left out without a word
+        raise ValueError(f"{folder}: holds files named both ways minifilm reads a folder: {len(bandai)} as "
+                         f"Bandai Namco's dataset-N_<content>_<style>_<id>.bvh ({few(bandai, 2)}) and "
+                         f"{len(style100)} as <Style>_<Gait>.bvh ({few(style100, 2)}); name them one way, "
+                         "or list them all in a CSV manifest and pass that (docs/own-data.md)")
+    return bandai_files(folder)
 
 
 def made_manifest(folder: Path) -> Optional[Path]:

@@ -119,6 +119,18 @@ def test_bandai_manifest(shared_data, tmp_path):
     assert (one.style, one.gait) == ("elderly", "walk-turn-left")
 
 
+def test_a_folder_named_both_ways_is_one_error_not_half_a_data_set(tmp_path):
+    """Read one way, the files named the other way would be left out without a word."""
+    from minifilm.dataset.manifest import scan_folder
+    for name in ["dataset-2_walk_active_001.bvh", "dataset-2_run_active_001.bvh", "Neutral_FW.bvh"]:
+        (tmp_path / name).write_text("x")
+    with pytest.raises(ValueError, match=r"both ways .*: 2 as Bandai Namco's .* and 1 as <Style>_<Gait>\.bvh "
+                                         r"\('Neutral_FW\.bvh'\).*CSV manifest"):
+        scan_folder(tmp_path)
+    (tmp_path / "Neutral_FW.bvh").unlink()
+    assert [f.style for f in scan_folder(tmp_path)] == ["active", "active"]
+
+
 def test_scan_100style_names(tmp_path):
     for name in ["Zombie_FW.bvh", "Zombie_ID.bvh", "Aeroplane_TR2.bvh", "Neutral_FR_first3frames.bvh",
                  "notes.txt"]:
@@ -127,7 +139,7 @@ def test_scan_100style_names(tmp_path):
     assert got == [("Aeroplane_TR2.bvh", "Aeroplane", "TR2"), ("Zombie_FW.bvh", "Zombie", "FW"),
                    ("Zombie_ID.bvh", "Zombie", "ID")]
     (tmp_path / "empty").mkdir()
-    with pytest.raises(ValueError, match="no file in .* is named <Style>_<Gait>.bvh"):
+    with pytest.raises(ValueError, match="no file in it is named <Style>_<Gait>.bvh.*CSV manifest"):
         scan_100style(tmp_path / "empty")
 
 
