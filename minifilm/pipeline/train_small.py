@@ -243,6 +243,7 @@ def prepare_data(s: Settings, data: Optional[Path], out: Path, executor=None):
         phase_accuracy(clips)
     t0 = time.perf_counter()
     extra = {} if not own_data else data_settings(data, s)
+    named = data                            # the user's folder or manifest, for messages
     if own_data and s.rig is not None:      # a folder of mixed rigs: every file onto one rig first
         data = retarget_files(resolve_files(data), load_target(s.rig), out / "data", log)
     ds = build_dataset(data, cache_dir=out / "cache", progress=True, clip_seconds=s.clip_seconds,
@@ -252,7 +253,7 @@ def prepare_data(s: Settings, data: Optional[Path], out: Path, executor=None):
     log(ds.summary())
     empty = [name for name in ("val", "test") if len(getattr(ds, name)) == 0]
     if empty:   # nothing to validate or test on: say so now, not after training
-        raise DataError(f"{data}: the {' and '.join(empty)} split(s) have no frames: "
+        raise DataError(f"{named}: the {' and '.join(empty)} split(s) have no frames: "
                         + ("with whole files per split (--split files) every style needs at least three files; "
                            if extra.get("split_unit") == "files" else "the files are too short to split; ")
                         + "give more or longer files, or use --split segments")

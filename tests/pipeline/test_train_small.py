@@ -160,6 +160,19 @@ def test_the_example_s_command_line_refuses_bad_settings_in_one_line(tmp_path, a
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_split_that_cannot_be_made_names_the_users_folder_also_through_a_rig(tmp_path):
+    """With --rig the files are retargeted into the run's own folder first: the error still names
+    the folder the user gave, not the retargeted copies (nor a list of internal records)."""
+    from minifilm.errors import DataError
+    from minifilm.synthetic.generator import default_dataset, write_dataset
+    mine = tmp_path / "my data"
+    write_dataset(mine, default_dataset(styles=["Neutral", "Limp"], gaits=["FW"], seconds=3.0, seed=1))
+    with pytest.raises(DataError) as refused:
+        run(replace(Settings(out=tmp_path / "run").quick(), rig="100style", split="files"), data=mine)
+    message = str(refused.value)
+    assert message.startswith(f"{mine}: the val and test split(s) have no frames") and "MotionFile" not in message
+
+
 def test_a_setting_that_cannot_make_a_run_is_refused_before_anything_is_written():
     with pytest.raises(InputError, match="only with your own data"):
         run(replace(Settings(), mirror=True))
