@@ -86,8 +86,9 @@ def run(args) -> int:
         return run_released(args)
     if args.out is not None:
         raise InputError("--out is for --params (a style pack); a run folder keeps its styles itself")
-    if args.workers is not None and not args.motion_rounds:
-        raise InputError("--workers is for the walks of --motion-rounds; fine-tuning Ψ runs in one process")
+    if args.workers not in (None, 1) and not args.motion_rounds:     # (1, all in this process: as it is)
+        raise InputError(f"--workers {args.workers} is for the walks of --motion-rounds; without them "
+                         "fine-tuning Ψ runs in this one process")
     motion = RefitSettings(rounds=args.motion_rounds, seed=args.seed) if args.motion_rounds else None
     r = teach_style(args.run, args.name, args.files, steps=args.steps, lr=args.lr, seed=args.seed,
                     replace=args.replace,

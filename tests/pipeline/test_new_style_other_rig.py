@@ -38,10 +38,19 @@ def test_the_rigs_toes_are_found(bandai_run):
 def test_an_adapter_is_taught_on_a_bandai_run(bandai_run, shared_data, capsys):
     with pytest.raises(SystemExit) as done:
         cli.main(["finetune", "--run", str(bandai_run), "--name", "Normal", "--steps", "5", "--adapter", "lowrank",
-                  "--adapter-steps", "5", "--rollout-rounds", "0", str(shared_data / BANDAI2.format("normal", 4))])
+                  "--adapter-steps", "5", "--rollout-rounds", "0", "--workers", "1",      # 1: all here, as it is
+                  str(shared_data / BANDAI2.format("normal", 4))])
     out = capsys.readouterr().out
     assert done.value.code == 0, out
     assert "rolled out 6 s:" in out                                           # the walk that checks it ran
     adapters = json.loads((bandai_run / "adapters.json").read_text())["adapters"]
     assert [a["style"] for a in adapters] == ["Normal"] and adapters[0]["kind"] == "lowrank"
     assert "Normal" in RunFolder.load(bandai_run).styles()
+
+
+def test_workers_without_walks_to_share_are_refused_but_one_is_taken(bandai_run, shared_data, capsys):
+    with pytest.raises(SystemExit) as done:
+        cli.main(["finetune", "--run", str(bandai_run), "--name", "Other", "--workers", "2",
+                  str(shared_data / BANDAI2.format("normal", 4))])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert done.value.code == 2 and len(err) == 1 and "--workers 2 is for the walks of --motion-rounds" in err[0]
