@@ -6,6 +6,7 @@ dependencies of minifilm: ``pip install 'minifilm[viz]'`` installs the drawing o
 from __future__ import annotations
 
 import importlib
+import warnings
 from pathlib import Path
 
 from minifilm.errors import MissingDependencyError
@@ -24,12 +25,17 @@ def require(module: str, purpose: str):
     """Import and return ``module``; MissingDependencyError (an ImportError) naming the extra when
     it is missing."""
     try:
-        return importlib.import_module(module)
+        imported = importlib.import_module(module)
     except ImportError as e:
         # the package that is missing, which may be one ``module`` needs (matplotlib needs Pillow)
         top = (getattr(e, "name", None) or module).split(".")[0]
         raise MissingDependencyError(f"{purpose} needs {_PIP_NAME.get(top, top)}, which is not installed: "
                                      f"pip install 'minifilm[viz]' ({e})") from None
+    if module == "matplotlib":
+        # a style named in a script the font lacks (疲れた) is drawn with boxes; matplotlib's warning
+        # for each glyph (three lines, naming its own source file) says nothing the picture does not
+        warnings.filterwarnings("ignore", message=r"Glyph \d+ .* missing from font", category=UserWarning)
+    return imported
 
 
 def pyplot():

@@ -39,6 +39,18 @@ def test_synthetic_gif_has_every_frame_at_its_size_and_rate(tmp_path, walker):
     assert [p.name for p in tmp_path.iterdir()] == ["walker.gif"]  # no temporary file left
 
 
+def test_a_name_in_a_script_the_font_lacks_is_drawn_without_a_warning(tmp_path, walker):
+    """A style named 疲れた: its title is drawn (boxes where the font has no glyph), and matplotlib's
+    per-glyph warnings, which name its own source files, are not printed."""
+    import warnings
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        write_gif(track_from_motion(walker, name="疲れた"), tmp_path / "tired.gif", size=SMALL)
+        write_gif(track_from_motion(walker, name="疲れた"), tmp_path / "again.gif", size=SMALL)
+    assert [str(w.message) for w in caught if "Glyph" in str(w.message)] == []
+    assert (tmp_path / "tired.gif").stat().st_size > 1000
+
+
 def test_frames_are_not_blank_and_change(tmp_path, walker):
     frames, _ = read_gif(write_gif(track_from_motion(walker), tmp_path / "w.gif", size=SMALL).path)
     for f in frames:
