@@ -38,7 +38,7 @@ import numpy as np
 
 from minifilm.dataset.build import build_dataset, resolve_files
 from minifilm.errors import DataError, InputError
-from minifilm.files import atomic_directory, folder_lock
+from minifilm.files import atomic_directory, few, folder_lock
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
 from minifilm.motion.bvh import bvh_duration, read_bvh
@@ -297,6 +297,7 @@ def main_job(s: Settings, data: Optional[Path] = None, ranks=None):
             check_inputs(s, data)          # before the run folder is touched
             stack.enter_context(folder_lock(out))
             work = stack.enter_context(atomic_directory(out, "run folder", replaceable=is_run_entry))
+            say_replaced(out)
             reuse_cache(out / "cache", work / "cache")
             return prepare_data(s, data, work, executor)
         ds = steps_1_to_3() if ranks is None else ranks.from_rank0(steps_1_to_3)
@@ -338,6 +339,15 @@ def run(s: Settings, data: Optional[Path] = None, ranks=None) -> dict:
     with mpi.one_job(ranks), main_job(s, data, ranks) as job:
         result = finish(job, train(job))
     return result
+
+
+def say_replaced(out: Path) -> None:
+    """Say that ``out`` holds a run which this one replaces when complete, and the styles taught
+    to it (``finetune --run``) that go with it."""
+    if (out / "run.json").is_file():
+        taught = sorted(p.name for p in out.glob("model-*.npz"))
+        log(f"[train] {out} holds an earlier run: it stays as it is until this one is complete, which then "
+            "replaces it" + (f" with the {len(taught)} style(s) taught to it ({few(taught)})" if taught else ""))
 
 
 def reuse_cache(old: Path, new: Path) -> None:

@@ -173,6 +173,16 @@ def test_a_split_that_cannot_be_made_names_the_users_folder_also_through_a_rig(t
     assert message.startswith(f"{mine}: the val and test split(s) have no frames") and "MotionFile" not in message
 
 
+def test_training_over_a_run_says_it_replaces_it_and_its_taught_styles(tmp_path, capsys):
+    from minifilm.pipeline.train_small import say_replaced
+    say_replaced(tmp_path)                                       # not a run: nothing to say
+    (tmp_path / "run.json").write_text("{}")
+    (tmp_path / "model-Strut.npz").write_bytes(b"")
+    say_replaced(tmp_path)
+    out = capsys.readouterr().out
+    assert out.count("\n") == 1 and "holds an earlier run" in out and "1 style(s) taught to it ('model-Strut.npz')" in out
+
+
 def test_a_setting_that_cannot_make_a_run_is_refused_before_anything_is_written():
     with pytest.raises(InputError, match="only with your own data"):
         run(replace(Settings(), mirror=True))
