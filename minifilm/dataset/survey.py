@@ -96,7 +96,8 @@ def check_one_rig(surveyed: Dict[Path, FileSurvey], skeleton) -> None:
     more = f"; and {len(odd) - 3} more" if len(odd) > 3 else ""
     fitting = next((s.path for s in surveyed.values() if not skeleton.missing_joints(SimpleNamespace(names=s.names))),
                    None)
-    how = (f"put them on the others' rig first (minifilm retarget FILES --to {fitting} --out DIR)"
+    how = (f"put them on the others' rig first (minifilm retarget FILES --to {fitting} --out DIR; "
+           f"minifilm train --data ... --rig {fitting} retargets every file as it trains)"
            if fitting is not None else f"give files of the {skeleton.name!r} skeleton")
     raise DataError(f"{len(odd)} of {len(surveyed)} files are not of the {skeleton.name!r} skeleton the data set "
                     f"is read with: {listed}{more}. A data set is one rig: {how}, or leave them out")
