@@ -27,7 +27,7 @@ def test_one_file_of_another_rig_is_named_before_any_file_is_read(shared_data, m
         build_dataset(_files(shared_data, foreign_at), fps=30.0, progress=False)
     text = str(e.value)
     assert "1 of 25 files" in text and "neutral_01_000.bvh" in text and "'bandai'" in text, text
-    assert "minifilm retarget" in text and "\n" not in text
+    assert "minifilm retarget" in text and "--rig " in text and "\n" not in text
     assert loaded == []                                   # nothing read in full, labelled or featurised
 
 
