@@ -105,4 +105,9 @@ def run(args) -> int:
     print(f"\n{how} in {took:.1f} s" + (f" (first build took {ds.build_seconds:.1f} s)" if ds.loaded else "") + "\n")
     print("rows (frames, mirrored copies included) and clips per style and split:")
     print(ds.summary())
+    empty = [name for name in ("val", "test") if len(getattr(ds, name)) == 0]
+    if empty:       # minifilm train refuses such a data set; say it here too
+        print(f"note: the {' and '.join(empty)} split(s) have no frames: training on this data set has nothing "
+              "to validate or test on" + (" (with --split-files every style needs at least three files)"
+                                          if args.split_files else ""))
     return 0

@@ -85,3 +85,14 @@ def test_example_scripts_report_bad_input_in_one_line(tmp_path, argv):
                           text=True, cwd=tmp_path, timeout=120)
     assert proc.returncode == 2, proc.stderr
     assert proc.stderr.startswith("error: ") and "Traceback" not in proc.stderr
+
+
+def test_the_dataset_command_says_when_a_split_is_empty(tmp_path, capsys):
+    """One file per style split by whole files leaves nothing to validate or test on: `train`
+    refuses such a data set, and `dataset` says so too (its build still succeeds)."""
+    from minifilm.synthetic.generator import default_dataset, write_dataset
+    write_dataset(tmp_path / "data", default_dataset(styles=["Neutral", "Limp"], gaits=["FW"], seconds=2.0, seed=1))
+    with pytest.raises(SystemExit) as done:
+        cli.main(["dataset", str(tmp_path / "data"), "--split-files", "--no-cache", "--workers", "1"])
+    assert done.value.code == 0
+    assert "note: the val and test split(s) have no frames" in capsys.readouterr().out
