@@ -37,7 +37,7 @@ from minifilm.features.layout import FeatureLayout  # noqa: E402
 from minifilm.motion.bvh import read_bvh  # noqa: E402
 from minifilm.runtime.released import load_released  # noqa: E402
 from minifilm.motion.skeletons import STYLE100  # noqa: E402
-from minifilm.motion.foot_ik import FootLocker  # noqa: E402
+from minifilm.runtime.held_body import foot_locker  # noqa: E402
 from minifilm.runtime.calibration import calibrate_speed  # noqa: E402
 from minifilm.runtime.control import CommandScript, figure_eight  # noqa: E402
 from minifilm.runtime.controller import Controller  # noqa: E402
@@ -85,7 +85,7 @@ def quality(rel, layout, styles, seconds, body):
         for style in styles:   # calibration differs per style, so one style per run (the rollout is batch 1)
             film = rel.styles[style]
             cal = calibrate_speed(Controller(net, layout), film)
-            locker = FootLocker.from_names(layout.joint_names) if lock else None
+            locker = foot_locker(layout) if lock else None
             script = figure_eight(seconds, speed=1.3)
             r = Controller(net, layout, foot_locker=locker, skeleton=body, feed_back_fit=True).run(
                 script, n, film, calibration=cal)

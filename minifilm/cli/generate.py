@@ -30,10 +30,9 @@ from minifilm.cli.memory import GENERATE_BYTES_PER_JOINT_FRAME, VIEW_BYTES_PER_J
     check_memory
 from minifilm.errors import InputError
 from minifilm.features.layout import FeatureLayout
-from minifilm.files import check_writable
+from minifilm.files import check_writable, few
 from minifilm.body.read import read_in_metres
 from minifilm.motion.bvh_write import write_bvh
-from minifilm.motion.foot_ik import FootLocker
 from minifilm.motion.measures import bone_length_cv, foot_sliding
 from minifilm.motion.skeletons import STYLE100
 from minifilm.pipeline.run_folder import RunFolder
@@ -41,6 +40,7 @@ from minifilm.runtime.adapted import with_adapters
 from minifilm.runtime.calibration import calibrate_speed
 from minifilm.runtime.control import SCRIPTS, distance_to_path, make_script
 from minifilm.runtime.controller import Controller
+from minifilm.runtime.held_body import TOE_NAMES, foot_locker, toe_joints
 from minifilm.runtime.start_state import root_joint_indices
 from minifilm.runtime.released import load_released
 from minifilm.runtime.style_library import StyleLibrary
@@ -191,12 +191,13 @@ def style_condition(args, lib: StyleLibrary, n: int, fps: float):
 def walk_problems(args, src, r, script, names, parents, k0) -> list:
     """The failures a user must be told about, in words: no stepping, feet off the floor, the path
     lost, bones stretching; for a pack style also steps/s and hip height against its clip's."""
-    if not all(t in names for t in ("RightToe", "LeftToe")):
+    toes = toe_joints(names)                          # [right, left]
+    if toes is None:
         return []
     clip = {}
     if src.pack is not None and args.style in src.pack.info and not (args.style2 or args.switch_to):
         clip = src.pack.info[args.style].get("clip", {})
-    rep = walk_report(r, 0, [names.index("RightToe"), names.index("LeftToe")], script.path,
+    rep = walk_report(r, 0, toes, script.path,
                       clip_steps_per_s=clip.get("steps_per_s"), clip_hips=clip.get("hips"))
     problems = rep.problems() if args.speed > 0.2 else []
     cv = bone_length_cv(r.network_positions[0, k0:], parents).max()
@@ -245,7 +246,10 @@ def run(args) -> int:
                          "the drawing would be empty")
     films, film, label = style_condition(args, lib, n, src.fps)
     joints = root_joint_indices(src.layout, src.skeleton)
-    locker = FootLocker.from_names(src.layout.joint_names) if args.foot_lock else None
+    locker = foot_locker(src.layout) if args.foot_lock else None
+    if args.foot_lock and locker is None:
+        raise InputError(f"--foot-lock: the skeleton's toes are not found among its joints ({few(src.layout.joint_names)}): "
+                         f"foot locking knows the toes named {few(n for pair in TOE_NAMES for n in pair)}")
     body = None if src.fit == "none" else Controller.skeleton_for(src.layout, src.skeleton)
     ctrl = Controller(src.network, src.layout, fps=src.fps, foot_locker=locker, skeleton=body,
                       feed_back_fit=src.fit == "feedback", **src.options)
@@ -274,9 +278,9 @@ def run(args) -> int:
     d = distance_to_path(r.root_positions[0], script.path)
     hips = r.positions[0, :, 0, 1]
     mean_speed = np.linalg.norm(np.diff(r.root_positions[0], axis=0), axis=1).mean() * src.fps
-    toes = [names.index(t) for t in ("RightToe", "LeftToe") if t in names]
+    toes = toe_joints(names)                          # [right, left], None on a rig without known toes
     sliding = (f", foot sliding {foot_sliding(r.positions[0, k0:], r.contacts[0, k0:], toes, src.fps):.3f} m/s"
-               if len(toes) == 2 else "")
+               if toes is not None else "")
     print(f"{label}: {n} frames in {dt:.1f} s ({dt / n * 1e3:.2f} ms/frame) -> {out}")
     print(f"  path distance mean {d.mean():.2f} m (max {d.max():.2f}), mean speed {mean_speed:.2f} m/s, "
           f"hips {hips.min():.2f}-{hips.max():.2f} m, bone CV max "
@@ -286,7 +290,6 @@ def run(args) -> int:
     if problems:
         print("  WARNING: " + "; ".join(problems))
     if args.gif or args.html:
-        toes = toes if len(toes) == 2 else None
         track = tracks_from_rollout(r, parents, [label], names, toes)
         if args.html:
             print(f"  3-D player -> {write_html(track, args.html, title=label)}")

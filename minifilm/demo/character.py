@@ -30,8 +30,8 @@ from minifilm.demo.protocol import InputMessage, ResetMessage, SettingsMessage, 
 from minifilm.demo.source import DemoSource
 from minifilm.demo.steering import Steering, heading_vector
 from minifilm.demo.style_mix import StyleMix
-from minifilm.motion.foot_ik import FootLocker
 from minifilm.runtime.controller import Controller
+from minifilm.runtime.held_body import foot_locker
 
 MAX_REACH = 20.0          # metres from the root: further means the network's output blew up
 SPEED_WINDOW = 0.25       # seconds over which the shown actual speed is measured
@@ -123,8 +123,10 @@ class Character:
         self.ctrl.feed_back_fit = self.fit and self.source.feed_back_fit
 
     def set_foot_lock(self, on: bool) -> None:
-        self.foot_lock = bool(on)
-        self.ctrl.foot_locker = FootLocker.from_names(self.source.layout.joint_names) if self.foot_lock else None
+        """Foot locking on or off; it stays off on a skeleton whose toes are not found (the frames'
+        ``footLock`` says so)."""
+        self.ctrl.foot_locker = foot_locker(self.source.layout) if on else None
+        self.foot_lock = self.ctrl.foot_locker is not None
 
     def reset(self, where: Optional[np.ndarray] = None, theta: float = 0.0) -> None:
         """Stand still at ``where`` (2,) (default the origin) facing heading ``theta``, in the start

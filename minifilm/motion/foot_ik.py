@@ -74,17 +74,6 @@ class FootLocker:
         self.threshold = threshold
         self.targets = None
 
-    @classmethod
-    def from_names(cls, joint_names: Sequence[str], legs=(("RightHip", "RightKnee", "RightAnkle", "RightToe"),
-                                                          ("LeftHip", "LeftKnee", "LeftAnkle", "LeftToe")),
-                   threshold: float = 0.2) -> "FootLocker":
-        """Chains looked up by name among the exported joints (default: 100STYLE names, [right, left])."""
-        names = list(joint_names)
-        try:
-            return cls([[names.index(n) for n in leg] for leg in legs], threshold)
-        except ValueError as e:
-            raise KeyError(f"FootLocker: {e}; exported joints are {names}") from None
-
     def reset(self, batch: int = None) -> None:
         self.targets = None
 

@@ -24,12 +24,12 @@ import numpy as np
 from minifilm.evaluation.label_agreement import agreement
 from minifilm.features.layout import FeatureLayout
 from minifilm.motion.bvh_write import write_bvh
-from minifilm.motion.foot_ik import FootLocker
 from minifilm.motion.skeletons import STYLE100
 from minifilm.phases.label import label
 from minifilm.pipeline.gait_scripts import GAIT_SHARES, gait_script, gait_seconds
 from minifilm.runtime.calibration import PerCharacterCalibration, SpeedCalibration
 from minifilm.runtime.control import CommandScript
+from minifilm.runtime.held_body import foot_locker
 from minifilm.runtime.controller import Controller
 from minifilm.runtime.start_state import root_joint_indices
 from minifilm.runtime.rollout import Rollout
@@ -132,8 +132,7 @@ class StyleDriver:
         self.calibrations: Optional[List[SpeedCalibration]] = None
         self.controller = Controller(self.network, self.layout, fps=FPS, feed_back_fit=True,
                                      skeleton=Controller.skeleton_for(self.layout, self.skeleton),
-                                     foot_locker=FootLocker.from_names(self.layout.joint_names)
-                                     if settings.foot_lock else None)
+                                     foot_locker=foot_locker(self.layout) if settings.foot_lock else None)
 
     def calibrate(self) -> None:
         """Measure every style's speeds (the calibration the gaits then use)."""

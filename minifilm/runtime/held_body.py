@@ -11,7 +11,7 @@ from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from minifilm.motion.foot_ik import two_bone_ik
+from minifilm.motion.foot_ik import FootLocker, two_bone_ik
 from minifilm.motion.skeletons import BUILTIN_SKELETONS
 from minifilm.runtime.root_frames import to_local2, to_local3, to_world2, to_world3, unit2
 
@@ -29,6 +29,13 @@ def toe_joints(joint_names: Sequence[str]) -> Optional[List[int]]:
         if all(n in names for n in pair):
             return [names.index(n) for n in pair]
     return None
+
+
+def foot_locker(layout, threshold: float = 0.2) -> Optional[FootLocker]:
+    """A :class:`~minifilm.motion.foot_ik.FootLocker` on the legs of ``layout`` (a FeatureLayout:
+    found from its toes, :func:`leg_chains`); None when no pair of toes is found."""
+    chains = leg_chains(layout.joint_names, layout.parents)
+    return None if chains is None else FootLocker(chains, threshold)
 
 
 def leg_chains(joint_names: Sequence[str], parents: Sequence[int]) -> Optional[np.ndarray]:

@@ -54,3 +54,14 @@ def test_workers_without_walks_to_share_are_refused_but_one_is_taken(bandai_run,
                   str(shared_data / BANDAI2.format("normal", 4))])
     err = capsys.readouterr().err.strip().splitlines()
     assert done.value.code == 2 and len(err) == 1 and "--workers 2 is for the walks of --motion-rounds" in err[0]
+
+
+def test_generate_checks_and_foot_locks_a_bandai_runs_walk(bandai_run, tmp_path, capsys):
+    """generate finds the rig's toes too: its foot lock has legs to hold (it ended in a KeyError on
+    100STYLE's joint names) and its walk figures and checks are printed."""
+    with pytest.raises(SystemExit) as done:
+        cli.main(["generate", "--run", str(bandai_run), "--style", "active", "--foot-lock", "--seconds", "2",
+                  "--out", str(tmp_path / "locked.bvh")])
+    out = capsys.readouterr().out
+    assert done.value.code == 0, out
+    assert "foot sliding" in out and (tmp_path / "locked.bvh").stat().st_size > 0

@@ -26,7 +26,7 @@ from minifilm.features.layout import FeatureLayout
 from minifilm.model.config import ModelConfig
 from minifilm.model.style_model import StyleModel
 from minifilm.motion.bvh_write import format_bvh
-from minifilm.motion.foot_ik import FootLocker
+from minifilm.runtime.held_body import foot_locker
 from minifilm.motion.skeletons import STYLE100
 from minifilm.runtime import controller as after
 from minifilm.runtime.control import CommandScript, make_script
@@ -81,7 +81,7 @@ def released():
 def options(layout, skeleton, name):
     """Fresh constructor arguments for case ``name`` (a new FootLocker each time: it keeps state)."""
     fit = after.Controller.skeleton_for(layout, skeleton)
-    lock = FootLocker.from_names(layout.joint_names)
+    lock = foot_locker(layout)
     return {
         "default": {},
         "no_stand": dict(stand=None),
@@ -180,7 +180,7 @@ def test_options_switched_mid_run_as_the_demo_does(tiny):
             if k == 20:
                 ctrl.skeleton, ctrl.feed_back_fit = fit, True
             if k == 50:
-                ctrl.foot_locker = FootLocker.from_names(layout.joint_names)
+                ctrl.foot_locker = foot_locker(layout)
             if k == 70:
                 ctrl.feed_back_fit = False
                 ctrl.run_feed = np.array([0.5, 0.0])

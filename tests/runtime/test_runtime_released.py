@@ -11,7 +11,7 @@ import pytest
 from minifilm.runtime.control import distance_to_path, figure_eight, straight_walk
 from minifilm.motion.bvh import read_bvh
 from minifilm.motion.bvh_write import write_bvh
-from minifilm.motion.foot_ik import FootLocker
+from minifilm.runtime.held_body import foot_locker
 from minifilm.motion.measures import foot_sliding
 from minifilm.features.layout import FeatureLayout
 from minifilm.motion.skeletons import STYLE100
@@ -128,7 +128,7 @@ def test_foot_locking_reduces_sliding(released):
     F = 600
     slide = {}
     for lock in (False, True):
-        locker = FootLocker.from_names(layout.joint_names) if lock else None
+        locker = foot_locker(layout) if lock else None
         r = Controller(net, layout, foot_locker=locker).run(figure_eight(F / 60), F, lib["Neutral"])
         slide[lock] = foot_sliding(r.positions[0, 60:], r.contacts[0, 60:], toes, fps=60)
     print(f"foot sliding (toe speed in contact): {slide[False]:.3f} m/s without, {slide[True]:.3f} m/s with locking")
