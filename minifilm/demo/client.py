@@ -20,7 +20,11 @@ import time
 from typing import Callable, Optional, Union
 from urllib.parse import urlsplit
 
-from minifilm.demo.protocol import TRANSPORT_MAX_BYTES
+
+
+#: the largest message taken from the server: a recording's BVH text and its GIF (base64) run to a
+#: few megabytes (the server's own limit, TRANSPORT_MAX_BYTES, is on what pages send it)
+RECEIVE_MAX_BYTES = 64 * 2 ** 20
 
 
 class DemoClient:
@@ -39,7 +43,7 @@ class DemoClient:
                 from None
         parts = urlsplit(url)
         ws_url = url if parts.scheme in ("ws", "wss") else f"ws://{parts.netloc}/ws"
-        options = dict(open_timeout=timeout, compression=None, max_size=TRANSPORT_MAX_BYTES, origin=origin)
+        options = dict(open_timeout=timeout, compression=None, max_size=RECEIVE_MAX_BYTES, origin=origin)
         if "proxy" in inspect.signature(connect).parameters:    # websockets >= 15 reads proxy settings
             options["proxy"] = None
         # entered as a context manager, the one way every websockets version opens it without warning

@@ -97,6 +97,16 @@ def test_a_page_connects_steers_and_leaves(server, tiny_source):
     assert wait_until(lambda: server.stage.count == 0)            # its character was freed
 
 
+def test_the_python_client_receives_a_recording_larger_than_a_page_may_send(server):
+    """A recording's BVH text runs past the 64 KiB a page may send the server; the client takes it."""
+    with DemoClient(server.url) as page:
+        first = page.next_frame()
+        page.wait_for(lambda m: m.get("type") == "frame" and m["n"] >= first["n"] + 120, timeout=120)
+        seq = page.send({"type": "record", "seconds": 2, "gif": False})
+        recording = page.wait_for(lambda m: m.get("type") == "recording" and m["seq"] == seq, timeout=120)
+    assert len(recording["bvh"]) > TRANSPORT_MAX_BYTES and recording["bvh"].startswith("HIERARCHY")
+
+
 def test_bad_messages_get_an_error_reply_and_the_connection_goes_on(server):
     bad = ["{not json", '{"type": "input", "move": [0, NaN], "turn": 0, "speed": 0}',
            json.dumps({"type": "style", "weights": {"Ninja": 1}}),
