@@ -83,6 +83,13 @@ def estimate(seconds: float) -> str:
     return f"{int(round(seconds / 60.0))} min"
 
 
+def say(text: str) -> None:
+    """A line on stderr in one write: this runs on the measuring thread while the command prints
+    on its own, and print's separate write of the newline let two lines run into one."""
+    sys.stderr.write(text + "\n")
+    sys.stderr.flush()
+
+
 class Calibrations:
     """Calibrations by style name; ``command`` maps a user's velocity to the network's command.
 
@@ -113,7 +120,7 @@ class Calibrations:
         self._background = background
         self.fallback: Optional[SpeedCalibration] = None
         self._closed = False
-        self._log = log if log is not None else (lambda text: print(text, file=sys.stderr, flush=True))
+        self._log = log if log is not None else say
         self.cache = cache
         self.measured = 0                   # styles measured by this server (not from the cache)
         self.requested = 0                  # styles asked to be measured
