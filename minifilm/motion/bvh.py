@@ -118,6 +118,8 @@ def decode_bvh(raw: bytes, source: str) -> str:
         return raw.decode("utf-8")
     except UnicodeDecodeError:
         pass
+    if b"\0" in raw[:4096]:         # no text file holds a NUL: an archive, a picture, a checkpoint
+        raise BVHError(source, 1, "not a BVH file: it holds binary data, not text")
     try:
         return raw.decode("cp1252")
     except UnicodeDecodeError as e:

@@ -142,6 +142,17 @@ def test_bytes_that_are_no_text_are_refused_naming_the_line(tmp_path):
         assert "UTF-8" in str(error)
 
 
+def test_a_binary_file_is_named_as_not_a_bvh_file(tmp_path):
+    """A checkpoint, an archive or a picture passed as a BVH file: said to be binary data, not
+    sent to save itself as UTF-8."""
+    import io
+    import numpy as np
+    buffer = io.BytesIO()
+    np.savez(buffer, weights=np.arange(1000.0))                  # a .npz (a zip of .npy files)
+    error = _refused(_file(tmp_path, buffer.getvalue()), "not a BVH file", "binary data")
+    assert "UTF-8" not in str(error)
+
+
 def test_utf8_names_stay_utf8(tmp_path):
     text = HIERARCHY.replace("Spine", "Wirbelsäule_脊椎") + f"MOTION\nFrames: 1\nFrame Time: 0.01\n{FRAME}"
     assert read_bvh(_file(tmp_path, text)).names[1] == "Wirbelsäule_脊椎"
