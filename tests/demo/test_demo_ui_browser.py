@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 from demo_helpers import RELEASED, DemoPage, browser  # noqa: F401  (browser: a fixture)
 
+from minifilm.demo.frame_loop import MAX_BATCH
 from minifilm.demo.process import DemoProcess
 
 Image = pytest.importorskip("PIL.Image", reason="screenshots are read with Pillow")
@@ -245,8 +246,10 @@ def test_the_real_time_row_says_the_steps_per_second_and_when_it_falls_behind(br
         p.wait("(() => { const f = minifilmDemo.frame, row = document.getElementById('realtime'); return f && "
                "f.stepsPerSecond > 0 && row.textContent.startsWith(`${f.stepsPerSecond} steps / s`) && "
                "row.classList.contains('warn') === (f.dropped > 0); })()", timeout=120)
-        rate = p.js("minifilmDemo.frame.stepsPerSecond")
-        assert 0 < rate <= 70, rate
+        rate, fps = p.js("minifilmDemo.frame.stepsPerSecond"), p.js("minifilmDemo.hello.fps")
+        # a batch runs steps that fell due up to MAX_BATCH steps before it: after a stall of a
+        # loaded machine a second of the clock may hold that many more than fps, never more
+        assert 0 < rate <= fps + MAX_BATCH + 1, rate
     finally:
         p.close()
     cases = [(dict(stepsPerSecond=48, behind=20, dropped=0), "48 steps / s, 20 behind, catching up", False),
