@@ -95,8 +95,8 @@ def run(args) -> int:
         tracks = tracks_on(args.files, args.on)
     else:
         tracks = []
-        for f in args.files:
-            track, unit = track_and_unit(f)
+        for f, name in zip(args.files, panel_names(args.files)):
+            track, unit = track_and_unit(f, name)
             if "skeleton's unit" not in unit.how:   # said when the unit was inferred, not known
                 print(f"{f}: {unit.how}")
             tracks.append(track)
@@ -137,9 +137,16 @@ def tracks_on(paths: Sequence, target) -> list:
     rig = load_target(target)
     tracks = []
     with tempfile.TemporaryDirectory(prefix="minifilm-view-") as tmp:
-        for i, path in enumerate(paths):
+        for i, (path, name) in enumerate(zip(paths, panel_names(paths))):
             motion, roles = read_source(path)
             out = Path(tmp) / f"{i}.bvh"
             write_bvh(retarget_motion(motion, rig, roles), out, scale=rig.bvh_scale)
-            tracks.append(track_with_contacts(out, name=f"{Path(path).stem} on {Path(rig.name).name}"))
+            tracks.append(track_with_contacts(out, name=f"{name} on {Path(rig.name).name}"))
     return tracks
+
+
+def panel_names(paths: Sequence) -> list:
+    """Each file's title: its name without ``.bvh``, with its folder where files share a name
+    (``a/walk.bvh`` and ``b/walk.bvh`` are "a/walk" and "b/walk", not two panels called "walk")."""
+    stems = [Path(p).stem for p in paths]
+    return [f"{Path(p).parent.name}/{s}" if stems.count(s) > 1 else s for p, s in zip(paths, stems)]

@@ -129,3 +129,9 @@ def test_generate_writes_gif_and_html_of_the_rollout(tmp_path, shared_data):
         assert im.n_frames == 30                           # 60 fps capped to 30 for GIF players
     assert len({f.tobytes() for f in frames}) > 1
     assert "Old" in (tmp_path / "o.html").read_text(encoding="utf-8")
+
+
+def test_files_of_one_name_from_two_folders_get_panels_told_apart():
+    from minifilm.cli.view import panel_names
+    assert panel_names(["a/walk.bvh", "b/walk.bvh", "c/run.bvh"]) == ["a/walk", "b/walk", "run"]
+    assert panel_names(["walk.bvh"]) == ["walk"]
