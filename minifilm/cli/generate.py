@@ -188,10 +188,10 @@ def style_condition(args, lib: StyleLibrary, n: int, fps: float):
     return films, film, label
 
 
-def walk_problems(args, src, r, script, names, parents, k0) -> list:
+def walk_problems(args, src, r, script, toes, parents, k0) -> list:
     """The failures a user must be told about, in words: no stepping, feet off the floor, the path
-    lost, bones stretching; for a pack style also steps/s and hip height against its clip's."""
-    toes = toe_joints(names)                          # [right, left]
+    lost, bones stretching; for a pack style also steps/s and hip height against its clip's.
+    toes: the [right, left] toe joints (:func:`~minifilm.runtime.held_body.toe_joints`; None: no check)."""
     if toes is None:
         return []
     clip = {}
@@ -286,7 +286,7 @@ def run(args) -> int:
           f"hips {hips.min():.2f}-{hips.max():.2f} m, bone CV max "
           f"{bone_length_cv(r.network_positions[0, k0:], parents).max():.1%} as predicted "
           f"({bone_length_cv(r.positions[0, k0:], parents).max():.1%} output){sliding}")
-    problems = walk_problems(args, src, r, script, names, parents, k0)
+    problems = walk_problems(args, src, r, script, toes, parents, k0)
     if problems:
         print("  WARNING: " + "; ".join(problems))
     if args.gif or args.html:

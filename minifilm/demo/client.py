@@ -20,8 +20,6 @@ import time
 from typing import Callable, Optional, Union
 from urllib.parse import urlsplit
 
-
-
 #: the largest message taken from the server: a recording's BVH text and its GIF (base64) run to a
 #: few megabytes (the server's own limit, TRANSPORT_MAX_BYTES, is on what pages send it)
 RECEIVE_MAX_BYTES = 64 * 2 ** 20
