@@ -107,20 +107,38 @@ def report_errors(main: Callable[[], Optional[int]]) -> None:
     try:
         code = main()
     except INPUT_ERRORS as e:
+        _stopped(stop_behind(e))                 # a stop that this error only hid ends as a stop
         print(f"error: {describe_error(e)}", file=sys.stderr)
         sys.exit(2)
     except MemoryError:
         print("error: out of memory (the input asks for more than this machine has)", file=sys.stderr)
         sys.exit(1)
-    except KeyboardInterrupt:
-        _quiet_teardown()
-        print("interrupted", file=sys.stderr)
-        sys.exit(130)
-    except Terminated:
-        _quiet_teardown()
-        print("terminated", file=sys.stderr)
-        sys.exit(143)
+    except (KeyboardInterrupt, Terminated) as stop:
+        _stopped(stop)
     sys.exit(code if isinstance(code, int) else 0)
+
+
+def stop_behind(e: BaseException) -> Optional[BaseException]:
+    """The KeyboardInterrupt or Terminated that ``e`` was raised while handling, if any: Ctrl-C cut
+    a read short, closing the file then failed (EBADF), and the reader named the file as broken.
+    What happened was the stop."""
+    seen = set()
+    while e is not None and id(e) not in seen:
+        if isinstance(e, (KeyboardInterrupt, Terminated)):
+            return e
+        seen.add(id(e))
+        e = e.__cause__ or e.__context__
+    return None
+
+
+def _stopped(stop: Optional[BaseException]) -> None:
+    """Exit as a stop (130 for Ctrl-C, 143 for SIGTERM, one line saying which); nothing for None."""
+    if stop is None:
+        return
+    _quiet_teardown()
+    interrupted = isinstance(stop, KeyboardInterrupt)
+    print("interrupted" if interrupted else "terminated", file=sys.stderr)
+    sys.exit(130 if interrupted else 143)
 
 
 def _quiet_teardown() -> None:

@@ -96,3 +96,31 @@ def test_the_dataset_command_says_when_a_split_is_empty(tmp_path, capsys):
         cli.main(["dataset", str(tmp_path / "data"), "--split-files", "--no-cache", "--workers", "1"])
     assert done.value.code == 0
     assert "note: the val and test split(s) have no frames" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("stop, code, said", [(KeyboardInterrupt, 130, "interrupted"),
+                                               (cli.Terminated, 143, "terminated")])
+def test_a_stop_that_a_read_error_hid_ends_as_the_stop(capsys, monkeypatch, stop, code, said):
+    """Ctrl-C cuts a checkpoint's read short, closing its file then fails (EBADF) and the reader
+    reports the file as unreadable: the command still ends as interrupted, not as bad input."""
+    import sys
+    monkeypatch.setattr(sys, "unraisablehook", sys.unraisablehook)    # a stop quiets it: put it back after
+    def main():
+        try:
+            try:
+                raise stop()
+            except BaseException:
+                raise OSError(9, "Bad file descriptor")
+        except OSError as e:
+            raise ValueError(f"checkpoint model.npz: not a readable .npz archive ({e})") from None
+    with pytest.raises(SystemExit) as done:
+        cli.report_errors(main)
+    assert done.value.code == code and capsys.readouterr().err.strip() == said
+
+
+def test_an_input_error_without_a_stop_behind_it_is_still_one_error_line(capsys):
+    def main():
+        raise ValueError("model.npz: not a readable .npz archive")
+    with pytest.raises(SystemExit) as done:
+        cli.report_errors(main)
+    assert done.value.code == 2 and capsys.readouterr().err.strip() == "error: model.npz: not a readable .npz archive"
