@@ -202,12 +202,22 @@ def _gif(bvh: str, fps: float, title: str) -> Tuple[Optional[str], str]:
             return None, f"BVH only: no GIF without matplotlib and Pillow on the server ({e})"
         source_bvh.write_text(bvh, encoding="utf-8")
         every = max(1, int(math.floor(fps / GIF_FPS)))
-        lower = (lambda: os.nice(10)) if hasattr(os, "nice") else None
-        done = subprocess.run([sys.executable, "-m", "minifilm", "view", str(source_bvh), "--gif", str(path),
-                               "--every", str(every), "--size", "220", "280"],
-                              capture_output=True, text=True, timeout=GIF_TIMEOUT, preexec_fn=lower)
-        if done.returncode != 0 or not path.is_file():
-            why = (done.stderr.strip().splitlines() or ["no message"])[-1]
+        # The priority is lowered once the process exists, not in it before it runs (preexec_fn):
+        # Python code between fork and exec can deadlock in a process with threads, as this one is.
+        with subprocess.Popen([sys.executable, "-m", "minifilm", "view", str(source_bvh), "--gif", str(path),
+                               "--every", str(every), "--size", "220", "280"], stdin=subprocess.DEVNULL,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True) as drawing:
+            try:
+                os.setpriority(os.PRIO_PROCESS, drawing.pid, 10)
+            except (AttributeError, OSError):     # no setpriority here, or it has ended already
+                pass
+            try:
+                _, err = drawing.communicate(timeout=GIF_TIMEOUT)
+            except subprocess.TimeoutExpired:
+                drawing.kill()
+                return None, f"BVH only: the GIF took more than {GIF_TIMEOUT:g} s"
+        if drawing.returncode != 0 or not path.is_file():
+            why = (err.strip().splitlines() or ["no message"])[-1]
             return None, f"BVH only: the GIF could not be made ({why[:200]})"
         return base64.b64encode(path.read_bytes()).decode("ascii"), ""
 

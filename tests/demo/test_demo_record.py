@@ -130,3 +130,13 @@ def test_the_gif_is_drawn_from_the_recorded_bvh(stepped):
     gif = Image.open(io.BytesIO(base64.b64decode(reply["gif"])))
     every = int(source.fps // 15)
     assert gif.format == "GIF" and gif.n_frames == -(-int(round(source.fps)) // every)   # 1 s at about 15 fps
+
+
+def test_a_gif_that_takes_too_long_leaves_the_bvh_alone_and_says_so(stepped, monkeypatch):
+    pytest.importorskip("matplotlib", reason="the GIF needs matplotlib")
+    pytest.importorskip("PIL.Image", reason="the GIF needs Pillow")
+    source, history, _ = stepped
+    monkeypatch.setattr("minifilm.demo.record.GIF_TIMEOUT", 0.01)    # no process draws a GIF that fast
+    bvh, gif = (json.loads(m) for m in answer_record(source, history, RecordMessage(0.5, gif=True, seq=3)))
+    assert bvh["type"] == "recording" and bvh["bvh"].startswith("HIERARCHY")
+    assert gif["type"] == "recordingGif" and gif["gif"] is None and "took more than" in gif["note"], gif
