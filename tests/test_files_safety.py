@@ -12,6 +12,7 @@ import unicodedata
 
 import numpy as np
 import pytest
+from child_process import Child
 
 from minifilm.errors import InputError, OutputPathError
 from minifilm.files import (FolderInUseError, atomic_directory, atomic_path, atomic_write, atomic_write_text,
@@ -210,15 +211,11 @@ def test_file_names_made_from_names_stay_in_their_folder(tmp_path):
 def test_a_second_writer_of_a_folder_is_refused_with_the_holder(tmp_path):
     code = ("import sys, time; from minifilm.files import folder_lock\n"
             "with folder_lock(sys.argv[1]):\n    print('locked', flush=True); time.sleep(60)")
-    holder = subprocess.Popen([sys.executable, "-c", code, str(tmp_path / "run")], stdout=subprocess.PIPE, text=True)
-    try:
-        assert holder.stdout.readline().strip() == "locked"
+    with Child([sys.executable, "-c", code, tmp_path / "run"]) as holder:
+        holder.until("locked", timeout=120)
         with pytest.raises(FolderInUseError, match=f"in use by process {holder.pid}"):
             with folder_lock(tmp_path / "run"):
                 pass
-    finally:
-        holder.kill()
-        holder.wait()
     with folder_lock(tmp_path / "run"):             # a killed holder's lock is gone with it
         pass
 
@@ -237,6 +234,7 @@ def test_the_lock_is_exclusive_between_threads_of_one_process_too(tmp_path):
     for t in threads:
         t.start()
     for t in threads:
-        t.join()
+        t.join(60)
+        assert not t.is_alive()
     assert sorted(entered) == [0, 1]
     assert np.sum(entered) == 1

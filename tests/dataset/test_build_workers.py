@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from child_process import Child, minifilm_argv
 
 import minifilm.dataset.cache as cache_module
 from minifilm.dataset.build import build_dataset
@@ -145,27 +146,18 @@ def test_ctrl_c_while_the_workers_label_stops_cleanly_with_no_cache_and_no_worke
     back and the workers are at others: exit 130, one line, no worker left, no cache written. The
     workers run with the command's one BLAS thread."""
     cache = tmp_path / "cache"
-    proc = subprocess.Popen([sys.executable, "-u", "-m", "minifilm", "dataset", str(folder), "--workers", "2",
-                             "--cache", str(cache), "--clip-seconds", "1"], stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True, start_new_session=True)
-    try:
-        seen = []
-        while not (seen and seen[-1].startswith("[dataset] 1/8 files")):
-            seen.append(proc.stdout.readline())
-            assert seen[-1], "".join(seen)[-800:]           # (the command ended before)
+    with Child(minifilm_argv("dataset", folder, "--workers", "2", "--cache", cache, "--clip-seconds", "1")) as proc:
+        proc.until("[dataset] 1/8 files", start=True)
         workers = children(proc.pid)
         for pid in workers:                                     # the command's one BLAS thread, inherited
             assert b"OPENBLAS_NUM_THREADS=1" in Path(f"/proc/{pid}/environ").read_bytes().split(b"\0")
         os.killpg(proc.pid, signal.SIGINT)
-        rest, _ = proc.communicate(timeout=120)
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-    assert proc.returncode == 130 and rest.strip().endswith("interrupted"), rest[-800:]
-    assert "Traceback" not in rest, rest[-2000:]
-    assert len(workers) >= 2, workers                           # (and the pool's resource tracker)
-    deadline = time.monotonic() + 30                            # (how long to wait, not a timing)
-    while [pid for pid in workers if running(pid)] and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert not [pid for pid in workers if running(pid)]
+        rest = proc.end(timeout=120)
+        assert proc.returncode == 130 and rest.strip().endswith("interrupted"), rest[-800:]
+        assert "Traceback" not in rest, rest[-2000:]
+        assert len(workers) >= 2, workers                       # (and the pool's resource tracker)
+        deadline = time.monotonic() + 30                        # (how long to wait, not a timing)
+        while [pid for pid in workers if running(pid)] and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert not [pid for pid in workers if running(pid)]    # (checked before the session is killed)
     assert not cache.exists() or list(cache.iterdir()) == []   # no cache, whole or half

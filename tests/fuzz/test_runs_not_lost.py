@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 import pytest
+from child_process import Child, minifilm_argv
 
 from minifilm.pipeline.run_folder import RunFolder
 
@@ -27,24 +28,6 @@ TRAIN = ["train", "--quick", "--styles", "Neutral,LeftHop", "--gaits", "FW", "--
 def fingerprint(folder: Path) -> dict:
     return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
             for p in sorted(folder.rglob("*")) if p.is_file() and "cache" not in p.parts}
-
-
-def start(argv, **kw):
-    return subprocess.Popen([sys.executable, "-u", "-m", "minifilm", *map(str, argv)], stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True, **kw)
-
-
-def wait_for(proc, marker: str, timeout: float = 600.0) -> str:
-    """Read the process's output until a line starting with ``marker``; returns what was read."""
-    seen, t0 = [], time.monotonic()
-    while time.monotonic() - t0 < timeout:
-        line = proc.stdout.readline()
-        if not line:
-            break
-        seen.append(line)
-        if line.startswith(marker):
-            return "".join(seen)
-    raise AssertionError(f"no {marker!r} line in:\n{''.join(seen)[-2000:]}")
 
 
 def generates(folder: Path, tmp: Path) -> None:
@@ -69,13 +52,13 @@ STOPS = [("[dataset]", signal.SIGINT), ("[train]", signal.SIGTERM), ("[generate]
 @pytest.mark.parametrize("when,sig", STOPS, ids=[f"{w if isinstance(w, str) else f'{w:.1f}s'}-{s.name}" for w, s in STOPS])
 def test_a_stopped_training_keeps_the_earlier_run(old_run, tmp_path, when, sig):
     before = fingerprint(old_run)
-    proc = start(TRAIN + ["--out", old_run])
-    if isinstance(when, str):
-        wait_for(proc, when)
-    else:
-        time.sleep(when)
-    proc.send_signal(sig)
-    rest, _ = proc.communicate(timeout=600)
+    with Child(minifilm_argv(*TRAIN, "--out", old_run)) as proc:
+        if isinstance(when, str):
+            proc.until(when, start=True)
+        else:
+            time.sleep(when)
+        proc.send_signal(sig)
+        rest = proc.end(timeout=600)
     if sig != signal.SIGKILL:
         assert proc.returncode in (130, 143), rest[-800:]
         assert "Traceback" not in rest
@@ -101,23 +84,23 @@ def test_a_stopped_training_keeps_the_earlier_run(old_run, tmp_path, when, sig):
 
 
 def test_two_trainings_into_one_folder_the_second_is_refused(old_run, tmp_path):
-    first = start(TRAIN + ["--out", old_run])
-    wait_for(first, "[data]")
-    r = subprocess.run([sys.executable, "-m", "minifilm", *TRAIN, "--out", str(old_run)], capture_output=True,
-                       text=True, timeout=600)
-    assert r.returncode == 2 and f"in use by process {first.pid}" in r.stderr, r.stderr[-500:]
-    out, _ = first.communicate(timeout=900)
+    with Child(minifilm_argv(*TRAIN, "--out", old_run)) as first:
+        first.until("[data]", start=True)
+        r = subprocess.run([sys.executable, "-m", "minifilm", *TRAIN, "--out", str(old_run)], capture_output=True,
+                           text=True, timeout=600)
+        assert r.returncode == 2 and f"in use by process {first.pid}" in r.stderr, r.stderr[-500:]
+        out = first.end(timeout=900)
     assert first.returncode == 0, out[-800:]
     generates(old_run, tmp_path)
 
 
 def test_two_finetunes_of_one_run_the_second_is_refused(old_run, tmp_path):
     clip = old_run / "data" / "Neutral_FW.bvh"
-    first = start(["finetune", "--run", old_run, "--name", "First", "--steps", "3000", clip])
-    wait_for(first, "[finetune] teaching")
-    r = subprocess.run([sys.executable, "-m", "minifilm", "finetune", "--run", str(old_run), "--name", "Second",
-                        "--steps", "5", str(clip)], capture_output=True, text=True, timeout=600)
-    out, _ = first.communicate(timeout=900)
+    with Child(minifilm_argv("finetune", "--run", old_run, "--name", "First", "--steps", "3000", clip)) as first:
+        first.until("[finetune] teaching", start=True)
+        r = subprocess.run([sys.executable, "-m", "minifilm", "finetune", "--run", str(old_run), "--name", "Second",
+                            "--steps", "5", str(clip)], capture_output=True, text=True, timeout=600)
+        out = first.end(timeout=900)
     assert first.returncode == 0, out[-800:]
     assert r.returncode == 2 and f"in use by process {first.pid}" in r.stderr, r.stderr[-500:]
     assert "First" in RunFolder.load(old_run).styles()

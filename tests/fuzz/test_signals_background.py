@@ -21,6 +21,7 @@ import subprocess
 import sys
 
 import pytest
+from child_process import Child, minifilm_argv
 
 from minifilm import cli
 
@@ -28,9 +29,9 @@ TRAIN = ["train", "--quick", "--styles", "Neutral,LeftHop", "--gaits", "FW", "--
          "--generate-seconds", "1"]
 
 #: the dispositions a parent may leave: (SIGINT's, SIGTERM's)
-INHERITED = {"int-ignored": (signal.SIG_IGN, signal.SIG_DFL),
-             "int-term-ignored": (signal.SIG_IGN, signal.SIG_IGN),
-             "defaults": (signal.SIG_DFL, signal.SIG_DFL)}
+INHERITED = {"int-ignored": ("SIG_IGN", "SIG_DFL"),
+             "int-term-ignored": ("SIG_IGN", "SIG_IGN"),
+             "defaults": ("SIG_DFL", "SIG_DFL")}
 EXIT = {signal.SIGINT: (130, "interrupted"), signal.SIGTERM: (143, "terminated")}
 
 
@@ -39,31 +40,16 @@ def fingerprint(folder):
             for p in sorted(folder.rglob("*")) if p.is_file() and "cache" not in p.parts}
 
 
-def start(argv, inherited):
-    """``python -m minifilm ARGV`` with SIGINT / SIGTERM set to ``inherited`` before it starts."""
-    sigint, sigterm = INHERITED[inherited]
-
-    def dispositions():          # in the child, before exec: what a background shell leaves
-        signal.signal(signal.SIGINT, sigint)
-        signal.signal(signal.SIGTERM, sigterm)
-    return subprocess.Popen([sys.executable, "-u", "-m", "minifilm", *map(str, argv)], stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True, preexec_fn=dispositions)
+def start(argv, inherited) -> Child:
+    """``python -m minifilm ARGV`` with SIGINT / SIGTERM set to ``inherited`` when it starts."""
+    return Child(minifilm_argv(*argv), signals=INHERITED[inherited])
 
 
-def wait_for(proc, marker):
-    seen = []
-    for line in proc.stdout:
-        seen.append(line)
-        if marker in line:
-            return "".join(seen)
-    raise AssertionError(f"no {marker!r} line in:\n{''.join(seen)[-2000:]}")
-
-
-def stop_and_check(proc, sig, seen=""):
+def stop_and_check(proc: Child, sig):
     proc.send_signal(sig)
-    rest, _ = proc.communicate(timeout=600)
+    rest = proc.end(timeout=600)
     code, line = EXIT[sig]
-    assert proc.returncode == code, (seen + rest)[-1500:]
+    assert proc.returncode == code, rest[-1500:]
     assert line in rest and "Traceback" not in rest, rest[-1500:]
 
 
@@ -83,8 +69,9 @@ TRAIN_CASES = [("int-ignored", "[dataset]", signal.SIGINT), ("int-ignored", "[tr
                          ids=[f"{i}-{m.strip('[]')}-{s.name}" for i, m, s in TRAIN_CASES])
 def test_train_stops_and_keeps_the_earlier_run(old_run, inherited, marker, sig):
     before = fingerprint(old_run)
-    proc = start(TRAIN + ["--out", old_run], inherited)
-    stop_and_check(proc, sig, wait_for(proc, marker))
+    with start(TRAIN + ["--out", old_run], inherited) as proc:
+        proc.until(marker)
+        stop_and_check(proc, sig)
     assert fingerprint(old_run) == before
     assert sorted(p.name for p in old_run.parent.iterdir() if not p.name.endswith(".lock")) == ["run"]
 
@@ -93,9 +80,10 @@ def test_train_stops_and_keeps_the_earlier_run(old_run, inherited, marker, sig):
                                            ("defaults", signal.SIGINT)])
 def test_finetune_stops_and_leaves_the_style_library(old_run, inherited, sig):
     before = fingerprint(old_run)
-    proc = start(["finetune", "--run", old_run, "--name", "Late", "--steps", "100000",
-                  old_run / "data" / "Neutral_FW.bvh"], inherited)
-    stop_and_check(proc, sig, wait_for(proc, "[finetune] teaching"))
+    with start(["finetune", "--run", old_run, "--name", "Late", "--steps", "100000",
+                old_run / "data" / "Neutral_FW.bvh"], inherited) as proc:
+        proc.until("[finetune] teaching")
+        stop_and_check(proc, sig)
     assert fingerprint(old_run) == before
 
 
@@ -103,27 +91,24 @@ def test_finetune_stops_and_leaves_the_style_library(old_run, inherited, sig):
 def test_demo_stops_on_ctrl_c(tiny_run, inherited):
     """The demo's own handlers (its event loop's) are installed whatever it inherited; it ends cleanly."""
     pytest.importorskip("websockets")
-    proc = start(["demo", "--run", tiny_run, "--port", "0", "--no-calibrate"], inherited)
-    seen = wait_for(proc, "http://")
-    proc.send_signal(signal.SIGINT)
-    rest, _ = proc.communicate(timeout=120)
-    assert proc.returncode in (0, 130), (seen + rest)[-1500:]
-    assert "Traceback" not in rest, rest[-1500:]
+    with start(["demo", "--run", tiny_run, "--port", "0", "--no-calibrate"], inherited) as proc:
+        proc.until("http://")
+        proc.send_signal(signal.SIGINT)
+        printed = proc.end(timeout=120)
+    assert proc.returncode in (0, 130), printed[-1500:]
+    assert "Traceback" not in printed, printed[-1500:]
 
 
 def test_a_background_job_of_a_shell_stops_on_sigint(old_run):
     """The reproduction: a non-interactive ``sh`` runs the command with ``&`` (SIGINT ignored in it)."""
     before = fingerprint(old_run)
-    argv = " ".join(f"'{a}'" for a in [sys.executable, "-u", "-m", "minifilm", *TRAIN, "--out", str(old_run)])
-    shell = subprocess.Popen(["sh", "-c", f"{argv} & echo $! >&2; wait $!"], stdout=subprocess.PIPE,
-                             stderr=subprocess.PIPE, text=True, preexec_fn=lambda: signal.signal(signal.SIGINT,
-                                                                                                 signal.SIG_DFL))
-    pid = int(shell.stderr.readline())
-    seen = wait_for(shell, "[train]")
-    os.kill(pid, signal.SIGINT)
-    rest, err = shell.communicate(timeout=600)
-    assert shell.returncode == 130, (seen + rest + err)[-1500:]
-    assert "interrupted" in err + rest and "Traceback" not in err + rest, (err + rest)[-1500:]
+    argv = " ".join(f"'{a}'" for a in minifilm_argv(*TRAIN, "--out", old_run))
+    with Child([shutil.which("sh"), "-c", f"{argv} & echo pid $!; wait $!"], signals=("SIG_DFL", "SIG_DFL")) as shell:
+        seen = shell.until("[train]")
+        os.kill(int(seen.split("pid ", 1)[1].split()[0]), signal.SIGINT)
+        printed = shell.end(timeout=600)
+    assert shell.returncode == 130, printed[-1500:]
+    assert "interrupted" in printed and "Traceback" not in printed, printed[-1500:]
     assert fingerprint(old_run) == before
 
 
