@@ -18,6 +18,7 @@ if os.environ.get("PYTEST_XDIST_WORKER"):
     for _key in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(_key, "1")
 
+import shutil  # noqa: E402
 from dataclasses import replace  # noqa: E402
 from pathlib import Path  # noqa: E402
 
@@ -51,6 +52,35 @@ def tiny_job(tmp_path_factory):
 def tiny_run(tiny_job) -> Path:
     """The folder of :func:`tiny_job`'s run (read it; copy it to change it)."""
     return tiny_job[0]
+
+
+CHROMIUM = os.environ.get("MINIFILM_CHROMIUM") or shutil.which("chromium") or "/usr/bin/chromium"
+# Software WebGL: headless machines have no GPU, and SwiftShader renders the same everywhere.
+CHROMIUM_ARGS = ["--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
+
+
+@pytest.fixture(scope="module")
+def browser():
+    """Headless Chromium through playwright, for the viewer's and the demo's pages; skips with the
+    reason when either is unavailable. (Module-scoped: one sync playwright per thread at a time.)"""
+    try:
+        from playwright.sync_api import sync_playwright  # optional: the page tests only
+    except ImportError:
+        pytest.skip("playwright is not installed (pip install playwright; no browser download needed)")
+    if not Path(CHROMIUM).is_file():
+        pytest.skip(f"Chromium not found at {CHROMIUM} (apt-get install chromium, or set MINIFILM_CHROMIUM)")
+    manager = sync_playwright().start()
+    try:                                    # playwright's driver is stopped however the module ends
+        try:
+            chromium = manager.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        except Exception as e:  # noqa: BLE001 - any launch failure means: cannot test here
+            pytest.skip(f"Chromium at {CHROMIUM} could not be launched: {e}")
+        try:
+            yield chromium
+        finally:
+            chromium.close()
+    finally:
+        manager.stop()
 
 
 def pytest_ignore_collect(collection_path, config):

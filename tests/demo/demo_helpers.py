@@ -1,15 +1,12 @@
 """Helpers of the demo tests: the released network or a miniature run folder, a demo server on an
-ephemeral 127.0.0.1 port, raw HTTP requests, headless Chromium.
+ephemeral 127.0.0.1 port, raw HTTP requests, a page in headless Chromium.
 
 (A module with its own name rather than ``conftest``; its fixtures are imported by the test
 modules that use them.)
 """
 from __future__ import annotations
 
-import os
-import shutil
 import socket
-from pathlib import Path
 
 import pytest
 
@@ -23,9 +20,6 @@ from minifilm.demo.server import DemoServer  # noqa: E402
 from minifilm.demo.source import DemoSource  # noqa: E402
 
 RELEASED = SHARED_DATA / "released-lpn"
-CHROMIUM = os.environ.get("MINIFILM_CHROMIUM") or shutil.which("chromium") or "/usr/bin/chromium"
-# Software WebGL: headless machines have no GPU, and SwiftShader renders the same everywhere.
-CHROMIUM_ARGS = ["--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
 
 
 @pytest.fixture(scope="module")
@@ -83,27 +77,6 @@ def http_get(port: int, target: str, host: str = None, extra: str = "") -> tuple
     return status, body
 
 
-@pytest.fixture(scope="module")
-def browser():
-    """Headless Chromium through playwright; skips with the reason when either is unavailable.
-    (Module-scoped: one sync playwright per thread at a time, and the viewer tests start their own.)"""
-    try:
-        from playwright.sync_api import sync_playwright  # optional: browser tests only
-    except ImportError:
-        pytest.skip("playwright is not installed (pip install playwright; no browser download needed)")
-    if not Path(CHROMIUM).is_file():
-        pytest.skip(f"Chromium not found at {CHROMIUM} (apt-get install chromium, or set MINIFILM_CHROMIUM)")
-    manager = sync_playwright().start()
-    try:
-        chromium = manager.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
-    except Exception as e:  # noqa: BLE001 - any launch failure means: cannot test here
-        manager.stop()
-        pytest.skip(f"Chromium at {CHROMIUM} could not be launched: {e}")
-    yield chromium
-    chromium.close()
-    manager.stop()
-
-
 class DemoPage:
     """A demo page open in headless Chromium (``browser``, the fixture above) at ``url``, with what it
     logged (``messages``), requested (``requests``) and opened (``sockets``).
@@ -116,7 +89,7 @@ class DemoPage:
             WebSocket, so a frame the page skips while drawing is kept too).
         ready: seconds to wait for the page to be ready and to have drawn ten frames.
 
-    Every wait is for a condition with a bounded time-out, never for a length of time: on a busy
+    ``browser``: the fixture of tests/conftest.py. Every wait is for a condition with a bounded time-out, never for a length of time: on a busy
     machine the page is only slower. A character's own time is its step count (``frame.n``, 60 a
     second of motion): :meth:`hold` holds keys for that many steps, however long they take.
     """

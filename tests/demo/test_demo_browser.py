@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 import pytest
-from demo_helpers import RELEASED, DemoPage, browser  # noqa: F401  (browser: a fixture)
+from demo_helpers import RELEASED, DemoPage
 from repo_paths import need_data
 
 from minifilm.demo.client import DemoClient

@@ -15,7 +15,7 @@ import urllib.request
 import numpy as np
 import pytest
 
-from demo_helpers import RELEASED, DemoPage, browser  # noqa: F401  (browser: a fixture)
+from demo_helpers import RELEASED, DemoPage
 from repo_paths import need_data
 
 from minifilm.demo.process import DemoProcess

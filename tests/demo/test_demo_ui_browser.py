@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 import pytest
-from demo_helpers import RELEASED, DemoPage, browser  # noqa: F401  (browser: a fixture)
+from demo_helpers import RELEASED, DemoPage
 
 from minifilm.demo.frame_loop import MAX_BATCH
 from minifilm.demo.process import DemoProcess

@@ -1,4 +1,4 @@
-"""Fixtures of the viewer tests: a synthetic walker, real BVH files, headless Chromium."""
+"""Fixtures of the viewer tests: a synthetic walker, real BVH files (headless Chromium: tests/conftest.py)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -7,7 +7,7 @@ import pytest
 
 from minifilm.motion.motion import Motion
 from repo_paths import need_data
-from viewer_helpers import CHROMIUM, CHROMIUM_ARGS, synthetic_walker
+from viewer_helpers import synthetic_walker
 
 
 @pytest.fixture
@@ -25,24 +25,3 @@ def bandai_walk(shared_data) -> Path:
 def xia_walk(shared_data) -> Path:
     """A real 120 fps BVH (Xia et al., CMU skeleton); skips when the data is absent."""
     return need_data(shared_data / "bvh" / "xia" / "neutral_01_000.bvh", "a real BVH")
-
-
-@pytest.fixture(scope="module")
-def browser():
-    """Headless Chromium through playwright; skips with the reason when either is unavailable.
-    (Module-scoped: one sync playwright per thread at a time, and the demo's tests start their own.)"""
-    try:
-        from playwright.sync_api import sync_playwright
-    except ImportError:
-        pytest.skip("playwright is not installed (pip install playwright; no browser download needed)")
-    if not Path(CHROMIUM).is_file():
-        pytest.skip(f"Chromium not found at {CHROMIUM} (apt-get install chromium, or set MINIFILM_CHROMIUM)")
-    manager = sync_playwright().start()
-    try:
-        browser = manager.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
-    except Exception as e:  # noqa: BLE001 - any launch failure means: cannot test here
-        manager.stop()
-        pytest.skip(f"Chromium at {CHROMIUM} could not be launched: {e}")
-    yield browser
-    browser.close()
-    manager.stop()

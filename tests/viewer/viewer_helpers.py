@@ -1,4 +1,4 @@
-"""Helpers of the viewer tests: a small synthetic walker, test-only foot contacts, Chromium settings.
+"""Helpers of the viewer tests: a small synthetic walker, test-only foot contacts.
 
 The synthetic ``Motion`` is built here from rotations and translations (not by any minifilm
 generator), so the tests depend only on ``Motion`` and the BVH reader. (A module with its own
@@ -6,16 +6,9 @@ name rather than ``conftest``: ``tests/conftest.py`` is also called ``conftest``
 """
 from __future__ import annotations
 
-import os
-import shutil
-
 import numpy as np
 
 from minifilm.motion.motion import Motion
-
-CHROMIUM = os.environ.get("MINIFILM_CHROMIUM") or shutil.which("chromium") or "/usr/bin/chromium"
-# Software WebGL: headless machines have no GPU, and SwiftShader renders the same everywhere.
-CHROMIUM_ARGS = ["--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
 
 # name, parent, offset (metres); "Site" joints are End Sites (no channels).
 SKELETON = [
