@@ -23,7 +23,8 @@ def refused_elsewhere(folder, what="run folder"):
             caught.append(e)
     t = threading.Thread(target=take)
     t.start()
-    t.join()
+    t.join(60)
+    assert not t.is_alive(), "the other thread neither took the lock nor was refused"
     return caught[0]
 
 
@@ -83,12 +84,12 @@ def test_whole_folder_writers_take_the_lock_and_leave_no_lock_file(tmp_path):
             done.wait()
     holder = threading.Thread(target=hold)
     holder.start()
-    holding.wait()
+    assert holding.wait(60), "the holding thread never took the lock"
     try:
         write()
     finally:
         done.set()
-        holder.join()
+        holder.join(60)
     assert errors and f"in use by process {os.getpid()}" in str(errors[0])
     assert sorted(p.name for p in tmp_path.iterdir()) == ["link", "pack"]      # no lock file, no temporary
 

@@ -230,7 +230,9 @@ def test_a_kept_alive_connection_serves_the_next_request(server):
             s.sendall(request(server.port, "GET", target))
             data = b""
             while b"\r\n\r\n" not in data or len(data.partition(b"\r\n\r\n")[2]) < len(server.site.get(target)[0]):
-                data += s.recv(1 << 16)
+                chunk = s.recv(1 << 16)
+                assert chunk, data[:300]                    # closed before the whole answer came
+                data += chunk
             assert data.startswith(b"HTTP/1.1 200 ") and b"Connection: keep-alive" in data
 
 

@@ -267,7 +267,8 @@ def test_a_rig_known_only_by_its_map_gets_the_unit_body_size_gives(tmp_path, syn
 # ----------------------------------------------------------------------------------------------
 
 def run_cli(*args):
-    return subprocess.run([sys.executable, "-m", "minifilm", *map(str, args)], capture_output=True, text=True)
+    return subprocess.run([sys.executable, "-m", "minifilm", *map(str, args)], capture_output=True, text=True,
+                          timeout=600)
 
 
 def test_retarget_command_writes_the_target_rig_in_its_channel_order(shared_data, tmp_path):
