@@ -70,8 +70,9 @@ def map_in_order(fn, items, workers=None, doing: str = "doing", name=str, done=l
             except BrokenExecutor:
                 raise ChildProcessError(f"a worker process ended abruptly while {doing} {name(item)} or a later item") from None
             except Exception as e:
-                for f in futures:           # (our own pool stops at once anyway; a given one goes on)
-                    f.cancel()
+                if isinstance(workers, Executor):   # a given pool goes on: drop the items not started.
+                    for f in futures:               # (Our own is killed on the way out; a future
+                        f.cancel()                  # cancelled here would then trip its thread.)
                 if name(item) not in str(e):
                     e.add_note(f"(while {doing} {name(item)})")
                 raise

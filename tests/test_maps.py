@@ -7,6 +7,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -84,6 +85,19 @@ def test_a_workers_error_is_raised_as_itself_with_the_item_named():
     assert (info.value.source, info.value.line) == ("a.bvh", 12)
     assert str(info.value) == "a.bvh, line 12: expected a number, found 'x'"
     assert not hasattr(info.value, "__notes__")               # its message names the item already
+
+
+def test_an_error_with_many_items_queued_ends_the_pool_without_tripping_its_thread(monkeypatch):
+    """The pool's own thread marks the items still queued as failed when its workers are killed;
+    an item cancelled by the map before that made the thread die of InvalidStateError (every time,
+    with 40 items) before it had cleaned up its pipes."""
+    tripped = []
+    monkeypatch.setattr(threading, "excepthook", lambda args: tripped.append(args.exc_type.__name__))
+    for _ in range(3):
+        with pytest.raises(DataError, match="bad frame 7"):
+            map_in_order(fails_on_two, range(40), workers=2)
+        assert multiprocessing.active_children() == []
+    assert tripped == []
 
 
 def test_a_killed_worker_ends_the_map_with_one_message_naming_the_item():
