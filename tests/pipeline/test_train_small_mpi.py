@@ -109,7 +109,8 @@ def test_a_stopped_job_ends_every_rank_and_keeps_the_earlier_run(mpi_run, tmp_pa
         if how == "a rank killed":
             os.kill(pids[1], signal.SIGKILL)
         else:
-            os.killpg(proc.pid, signal.SIGINT)                # the terminal's Ctrl-C: the whole group
+            os.killpg(proc.pid, signal.SIGINT)                # the terminal's Ctrl-C, to mpiexec's group
+                                                              # (it passes it on to the ranks)
         code = proc.wait(timeout=HANG)
     finally:
         if proc.poll() is None:
