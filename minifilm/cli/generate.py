@@ -28,6 +28,7 @@ from minifilm.cli.args import (add_network_source, bvh_path, gif_path, html_path
                                positive)
 from minifilm.cli.memory import GENERATE_BYTES_PER_JOINT_FRAME, VIEW_BYTES_PER_JOINT_FRAME, add_memory_option, \
     check_memory
+from minifilm.dataset.progress import Progress
 from minifilm.errors import InputError
 from minifilm.features.layout import FeatureLayout
 from minifilm.files import check_writable, few
@@ -266,7 +267,8 @@ def run(args) -> int:
     speed = script_speed(args.script, args.speed)
     script = make_script(args.script, args.seconds, speed=speed)
     t0 = time.perf_counter()
-    r = ctrl.run(script, n, films, calibration=cal, phases=phases, start_x=start_x)
+    shown = Progress(n, "generate", enabled=args.seconds > 60, unit="frames")   # (a minute takes seconds)
+    r = ctrl.run(script, n, films, calibration=cal, phases=phases, start_x=start_x, progress=shown.update)
     dt = time.perf_counter() - t0
     if not np.all(np.isfinite(r.positions)):
         raise ValueError(f"the network's output became non-finite during the rollout ({label}); nothing written")

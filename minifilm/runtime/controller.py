@@ -351,7 +351,8 @@ class Controller:
     # ------------------------------------------------------------------ whole rollouts
     def run(self, scripts: Union[Script, Sequence[Script]], n_frames: int,
             film: Union[np.ndarray, Callable[[int], np.ndarray]], phases: Optional[np.ndarray] = None,
-            calibration: Optional[SpeedCalibration] = None, start_x: Optional[np.ndarray] = None) -> Rollout:
+            calibration: Optional[SpeedCalibration] = None, start_x: Optional[np.ndarray] = None,
+            progress: Optional[Callable[[int], None]] = None) -> Rollout:
         """Run B = len(scripts) characters for ``n_frames`` frames, each from where its script
         starts (:func:`~minifilm.runtime.rollout.run_scripts` says what each argument may be)."""
-        return run_scripts(self, scripts, n_frames, film, phases, calibration, start_x)
+        return run_scripts(self, scripts, n_frames, film, phases, calibration, start_x, progress)

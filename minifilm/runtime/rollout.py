@@ -72,7 +72,8 @@ class Rollout:
 
 def run_scripts(controller, scripts: Union[Script, Sequence[Script]], n_frames: int,
                 film: Union[np.ndarray, Callable[[int], np.ndarray]], phases: Optional[np.ndarray] = None,
-                calibration=None, start_x: Optional[np.ndarray] = None) -> Rollout:
+                calibration=None, start_x: Optional[np.ndarray] = None,
+                progress: Optional[Callable[[int], None]] = None) -> Rollout:
     """Run B = len(scripts) characters for ``n_frames`` frames with ``controller`` (a
     :class:`~minifilm.runtime.controller.Controller`): reset to the scripts' starts, then one
     :meth:`~minifilm.runtime.controller.Controller.step` per frame with each script's command.
@@ -87,6 +88,7 @@ def run_scripts(controller, scripts: Union[Script, Sequence[Script]], n_frames: 
             :func:`~minifilm.runtime.calibration.calibrate_speed`); None = use as given.
         phases, start_x: the start phases (B, 8) and pose (raw input frames), see
             :meth:`~minifilm.runtime.controller.Controller.reset`.
+        progress: called with the number of frames done after each frame (a long rollout's display).
     """
     if isinstance(scripts, Script):
         scripts = [scripts]
@@ -116,6 +118,8 @@ def run_scripts(controller, scripts: Union[Script, Sequence[Script]], n_frames: 
         for key in ("positions", "forward", "up", "contacts", "phases", "root", "facing", "network_positions"):
             out[key][:, k] = fr[key]
         out["targets"][:, k] = tv
+        if progress is not None:
+            progress(k + 1)
     rotations = axes_to_rotation(out["forward"], out["up"])
     return Rollout(out["positions"], rotations, out["contacts"], out["phases"], out["root"],
                    out["facing"], out["targets"], fps, out["network_positions"])
