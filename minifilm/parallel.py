@@ -52,7 +52,7 @@ def _end_workers(pool: ProcessPoolExecutor) -> None:
     up after. (The standard library closes its call queue's end the same way when a pool breaks.)"""
     workers = list(pool._processes.values())        # (Python 3.14: pool.kill_workers())
     for p in workers:
-        p.kill()                                     # (not terminate: SIGTERM may be ignored, as nohup leaves it)
+        p.kill()            # (not terminate: a worker ignores SIGTERM when this process was started so)
     for p in workers:
         p.join(30)
     pool._result_queue._writer.close()

@@ -8,7 +8,7 @@ session of its own, so one ``killpg`` ends it and whatever it started, and that 
 test is finished with it.
 
 ``signals``: how SIGINT and SIGTERM are set in the child when it starts ("SIG_IGN" or "SIG_DFL"
-each), as a background shell or ``nohup`` leaves them. A small Python launcher sets them and then
+each), as a script's ``cmd &`` or ``trap '' INT`` leaves them. A small Python launcher sets them and then
 execs the command (ignored signals stay ignored across exec): setting them between fork and exec
 (``preexec_fn``) runs Python code in a copy of a process with threads, which can deadlock.
 """

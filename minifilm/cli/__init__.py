@@ -209,8 +209,8 @@ def _install_stop_handlers() -> dict:
     process inherited; returns ``{signal: the handler it replaced}`` (empty when this is not the
     main thread, where Python cannot set handlers: a caller's thread keeps its own).
 
-    SIGINT is set explicitly, not left to Python: a process started with SIGINT ignored (from a
-    shell script run in the background, ``cmd &`` without job control, or ``nohup``) keeps it
+    SIGINT is set explicitly, not left to Python: a process started with SIGINT ignored (by a
+    shell script's ``cmd &``, which runs without job control, or after ``trap '' INT``) keeps it
     ignored, Python then installs no KeyboardInterrupt handler, and Ctrl-C or ``kill -INT`` would
     be lost: ``train`` would run to its end and replace the earlier run. A user who sends SIGINT
     to a long command means to stop it."""

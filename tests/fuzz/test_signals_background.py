@@ -1,9 +1,9 @@
 """Stopping a command that was started from a background shell.
 
-A shell script that runs ``minifilm train ... &`` without job control, ``nohup`` and ``trap '' INT``
-start the command with SIGINT (and sometimes SIGTERM) *ignored*, and Python then installs no
-KeyboardInterrupt handler of its own: Ctrl-C or ``kill -INT`` was lost, ``train`` ran to its end and
-replaced the earlier run. Every command now installs its stop handlers itself.
+A shell script that runs ``minifilm train ... &`` (no job control in a script) or runs it after
+``trap '' INT`` starts the command with SIGINT (and after ``trap '' TERM``, SIGTERM) *ignored*, and
+Python then installs no KeyboardInterrupt handler of its own: Ctrl-C or ``kill -INT`` was lost,
+``train`` ran to its end and replaced the earlier run. Every command now installs its stop handlers itself.
 
 The family: the commands a user stops (``train`` at each stage, ``finetune``, ``demo``) started with
 the dispositions a parent can leave (SIGINT ignored, SIGINT and SIGTERM ignored, both default) --
