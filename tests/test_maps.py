@@ -89,8 +89,8 @@ def test_a_workers_error_is_raised_as_itself_with_the_item_named():
 
 def test_an_error_with_many_items_queued_ends_the_pool_without_tripping_its_thread(monkeypatch):
     """The pool's own thread marks the items still queued as failed when its workers are killed;
-    an item cancelled by the map before that made the thread die of InvalidStateError (every time,
-    with 40 items) before it had cleaned up its pipes."""
+    an item cancelled by the map before that made the thread die of InvalidStateError (in a script,
+    15 maps of 40 items in 15) before it had cleaned up its pipes."""
     tripped = []
     monkeypatch.setattr(threading, "excepthook", lambda args: tripped.append(args.exc_type.__name__))
     for _ in range(3):

@@ -4,8 +4,7 @@ run was trained on does not get those words."""
 import shutil
 
 import pytest
-
-from minifilm import cli
+from in_process import minifilm_here
 
 
 @pytest.fixture(scope="module")
@@ -16,10 +15,9 @@ def taught(tiny_run, shared_data):
 
 
 def invoke(argv, capsys):
-    with pytest.raises(SystemExit) as done:
-        cli.main([str(a) for a in argv])
-    out = capsys.readouterr()
-    return done.value.code, out.out + out.err
+    """(exit code, all it printed) of ``minifilm ARGV``."""
+    code, printed = minifilm_here(argv, capsys)
+    return code, printed.out + printed.err
 
 
 def test_finetune_and_generate_say_the_clip_is_far_outside(taught, tmp_path, capsys):

@@ -2,18 +2,14 @@
 prints no progress at all."""
 import re
 
-import pytest
-
-from minifilm import cli
+from in_process import minifilm_here
 
 LINE = re.compile(r"^\[generate\] (\d+)/(\d+) frames, +[\d.]+ s, eta +[\d.na]+ s", re.M)
 
 
 def generate(run, seconds, out, capsys):
-    with pytest.raises(SystemExit) as done:
-        cli.main(["generate", "--run", str(run), "--seconds", str(seconds), "--out", str(out)])
-    printed = capsys.readouterr()
-    assert done.value.code == 0, printed.err
+    code, printed = minifilm_here(["generate", "--run", run, "--seconds", seconds, "--out", out], capsys)
+    assert code == 0, printed.err
     return printed.err
 
 

@@ -7,22 +7,14 @@ had), and the memory of generate / view (estimated before allocating, refused ov
 """
 import numpy as np
 import pytest
+from in_process import minifilm_here
 
-from minifilm import cli
 from minifilm.cli.generate import STRAFE_TOP_SPEED, script_speed
 from minifilm.cli.memory import VIEW_BYTES_PER_JOINT_FRAME, check_memory
 from minifilm.cli.phases import frames_shown, hop_style
 from minifilm.errors import InputError
 from minifilm.pipeline.new_style import shortest_clip_frames, too_short
 from repo_paths import SHARED_DATA
-
-
-def run_cli(argv, capsys):
-    """(exit code, stdout, stderr) of ``minifilm ARGV`` in this process."""
-    with pytest.raises(SystemExit) as stop:
-        cli.main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return stop.value.code, out, err
 
 
 # ---- phases -------------------------------------------------------------------------------------
@@ -55,7 +47,7 @@ def test_the_hop_styles_are_taken_in_any_case(given, name):
 def test_phases_refuses_a_style_that_would_change_nothing(tmp_path, capsys, bad):
     bvh = tmp_path / "walk.bvh"
     bvh.write_text("HIERARCHY\n")                      # never read: the option is refused first
-    code, _, err = run_cli(["phases", bvh, "--style", bad, "--out", tmp_path / "p.png"], capsys)
+    code, (_, err) = minifilm_here(["phases", bvh, "--style", bad, "--out", tmp_path / "p.png"], capsys)
     assert code == 2 and "only LeftHop and RightHop change how phases are labelled" in err, err
     assert not (tmp_path / "p.png").exists()
 
@@ -64,8 +56,8 @@ def test_phases_refuses_a_style_that_would_change_nothing(tmp_path, capsys, bad)
 @pytest.mark.parametrize("option", ["--style", "--style2", "--style3", "--switch-to"])
 @pytest.mark.parametrize("empty", ["", "  "])
 def test_an_empty_style_name_is_refused_by_its_option(tmp_path, capsys, option, empty):
-    code, _, err = run_cli(["generate", "--params", tmp_path, option, empty, "--blend", "0.3",
-                            "--out", tmp_path / "o.bvh"], capsys)
+    code, (_, err) = minifilm_here(["generate", "--params", tmp_path, option, empty, "--blend", "0.3",
+                                    "--out", tmp_path / "o.bvh"], capsys)
     assert code == 2 and f"argument {option}" in err and "not an empty string" in err, err
     assert "needs --style2" not in err
 
@@ -107,7 +99,7 @@ def test_view_refuses_a_file_too_long_for_the_limit_before_reading_it(tmp_path, 
     bvh.write_text("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0 0\n  CHANNELS 3 Xposition Yposition Zposition\n"
                    "  End Site\n  {\n    OFFSET 0 1 0\n  }\n}\nMOTION\n"
                    f"Frames: {frames}\nFrame Time: 0.0166667\n0 0 0\n")   # the frames are not there
-    code, _, err = run_cli(["view", bvh, "--html", tmp_path / "v.html", "--max-memory", "0.1"], capsys)
+    code, (_, err) = minifilm_here(["view", bvh, "--html", tmp_path / "v.html", "--max-memory", "0.1"], capsys)
     need = frames * 2 * VIEW_BYTES_PER_JOINT_FRAME / 2**30
     assert code == 2 and f"({frames:,} frames) would need about {need:.3g} GiB" in err, err
     assert "--max-memory" in err and not (tmp_path / "v.html").exists()
@@ -117,7 +109,7 @@ def test_generate_refuses_an_hour_over_the_limit_before_rolling_out(tmp_path, ca
     released = SHARED_DATA / "released-lpn"
     if not (released / "Xmean.bin").exists():
         pytest.skip("the released network is not in the shared data folder")
-    code, out, err = run_cli(["generate", "--params", released, "--seconds", 3600, "--max-memory", 1,
-                              "--no-calibrate", "--out", tmp_path / "o.bvh"], capsys)
+    code, (out, err) = minifilm_here(["generate", "--params", released, "--seconds", 3600, "--max-memory", 1,
+                                      "--no-calibrate", "--out", tmp_path / "o.bvh"], capsys)
     assert code == 2 and "--seconds 3600 (216,000 frames) would need about" in err, err
     assert "limit of 1 GiB (--max-memory 1)" in err and not (tmp_path / "o.bvh").exists()

@@ -9,8 +9,8 @@ import shutil
 from pathlib import Path
 
 import pytest
+from in_process import minifilm_here
 
-from minifilm import cli
 
 R = "{run}"          # placeholders, filled in per case
 T = "{tmp}"
@@ -177,12 +177,6 @@ CHAIN_BVH = ("HIERARCHY\nROOT A\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Ypositi
              + "".join(f"{0.01 * i} 90 0 0 {i % 30} 0 0 0 0 0 0 0\n" for i in range(200)))
 
 
-def invoke(argv, capsys):
-    with pytest.raises(SystemExit) as exit_info:
-        cli.main(argv)
-    return exit_info.value.code, capsys.readouterr()
-
-
 @pytest.mark.parametrize("name,args", CASES, ids=[c[0] for c in CASES])
 def test_bad_arguments_are_one_line_and_change_nothing(run_copy, tmp_path, shared_data, capsys, name, args):
     run, before = run_copy
@@ -191,7 +185,7 @@ def test_bad_arguments_are_one_line_and_change_nothing(run_copy, tmp_path, share
     (tmp_path / "short.bvh").write_text("\n".join(lines[:frames_at] + ["Frames: 5"] + lines[frames_at + 1:frames_at + 7]) + "\n")
     (tmp_path / "chain.bvh").write_text(CHAIN_BVH)
     existing = set(tmp_path.rglob("*"))
-    code, out = invoke(fill(args, run, tmp_path, shared_data), capsys)
+    code, out = minifilm_here(fill(args, run, tmp_path, shared_data), capsys)
     errors = [line for line in out.err.splitlines() if line.startswith("error:") or "minifilm: unknown" in line]
     assert code == 2, (code, out.err[-500:])
     assert "Traceback" not in out.err
@@ -212,7 +206,7 @@ def test_well_formed_commands_work(run_copy, tmp_path, capsys):
                   "--out", str(tmp_path / "b.bvh")],
                  ["finetune", "--run", str(work), "--name", "New", "--steps", "5", str(work / "data" / "Neutral_FW.bvh")],
                  ["generate", "--run", str(work), "--seconds", "1", "--style", "New", "--out", str(tmp_path / "c.bvh")]):
-        code, out = invoke(argv, capsys)
+        code, out = minifilm_here(argv, capsys)
         assert code == 0, out.err[-800:]
     for name in ("a.bvh", "b.bvh", "c.bvh"):
         assert (tmp_path / name).stat().st_size > 1000

@@ -15,23 +15,17 @@ import tracemalloc
 
 import numpy as np
 import pytest
+from in_process import minifilm_here
 
-from minifilm import cli
 from minifilm.files import atomic_savez
 from minifilm.motion.bvh import BVHError, parse_bvh
 from minifilm.runtime.style_library import StyleLibrary, StyleLibraryError
 
 
-def invoke(argv, capsys):
-    with pytest.raises(SystemExit) as exit_info:
-        cli.main([str(a) for a in argv])
-    return exit_info.value.code, capsys.readouterr()
-
-
 def one_error(argv, capsys, *mentions):
     """Run ``minifilm argv``: exit 2, one error line naming every one of ``mentions``, no
     escape character or traceback on the terminal; returns the line."""
-    code, out = invoke(argv, capsys)
+    code, out = minifilm_here(argv, capsys)
     errors = [line for line in out.err.splitlines() if line.startswith("error:")]
     assert code == 2 and len(errors) == 1, (code, out.err[-600:])
     assert "Traceback" not in out.err and "\x1b" not in out.err + out.out
@@ -115,7 +109,7 @@ def test_a_read_only_output_is_refused_and_a_link_is_followed(run, tmp_path, cap
     real, link = tmp_path / "real.bvh", tmp_path / "link.bvh"
     real.write_text("old")
     link.symlink_to(real)
-    code, out = invoke(["generate", "--run", run, "--seconds", "0.5", "--out", link], capsys)
+    code, out = minifilm_here(["generate", "--run", run, "--seconds", "0.5", "--out", link], capsys)
     assert code == 0, out.err[-500:]
     assert link.is_symlink() and real.read_text().startswith("HIERARCHY")
 
@@ -199,7 +193,7 @@ from minifilm.motion.bvh import parse_bvh, BVHError
 from minifilm.runtime.style_library import StyleLibrary, StyleLibraryError
 from minifilm.files import atomic_savez
 import sys
-sys.path.insert(0, {str(os.path.dirname(__file__))!r})
+sys.path[:0] = [{str(os.path.dirname(__file__))!r}, {str(os.path.dirname(os.path.dirname(__file__)))!r}]  # its folder and tests/
 from test_names_and_outputs import header
 m = parse_bvh(header(100_000) + "MOTION\\nFrames: 1\\nFrame Time: 0.01\\n0 0 0\\n", source="wide.bvh")
 assert m.n_joints >= 100_000
