@@ -15,7 +15,8 @@ import pytest
 from minifilm.errors import OutputPathError
 from minifilm.files import atomic_directory, atomic_write, atomic_write_text, remove_stale_temporaries
 from minifilm.body.roles import RigError, roles_from_mapping
-from test_names_and_outputs import invoke, one_error, tree
+from in_process import minifilm_here
+from test_names_and_outputs import one_error, tree
 
 FULL = OSError(errno.ENOSPC, "No space left on device")
 
@@ -136,11 +137,11 @@ def test_a_data_set_whose_cache_cannot_be_written_is_returned_with_a_warning(tin
     if how == "full disk":
         monkeypatch.setattr(os, "fsync", lambda fd: (_ for _ in ()).throw(FULL))
     else:
-        assert invoke(argv, capsys)[0] == 0
+        assert minifilm_here(argv, capsys)[0] == 0
         (data / "Neutral_FW.bvh").write_bytes((data / "Neutral_FW.bvh").read_bytes() + b"\n")   # a stale cache
         for p in cache.iterdir():
             os.chmod(p, 0o444)
-    code, out = invoke(argv, capsys)
+    code, out = minifilm_here(argv, capsys)
     assert code == 0, out.err[-600:]
     assert "warning: the data set is built, but its cache could not be written" in out.err
     assert "built in" in out.out and "cached" not in out.out

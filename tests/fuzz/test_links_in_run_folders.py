@@ -11,7 +11,8 @@ import shutil
 import pytest
 
 from minifilm.pipeline.run_folder import RunFolder
-from test_names_and_outputs import invoke, one_error
+from in_process import minifilm_here
+from test_names_and_outputs import one_error
 
 
 def digest(path):
@@ -60,7 +61,7 @@ def test_links_that_are_only_read_and_a_linked_run_folder_work(run, tmp_path, ca
     manifest = moved_out(run, "run.json", tmp_path / "elsewhere" / "run.json")
     before = digest(model), digest(manifest)
     os.symlink(run, tmp_path / "alias")
-    code, out = invoke(finetune(tmp_path / "alias", capsys), capsys)
+    code, out = minifilm_here(finetune(tmp_path / "alias", capsys), capsys)
     assert code == 0, out.err[-600:]
     assert (digest(model), digest(manifest)) == before
     assert "Second" in RunFolder.load(run).styles() and (run / "model-Second.npz").is_file()
@@ -73,7 +74,7 @@ def test_training_over_a_run_with_links_writes_nothing_through_them(run, tmp_pat
     (tmp_path / "elsewhere" / "generated" / "mine.bvh").write_text("mine")
     os.symlink(tmp_path / "elsewhere" / "generated", run / "generated")
     before = {str(p): digest(p) for p in (tmp_path / "elsewhere").rglob("*") if p.is_file()}
-    code, out = invoke(["train", "--quick", "--styles", "Neutral,LeftHop", "--gaits", "FW", "--seconds", "6",
+    code, out = minifilm_here(["train", "--quick", "--styles", "Neutral,LeftHop", "--gaits", "FW", "--seconds", "6",
                         "--epochs", "1", "--generate-seconds", "0.5", "--out", run], capsys)
     assert code == 0, out.err[-600:]
     assert {str(p): digest(p) for p in (tmp_path / "elsewhere").rglob("*") if p.is_file()} == before

@@ -17,7 +17,8 @@ from minifilm.dataset.manifest import MADE_BY, MotionFile, scan_folder, write_ma
 from minifilm.files import file_name, file_names, same_file_key, shared_file_names
 from minifilm.files.names import _UNSAFE, _WINDOWS_RESERVED
 from minifilm.pipeline.from_released import previous_output, style_file_names
-from test_names_and_outputs import invoke, one_error, tree
+from in_process import minifilm_here
+from test_names_and_outputs import one_error, tree
 
 PIECES = ["a", "b", "A", "B", "_", ":", "?", "*", "<", ">", "|", '"', " ", ".", "-", "+", "é", "e\u0301", "ß", "SS",
           "İ", "i", "Σ", "ς", "σ", "ﬀ", "ff", "Ａ", "日本", "CON", "con", "Nul", "com1", "LPT9", "aux.txt", "prn.", "x."]
@@ -114,10 +115,10 @@ def test_finetune_refuses_a_name_whose_checkpoint_is_another_style_s(taught, tmp
 def test_finetune_replaces_its_own_style_and_keeps_the_run_whole(taught, tmp_path, capsys):
     run = tmp_path / "run"
     shutil.copytree(taught, run)
-    code, out = invoke(["finetune", "--run", run, "--name", "A:B", "--replace", "--steps", "2",
+    code, out = minifilm_here(["finetune", "--run", run, "--name", "A:B", "--replace", "--steps", "2",
                         run / "data" / "Neutral_FW.bvh"], capsys)
     assert code == 0, out.err[-600:]
-    code, out = invoke(["generate", "--run", run, "--list-styles"], capsys)
+    code, out = minifilm_here(["generate", "--run", run, "--list-styles"], capsys)
     assert code == 0 and "A:B" in out.out.split(), out
 
 

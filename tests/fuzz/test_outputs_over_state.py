@@ -14,7 +14,8 @@ import pytest
 
 from minifilm import cli
 from minifilm.dataset.manifest import MADE_BY, MotionFile, write_manifest
-from test_names_and_outputs import invoke, one_error, tree
+from in_process import minifilm_here
+from test_names_and_outputs import one_error, tree
 
 #: options that read a path (plain pathlib.Path type) rather than write one
 PATH_READERS = {("finetune", "--run")}
@@ -171,12 +172,12 @@ def test_the_owners_still_write_their_state(state, tmp_path, capsys):
     run, _, _ = state
     mine = tmp_path / "run"
     shutil.copytree(run, mine)
-    code, out = invoke(["finetune", "--run", mine, "--name", "Proud", "--steps", "2", mine / "data" / "Neutral_FW.bvh"],
+    code, out = minifilm_here(["finetune", "--run", mine, "--name", "Proud", "--steps", "2", mine / "data" / "Neutral_FW.bvh"],
                        capsys)
     assert code == 0, out.err[-800:]
     assert (mine / "model-Proud.npz").is_file()
-    code, out = invoke(["generate", "--run", mine, "--list-styles"], capsys)
+    code, out = minifilm_here(["generate", "--run", mine, "--list-styles"], capsys)
     assert code == 0 and "Proud" in out.out.split(), out.err[-500:]
-    code, out = invoke(["dataset", mine / "data", "--cache", tmp_path / "cache", "--clip-seconds", "1"], capsys)
+    code, out = minifilm_here(["dataset", mine / "data", "--cache", tmp_path / "cache", "--clip-seconds", "1"], capsys)
     assert code == 0 and list((tmp_path / "cache").glob("dataset-*.npz")), out.err[-500:]
 

@@ -18,7 +18,8 @@ import pytest
 from minifilm.files import read_npz
 from minifilm.errors import InputError
 from minifilm.files.reading import MAX_JSON_DIGITS, parse_json
-from test_names_and_outputs import invoke, one_error
+from in_process import minifilm_here
+from test_names_and_outputs import one_error
 
 ARCHIVES = ("styles.npz", "starts.npz", "model.npz")
 RUN_FILES = ("run.json", "styles.npz", "starts.npz", "model.npz")
@@ -76,13 +77,13 @@ def test_every_member_of_every_archive_twice_is_refused(tiny_run, tmp_path, caps
 
 
 def test_a_data_set_cache_with_two_members_is_rebuilt_not_guessed(tiny_run, tmp_path, capsys):
-    code, out = invoke(["dataset", tiny_run / "data", "--cache", tmp_path / "cache", "--clip-seconds", "1"], capsys)
+    code, out = minifilm_here(["dataset", tiny_run / "data", "--cache", tmp_path / "cache", "--clip-seconds", "1"], capsys)
     assert code == 0, out.err[-400:]
     cache = next((tmp_path / "cache").glob("dataset-*.npz"))
     with_a_second(cache, "meta.npy")
     from minifilm.dataset.cache import cached_key
     assert cached_key(cache) is None                       # so the build starts again
-    code, out = invoke(["dataset", tiny_run / "data", "--cache", tmp_path / "cache", "--clip-seconds", "1"], capsys)
+    code, out = minifilm_here(["dataset", tiny_run / "data", "--cache", tmp_path / "cache", "--clip-seconds", "1"], capsys)
     assert code == 0 and "built" in out.out, out.out[-400:]
 
 
@@ -116,9 +117,9 @@ def strip_ids(folder):
 
 def test_an_old_run_without_ids_still_loads_and_finetunes(run, tmp_path, capsys):
     strip_ids(run)
-    code, out = invoke(["generate", "--run", run, "--seconds", "0.5", "--out", tmp_path / "o.bvh"], capsys)
+    code, out = minifilm_here(["generate", "--run", run, "--seconds", "0.5", "--out", tmp_path / "o.bvh"], capsys)
     assert code == 0, out.err[-500:]
-    code, out = invoke(["finetune", "--run", run, "--name", "Proud", "--steps", "2", run / "data" / "Neutral_FW.bvh"],
+    code, out = minifilm_here(["finetune", "--run", run, "--name", "Proud", "--steps", "2", run / "data" / "Neutral_FW.bvh"],
                        capsys)
     assert code == 0, out.err[-500:]
 
@@ -132,14 +133,14 @@ def test_an_old_run_names_a_style_library_without_start_frames_as_foreign(run, t
 
 
 def test_finetune_keeps_the_run_s_files_together(run, tmp_path, capsys):
-    code, out = invoke(["finetune", "--run", run, "--name", "Proud", "--steps", "2", run / "data" / "Neutral_FW.bvh"],
+    code, out = minifilm_here(["finetune", "--run", run, "--name", "Proud", "--steps", "2", run / "data" / "Neutral_FW.bvh"],
                        capsys)
     assert code == 0, out.err[-500:]
     meta = json.loads((run / "run.json").read_text())
     for name in ("styles.npz", "starts.npz"):
         with np.load(run / name, allow_pickle=False) as z:
             assert str(z["run_id"]) == meta["run_id"], name
-    code, out = invoke(["generate", "--run", run, "--style", "Proud", "--seconds", "0.5", "--out", tmp_path / "o.bvh"],
+    code, out = minifilm_here(["generate", "--run", run, "--style", "Proud", "--seconds", "0.5", "--out", tmp_path / "o.bvh"],
                        capsys)
     assert code == 0, out.err[-500:]
 
